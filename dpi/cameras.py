@@ -1,0 +1,158 @@
+"""Pinhole cameras: dpi's one convention and conversions to transforms.json and Mitsuba.
+
+Inside dpi a camera is a camera-to-world 4x4 matrix in the OpenGL convention used by
+transforms.json (nerfstudio / NeRF-synthetic): camera x right, y up, looking along -z; plus
+pixel intrinsics (fx, fy, cx, cy) with the origin at the image's top-left corner. Mitsuba's
+sensors look along +z with x pointing left, so `to_mitsuba` flips the x and z axes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+GL_TO_MITSUBA = np.diag([-1.0, 1.0, -1.0, 1.0])
+
+
+@dataclass
+class Camera:
+    """A pinhole camera: OpenGL camera-to-world matrix and pixel intrinsics."""
+
+    c2w: np.ndarray
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    name: str = ""
+    extras: dict = field(default_factory=dict)
+
+    @property
+    def fov_x_deg(self) -> float:
+        """Horizontal field of view in degrees."""
+        return math.degrees(2 * math.atan(self.width / (2 * self.fx)))
+
+    @property
+    def center(self) -> np.ndarray:
+        """Camera position in world space."""
+        return self.c2w[:3, 3].copy()
+
+    def resized(self, width: int, height: int) -> "Camera":
+        """The same camera for an image resampled to width x height."""
+        sx, sy = width / self.width, height / self.height
+        return Camera(self.c2w.copy(), width, height, self.fx * sx, self.fy * sy, self.cx * sx, self.cy * sy,
+                      self.name, dict(self.extras))
+
+    def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pixel coordinates (N, 2) (x right, y down) and depth (N,) of world points (N, 3)."""
+        w2c = np.linalg.inv(self.c2w)
+        p = points @ w2c[:3, :3].T + w2c[:3, 3]
+        depth = -p[:, 2]
+        x = self.fx * p[:, 0] / depth + self.cx
+        y = -self.fy * p[:, 1] / depth + self.cy
+        return np.stack([x, y], axis=-1), depth
+
+
+def look_at(origin, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
+    """OpenGL camera-to-world matrix for a camera at `origin` looking at `target`."""
+    origin, target, up = (np.asarray(v, dtype=np.float64) for v in (origin, target, up))
+    back = origin - target
+    back /= np.linalg.norm(back)
+    right = np.cross(up, back)
+    if np.linalg.norm(right) < 1e-9:
+        raise ValueError("look_at: view direction is parallel to the up vector")
+    right /= np.linalg.norm(right)
+    true_up = np.cross(back, right)
+    c2w = np.eye(4)
+    c2w[:3, 0], c2w[:3, 1], c2w[:3, 2], c2w[:3, 3] = right, true_up, back, origin
+    return c2w
+
+
+def from_fov(c2w: np.ndarray, width: int, height: int, fov_x_deg: float, name: str = "") -> Camera:
+    """Camera with square pixels, a centred principal point and the given horizontal FOV."""
+    fx = width / (2 * math.tan(math.radians(fov_x_deg) / 2))
+    return Camera(np.asarray(c2w, dtype=np.float64), width, height, fx, fx, width / 2, height / 2, name)
+
+
+def to_mitsuba(camera: Camera) -> dict:
+    """Mitsuba `perspective` sensor dict (without film/sampler) for a camera."""
+    if abs(camera.fx - camera.fy) > 1e-3 * camera.fx:
+        raise ValueError(f"camera {camera.name!r}: Mitsuba's perspective sensor needs fx == fy "
+                         f"(got {camera.fx:.3f}, {camera.fy:.3f})")
+    import mitsuba as mi
+
+    return {
+        "type": "perspective",
+        "fov": camera.fov_x_deg,
+        "fov_axis": "x",
+        "principal_point_offset_x": (camera.cx - camera.width / 2) / camera.width,
+        "principal_point_offset_y": (camera.cy - camera.height / 2) / camera.height,
+        "to_world": mi.ScalarTransform4f(camera.c2w @ GL_TO_MITSUBA),
+    }
+
+
+def from_mitsuba_matrix(to_world: np.ndarray) -> np.ndarray:
+    """OpenGL camera-to-world matrix from a Mitsuba sensor's to_world matrix."""
+    return np.asarray(to_world, dtype=np.float64) @ GL_TO_MITSUBA
+
+
+def orbit(n: int, radius: float, elevations_deg: tuple[float, ...], target=(0.0, 0.0, 0.0),
+          phase_deg: float = 0.0) -> list[np.ndarray]:
+    """`n` camera-to-world matrices on rings around `target` (+Y up), alternating elevations."""
+    poses = []
+    for i in range(n):
+        azim = math.radians(phase_deg + 360.0 * i / n)
+        elev = math.radians(elevations_deg[i % len(elevations_deg)])
+        origin = np.asarray(target) + radius * np.array(
+            [math.cos(elev) * math.sin(azim), math.sin(elev), math.cos(elev) * math.cos(azim)]
+        )
+        poses.append(look_at(origin, target))
+    return poses
+
+
+def read_transforms(data: dict, default_size: tuple[int, int] | None = None) -> list[tuple[str, Camera]]:
+    """(file_path, Camera) per frame of a parsed transforms.json (nerfstudio or NeRF-synthetic).
+
+    Intrinsics come from the frame, else the file's top level; NeRF-synthetic files give only
+    `camera_angle_x`, so the image size must then come from `default_size` (width, height).
+    """
+    out = []
+    for i, frame in enumerate(data["frames"]):
+        info = {**data, **frame}
+        width = info.get("w", default_size[0] if default_size else None)
+        height = info.get("h", default_size[1] if default_size else None)
+        if width is None or height is None:
+            raise KeyError(f"frame {i}: image size (w, h) unknown")
+        if "fl_x" in info:
+            fx = float(info["fl_x"])
+            fy = float(info.get("fl_y", fx))
+        elif "camera_angle_x" in info:
+            fx = fy = float(width) / (2 * math.tan(float(info["camera_angle_x"]) / 2))
+        else:
+            raise KeyError(f"frame {i}: no focal length (fl_x or camera_angle_x)")
+        c2w = np.asarray(frame["transform_matrix"], dtype=np.float64)
+        if c2w.shape != (4, 4) or not np.isfinite(c2w).all():
+            raise ValueError(f"frame {i}: transform_matrix must be a finite 4x4 matrix")
+        cx = float(info.get("cx", width / 2))
+        cy = float(info.get("cy", height / 2))
+        extras = {k: frame[k] for k in frame if k not in ("file_path", "transform_matrix")}
+        out.append((str(frame["file_path"]), Camera(c2w, int(width), int(height), fx, fy, cx, cy,
+                                                    str(frame["file_path"]), extras)))
+    return out
+
+
+def write_transforms(frames: list[tuple[str, Camera]]) -> dict:
+    """transforms.json content (nerfstudio convention, intrinsics per frame) for (file_path, Camera)."""
+    out = []
+    for path, cam in frames:
+        out.append({
+            "file_path": path,
+            "transform_matrix": cam.c2w.tolist(),
+            "w": cam.width, "h": cam.height,
+            "fl_x": cam.fx, "fl_y": cam.fy, "cx": cam.cx, "cy": cam.cy,
+            **cam.extras,
+        })
+    return {"camera_model": "OPENCV", "frames": out}

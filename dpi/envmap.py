@@ -1,0 +1,80 @@
+"""Equirectangular environment-map conventions, exactly as Mitsuba's `envmap` emitter reads them.
+
+A map is (H, 2H, 3) linear RGB, row 0 at the zenith (+Y), row H-1 at the nadir. Mitsuba maps a
+world direction d to u = atan2(d.x, -d.z) / 2pi (mod 1), v = acos(d.y) / pi, so column c looks
+towards phi = 2pi (c + 0.5) / W measured from -Z towards +X. Mitsuba keeps extra wrap columns in
+its `envmap.data` parameter (one after the map in older versions; one on each side in 3.9);
+`pad_for_mitsuba` builds whichever layout the scene parameter has.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+
+def texel_angles(height: int) -> tuple[np.ndarray, np.ndarray]:
+    """Polar angle theta (from +Y) per row and azimuth phi per column at texel centres."""
+    theta = (np.arange(height) + 0.5) / height * np.pi
+    phi = (np.arange(2 * height) + 0.5) / (2 * height) * 2 * np.pi
+    return theta, phi
+
+
+def directions_from_angles(theta: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Unit world directions (..., 3) for polar angle theta from +Y and Mitsuba azimuth phi."""
+    theta, phi = np.broadcast_arrays(theta, phi)
+    s = np.sin(theta)
+    return np.stack([np.sin(phi) * s, np.cos(theta), -np.cos(phi) * s], axis=-1)
+
+
+def texel_directions(height: int) -> np.ndarray:
+    """World direction (H, 2H, 3) at the centre of every texel of an H x 2H map."""
+    theta, phi = texel_angles(height)
+    return directions_from_angles(theta[:, None], phi[None, :])
+
+
+def direction_to_uv(d: np.ndarray) -> np.ndarray:
+    """Mitsuba's (u, v) in [0, 1)^2 for unit directions (..., 3)."""
+    d = np.asarray(d, dtype=np.float64)
+    u = np.mod(np.arctan2(d[..., 0], -d[..., 2]) / (2 * np.pi), 1.0)
+    v = np.arccos(np.clip(d[..., 1], -1.0, 1.0)) / np.pi
+    return np.stack([u, v], axis=-1)
+
+
+def direction_to_texel(d: np.ndarray, height: int) -> tuple[np.ndarray, np.ndarray]:
+    """(row, column) integer texel indices that a direction falls into."""
+    uv = direction_to_uv(d)
+    col = np.minimum((uv[..., 0] * 2 * height).astype(int), 2 * height - 1)
+    row = np.minimum((uv[..., 1] * height).astype(int), height - 1)
+    return row, col
+
+
+def texel_solid_angles(height: int) -> np.ndarray:
+    """Solid angle (H, 1) of one texel in each row; sums to 4 pi over the map."""
+    edges = np.arange(height + 1) / height * np.pi
+    band = np.cos(edges[:-1]) - np.cos(edges[1:])
+    return (band * 2 * np.pi / (2 * height))[:, None]
+
+
+def pad_for_mitsuba(env: torch.Tensor, data_width: int) -> torch.Tensor:
+    """Add Mitsuba's wrap columns to an (H, W, C) map so it has `data_width` columns."""
+    width = env.shape[1]
+    if data_width == width:
+        return env
+    if data_width == width + 1:
+        return torch.cat([env, env[:, :1]], dim=1)
+    if data_width == width + 2:
+        return torch.cat([env[:, -1:], env, env[:, :1]], dim=1)
+    raise ValueError(f"unexpected envmap data width {data_width} for a map of width {width}")
+
+
+def unpad_from_mitsuba(data: np.ndarray, width: int) -> np.ndarray:
+    """Inverse of `pad_for_mitsuba`: the (H, W, C) map inside Mitsuba's padded data."""
+    extra = data.shape[1] - width
+    start = 1 if extra == 2 else 0
+    return data[:, start : start + width]
+
+
+def rotate_azimuth(env: np.ndarray, shift: int) -> np.ndarray:
+    """Roll a map by `shift` columns: a rotation of the environment about the up axis."""
+    return np.roll(env, shift, axis=1)

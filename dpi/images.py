@@ -1,0 +1,96 @@
+"""LDR/HDR image files as linear float32 arrays: sRGB PNG/JPG decoding, EXR, masks, PNG output."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from dpi.atomic import atomic_path
+from dpi.exr import EXRError, read_exr
+
+LDR_SUFFIXES = (".png", ".jpg", ".jpeg")
+HDR_SUFFIXES = (".exr",)
+IMAGE_SUFFIXES = LDR_SUFFIXES + HDR_SUFFIXES
+
+
+class ImageError(ValueError):
+    """An image file is missing, unreadable or holds unusable values; the message names the file."""
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """Inverse sRGB transfer function on values in [0, 1]."""
+    c = np.asarray(c, dtype=np.float32)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def linear_to_srgb(c: np.ndarray) -> np.ndarray:
+    """sRGB transfer function; input clipped to [0, 1]."""
+    c = np.clip(np.asarray(c, dtype=np.float32), 0.0, 1.0)
+    return np.where(c <= 0.0031308, c * 12.92, 1.055 * c ** (1 / 2.4) - 0.055).astype(np.float32)
+
+
+def read_image(path: str | os.PathLike) -> np.ndarray:
+    """Linear RGB float32 (H, W, 3) from an sRGB PNG/JPG or a linear EXR; NaN/Inf is an error."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if not path.is_file():
+        raise ImageError(f"{path}: image file does not exist")
+    if suffix in HDR_SUFFIXES:
+        try:
+            image = read_exr(path)
+        except EXRError as exc:
+            raise ImageError(str(exc)) from exc
+    elif suffix in LDR_SUFFIXES:
+        try:
+            with Image.open(path) as im:
+                rgb = np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
+        except (OSError, ValueError) as exc:
+            raise ImageError(f"{path}: not a readable image ({exc})") from exc
+        image = srgb_to_linear(rgb)
+    else:
+        raise ImageError(f"{path}: unsupported image format (use {', '.join(IMAGE_SUFFIXES)})")
+    if image.shape[-1] == 1:
+        image = np.repeat(image, 3, axis=-1)
+    if not np.isfinite(image).all():
+        raise ImageError(f"{path}: image contains NaN or Inf values")
+    if (image < 0).any():
+        raise ImageError(f"{path}: image contains negative radiance values")
+    return image
+
+
+def read_mask(path: str | os.PathLike) -> np.ndarray:
+    """Boolean foreground mask (H, W) from a PNG/JPG (grey > 127, or alpha when present) or EXR (> 0.5)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ImageError(f"{path}: mask file does not exist")
+    if path.suffix.lower() in HDR_SUFFIXES:
+        try:
+            return read_exr(path)[..., 0] > 0.5
+        except EXRError as exc:
+            raise ImageError(str(exc)) from exc
+    try:
+        with Image.open(path) as im:
+            band = im.getchannel("A") if "A" in im.getbands() else im.convert("L")
+            return np.asarray(band) > 127
+    except (OSError, ValueError) as exc:
+        raise ImageError(f"{path}: not a readable mask image ({exc})") from exc
+
+
+def to_uint8(linear: np.ndarray, exposure: float = 1.0) -> np.ndarray:
+    """8-bit sRGB encoding of a linear image (clipped), after multiplying by `exposure`."""
+    return np.round(linear_to_srgb(np.asarray(linear) * exposure) * 255).astype(np.uint8)
+
+
+def write_png(path: str | os.PathLike, linear: np.ndarray, exposure: float = 1.0) -> None:
+    """Write a linear RGB image as an sRGB PNG, atomically."""
+    with atomic_path(path) as tmp:
+        Image.fromarray(to_uint8(linear, exposure)).save(tmp, format="PNG")
+
+
+def write_mask(path: str | os.PathLike, mask: np.ndarray) -> None:
+    """Write a boolean mask as an 8-bit PNG (255 = foreground), atomically."""
+    with atomic_path(path) as tmp:
+        Image.fromarray(np.where(mask, 255, 0).astype(np.uint8)).save(tmp, format="PNG")
