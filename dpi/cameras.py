@@ -56,6 +56,20 @@ class Camera:
         return np.stack([x, y], axis=-1), depth
 
 
+def pixel_rays(camera: Camera, supersample: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """World ray origins and unit directions (h, w, s*s, 3) through an s x s grid inside each pixel."""
+    offsets = (np.arange(supersample) + 0.5) / supersample
+    ys = (np.arange(camera.height)[:, None] + offsets[None, :]).reshape(-1)
+    xs = (np.arange(camera.width)[:, None] + offsets[None, :]).reshape(-1)
+    py, px = np.meshgrid(ys, xs, indexing="ij")
+    d_cam = np.stack([(px - camera.cx) / camera.fx, -(py - camera.cy) / camera.fy, -np.ones_like(px)], -1)
+    d = d_cam @ camera.c2w[:3, :3].T
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    s = supersample
+    d = d.reshape(camera.height, s, camera.width, s, 3).transpose(0, 2, 1, 3, 4).reshape(camera.height, camera.width, s * s, 3)
+    return np.broadcast_to(camera.c2w[:3, 3], d.shape).copy(), d
+
+
 def look_at(origin, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
     """OpenGL camera-to-world matrix for a camera at `origin` looking at `target`."""
     origin, target, up = (np.asarray(v, dtype=np.float64) for v in (origin, target, up))

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from dpi import backend
-from dpi.cameras import Camera, to_mitsuba
+from dpi.cameras import Camera, pixel_rays, to_mitsuba
 from dpi.envmap import pad_for_mitsuba
 
 ENV_KEY = "emitter.data"
@@ -120,6 +120,15 @@ class Renderer:
         env_data = pad_for_mitsuba(env, self.env_data_width)
         return self._render(env_data.contiguous(), albedo.contiguous(), roughness.contiguous(),
                             metallic.contiguous(), int(view), int(seed), int(spp or self.settings.spp))
+
+    def coverage(self, view: int, supersample: int = 4) -> np.ndarray:
+        """Fraction (h, w) of each pixel of `view` covered by the object (ray casting, s x s rays)."""
+        mi = self.mi
+        origins, dirs = pixel_rays(self.cameras[view], supersample)
+        o, d = origins.reshape(-1, 3).astype(np.float32), dirs.reshape(-1, 3).astype(np.float32)
+        ray = mi.Ray3f(mi.Point3f(o[:, 0], o[:, 1], o[:, 2]), mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))
+        hit = np.array(self.scene.ray_test(ray), dtype=np.float32)
+        return hit.reshape(origins.shape[:3]).mean(-1)
 
     @staticmethod
     def _check(t: torch.Tensor, shape: tuple[int, ...], name: str) -> None:

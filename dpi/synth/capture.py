@@ -1,0 +1,154 @@
+"""Synthetic captures with ground truth: procedural mesh, textures and sky, rendered by Mitsuba.
+
+Writes a capture folder in dpi's input layout: images/ (linear EXR or sRGB PNG, the other format
+in preview/), masks/, transforms.json (held-out views flagged), mesh.ply with UVs, gt/ and
+scene.yaml. The folder is built next to its destination and renamed into place, and a
+`.synth.json` marker (the parameters) is written last, so a killed run leaves no capture behind.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import tempfile
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+import yaml
+from tqdm import tqdm
+
+from dpi.atomic import write_json, write_text
+from dpi.cameras import from_fov, orbit, write_transforms
+from dpi.exr import read_exr, write_exr
+from dpi.images import write_mask, write_png
+from dpi.render import Renderer, RenderSettings
+from dpi.skies import SkyParams, sunsky_envmap
+from dpi.synth.shapes import make_shape, write_ply
+from dpi.synth.textures import procedural_materials
+
+MARKER = ".synth.json"
+
+
+@dataclass
+class SynthConfig:
+    """Parameters of one synthetic capture."""
+
+    shape: str = "blob"
+    """procedural mesh: blob or bumpy_torus"""
+    views: int = 16
+    """number of rendered views (training + held-out)"""
+    held_out_every: int = 4
+    """every n-th view is held out for novel-view evaluation (0: none)"""
+    width: int = 64
+    height: int = 64
+    fov_deg: float = 35.0
+    camera_distance: float = 4.0
+    elevations_deg: tuple[float, ...] = (10.0, 35.0)
+    spp: int = 256
+    """samples per pixel of the ground-truth renders"""
+    max_depth: int = 5
+    env_height: int = 32
+    """height of the ground-truth sky map (width is twice this)"""
+    envmap: str | None = None
+    """optional EXR to use as ground-truth environment instead of a procedural sky"""
+    sun_elevation_deg: float = 35.0
+    sun_azimuth_deg: float = 60.0
+    turbidity: float = 3.0
+    texture_size: int = 64
+    roughness: float = 0.3
+    roughness_variation: float = 0.1
+    metallic: float = 0.0
+    image_format: str = "exr"
+    """format of images/: exr (linear HDR) or png (sRGB LDR, like photos)"""
+    prior: str = "outdoor"
+    object_name: str = ""
+    seed: int = 0
+
+    @classmethod
+    def from_dict(cls, values: dict) -> "SynthConfig":
+        """Config from a (possibly partial) dict, e.g. a `synthetic:` entry of config.yaml."""
+        known = cls.__dataclass_fields__
+        unknown = set(values) - set(known)
+        if unknown:
+            raise ValueError(f"unknown synthetic-capture settings: {', '.join(sorted(unknown))}")
+        values = dict(values)
+        if "elevations_deg" in values:
+            values["elevations_deg"] = tuple(float(e) for e in values["elevations_deg"])
+        return cls(**values)
+
+
+def ground_truth_envmap(cfg: SynthConfig) -> np.ndarray:
+    """The capture's ground-truth environment: the given EXR, or a procedural sunsky."""
+    if cfg.envmap:
+        env = read_exr(cfg.envmap)
+        if env.shape[1] != 2 * env.shape[0]:
+            raise ValueError(f"{cfg.envmap}: environment map must be H x 2H, got {env.shape[:2]}")
+        return env if env.shape[-1] == 3 else np.repeat(env, 3, -1)
+    sky = SkyParams(cfg.sun_elevation_deg, cfg.sun_azimuth_deg, cfg.turbidity)
+    return sunsky_envmap(cfg.env_height, sky)
+
+
+def make_synthetic_capture(out_dir: str | Path, cfg: SynthConfig, threads: int | None = None,
+                           progress: bool = True) -> Path:
+    """Render a synthetic capture into `out_dir`; refuses to replace a folder it did not make."""
+    out_dir = Path(out_dir)
+    if out_dir.exists() and any(p.name != MARKER for p in out_dir.iterdir()) and not (out_dir / MARKER).exists():
+        raise FileExistsError(f"{out_dir}: exists and is not a synthetic capture made by dpi; not overwriting")
+    if cfg.image_format not in ("exr", "png"):
+        raise ValueError(f"image_format must be exr or png, got {cfg.image_format!r}")
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
+    try:
+        _write_capture(tmp, cfg, threads, progress)
+        if out_dir.exists():
+            shutil.rmtree(out_dir)
+        tmp.rename(out_dir)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp)
+    return out_dir
+
+
+def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: bool) -> None:
+    """Write every file of the capture into `root` (a fresh folder)."""
+    mesh = make_shape(cfg.shape, seed=cfg.seed)
+    write_ply(root / "mesh.ply", mesh)
+    materials = procedural_materials(cfg.texture_size, cfg.roughness, cfg.metallic, cfg.roughness_variation,
+                                     seed=cfg.seed + 1)
+    env = ground_truth_envmap(cfg)
+    for name, data in (("envmap", env), ("albedo", materials.albedo), ("roughness", materials.roughness),
+                       ("metallic", materials.metallic)):
+        write_exr(root / "gt" / f"{name}.exr", data)
+
+    poses = orbit(cfg.views, cfg.camera_distance, cfg.elevations_deg, phase_deg=cfg.seed * 7.0)
+    names = [f"r_{i:03d}" for i in range(cfg.views)]
+    cameras = [from_fov(p, cfg.width, cfg.height, cfg.fov_deg, n) for p, n in zip(poses, names)]
+    for i, cam in enumerate(cameras):
+        cam.extras["held_out"] = bool(cfg.held_out_every) and i % cfg.held_out_every == cfg.held_out_every - 1
+
+    renderer = Renderer(root / "mesh.ply", cameras, env.shape[0], cfg.texture_size,
+                        RenderSettings(spp=cfg.spp, max_depth=cfg.max_depth, threads=threads))
+    tensors = [torch.from_numpy(a) for a in (env, materials.albedo, materials.roughness, materials.metallic)]
+    other = "png" if cfg.image_format == "exr" else "exr"
+    for i, cam in enumerate(tqdm(cameras, desc="render views", disable=not progress)):
+        with torch.no_grad():
+            image = renderer.render(*tensors, view=i, seed=10_000 + i).numpy()
+        image = np.clip(image, 0.0, None)
+        for fmt, folder in ((cfg.image_format, "images"), (other, "preview")):
+            path = root / folder / f"{cam.name}.{fmt}"
+            write_exr(path, image) if fmt == "exr" else write_png(path, image)
+        write_mask(root / "masks" / f"{cam.name}.png", renderer.coverage(i) >= 0.5)
+
+    frames = [(f"images/{cam.name}.{cfg.image_format}", cam) for cam in cameras]
+    write_json(root / "transforms.json", write_transforms(frames))
+    scene = {"prior": cfg.prior, "object": cfg.object_name or cfg.shape}
+    write_text(root / "scene.yaml", yaml.safe_dump(scene, sort_keys=False))
+    write_json(root / MARKER, asdict(cfg))
+
+
+def read_marker(capture_dir: str | Path) -> dict | None:
+    """The parameters a synthetic capture was made with, or None for other captures."""
+    path = Path(capture_dir) / MARKER
+    return json.loads(path.read_text()) if path.is_file() else None

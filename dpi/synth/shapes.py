@@ -1,0 +1,105 @@
+"""Procedural meshes with UV atlases for synthetic captures.
+
+Both shapes are parametric surfaces sampled on a (rows+1) x (cols+1) grid whose seam vertices are
+duplicated, so their UVs are the surface parameters themselves:
+- `blob`: a sphere with smooth radial bumps (convex-ish, no self-occlusion to speak of);
+- `bumpy_torus`: a torus with bumps (concave, self-occluding, a hole).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+SHAPES = ("blob", "bumpy_torus")
+
+
+@dataclass
+class TriangleMesh:
+    """Vertices (V, 3), triangle indices (F, 3) and per-vertex UVs (V, 2) in [0, 1]."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    uvs: np.ndarray
+
+
+def _bumps(u: np.ndarray, v: np.ndarray, rng: np.random.Generator, amplitude: float, terms: int = 4) -> np.ndarray:
+    """Smooth periodic displacement field over (u, v) in [0, 1]^2 (periodic in u)."""
+    field = np.zeros_like(u)
+    for _ in range(terms):
+        fu, fv = rng.integers(1, 4), rng.integers(1, 4)
+        pu, pv = rng.uniform(0, 2 * np.pi, 2)
+        field += np.sin(2 * np.pi * fu * u + pu) * np.sin(np.pi * fv * v + pv)
+    return amplitude * field / terms
+
+
+def _grid_faces(rows: int, cols: int) -> np.ndarray:
+    """Two triangles per quad of a (rows+1) x (cols+1) vertex grid, counter-clockwise seen from outside."""
+    r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
+    a = r * (cols + 1) + c
+    b, d = a + 1, a + cols + 1
+    e = d + 1
+    return np.concatenate([np.stack([a, d, b], -1).reshape(-1, 3), np.stack([b, d, e], -1).reshape(-1, 3)])
+
+
+def _drop_degenerate(mesh: TriangleMesh) -> TriangleMesh:
+    """Remove zero-area triangles (they appear at the poles of a sphere grid)."""
+    v = mesh.vertices[mesh.faces]
+    area = np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=-1)
+    return TriangleMesh(mesh.vertices, mesh.faces[area > 1e-12], mesh.uvs)
+
+
+def blob(resolution: int = 48, bump: float = 0.12, seed: int = 0) -> TriangleMesh:
+    """Bumpy unit sphere; u = azimuth / 2pi, v = polar angle / pi (v=0 at the top)."""
+    rng = np.random.default_rng(seed)
+    rows, cols = resolution, 2 * resolution
+    v, u = np.meshgrid(np.linspace(0, 1, rows + 1), np.linspace(0, 1, cols + 1), indexing="ij")
+    theta, phi = np.pi * v, 2 * np.pi * u
+    radius = 1.0 + _bumps(u, v, rng, bump) * np.sin(theta)
+    pos = np.stack([np.sin(theta) * np.sin(phi), np.cos(theta), np.sin(theta) * np.cos(phi)], -1) * radius[..., None]
+    uvs = np.stack([u, 1.0 - v], -1)
+    return _drop_degenerate(TriangleMesh(pos.reshape(-1, 3), _grid_faces(rows, cols), uvs.reshape(-1, 2)))
+
+
+def bumpy_torus(resolution: int = 48, major: float = 0.75, minor: float = 0.35, bump: float = 0.25,
+                seed: int = 0) -> TriangleMesh:
+    """Torus around +Y with a bumpy tube, tilted so its hole and inner side are seen and self-occlude."""
+    rng = np.random.default_rng(seed)
+    rows, cols = resolution, 2 * resolution
+    v, u = np.meshgrid(np.linspace(0, 1, rows + 1), np.linspace(0, 1, cols + 1), indexing="ij")
+    phi, psi = 2 * np.pi * u, 2 * np.pi * v
+    r = minor * (1.0 + _bumps(u, v, rng, bump))
+    ring = major + r * np.cos(psi)
+    pos = np.stack([ring * np.sin(phi), r * np.sin(psi), ring * np.cos(phi)], -1)
+    tilt = np.radians(25.0)
+    rot = np.array([[1, 0, 0], [0, np.cos(tilt), -np.sin(tilt)], [0, np.sin(tilt), np.cos(tilt)]])
+    pos = pos @ rot.T
+    uvs = np.stack([u, 1.0 - v], -1)
+    return TriangleMesh(pos.reshape(-1, 3), _grid_faces(rows, cols)[:, ::-1].copy(), uvs.reshape(-1, 2))
+
+
+def make_shape(name: str, resolution: int = 48, seed: int = 0) -> TriangleMesh:
+    """Build one of SHAPES by name."""
+    if name == "blob":
+        return blob(resolution, seed=seed)
+    if name == "bumpy_torus":
+        return bumpy_torus(resolution, seed=seed)
+    raise ValueError(f"unknown shape {name!r}; choose from {', '.join(SHAPES)}")
+
+
+def write_ply(path: str | Path, mesh: TriangleMesh) -> None:
+    """Write a PLY with per-vertex UVs through Mitsuba's own writer, so Mitsuba reads it back exactly."""
+    from dpi import backend
+    from dpi.atomic import atomic_path
+
+    mi = backend.mitsuba()
+    m = mi.Mesh("mesh", len(mesh.vertices), len(mesh.faces), has_vertex_normals=False, has_vertex_texcoords=True)
+    params = mi.traverse(m)
+    params["vertex_positions"] = mi.Float(mesh.vertices.astype(np.float32).ravel())
+    params["faces"] = mi.UInt32(mesh.faces.astype(np.uint32).ravel())
+    params["vertex_texcoords"] = mi.Float(mesh.uvs.astype(np.float32).ravel())
+    params.update()
+    with atomic_path(path) as tmp:
+        m.write_ply(str(tmp))
