@@ -1,0 +1,472 @@
+"""The capture folder: one validation pass that turns raw inputs into one normalised `Capture`.
+
+A capture folder holds `images/` (required) and optionally `transforms.json`, `masks/`,
+`mesh.ply|obj`, `scene.xml` + `camera.xml` (the DPI authors' reference layout), `gt/` and
+`scene.yaml`. `load_capture` reads and checks everything once, in pure Python, and stops at the
+first problem with one `CaptureError` whose message starts with the offending file. Stages
+downstream only see the resulting `Capture` (stored as `capture.json`), never the raw folder.
+`inspect_capture` is the cheap variant Snakemake uses at parse time to know which inputs exist.
+
+Views are named by image stem and ordered naturally ("2" before "10"). Where a stem has both
+an EXR and an LDR copy (the reference data ships both), the linear EXR is the input.
+`Capture.image_size` is (width, height), as the camera conventions of `dpi.cameras`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path, PurePosixPath
+
+import numpy as np
+import yaml
+
+from dpi.atomic import write_json
+from dpi.cameras import Camera, read_transforms
+from dpi.exr import EXRError, read_exr
+from dpi.images import HDR_SUFFIXES, IMAGE_SUFFIXES, ImageError, read_image, read_mask
+from dpi.mitsuba_xml import MitsubaXMLError, read_mesh_shapes, read_sensors
+
+SCENE_YAML_KEYS = ("prior", "held_out", "radiance_scale", "object", "notes")
+PRIORS = ("indoor", "outdoor")
+GT_NAMES = ("envmap", "albedo", "roughness", "metallic")
+MESH_NAMES = ("mesh.ply", "mesh.obj")
+PLY_UV_PAIRS = (("u", "v"), ("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
+PLY_HEADER_BYTES = 1 << 16
+ASPECT_TOLERANCE = 1e-3
+
+
+class CaptureError(ValueError):
+    """A capture folder is unusable; the message starts with the offending file, then the problem."""
+
+
+@dataclass
+class View:
+    """One input image with its optional mask and camera, and whether it is held out for evaluation."""
+
+    name: str
+    image: Path
+    mask: Path | None
+    camera: Camera | None
+    held_out: bool
+
+
+@dataclass
+class Capture:
+    """The validated, normalised description of a capture folder that every stage works from.
+
+    `provenance` maps cameras, masks, mesh and uv to "given" or "derived" (a later stage computes
+    it); `image_size` is (width, height); `options` is the validated scene.yaml.
+    """
+
+    root: Path
+    views: list[View]
+    mesh: Path | None
+    mesh_has_uv: bool
+    gt: dict[str, Path]
+    options: dict
+    provenance: dict[str, str]
+    image_size: tuple[int, int]
+
+    @property
+    def train_views(self) -> list[View]:
+        """Views the reconstruction fits."""
+        return [v for v in self.views if not v.held_out]
+
+    @property
+    def held_out_views(self) -> list[View]:
+        """Views kept aside for novel-view evaluation."""
+        return [v for v in self.views if v.held_out]
+
+    def to_json(self) -> dict:
+        """JSON-ready dict (absolute paths as strings) that `from_json` turns back into an equal Capture."""
+        return {
+            "root": str(self.root),
+            "image_size": list(self.image_size),
+            "views": [{
+                "name": v.name,
+                "image": str(v.image),
+                "mask": None if v.mask is None else str(v.mask),
+                "camera": None if v.camera is None else camera_to_json(v.camera),
+                "held_out": v.held_out,
+            } for v in self.views],
+            "mesh": None if self.mesh is None else str(self.mesh),
+            "mesh_has_uv": self.mesh_has_uv,
+            "gt": {k: str(p) for k, p in self.gt.items()},
+            "options": self.options,
+            "provenance": self.provenance,
+        }
+
+    @classmethod
+    def from_json(cls, d: dict) -> "Capture":
+        """Capture from the dict written by `to_json`."""
+        views = [View(v["name"], Path(v["image"]), None if v["mask"] is None else Path(v["mask"]),
+                      None if v["camera"] is None else camera_from_json(v["camera"]), bool(v["held_out"]))
+                 for v in d["views"]]
+        return cls(Path(d["root"]), views, None if d["mesh"] is None else Path(d["mesh"]),
+                   bool(d["mesh_has_uv"]), {k: Path(p) for k, p in d["gt"].items()}, dict(d["options"]),
+                   dict(d["provenance"]), (int(d["image_size"][0]), int(d["image_size"][1])))
+
+
+def camera_to_json(camera: Camera) -> dict:
+    """JSON-ready dict of a Camera (floats survive JSON exactly)."""
+    return {"c2w": np.asarray(camera.c2w, dtype=np.float64).tolist(), "width": camera.width,
+            "height": camera.height, "fx": camera.fx, "fy": camera.fy, "cx": camera.cx, "cy": camera.cy,
+            "name": camera.name, "extras": camera.extras}
+
+
+def camera_from_json(d: dict) -> Camera:
+    """Camera from the dict written by `camera_to_json`."""
+    return Camera(np.asarray(d["c2w"], dtype=np.float64), int(d["width"]), int(d["height"]), float(d["fx"]),
+                  float(d["fy"]), float(d["cx"]), float(d["cy"]), str(d["name"]), dict(d["extras"]))
+
+
+def natural_key(name: str) -> tuple:
+    """Sort key that orders digit runs by value, so "2" sorts before "10"."""
+    return tuple(int(part) if part.isdigit() else part for part in re.split(r"(\d+)", name))
+
+
+def write_capture_json(capture: Capture, path: str | os.PathLike) -> None:
+    """Write `capture.json` atomically."""
+    write_json(path, capture.to_json())
+
+
+def read_capture_json(path: str | os.PathLike) -> Capture:
+    """Read a `capture.json` written by `write_capture_json`."""
+    return Capture.from_json(json.loads(Path(path).read_text()))
+
+
+# --- cheap checks (no image decoding) ---------------------------------------------------------
+
+
+def _check_root(root: Path) -> None:
+    """Fail unless the capture folder exists."""
+    if not root.is_dir():
+        raise CaptureError(f"{root}: capture folder does not exist")
+
+
+def _stems(folder: Path, what: str) -> dict[str, Path]:
+    """stem -> file of the images in a folder; EXR wins over an LDR copy, other duplicates are errors."""
+    found: dict[str, Path] = {}
+    for path in sorted(folder.iterdir()):
+        if path.name.startswith(".") or path.is_dir():
+            continue
+        if path.suffix.lower() not in IMAGE_SUFFIXES:
+            raise CaptureError(f"{path}: unsupported {what} suffix {path.suffix!r} (use {', '.join(IMAGE_SUFFIXES)})")
+        other = found.get(path.stem)
+        if other is None:
+            found[path.stem] = path
+        elif (path.suffix.lower() in HDR_SUFFIXES) == (other.suffix.lower() in HDR_SUFFIXES):
+            raise CaptureError(f"{path}: ambiguous {what}: {other.name} has the same name")
+        elif path.suffix.lower() in HDR_SUFFIXES:
+            found[path.stem] = path
+    return found
+
+
+def _image_files(root: Path) -> dict[str, Path]:
+    """view name -> image file, in natural order; fails on a missing or empty images/ folder."""
+    folder = root / "images"
+    if not folder.is_dir():
+        raise CaptureError(f"{folder}: missing images folder (required)")
+    images = _stems(folder, "image")
+    if not images:
+        raise CaptureError(f"{folder}: images folder is empty (expected {', '.join(IMAGE_SUFFIXES)} files)")
+    return {name: images[name] for name in sorted(images, key=natural_key)}
+
+
+def _read_options(root: Path) -> dict:
+    """Validated contents of scene.yaml ({} without one)."""
+    path = root / "scene.yaml"
+    if not path.is_file():
+        return {}
+    try:
+        options = yaml.safe_load(path.read_text())
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise CaptureError(f"{path}: invalid YAML ({exc})") from exc
+    options = {} if options is None else options
+    if not isinstance(options, dict):
+        raise CaptureError(f"{path}: not a mapping of options (got {type(options).__name__})")
+    unknown = sorted(str(k) for k in options if k not in SCENE_YAML_KEYS)
+    if unknown:
+        raise CaptureError(f"{path}: unknown keys {unknown} (allowed: {', '.join(SCENE_YAML_KEYS)})")
+    if "prior" in options and options["prior"] not in PRIORS:
+        raise CaptureError(f"{path}: prior must be one of {', '.join(PRIORS)}, got {options['prior']!r}")
+    held_out = options.get("held_out", [])
+    if not isinstance(held_out, list) or not all(isinstance(v, (str, int)) for v in held_out):
+        raise CaptureError(f"{path}: held_out must be a list of image names")
+    if "held_out" in options:
+        options["held_out"] = [str(v) for v in held_out]
+    scale = options.get("radiance_scale", 1.0)
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not (math.isfinite(scale) and scale > 0):
+        raise CaptureError(f"{path}: radiance_scale must be a positive number, got {scale!r}")
+    if "radiance_scale" in options:
+        options["radiance_scale"] = float(scale)
+    for key in ("object", "notes"):
+        if key in options and not isinstance(options[key], str):
+            raise CaptureError(f"{path}: {key} must be a string, got {options[key]!r}")
+    return options
+
+
+def _camera_xml(root: Path) -> Path | None:
+    """The Mitsuba XML that holds the cameras: camera.xml, else scene.xml when it has sensors."""
+    for name in ("camera.xml", "scene.xml"):
+        path = root / name
+        if path.is_file() and (name == "camera.xml" or _xml_sensors(path)):
+            return path
+    return None
+
+
+def _xml_sensors(path: Path) -> list[Camera]:
+    """Cameras of a Mitsuba XML file, as CaptureError on failure."""
+    try:
+        return read_sensors(path)
+    except MitsubaXMLError as exc:
+        raise CaptureError(str(exc)) from exc
+
+
+def _mesh_file(root: Path, options: dict) -> Path | None:
+    """The given mesh: mesh.ply / mesh.obj, else scene.xml's mesh shape (the one named `object` if several)."""
+    given = [root / name for name in MESH_NAMES if (root / name).is_file()]
+    if len(given) > 1:
+        raise CaptureError(f"{given[1]}: ambiguous mesh, {given[0].name} is also given")
+    if given:
+        return given[0]
+    scene = root / "scene.xml"
+    if not scene.is_file():
+        return None
+    try:
+        shapes = read_mesh_shapes(scene)
+    except MitsubaXMLError as exc:
+        raise CaptureError(str(exc)) from exc
+    if len(shapes) > 1:
+        chosen = [s for s in shapes if options.get("object") in (s.id, s.filename.stem)]
+        if len(chosen) != 1:
+            raise CaptureError(f"{scene}: {len(shapes)} mesh shapes ({', '.join(s.filename.name for s in shapes)}); "
+                               f"name the object's shape id or file stem with `object` in scene.yaml")
+        shapes = chosen
+    return shapes[0].filename if shapes else None
+
+
+def _ply_vertex_properties(path: Path) -> set[str]:
+    """Names of the vertex properties in a PLY header (empty if it is not a PLY file)."""
+    with open(path, "rb") as f:
+        head = f.read(PLY_HEADER_BYTES)
+    if not head.startswith(b"ply"):
+        return set()
+    names, in_vertex = set(), False
+    for line in head.split(b"end_header")[0].decode("ascii", "replace").splitlines():
+        words = line.split()
+        if words[:1] == ["element"]:
+            in_vertex = words[1:2] == ["vertex"]
+        elif words[:1] == ["property"] and in_vertex:
+            names.add(words[-1])
+    return names
+
+
+def mesh_has_uv(path: str | os.PathLike) -> bool:
+    """Whether a PLY (u/v, s/t, texture_u/v vertex properties) or OBJ (`vt` lines) mesh carries UVs."""
+    path = Path(path)
+    if path.suffix.lower() == ".ply":
+        names = _ply_vertex_properties(path)
+        return any(u in names and v in names for u, v in PLY_UV_PAIRS)
+    with open(path, "rb") as f:
+        return any(line[:3] in (b"vt ", b"vt\t") for line in f)
+
+
+def inspect_capture(root: str | os.PathLike) -> dict[str, bool]:
+    """Which inputs a capture gives (cameras, masks, mesh, mesh_has_uv), without decoding images."""
+    root = Path(root)
+    _check_root(root)
+    mesh = _mesh_file(root, _read_options(root))
+    return {
+        "cameras": (root / "transforms.json").is_file() or _camera_xml(root) is not None,
+        "masks": (root / "masks").is_dir(),
+        "mesh": mesh is not None,
+        "mesh_has_uv": mesh is not None and mesh.is_file() and mesh_has_uv(mesh),
+    }
+
+
+# --- full validation ------------------------------------------------------------------------
+
+
+def _check_images(images: dict[str, Path]) -> tuple[int, int]:
+    """Decode every image (finite, non-negative, all the same size); returns (width, height)."""
+    size, first = None, None
+    for path in images.values():
+        try:
+            height, width = read_image(path).shape[:2]
+        except ImageError as exc:
+            raise CaptureError(str(exc)) from exc
+        if size is None:
+            size, first = (width, height), path
+        elif (width, height) != size:
+            raise CaptureError(f"{path}: image size {width}x{height} differs from {first.name} ({size[0]}x{size[1]})")
+    return size
+
+
+def _fit_camera(source: Path, camera: Camera, size: tuple[int, int], name: str) -> Camera:
+    """The camera for an image of `size`: rescaled intrinsics when only the resolution differs."""
+    if (camera.width, camera.height) != size:
+        if abs(camera.width / camera.height - size[0] / size[1]) > ASPECT_TOLERANCE:
+            raise CaptureError(f"{source}: camera of {name} is {camera.width}x{camera.height}, "
+                               f"image size is {size[0]}x{size[1]} (aspect ratios differ)")
+        camera = camera.resized(*size)
+    camera.name = name
+    return camera
+
+
+def _frame_name(file_path: str) -> str:
+    """View name a transforms.json file_path refers to ("./images/r_0.png", "r_0" -> "r_0")."""
+    name = PurePosixPath(str(file_path).replace("\\", "/")).name
+    return Path(name).stem if Path(name).suffix.lower() in IMAGE_SUFFIXES else name
+
+
+def _transforms_cameras(path: Path, names: list[str], size: tuple[int, int]) -> dict[str, Camera]:
+    """view name -> camera from transforms.json, checking it covers exactly the images."""
+    try:
+        data = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise CaptureError(f"{path}: unreadable JSON ({exc})") from exc
+    if not isinstance(data, dict) or not isinstance(data.get("frames"), list):
+        raise CaptureError(f"{path}: missing 'frames' list")
+    for i, frame in enumerate(data["frames"]):
+        if not isinstance(frame, dict) or "file_path" not in frame or "transform_matrix" not in frame:
+            raise CaptureError(f"{path}: frame {i} needs 'file_path' and 'transform_matrix'")
+    try:
+        frames = read_transforms(data, default_size=size)
+    except KeyError as exc:
+        raise CaptureError(f"{path}: missing intrinsics: {exc.args[0]}") from exc
+    except (ValueError, TypeError) as exc:
+        raise CaptureError(f"{path}: invalid camera: {exc}") from exc
+    cameras: dict[str, Camera] = {}
+    unmatched = []
+    for file_path, camera in frames:
+        name = _frame_name(file_path)
+        if name in cameras:
+            raise CaptureError(f"{path}: two frames for image {name!r}")
+        if name not in names:
+            unmatched.append(file_path)
+        cameras[name] = camera
+    missing = [n for n in names if n not in cameras]
+    if len(frames) != len(names):
+        raise CaptureError(f"{path}: camera count {len(frames)} != image count {len(names)} "
+                           f"(frames without image: {unmatched or 'none'}; images without frame: {missing or 'none'})")
+    if unmatched:
+        raise CaptureError(f"{path}: frame {unmatched[0]!r} has no matching image in images/")
+    return {n: _fit_camera(path, cameras[n], size, n) for n in names}
+
+
+def _xml_cameras(path: Path, names: list[str], size: tuple[int, int]) -> dict[str, Camera]:
+    """view name -> camera from the sensors of a Mitsuba XML, matched in file order to the sorted images."""
+    cameras = _xml_sensors(path)
+    if len(cameras) != len(names):
+        raise CaptureError(f"{path}: camera count {len(cameras)} != image count {len(names)} "
+                           f"(sensors are matched to images in sorted order)")
+    return {n: _fit_camera(path, c, size, n) for n, c in zip(names, cameras)}
+
+
+def _mask_files(root: Path, images: dict[str, Path], size: tuple[int, int]) -> dict[str, Path] | None:
+    """view name -> mask file (None without masks/), checking one non-empty mask of the right size per image."""
+    folder = root / "masks"
+    if not folder.is_dir():
+        return None
+    masks = _stems(folder, "mask")
+    for name in masks:
+        if name not in images:
+            raise CaptureError(f"{masks[name]}: mask has no matching image in images/")
+    for name in images:
+        if name not in masks:
+            raise CaptureError(f"{folder}: missing mask for image {images[name].name} (expected {name}.png)")
+        try:
+            mask = read_mask(masks[name])
+        except ImageError as exc:
+            raise CaptureError(str(exc)) from exc
+        if (mask.shape[1], mask.shape[0]) != size:
+            raise CaptureError(f"{masks[name]}: mask size {mask.shape[1]}x{mask.shape[0]} != "
+                               f"image size {size[0]}x{size[1]}")
+        if not mask.any():
+            raise CaptureError(f"{masks[name]}: empty mask (no foreground pixel)")
+    return masks
+
+
+def _check_mesh(path: Path) -> None:
+    """Fail unless the mesh file loads with trimesh and has faces."""
+    import trimesh
+
+    if not path.is_file():
+        raise CaptureError(f"{path}: mesh file does not exist")
+    try:
+        mesh = trimesh.load(path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many exception types for bad files
+        raise CaptureError(f"{path}: unreadable mesh ({exc})") from exc
+    if len(getattr(mesh, "faces", [])) == 0:
+        raise CaptureError(f"{path}: mesh has no faces")
+
+
+def _gt_files(root: Path) -> dict[str, Path]:
+    """name -> ground-truth EXR, each finite and the envmap of shape (H, 2H)."""
+    gt = {}
+    for name in GT_NAMES:
+        path = root / "gt" / f"{name}.exr"
+        if not path.is_file():
+            continue
+        try:
+            data = read_exr(path)
+        except EXRError as exc:
+            raise CaptureError(str(exc)) from exc
+        if not np.isfinite(data).all():
+            raise CaptureError(f"{path}: ground truth contains NaN or Inf values")
+        if name == "envmap" and data.shape[1] != 2 * data.shape[0]:
+            raise CaptureError(f"{path}: envmap shape {data.shape[0]}x{data.shape[1]} is not (H, 2H)")
+        gt[name] = path
+    return gt
+
+
+def _held_out(root: Path, names: list[str], options: dict, cameras: dict[str, Camera]) -> set[str]:
+    """Held-out view names: scene.yaml's list when given, else the frames flagged `held_out`."""
+    if "held_out" in options:
+        unknown = [n for n in options["held_out"] if n not in names]
+        if unknown:
+            raise CaptureError(f"{root / 'scene.yaml'}: held_out names unknown views {unknown}")
+        held = set(options["held_out"])
+        source = root / "scene.yaml"
+    else:
+        held = {n for n, c in cameras.items() if bool(c.extras.get("held_out", False))}
+        source = root / "transforms.json"
+    if held and len(held) == len(names):
+        raise CaptureError(f"{source}: every view is held out, none is left for training")
+    return held
+
+
+def load_capture(root: str | os.PathLike) -> Capture:
+    """Read and validate a whole capture folder; raises one CaptureError naming the first bad file."""
+    root = Path(root).resolve()
+    _check_root(root)
+    options = _read_options(root)
+    images = _image_files(root)
+    names = list(images)
+    size = _check_images(images)
+    if (root / "transforms.json").is_file():
+        cameras = _transforms_cameras(root / "transforms.json", names, size)
+    elif (xml := _camera_xml(root)) is not None:
+        cameras = _xml_cameras(xml, names, size)
+    else:
+        cameras = {}
+    masks = _mask_files(root, images, size)
+    mesh = _mesh_file(root, options)
+    if mesh is not None:
+        _check_mesh(mesh)
+    has_uv = mesh is not None and mesh_has_uv(mesh)
+    gt = _gt_files(root)
+    held = _held_out(root, names, options, cameras)
+    views = [View(n, images[n], None if masks is None else masks[n], cameras.get(n), n in held) for n in names]
+    provenance = {
+        "cameras": "given" if cameras else "derived",
+        "masks": "given" if masks is not None else "derived",
+        "mesh": "given" if mesh is not None else "derived",
+        "uv": "given" if has_uv else "derived",
+    }
+    return Capture(root, views, mesh, has_uv, gt, options, provenance, size)
