@@ -102,8 +102,8 @@ def to_mitsuba(camera: Camera) -> dict:
         "type": "perspective",
         "fov": camera.fov_x_deg,
         "fov_axis": "x",
-        "principal_point_offset_x": (camera.cx - camera.width / 2) / camera.width,
-        "principal_point_offset_y": (camera.cy - camera.height / 2) / camera.height,
+        "principal_point_offset_x": (camera.width / 2 - camera.cx) / camera.width,
+        "principal_point_offset_y": (camera.height / 2 - camera.cy) / camera.height,
         "to_world": mi.ScalarTransform4f(camera.c2w @ GL_TO_MITSUBA),
     }
 

@@ -40,12 +40,14 @@ def read_exr(path: str | os.PathLike) -> np.ndarray:
     try:
         with OpenEXR.File(str(path), separate_channels=True) as exr:
             header = exr.header()
-            channels = {name: np.asarray(c.pixels) for name, c in exr.channels().items()}
+            data_window = [tuple(int(v) for v in w) for w in header["dataWindow"]]
+            display_window = [tuple(int(v) for v in w) for w in header["displayWindow"]]
+            channels = {name: np.array(c.pixels) for name, c in exr.channels().items()}
     except RuntimeError as exc:
         raise EXRError(f"{path}: not a readable EXR file ({exc})") from exc
     data = _channel_stack(path, channels).astype(np.float32)
-    (dx0, dy0), (dx1, dy1) = (tuple(int(v) for v in w) for w in header["dataWindow"])
-    (wx0, wy0), (wx1, wy1) = (tuple(int(v) for v in w) for w in header["displayWindow"])
+    (dx0, dy0), (dx1, dy1) = data_window
+    (wx0, wy0), (wx1, wy1) = display_window
     if (dx0, dy0, dx1, dy1) == (wx0, wy0, wx1, wy1):
         return data
     image = np.zeros((wy1 - wy0 + 1, wx1 - wx0 + 1, data.shape[-1]), np.float32)

@@ -1,0 +1,37 @@
+"""A decomposition: an environment map and material textures, as written by init and every method."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import torch
+
+from dpi.exr import read_exr, write_exr
+from dpi.materials import MaterialTextures
+from dpi.solve.trace import Trace
+
+
+@dataclass
+class Decomposition:
+    """Env map (linear radiance, (H, 2H, 3)), materials, and the trace of the run that made them."""
+
+    env: torch.Tensor
+    materials: MaterialTextures
+    trace: Trace | None = field(default=None, repr=False)
+
+    def save(self, folder: str | Path, trace_name: str = "trace.json") -> None:
+        """Write envmap.exr, albedo/roughness/metallic.exr and the trace into `folder`."""
+        folder = Path(folder)
+        if not torch.isfinite(self.env).all():
+            raise ValueError(f"{folder}: refusing to save a non-finite environment map")
+        write_exr(folder / "envmap.exr", self.env.detach().numpy())
+        self.materials.save(folder)
+        if self.trace is not None:
+            self.trace.save(folder / trace_name)
+
+    @classmethod
+    def load(cls, folder: str | Path, texture_size: int | None = None) -> "Decomposition":
+        """Read a decomposition folder (the trace is not read back)."""
+        env = torch.from_numpy(read_exr(Path(folder) / "envmap.exr"))
+        return cls(env, MaterialTextures.load(folder, texture_size))

@@ -1,0 +1,38 @@
+"""Path-traced initialisation (DESIGN step 1): a free env map and materials fitted jointly.
+
+Its roughness and metallic seed every posterior method; its albedo is reset by the methods.
+The starting map is uniform, at the level that makes a grey (albedo 0.5) diffuse object match
+the mean observed foreground radiance.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from dpi.materials import MaterialTextures
+from dpi.solve.decomposition import Decomposition
+from dpi.solve.optimize import OptimizeConfig, fit
+from dpi.solve.problem import InverseProblem
+from dpi.solve.trace import Trace
+
+START_ALBEDO, START_ROUGHNESS, START_METALLIC = 0.5, 0.5, 0.0
+
+
+def starting_log_env(problem: InverseProblem) -> torch.Tensor:
+    """Uniform log-radiance explaining the mean foreground radiance with a grey diffuse object."""
+    values = [img[mask].mean() for i in problem.train_ids
+              for img, mask in [(problem.images[i], problem.masks[i])]]
+    level = max(float(torch.stack(values).mean()) / START_ALBEDO, 1e-4)
+    h = problem.settings.env_height
+    return torch.full((h, 2 * h, 3), math.log(level))
+
+
+def path_traced_init(problem: InverseProblem, cfg: OptimizeConfig, seed: int, progress: bool = True) -> Decomposition:
+    """Fit env map + materials from constant starting values; returns them with the trace."""
+    trace = Trace(info={"stage": "init", "config": vars(cfg).copy(), "seed": seed})
+    materials = MaterialTextures.constant(problem.settings.texture_size, START_ALBEDO, START_ROUGHNESS,
+                                          START_METALLIC)
+    log_env, materials = fit(problem, starting_log_env(problem), materials, cfg, seed, trace, progress=progress)
+    return Decomposition(log_env.exp(), materials, trace)

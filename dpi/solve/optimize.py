@@ -1,0 +1,90 @@
+"""Joint Adam optimisation of a free environment map and material textures against the views.
+
+The shared loop of the path-traced initialisation and of the optimisation-based priors
+(`none`, `global_norm`, `smoothness`, `chromaticity`). The map is optimised as log-radiance, so a
+step changes radiance relatively (HDR maps span many orders of magnitude); materials are
+optimised directly and clamped to their valid ranges after every step. A step whose loss or
+gradients are not finite is skipped and counted in the trace.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import torch
+from tqdm import tqdm
+
+from dpi.materials import MaterialTextures
+from dpi.solve.problem import InverseProblem
+from dpi.solve.trace import Trace
+
+LOG_ENV_RANGE = (-14.0, 14.0)  # radiance in about [1e-6, 1e6]
+
+
+@dataclass
+class OptimizeConfig:
+    """Adam settings of a joint env-map + materials fit."""
+
+    iterations: int = 400
+    """number of Adam steps"""
+    views_per_step: int = 4
+    """training views rendered per step (all views if larger than their number)"""
+    lr_env: float = 3e-2
+    """Adam learning rate on the log-radiance of the env map"""
+    lr_albedo: float = 2e-2
+    lr_roughness: float = 1.5e-2
+    lr_metallic: float = 1e-2
+    optimize_env: bool = True
+    """False keeps the env map fixed (material refinement)"""
+    optimize_materials: tuple[str, ...] = ("albedo", "roughness", "metallic")
+    """which material textures are free"""
+
+
+PriorFn = Callable[[torch.Tensor], torch.Tensor]
+
+
+def all_finite(tensors: list[torch.Tensor]) -> bool:
+    """True when every gradient present is free of NaN/Inf."""
+    return all(t.grad is None or bool(torch.isfinite(t.grad).all()) for t in tensors)
+
+
+def fit(problem: InverseProblem, log_env: torch.Tensor, materials: MaterialTextures, cfg: OptimizeConfig,
+        seed: int, trace: Trace, prior: PriorFn | None = None, prior_weight: float = 0.0,
+        progress: bool = True) -> tuple[torch.Tensor, MaterialTextures]:
+    """Minimise data loss (+ prior_weight * prior(env)); returns the final log-env and materials."""
+    log_env = log_env.detach().clone().requires_grad_(cfg.optimize_env)
+    materials = materials.detached()
+    groups = [{"params": [log_env], "lr": cfg.lr_env}] if cfg.optimize_env else []
+    for name, tensor in materials.items():
+        if name in cfg.optimize_materials:
+            tensor.requires_grad_(True)
+            groups.append({"params": [tensor], "lr": getattr(cfg, f"lr_{name}")})
+    free = [p for g in groups for p in g["params"]]
+    optimizer = torch.optim.Adam(groups) if groups else None
+    generator = torch.Generator().manual_seed(seed)
+    for step in tqdm(range(cfg.iterations), desc="optimise", disable=not progress, mininterval=2.0):
+        t0 = trace.seconds
+        views = problem.sample_views(cfg.views_per_step, generator)
+        env = log_env.exp()
+        data = problem.data_loss(env, materials, views, seed=seed * 100_003 + step)
+        reg = prior(env) if prior is not None and prior_weight > 0 else torch.zeros(())
+        loss = data + prior_weight * reg
+        if not torch.isfinite(loss):
+            trace.skip(step, "non-finite loss")
+            continue
+        if optimizer is None:
+            trace.record(step=step, loss=float(loss), data=float(data), seconds=trace.seconds - t0)
+            continue
+        optimizer.zero_grad()
+        loss.backward()
+        if not all_finite(free):
+            trace.skip(step, "non-finite gradient")
+            continue
+        optimizer.step()
+        with torch.no_grad():
+            log_env.clamp_(*LOG_ENV_RANGE)
+        materials.clamp_()
+        trace.record(step=step, loss=float(loss), data=float(data), prior=float(reg), views=views,
+                     seconds=round(trace.seconds - t0, 4))
+    return log_env.detach(), materials.detached()

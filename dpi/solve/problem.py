@@ -1,0 +1,87 @@
+"""The inverse-rendering problem of one capture: observed views, masks, and the renderer R.
+
+Everything a solver needs to evaluate the data term ||y_i - R(env, materials, c_i)||^2 over
+masked foreground pixels, for any subset of training views.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from dpi.capture import Capture
+from dpi.images import read_image, read_mask
+from dpi.materials import MaterialTextures
+from dpi.render import Renderer, RenderSettings
+
+LOSS_SPACES = ("linear", "log1p")
+
+
+@dataclass
+class ProblemSettings:
+    """Resolution of the unknowns and how the data term is measured."""
+
+    env_height: int = 32
+    """environment map height H (width 2H)"""
+    texture_size: int = 64
+    """material texture resolution R (R x R texels)"""
+    loss_space: str = "linear"
+    """compare images as linear HDR or as log(1 + x)"""
+
+
+def to_loss_space(image: torch.Tensor, space: str) -> torch.Tensor:
+    """Map linear radiance into the space the data term is measured in."""
+    if space == "linear":
+        return image
+    if space == "log1p":
+        return torch.log1p(image.clamp_min(0))
+    raise ValueError(f"loss_space must be one of {LOSS_SPACES}, got {space!r}")
+
+
+class InverseProblem:
+    """Observed images/masks of a capture's views and a differentiable renderer over all of them."""
+
+    def __init__(self, capture: Capture, settings: ProblemSettings, render: RenderSettings):
+        if capture.mesh is None or not capture.mesh_has_uv:
+            raise ValueError(f"{capture.root}: inverse rendering needs a mesh with UVs")
+        missing = [v.name for v in capture.views if v.camera is None]
+        if missing:
+            raise ValueError(f"{capture.root}: views without cameras: {', '.join(missing[:5])}")
+        self.capture = capture
+        self.settings = settings
+        self.views = list(capture.views)
+        self.images = [torch.from_numpy(read_image(v.image)) for v in self.views]
+        self.masks = [torch.from_numpy(read_mask(v.mask) if v.mask else np.ones(img.shape[:2], bool))
+                      for v, img in zip(self.views, self.images)]
+        self.renderer = Renderer(capture.mesh, [v.camera for v in self.views], settings.env_height,
+                                 settings.texture_size, render)
+        self.train_ids = [i for i, v in enumerate(self.views) if not v.held_out]
+        self.held_out_ids = [i for i, v in enumerate(self.views) if v.held_out]
+        if not self.train_ids:
+            raise ValueError(f"{capture.root}: every view is held out; nothing to fit")
+
+    def render(self, env: torch.Tensor, materials: MaterialTextures, view: int, seed: int,
+               spp: int | None = None) -> torch.Tensor:
+        """Rendered linear image (h, w, 3) of view index `view`."""
+        return self.renderer.render(env, materials.albedo, materials.roughness, materials.metallic,
+                                    view, seed, spp)
+
+    def view_loss(self, rendered: torch.Tensor, view: int) -> torch.Tensor:
+        """Mean squared error over the foreground pixels of one view, in the loss space."""
+        mask = self.masks[view][..., None].to(rendered.dtype)
+        space = self.settings.loss_space
+        diff = to_loss_space(rendered, space) - to_loss_space(self.images[view], space)
+        return (mask * diff.square()).sum() / (3 * mask.sum().clamp_min(1))
+
+    def data_loss(self, env: torch.Tensor, materials: MaterialTextures, views: list[int], seed: int) -> torch.Tensor:
+        """Sum of per-view foreground MSEs over `views` (each rendered with its own seed)."""
+        return sum(self.view_loss(self.render(env, materials, v, seed * 1009 + j), v) for j, v in enumerate(views))
+
+    def sample_views(self, count: int, generator: torch.Generator) -> list[int]:
+        """`count` distinct training views drawn at random (all of them if count >= their number)."""
+        if count >= len(self.train_ids):
+            return list(self.train_ids)
+        order = torch.randperm(len(self.train_ids), generator=generator)[:count]
+        return [self.train_ids[i] for i in order.tolist()]
