@@ -1,0 +1,96 @@
+"""`dpi make-envmaps`, `dpi train-prior`, `dpi sample-prior`: console commands of the prior."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+
+def _threads(n: int) -> None:
+    """Use exactly `n` torch threads (and Dr.Jit threads once Mitsuba is imported)."""
+    import torch
+
+    torch.set_num_threads(max(1, n))
+
+
+def cmd_make_envmaps(args: argparse.Namespace) -> None:
+    """Generate a procedural env-map dataset."""
+    from dpi import backend
+    from dpi.prior.procedural import make_envmap_dataset
+
+    backend.mitsuba(threads=args.threads)
+    manifest = make_envmap_dataset(args.family, args.count, args.height, args.out, seed=args.seed)
+    print(json.dumps(manifest, indent=2))
+
+
+def cmd_train_prior(args: argparse.Namespace) -> None:
+    """Train (or resume training) a prior on a folder of env maps."""
+    from dpi.prior.train import TrainConfig, train
+    from dpi.prior.unet import SMALL_CONFIGS
+
+    _threads(args.threads)
+    config = TrainConfig(family=args.family, data_dir=args.data, out=args.out, model=SMALL_CONFIGS[args.model],
+                         steps=args.steps, batch_size=args.batch_size, lr=args.lr, max_minutes=args.max_minutes,
+                         sample_every=args.sample_every, checkpoint_every=args.checkpoint_every,
+                         device=args.device, seed=args.seed)
+    train(config)
+
+
+def cmd_sample_prior(args: argparse.Namespace) -> None:
+    """Draw unconditional samples from a prior checkpoint and write them as EXR (+ a PNG grid)."""
+    from dpi.prior.sample import sample_to_files
+
+    _threads(args.threads)
+    sample_to_files(args.checkpoint, args.out, count=args.count, steps=args.steps, seed=args.seed,
+                    random_roll=not args.no_roll, device=args.device)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the prior's subcommands to the main `dpi` parser."""
+    p = subparsers.add_parser("make-envmaps", help="generate a procedural env-map dataset (EXR)")
+    p.add_argument("--family", choices=["outdoor", "indoor"], required=True)
+    p.add_argument("--count", type=int, default=3000)
+    p.add_argument("--height", type=int, default=64, help="map height H (width 2H)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--threads", type=int, default=1)
+    p.set_defaults(func=cmd_make_envmaps)
+
+    p = subparsers.add_parser("train-prior", help="train a diffusion prior on a folder of env maps")
+    p.add_argument("--family", choices=["outdoor", "indoor"], required=True, help="selects the tone curve")
+    p.add_argument("--data", required=True, help="folder of .exr/.hdr/.png/.jpg panoramas")
+    p.add_argument("--out", required=True, help="checkpoint path (resumed when it exists)")
+    p.add_argument("--model", default="small_32x64", help="name in dpi.prior.unet.SMALL_CONFIGS")
+    p.add_argument("--steps", type=int, default=20000)
+    p.add_argument("--batch-size", type=int, default=16)
+    p.add_argument("--lr", type=float, default=2e-4)
+    p.add_argument("--max-minutes", type=float, default=None, help="stop (with a checkpoint) after this wall time")
+    p.add_argument("--sample-every", type=int, default=1000)
+    p.add_argument("--checkpoint-every", type=int, default=100)
+    p.add_argument("--device", default="cpu")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--threads", type=int, default=1)
+    p.set_defaults(func=cmd_train_prior)
+
+    p = subparsers.add_parser("sample-prior", help="draw unconditional env maps from a prior checkpoint")
+    p.add_argument("--checkpoint", required=True)
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--count", type=int, default=8)
+    p.add_argument("--steps", type=int, default=100, help="respaced number of reverse steps")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--no-roll", action="store_true", help="disable the per-step random roll (Eq. 15)")
+    p.add_argument("--device", default="cpu")
+    p.add_argument("--threads", type=int, default=1)
+    p.set_defaults(func=cmd_sample_prior)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Stand-alone entry point: `python -m dpi.prior.cli <command> ...`."""
+    parser = argparse.ArgumentParser(prog="dpi-prior", description=__doc__)
+    register(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(argv)
+    args.func(args)
+
+
+if __name__ == "__main__":
+    main()

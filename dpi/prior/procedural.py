@@ -1,0 +1,86 @@
+"""Procedural env-map datasets for the prior: generate, check and write N maps of one family as EXR."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+from tqdm import tqdm
+
+from dpi.atomic import write_json
+from dpi.exr import write_exr
+
+MAX_DYNAMIC_RANGE = 1e8  # max / median luminance above this is implausible for our generators
+
+
+class EnvmapCheckError(ValueError):
+    """A generated map has NaN/Inf, negative values or an implausible dynamic range."""
+
+
+def generator(family: str) -> Callable[[int, np.random.Generator], np.ndarray]:
+    """The map generator `(height, rng) -> (H, 2H, 3)` of a family ('outdoor' or 'indoor')."""
+    if family == "outdoor":
+        from dpi.prior.outdoor import outdoor_envmap
+
+        return outdoor_envmap
+    if family == "indoor":
+        from dpi.prior.indoor import indoor_envmap
+
+        return indoor_envmap
+    raise ValueError(f"unknown env-map family {family!r}; use 'outdoor' or 'indoor'")
+
+
+def luminance(env: np.ndarray) -> np.ndarray:
+    """Rec. 709 luminance (...,) of linear RGB (..., 3)."""
+    return env @ np.array([0.2126, 0.7152, 0.0722], dtype=env.dtype)
+
+
+def check_envmap(env: np.ndarray, height: int) -> float:
+    """Raise EnvmapCheckError unless `env` is a finite, non-negative (H, 2H, 3) map; returns its dynamic range."""
+    if env.shape != (height, 2 * height, 3):
+        raise EnvmapCheckError(f"map has shape {env.shape}, expected {(height, 2 * height, 3)}")
+    if not np.isfinite(env).all():
+        raise EnvmapCheckError("map contains NaN or Inf")
+    if (env < 0).any():
+        raise EnvmapCheckError("map contains negative radiance")
+    lum = luminance(env)
+    median = float(np.median(lum))
+    if median <= 0:
+        raise EnvmapCheckError("map is black over more than half of the sphere")
+    dynamic_range = float(lum.max()) / median
+    if dynamic_range > MAX_DYNAMIC_RANGE:
+        raise EnvmapCheckError(f"dynamic range {dynamic_range:.3g} exceeds {MAX_DYNAMIC_RANGE:.0e}")
+    return dynamic_range
+
+
+def make_envmap_dataset(family: str, count: int, height: int, out_dir: str | Path, seed: int = 0,
+                        progress: bool = True) -> dict:
+    """Write `count` checked maps `{out_dir}/{family}_{i:05d}.exr` (half float) and `manifest.json`; returns the manifest."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    make = generator(family)
+    ranges = []
+    start = time.perf_counter()
+    for i in tqdm(range(count), desc=f"{family} maps", disable=not progress):
+        path = out / f"{family}_{i:05d}.exr"
+        rng = np.random.default_rng([seed, i])
+        env = make(height, rng)
+        ranges.append(check_envmap(env, height))
+        write_exr(path, np.minimum(env, 65000.0), half=True)
+    seconds = time.perf_counter() - start
+    manifest = {
+        "family": family, "count": count, "height": height, "seed": seed,
+        "seconds": round(seconds, 2), "seconds_per_map": round(seconds / max(count, 1), 4),
+        "dynamic_range_median": float(np.median(ranges)) if ranges else None,
+        "dynamic_range_max": float(np.max(ranges)) if ranges else None,
+    }
+    write_json(out / "manifest.json", manifest)
+    return manifest
+
+
+def read_manifest(out_dir: str | Path) -> dict:
+    """The manifest a `make_envmap_dataset` run left in `out_dir`."""
+    return json.loads((Path(out_dir) / "manifest.json").read_text())

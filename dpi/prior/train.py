@@ -1,0 +1,147 @@
+"""Training a diffusion prior on a folder of env maps: Adam, EMA, resumable atomic checkpoints, logs.
+
+A checkpoint is a dict: 'format', 'config' (UNetConfig), 'family', 'height', 'tone' (a, gamma,
+median_target), 'diffusion' (num_timesteps, schedule), 'model', 'ema', 'optimizer', 'step',
+'wall_seconds', 'train' (TrainConfig). `export_model` strips it to EMA weights (fp16) for shipping.
+Next to the checkpoint go `{stem}.log.jsonl` (one line per logged step) and `{stem}_samples/`.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import torch
+from tqdm import tqdm
+
+from dpi.atomic import atomic_path
+from dpi.prior.data import MEDIAN_TARGETS, EnvmapDataset
+from dpi.prior.diffusion import base_diffusion, evenly_spaced_timesteps, respaced, sample, training_losses
+from dpi.prior.sample import write_grid
+from dpi.prior.unet import SMALL_CONFIGS, UNetConfig, UNetModel, count_parameters
+from dpi.tonecurve import TONE_CURVES
+
+CHECKPOINT_FORMAT = "dpi-prior-v1"
+
+
+@dataclass
+class TrainConfig:
+    """Everything a training run depends on."""
+
+    family: str  # 'outdoor' or 'indoor': selects tone curve and radiance normalisation
+    data_dir: str  # folder of panoramas
+    out: str  # checkpoint path; resumed when it exists
+    model: UNetConfig = field(default_factory=lambda: SMALL_CONFIGS["small_32x64"])
+    steps: int = 20000  # total optimiser steps (including resumed ones)
+    batch_size: int = 16
+    lr: float = 2e-4
+    ema_decay: float = 0.999  # with warm-up min(decay, (1 + step) / (10 + step))
+    num_timesteps: int = 1000
+    max_minutes: float | None = None  # stop after this wall time (checkpoint written)
+    sample_every: int = 1000  # write a PNG grid of EMA samples every N steps (0: never)
+    sample_steps: int = 50  # respaced steps for those grids
+    checkpoint_every: int = 100
+    log_every: int = 10
+    device: str = "cpu"
+    seed: int = 0
+
+
+def ema_update(ema: torch.nn.Module, model: torch.nn.Module, decay: float) -> None:
+    """ema <- decay ema + (1 - decay) model, parameter by parameter."""
+    with torch.no_grad():
+        for e, p in zip(ema.parameters(), model.parameters()):
+            e.lerp_(p, 1.0 - decay)
+
+
+def checkpoint_dict(cfg: TrainConfig, model: UNetModel, ema: UNetModel, optimizer: torch.optim.Optimizer,
+                    step: int, wall_seconds: float) -> dict:
+    """The resumable checkpoint of a run."""
+    curve = TONE_CURVES[cfg.family]
+    return {
+        "format": CHECKPOINT_FORMAT, "config": cfg.model.to_dict(), "family": cfg.family,
+        "height": cfg.model.image_size,
+        "tone": {"a": curve.a, "gamma": curve.gamma, "median_target": MEDIAN_TARGETS[cfg.family]},
+        "diffusion": {"num_timesteps": cfg.num_timesteps, "schedule": "linear"},
+        "model": model.state_dict(), "ema": ema.state_dict(), "optimizer": optimizer.state_dict(),
+        "step": step, "wall_seconds": wall_seconds,
+        "train": {**asdict(cfg), "model": cfg.model.to_dict()},
+    }
+
+
+def save_atomic(obj: dict, path: str | Path) -> None:
+    """torch.save to a temporary sibling, then rename (a killed run never leaves half a file)."""
+    with atomic_path(path) as tmp:
+        torch.save(obj, tmp)
+
+
+def export_model(checkpoint: str | Path, dest: str | Path, half: bool = True) -> None:
+    """Shippable copy of a checkpoint: EMA weights (fp16 if `half`) and metadata, no optimiser."""
+    ckpt = torch.load(checkpoint, map_location="cpu", weights_only=True)
+    weights = {k: v.half() if half and v.is_floating_point() else v for k, v in ckpt["ema"].items()}
+    keep = {k: v for k, v in ckpt.items() if k not in ("model", "ema", "optimizer")}
+    save_atomic({**keep, "model": weights, "ema": None}, dest)
+
+
+def write_sample_grid(cfg: TrainConfig, ema: UNetModel, step: int, out_dir: Path) -> None:
+    """PNG grid of 8 EMA samples (respaced schedule, random roll) at this step."""
+    diffusion = respaced(base_diffusion(cfg.num_timesteps, cfg.model.learn_sigma),
+                         evenly_spaced_timesteps(cfg.num_timesteps, cfg.sample_steps))
+    h = cfg.model.image_size
+    generator = torch.Generator(device=cfg.device).manual_seed(cfg.seed)
+    x = sample(diffusion, ema, (8, 3, h, 2 * h), generator, random_roll=True, device=cfg.device)
+    write_grid(out_dir / f"step_{step:06d}.png", x)
+
+
+def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool = True) -> dict:
+    """Train (resuming from `cfg.out` if present) until `cfg.steps` or `cfg.max_minutes`; returns the last log line."""
+    out = Path(cfg.out)
+    log_path = out.with_suffix(".log.jsonl")
+    samples_dir = out.parent / f"{out.stem}_samples"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    torch.manual_seed(cfg.seed)
+    data = dataset or EnvmapDataset(cfg.data_dir, cfg.model.image_size, cfg.family)
+    model = UNetModel(cfg.model).to(cfg.device)
+    ema = copy.deepcopy(model).eval().requires_grad_(False)
+    optimizer = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    step, wall = 0, 0.0
+    if out.exists():
+        ckpt = torch.load(out, map_location=cfg.device, weights_only=True)
+        model.load_state_dict(ckpt["model"])
+        ema.load_state_dict(ckpt["ema"])
+        optimizer.load_state_dict(ckpt["optimizer"])
+        step, wall = ckpt["step"], ckpt["wall_seconds"]
+    diffusion = base_diffusion(cfg.num_timesteps, cfg.model.learn_sigma)
+    generator = torch.Generator().manual_seed(cfg.seed * 1_000_003 + step)
+    start = time.perf_counter() - wall
+    deadline = None if cfg.max_minutes is None else time.perf_counter() + 60 * cfg.max_minutes
+    record: dict = {"step": step}
+    bar = tqdm(total=cfg.steps, initial=step, desc=f"train {cfg.family}", disable=not progress,
+               postfix={"params": f"{count_parameters(model) / 1e6:.2f}M"})
+    while step < cfg.steps and (deadline is None or time.perf_counter() < deadline):
+        x0 = data.batch(cfg.batch_size, generator).to(cfg.device)
+        t = torch.randint(0, cfg.num_timesteps, (cfg.batch_size,), generator=generator).to(cfg.device)
+        noise = torch.randn(x0.shape, generator=generator).to(cfg.device)
+        losses = {k: v.mean() for k, v in training_losses(diffusion, model, x0, t, noise).items()}
+        losses_logged = {k: v.detach() for k, v in losses.items()}
+        optimizer.zero_grad(set_to_none=True)
+        losses["loss"].backward()
+        optimizer.step()
+        step += 1
+        ema_update(ema, model, min(cfg.ema_decay, (1 + step) / (10 + step)))
+        bar.update(1)
+        if step % cfg.log_every == 0:
+            record = {"step": step, "seconds": round(time.perf_counter() - start, 2),
+                      **{k: round(v.item(), 6) for k, v in losses_logged.items()}}
+            bar.set_postfix(loss=f"{record['loss']:.4f}")
+            with open(log_path, "a") as log:
+                log.write(json.dumps(record) + "\n")
+        if step % cfg.checkpoint_every == 0 or step == cfg.steps:
+            save_atomic(checkpoint_dict(cfg, model, ema, optimizer, step, time.perf_counter() - start), out)
+        if cfg.sample_every and step % cfg.sample_every == 0:
+            write_sample_grid(cfg, ema, step, samples_dir)
+    bar.close()
+    save_atomic(checkpoint_dict(cfg, model, ema, optimizer, step, time.perf_counter() - start), out)
+    return record
