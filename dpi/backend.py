@@ -36,9 +36,9 @@ def llvm_major(path: str) -> int | None:
     return int(match.group(1)) if match else None
 
 
-def find_libllvm(globs: tuple[str, ...] = LLVM_SEARCH_GLOBS) -> str | None:
-    """Newest libLLVM >= 16 on this machine, or None."""
-    found = {p for g in globs for p in glob.glob(g)}
+def find_libllvm(globs: tuple[str, ...] | None = None) -> str | None:
+    """Newest libLLVM >= 16 matching `globs` (default: the usual system locations), or None."""
+    found = {p for g in (globs or LLVM_SEARCH_GLOBS) for p in glob.glob(g)}
     usable = [(llvm_major(p), p) for p in found if (llvm_major(p) or 0) >= MIN_LLVM]
     return max(usable)[1] if usable else None
 

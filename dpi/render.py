@@ -25,8 +25,7 @@ TEXTURE_KEYS = {
     "roughness": "object.bsdf.roughness.data",
     "metallic": "object.bsdf.metallic.data",
 }
-# Valid ranges of the material channels; optimisers clamp to these after each step.
-MATERIAL_RANGES = {"albedo": (0.0, 1.0), "roughness": (0.02, 1.0), "metallic": (0.0, 1.0)}
+SEED_MODULUS = 2**32 - 8192
 
 
 @dataclass
@@ -118,8 +117,9 @@ class Renderer:
         for name, tex, ch in (("albedo", albedo, 3), ("roughness", roughness, 1), ("metallic", metallic, 1)):
             self._check(tex, (self.texture_size, self.texture_size, ch), name)
         env_data = pad_for_mitsuba(env, self.env_data_width)
+        seed = int(seed) % SEED_MODULUS  # Mitsuba seeds are 32-bit; seed_grad = seed + 7919 must fit too
         return self._render(env_data.contiguous(), albedo.contiguous(), roughness.contiguous(),
-                            metallic.contiguous(), int(view), int(seed), int(spp or self.settings.spp))
+                            metallic.contiguous(), int(view), seed, int(spp or self.settings.spp))
 
     def coverage(self, view: int, supersample: int = 4) -> np.ndarray:
         """Fraction (h, w) of each pixel of `view` covered by the object (ray casting, s x s rays)."""

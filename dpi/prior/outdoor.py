@@ -101,3 +101,8 @@ def outdoor_envmap(height: int, rng: np.random.Generator) -> np.ndarray:
     silhouette = (1 - haze) * object_albedo * ground_light + haze * horizon_sky
     env = np.where(inside[..., None], silhouette, env)
     return np.maximum(env, 0).astype(np.float32)
+
+
+def outdoor_envmaps(height: int, rng: np.random.Generator, count: int) -> np.ndarray:
+    """`count` random outdoor maps (count, H, 2H, 3)."""
+    return np.stack([outdoor_envmap(height, rng) for _ in range(count)])

@@ -14,22 +14,23 @@ from dpi.atomic import write_json
 from dpi.exr import write_exr
 
 MAX_DYNAMIC_RANGE = 1e8  # max / median luminance above this is implausible for our generators
+CHUNK = 8  # maps generated per call (indoor rooms share one path-tracing launch)
 
 
 class EnvmapCheckError(ValueError):
     """A generated map has NaN/Inf, negative values or an implausible dynamic range."""
 
 
-def generator(family: str) -> Callable[[int, np.random.Generator], np.ndarray]:
-    """The map generator `(height, rng) -> (H, 2H, 3)` of a family ('outdoor' or 'indoor')."""
+def generator(family: str) -> Callable[[int, np.random.Generator, int], np.ndarray]:
+    """The batch generator `(height, rng, count) -> (count, H, 2H, 3)` of a family ('outdoor' or 'indoor')."""
     if family == "outdoor":
-        from dpi.prior.outdoor import outdoor_envmap
+        from dpi.prior.outdoor import outdoor_envmaps
 
-        return outdoor_envmap
+        return outdoor_envmaps
     if family == "indoor":
-        from dpi.prior.indoor import indoor_envmap
+        from dpi.prior.indoor import indoor_envmaps
 
-        return indoor_envmap
+        return indoor_envmaps
     raise ValueError(f"unknown env-map family {family!r}; use 'outdoor' or 'indoor'")
 
 
@@ -64,12 +65,13 @@ def make_envmap_dataset(family: str, count: int, height: int, out_dir: str | Pat
     make = generator(family)
     ranges = []
     start = time.perf_counter()
-    for i in tqdm(range(count), desc=f"{family} maps", disable=not progress):
-        path = out / f"{family}_{i:05d}.exr"
-        rng = np.random.default_rng([seed, i])
-        env = make(height, rng)
-        ranges.append(check_envmap(env, height))
-        write_exr(path, np.minimum(env, 65000.0), half=True)
+    with tqdm(total=count, desc=f"{family} maps", disable=not progress) as bar:
+        for chunk, first in enumerate(range(0, count, CHUNK)):
+            maps = make(height, np.random.default_rng([seed, chunk]), min(CHUNK, count - first))
+            for i, env in enumerate(maps, start=first):
+                ranges.append(check_envmap(env, height))
+                write_exr(out / f"{family}_{i:05d}.exr", np.minimum(env, 65000.0), half=True)
+            bar.update(len(maps))
     seconds = time.perf_counter() - start
     manifest = {
         "family": family, "count": count, "height": height, "seed": seed,

@@ -35,9 +35,7 @@ class ClassicConfig:
         """Config from a flat dict: OptimizeConfig keys plus this class's own."""
         values = dict(values)
         own = {k: values.pop(k) for k in ("prior_weight_ratio", "start_noise") if k in values}
-        if "optimize_materials" in values:
-            values["optimize_materials"] = tuple(values["optimize_materials"])
-        return cls(optimize=OptimizeConfig(**values), **own)
+        return cls(optimize=OptimizeConfig.from_dict(values), **own)
 
 
 def balanced_weight(data0: float, prior0: float, ratio: float) -> float:

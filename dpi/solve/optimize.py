@@ -40,6 +40,14 @@ class OptimizeConfig:
     optimize_materials: tuple[str, ...] = ("albedo", "roughness", "metallic")
     """which material textures are free"""
 
+    @classmethod
+    def from_dict(cls, values: dict) -> "OptimizeConfig":
+        """Config from a config.yaml section (lists become tuples)."""
+        values = dict(values)
+        if "optimize_materials" in values:
+            values["optimize_materials"] = tuple(values["optimize_materials"])
+        return cls(**values)
+
 
 PriorFn = Callable[[torch.Tensor], torch.Tensor]
 
@@ -74,7 +82,7 @@ def fit(problem: InverseProblem, log_env: torch.Tensor, materials: MaterialTextu
             trace.skip(step, "non-finite loss")
             continue
         if optimizer is None:
-            trace.record(step=step, loss=float(loss), data=float(data), seconds=trace.seconds - t0)
+            trace.record(step=step, loss=loss.item(), data=data.item(), seconds=trace.seconds - t0)
             continue
         optimizer.zero_grad()
         loss.backward()
@@ -85,6 +93,6 @@ def fit(problem: InverseProblem, log_env: torch.Tensor, materials: MaterialTextu
         with torch.no_grad():
             log_env.clamp_(*LOG_ENV_RANGE)
         materials.clamp_()
-        trace.record(step=step, loss=float(loss), data=float(data), prior=float(reg), views=views,
+        trace.record(step=step, loss=loss.item(), data=data.item(), prior=reg.item(), views=views,
                      seconds=round(trace.seconds - t0, 4))
     return log_env.detach(), materials.detached()

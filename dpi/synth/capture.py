@@ -91,10 +91,11 @@ def ground_truth_envmap(cfg: SynthConfig) -> np.ndarray:
 
 
 def make_synthetic_capture(out_dir: str | Path, cfg: SynthConfig, threads: int | None = None,
-                           progress: bool = True) -> Path:
-    """Render a synthetic capture into `out_dir`; refuses to replace a folder it did not make."""
+                           progress: bool = True, overwrite: bool = False) -> Path:
+    """Render a synthetic capture into `out_dir`; replaces only a folder dpi made, or with `overwrite`."""
     out_dir = Path(out_dir)
-    if out_dir.exists() and any(p.name != MARKER for p in out_dir.iterdir()) and not (out_dir / MARKER).exists():
+    ours = (out_dir / MARKER).exists() or overwrite
+    if out_dir.exists() and any(out_dir.iterdir()) and not ours:
         raise FileExistsError(f"{out_dir}: exists and is not a synthetic capture made by dpi; not overwriting")
     if cfg.image_format not in ("exr", "png"):
         raise ValueError(f"image_format must be exr or png, got {cfg.image_format!r}")

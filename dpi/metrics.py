@@ -1,0 +1,81 @@
+"""Image, environment-map and albedo metrics, with the scale alignment the comparisons need.
+
+Illumination and albedo are only known up to a global scale (a brighter map and a darker
+albedo render the same image), so:
+- env maps are aligned by one global factor s = exp(mean(log Y_gt - log Y_est)) over texels
+  (luminance Y, least squares in log space), then tone-mapped with L / (1 + L) before PSNR/SSIM;
+- albedos are aligned per channel by the least-squares factor sum(est * gt) / sum(est^2).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from skimage.metrics import structural_similarity
+
+LUMA = np.array([0.2126, 0.7152, 0.0722])
+EPS = 1e-6
+
+
+def psnr(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None = None, data_range: float = 1.0) -> float:
+    """Peak signal-to-noise ratio in dB over all pixels, or the pixels where `mask` is true."""
+    diff = (np.asarray(a, np.float64) - np.asarray(b, np.float64)) ** 2
+    if mask is not None:
+        diff = diff[mask]
+    mse = float(diff.mean())
+    return float("inf") if mse == 0 else 10.0 * np.log10(data_range**2 / mse)
+
+
+def ssim(a: np.ndarray, b: np.ndarray, data_range: float = 1.0) -> float:
+    """Structural similarity of two (H, W, 3) images (scikit-image, Gaussian-free 7x7 window)."""
+    win = min(7, *(s - (1 - s % 2) for s in a.shape[:2]))
+    return float(structural_similarity(a, b, data_range=data_range, channel_axis=-1, win_size=win))
+
+
+def resize_area(image: np.ndarray, height: int, width: int) -> np.ndarray:
+    """Area-average (down) or bilinear (up) resampling of an (H, W, C) image."""
+    if image.shape[:2] == (height, width):
+        return image
+    t = torch.from_numpy(np.ascontiguousarray(image, dtype=np.float32)).permute(2, 0, 1)[None]
+    mode = "area" if height <= image.shape[0] else "bilinear"
+    return torch.nn.functional.interpolate(t, size=(height, width), mode=mode)[0].permute(1, 2, 0).numpy()
+
+
+def env_scale(estimate: np.ndarray, reference: np.ndarray) -> float:
+    """Global factor aligning an env map to a reference (log-space least squares on luminance)."""
+    ye, yr = estimate @ LUMA, reference @ LUMA
+    return float(np.exp(np.mean(np.log(yr + EPS) - np.log(ye + EPS))))
+
+
+def tonemap(radiance: np.ndarray) -> np.ndarray:
+    """Reinhard L / (1 + L): HDR radiance into [0, 1) for image metrics."""
+    radiance = np.clip(radiance, 0, None)
+    return radiance / (1.0 + radiance)
+
+
+def env_metrics(estimate: np.ndarray, reference: np.ndarray) -> dict[str, float]:
+    """PSNR/SSIM of a scale-aligned, tone-mapped env map against the reference (resized to it)."""
+    reference = resize_area(reference, *estimate.shape[:2])
+    s = env_scale(estimate, reference)
+    a, b = tonemap(s * estimate), tonemap(reference)
+    return {"env_psnr": psnr(a, b), "env_ssim": ssim(a, b), "env_scale": s}
+
+
+def albedo_mse(estimate: np.ndarray, reference: np.ndarray) -> tuple[float, np.ndarray]:
+    """MSE after per-channel least-squares scale alignment; returns (mse, scales)."""
+    reference = resize_area(reference, *estimate.shape[:2])
+    e, r = estimate.reshape(-1, 3).astype(np.float64), reference.reshape(-1, 3).astype(np.float64)
+    scales = (e * r).sum(0) / np.maximum((e * e).sum(0), EPS)
+    return float(((e * scales - r) ** 2).mean()), scales
+
+
+def normalized_env(env: np.ndarray) -> np.ndarray:
+    """Env map divided by its median luminance, tone-mapped: scale-free, for spread across samples."""
+    return tonemap(env / max(float(np.median(env @ LUMA)), EPS))
+
+
+def sample_variance(samples: list[np.ndarray]) -> float:
+    """Per-element variance across samples, averaged (sigma2_sample); 0 for a single sample."""
+    if len(samples) < 2:
+        return 0.0
+    return float(np.stack(samples).var(axis=0, ddof=1).mean())

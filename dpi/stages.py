@@ -1,0 +1,98 @@
+"""Pipeline stages as functions of paths and plain settings: what each Snakemake rule (and the
+`dpi` command) runs. Each reads its inputs, calls the library, and writes its outputs atomically.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from dpi import backend
+from dpi.atomic import write_json
+from dpi.capture import load_capture, read_capture_json, write_capture_json
+from dpi.evaluate import evaluate_sample, missing, summarize, write_csv
+from dpi.render import RenderSettings
+from dpi.seeding import seed_for
+from dpi.solve.classic import ClassicConfig, classic_sample
+from dpi.solve.decomposition import Decomposition
+from dpi.solve.init import path_traced_init
+from dpi.solve.optimize import OptimizeConfig
+from dpi.solve.priors import PRIOR_NAMES
+from dpi.solve.problem import InverseProblem, ProblemSettings
+
+
+@dataclass
+class SolveSettings:
+    """Renderer and unknowns' resolution shared by init, methods and evaluation."""
+
+    render: RenderSettings = field(default_factory=RenderSettings)
+    problem: ProblemSettings = field(default_factory=ProblemSettings)
+
+    @classmethod
+    def from_config(cls, config: dict[str, Any], threads: int | None = None) -> "SolveSettings":
+        """Settings from the `render` and `problem` sections of config.yaml."""
+        render = RenderSettings(**{**config.get("render", {}), "threads": threads})
+        return cls(render, ProblemSettings(**config.get("problem", {})))
+
+
+def capture_stage(capture_dir: str | Path, out_json: str | Path) -> None:
+    """Validate a capture folder once and write its normalised description (capture.json)."""
+    write_capture_json(load_capture(capture_dir), out_json)
+
+
+def load_problem(capture_json: str | Path, settings: SolveSettings) -> InverseProblem:
+    """The inverse problem of a validated capture."""
+    return InverseProblem(read_capture_json(capture_json), settings.problem, settings.render)
+
+
+def init_stage(capture_json: str | Path, out_dir: str | Path, scene: str, init_cfg: dict[str, Any],
+               settings: SolveSettings, progress: bool = True) -> None:
+    """Path-traced initialisation of one scene into out_dir (envmap.exr, textures, log.json)."""
+    problem = load_problem(capture_json, settings)
+    result = path_traced_init(problem, OptimizeConfig.from_dict(init_cfg), seed_for(scene, "init"), progress)
+    result.trace.info["variant"] = backend.mitsuba().variant()
+    result.save(out_dir, trace_name="log.json")
+
+
+def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | Path, scene: str, method: str,
+                 k: int, method_cfg: dict[str, Any], settings: SolveSettings, progress: bool = True) -> None:
+    """Posterior sample k of a method for one scene, into out_dir (envmap, textures, trace.json)."""
+    if method not in PRIOR_NAMES:
+        raise ValueError(f"unknown method {method!r}; available: {', '.join(PRIOR_NAMES)}")
+    problem = load_problem(capture_json, settings)
+    init = Decomposition.load(init_dir, settings.problem.texture_size)
+    seed = seed_for(scene, method, k)
+    result = classic_sample(problem, method, init, ClassicConfig.from_dict(method_cfg), seed, progress)
+    result.trace.info.update({"scene": scene, "k": k})
+    result.save(out_dir)
+
+
+def evaluate_stage(capture_json: str | Path, sample_dir: str | Path, out_json: str | Path, scene: str,
+                   method: str, k: int, spp: int, settings: SolveSettings) -> None:
+    """Metrics of one sample against held-out views and ground truth, as JSON."""
+    problem = load_problem(capture_json, settings)
+    sample = Decomposition.load(sample_dir, settings.problem.texture_size)
+    trace_path = Path(sample_dir) / "trace.json"
+    seconds = json.loads(trace_path.read_text())["summary"]["seconds"] if trace_path.is_file() else None
+    metrics = evaluate_sample(problem, sample, spp, seed_for(scene, method, k, "eval"), seconds)
+    write_json(out_json, {"scene": scene, "method": method, "sample": k, "sample_dir": str(sample_dir),
+                          "metrics": metrics})
+
+
+def summary_stage(eval_jsons: list[str | Path], out_csv: str | Path, samples_csv: str | Path | None = None) -> None:
+    """Aggregate per-sample metric files into summary.csv (one row per scene x method)."""
+    records = []
+    for path in eval_jsons:
+        record = json.loads(Path(path).read_text())
+        init_log = Path(record["sample_dir"]).parent.parent / "init" / "log.json"
+        record["init_seconds"] = (json.loads(init_log.read_text())["summary"]["seconds"]
+                                  if init_log.is_file() else missing("no init log"))
+        records.append(record)
+    write_csv(out_csv, summarize(records))
+    if samples_csv is not None:
+        rows = [{"scene": r["scene"], "method": r["method"], "sample": r["sample"],
+                 **{k: v for k, v in r["metrics"].items() if k != "notes"}} for r in records]
+        write_csv(samples_csv, rows)
+

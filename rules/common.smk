@@ -1,0 +1,86 @@
+# Config validation and the small input functions every rule shares.
+from functools import lru_cache
+from pathlib import Path
+
+from snakemake.utils import validate
+
+from dpi.capture import inspect_capture
+
+validate(config, "config.schema.yaml")
+
+CAPTURES = config["captures_dir"]
+RESULTS = config["results_dir"]
+SCENES = config["scenes"]
+METHODS = config["methods"]
+
+
+wildcard_constraints:
+    scene=r"[^/]+",
+    method="|".join(["none", "global_norm", "smoothness", "chromaticity"]),
+    k=r"\d+",
+
+
+def capture_dir(scene):
+    """Input folder of a scene."""
+    return Path(CAPTURES) / scene
+
+
+def is_synthetic(scene):
+    """Scenes listed under `synthetic:` are rendered by dpi when their folder is missing."""
+    return scene in config["synthetic"]
+
+
+@lru_cache(maxsize=None)
+def given(scene):
+    """What the capture provides (cameras, masks, mesh, mesh_has_uv), decided at parse time."""
+    if is_synthetic(scene):
+        return {"cameras": True, "masks": True, "mesh": True, "mesh_has_uv": True}
+    return inspect_capture(capture_dir(scene))
+
+
+def capture_files(wildcards):
+    """Files the capture rule validates: the synthetic marker, or every file of the capture folder."""
+    if is_synthetic(wildcards.scene):
+        return [str(capture_dir(wildcards.scene) / ".synth.json")]
+    root = capture_dir(wildcards.scene)
+    return sorted(str(p) for p in root.rglob("*") if p.is_file() and not p.name.startswith("."))
+
+
+def scene_inputs(wildcards):
+    """capture.json plus the derived cameras/masks/mesh a scene needs (none when all are given)."""
+    scene, have = wildcards.scene, given(wildcards.scene)
+    inputs = {"capture": f"{RESULTS}/{scene}/capture.json"}
+    if not have["cameras"]:
+        inputs["cameras"] = f"{RESULTS}/{scene}/poses/transforms.json"
+    if not have["masks"]:
+        inputs["masks"] = f"{RESULTS}/{scene}/masks/done.flag"
+    if not have["mesh"]:
+        inputs["mesh"] = f"{RESULTS}/{scene}/geometry/mesh_uv.ply"
+    elif not have["mesh_has_uv"]:
+        inputs["mesh"] = f"{RESULTS}/{scene}/geometry/mesh_uv.ply"
+    return inputs
+
+
+def method_samples(method):
+    """Number of posterior samples of a method (its own `samples`, else the global one)."""
+    return config["method_params"].get(method, {}).get("samples", config["samples"])
+
+
+def method_params(method):
+    """A method's settings without the sample count, so adding samples reruns no existing job."""
+    return {k: v for k, v in config["method_params"].get(method, {}).items() if k != "samples"}
+
+
+def solve_params():
+    """Renderer and problem settings shared by init, methods and evaluation."""
+    return {"render": config["render"], "problem": config["problem"]}
+
+
+def all_evaluations():
+    """Every per-sample metric file of every scene and method."""
+    return [
+        f"{RESULTS}/{scene}/eval/{method}/{k}.json"
+        for scene in SCENES
+        for method in METHODS
+        for k in range(method_samples(method))
+    ]

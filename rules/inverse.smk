@@ -1,0 +1,44 @@
+# Inverse rendering: path-traced initialisation, then N posterior-sample jobs per method.
+
+
+rule init:
+    input:
+        unpack(scene_inputs),
+    output:
+        env=f"{RESULTS}/{{scene}}/init/envmap.exr",
+        albedo=f"{RESULTS}/{{scene}}/init/albedo.exr",
+        roughness=f"{RESULTS}/{{scene}}/init/roughness.exr",
+        metallic=f"{RESULTS}/{{scene}}/init/metallic.exr",
+        log=f"{RESULTS}/{{scene}}/init/log.json",
+    params:
+        init=config["init"],
+        solve=solve_params(),
+    threads: config["threads"]["init"]
+    log:
+        f"{RESULTS}/{{scene}}/logs/init.log",
+    benchmark:
+        f"{RESULTS}/{{scene}}/benchmarks/init.tsv"
+    script:
+        "../workflow_scripts/init.py"
+
+
+rule sample:
+    input:
+        unpack(scene_inputs),
+        init=rules.init.output.log,
+    output:
+        env=f"{RESULTS}/{{scene}}/{{method}}/{{k}}/envmap.exr",
+        albedo=f"{RESULTS}/{{scene}}/{{method}}/{{k}}/albedo.exr",
+        roughness=f"{RESULTS}/{{scene}}/{{method}}/{{k}}/roughness.exr",
+        metallic=f"{RESULTS}/{{scene}}/{{method}}/{{k}}/metallic.exr",
+        trace=f"{RESULTS}/{{scene}}/{{method}}/{{k}}/trace.json",
+    params:
+        method=lambda w: method_params(w.method),
+        solve=solve_params(),
+    threads: config["threads"]["sample"]
+    log:
+        f"{RESULTS}/{{scene}}/logs/{{method}}/{{k}}.log",
+    benchmark:
+        f"{RESULTS}/{{scene}}/benchmarks/{{method}}/{{k}}.tsv"
+    script:
+        "../workflow_scripts/sample.py"

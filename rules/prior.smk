@@ -1,0 +1,1 @@
+# Diffusion prior rules (see issue 3).

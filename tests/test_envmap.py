@@ -1,0 +1,66 @@
+"""Equirect conventions against Mitsuba's envmap emitter, padding, and the sunsky rotation."""
+
+import numpy as np
+import pytest
+import torch
+
+from dpi.envmap import (direction_to_texel, pad_for_mitsuba, texel_directions, texel_solid_angles,
+                        unpad_from_mitsuba)
+
+
+def eval_emitter(mi, emitter, directions):
+    import drjit as dr
+
+    si = dr.zeros(mi.SurfaceInteraction3f, len(directions))
+    si.wi = mi.Vector3f(*(-directions.T.astype(np.float32)))
+    return np.array(emitter.eval(si)).T
+
+
+def test_texel_directions_round_trip():
+    rows, cols = direction_to_texel(texel_directions(8), 8)
+    assert (rows == np.arange(8)[:, None]).all() and (cols == np.arange(16)[None, :]).all()
+
+
+def test_solid_angles_cover_the_sphere():
+    assert texel_solid_angles(16).sum() * 32 == pytest.approx(4 * np.pi)
+
+
+def test_bright_texels_are_where_mitsuba_sees_them(mi):
+    env = np.zeros((8, 16, 3), np.float32)
+    env[2, 5] = 100.0
+    env[6, 13] = 50.0
+    emitter = mi.load_dict({"type": "envmap", "bitmap": mi.Bitmap(env)})
+    values = eval_emitter(mi, emitter, texel_directions(8).reshape(-1, 3))[:, 0].reshape(8, 16)
+    assert np.unravel_index(values.argmax(), values.shape) == (2, 5)
+    assert values[6, 13] > 10 * np.median(values)
+
+
+def test_padding_matches_mitsubas_own_data_layout(mi):
+    env = np.random.default_rng(0).random((8, 16, 3)).astype(np.float32)
+    params = mi.traverse(mi.load_dict({"type": "envmap", "bitmap": mi.Bitmap(env)}))
+    data = np.array(params["data"])
+    padded = pad_for_mitsuba(torch.from_numpy(env), data.shape[1]).numpy()
+    np.testing.assert_allclose(padded, data, rtol=1e-6)
+    np.testing.assert_array_equal(unpad_from_mitsuba(padded, 16), env)
+
+
+@pytest.mark.parametrize("extra", [0, 1, 2])
+def test_padding_layouts(extra):
+    env = torch.arange(2 * 4 * 3, dtype=torch.float32).reshape(2, 4, 3)
+    padded = pad_for_mitsuba(env, 4 + extra)
+    assert padded.shape[1] == 4 + extra
+    assert torch.equal(torch.from_numpy(unpad_from_mitsuba(padded.numpy(), 4)), env)
+    if extra:
+        assert torch.equal(padded[:, -1], env[:, 0])
+
+
+def test_sunsky_sun_lands_in_its_texel_with_ground_below(mi):
+    from dpi.skies import SkyParams, sun_direction, sunsky_envmap
+
+    env = sunsky_envmap(16, SkyParams(sun_elevation_deg=30.0, sun_azimuth_deg=100.0))
+    assert env.shape == (16, 32, 3) and np.isfinite(env).all() and (env >= 0).all()
+    row, col = direction_to_texel(sun_direction(30.0, 100.0), 16)
+    assert np.unravel_index(env[..., 0].argmax(), env.shape[:2]) == (row, col)
+    assert row < 8  # sun above the horizon in the +Y-up map
+    ground = env[8:].mean()
+    assert 0 < ground < env[:8].mean()

@@ -1,0 +1,12 @@
+"""Rule sample: posterior sample k of one method for one scene."""
+
+from pathlib import Path
+
+from dpi.logs import log_to
+from dpi.stages import SolveSettings, sample_stage
+
+w = snakemake.wildcards
+with log_to(snakemake.log[0]):
+    sample_stage(snakemake.input.capture, Path(snakemake.input.init).parent, Path(snakemake.output.trace).parent,
+                 w.scene, w.method, int(w.k), snakemake.params.method,
+                 SolveSettings.from_config(snakemake.params.solve, snakemake.threads))

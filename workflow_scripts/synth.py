@@ -1,0 +1,10 @@
+"""Rule synth_capture: render the synthetic capture declared in config.yaml."""
+
+from pathlib import Path
+
+from dpi.logs import log_to
+from dpi.synth.capture import SynthConfig, make_synthetic_capture
+
+with log_to(snakemake.log[0]):
+    make_synthetic_capture(Path(snakemake.output[0]).parent, SynthConfig.from_dict(snakemake.params.synth),
+                           threads=snakemake.threads, overwrite=True)
