@@ -14,7 +14,7 @@ from dpi.atomic import write_json
 from dpi.exr import write_exr
 
 MAX_DYNAMIC_RANGE = 1e8  # max / median luminance above this is implausible for our generators
-CHUNK = 8  # maps generated per call (indoor rooms share one path-tracing launch)
+CHUNKS = {"outdoor": 1, "indoor": 8}  # maps per generator call (indoor rooms share one path-tracing launch)
 
 
 class EnvmapCheckError(ValueError):
@@ -59,23 +59,32 @@ def check_envmap(env: np.ndarray, height: int) -> float:
 
 def make_envmap_dataset(family: str, count: int, height: int, out_dir: str | Path, seed: int = 0,
                         progress: bool = True) -> dict:
-    """Write `count` checked maps `{out_dir}/{family}_{i:05d}.exr` (half float) and `manifest.json`; returns the manifest."""
+    """Write `count` checked maps `{out_dir}/{family}_{i:05d}.exr` (half float) and `manifest.json`; returns the manifest.
+
+    A generated map failing `check_envmap` is not written; it is listed under 'rejected' and replaced.
+    """
+    make = generator(family)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    make = generator(family)
     ranges = []
     start = time.perf_counter()
+    written, rejected, chunk = 0, [], 0
     with tqdm(total=count, desc=f"{family} maps", disable=not progress) as bar:
-        for chunk, first in enumerate(range(0, count, CHUNK)):
-            maps = make(height, np.random.default_rng([seed, chunk]), min(CHUNK, count - first))
-            for i, env in enumerate(maps, start=first):
-                ranges.append(check_envmap(env, height))
-                write_exr(out / f"{family}_{i:05d}.exr", np.minimum(env, 65000.0), half=True)
-            bar.update(len(maps))
+        while written < count:
+            for env in make(height, np.random.default_rng([seed, chunk]), min(CHUNKS[family], count - written)):
+                try:
+                    ranges.append(check_envmap(env, height))
+                except EnvmapCheckError as exc:
+                    rejected.append(f"chunk {chunk}: {exc}")
+                    continue
+                write_exr(out / f"{family}_{written:05d}.exr", np.minimum(env, 65000.0), half=True)
+                written += 1
+                bar.update(1)
+            chunk += 1
     seconds = time.perf_counter() - start
     manifest = {
         "family": family, "count": count, "height": height, "seed": seed,
-        "seconds": round(seconds, 2), "seconds_per_map": round(seconds / max(count, 1), 4),
+        "rejected": rejected, "seconds": round(seconds, 2), "seconds_per_map": round(seconds / max(count, 1), 4),
         "dynamic_range_median": float(np.median(ranges)) if ranges else None,
         "dynamic_range_max": float(np.max(ranges)) if ranges else None,
     }

@@ -1,0 +1,92 @@
+"""Env-map dataset: tone curve round trip, normalisation, area resize, augmentation, folder loading."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from dpi.exr import write_exr
+from dpi.prior.data import (MEDIAN_TARGETS, EnvmapDataset, augment, list_panoramas, prior_tone_curve,
+                            radiance_scale, read_panorama, resize_area, roll_columns, split_files,
+                            to_prior_space)
+
+
+@pytest.mark.parametrize("family", ["outdoor", "indoor"])
+def test_tone_curve_round_trip(family: str) -> None:
+    curve = prior_tone_curve(family, scale=0.37)
+    radiance = torch.rand(3, 8, 16) * 0.37  # well below the clamp of both curves
+    torch.testing.assert_close(curve.to_radiance(curve.to_prior(radiance)), radiance, rtol=1e-4, atol=1e-7)
+    x = torch.rand(3, 8, 16) * 2 - 1
+    torch.testing.assert_close(curve.to_prior(curve.to_radiance(x)), x, rtol=1e-4, atol=1e-5)
+
+
+@pytest.mark.parametrize("family", ["outdoor", "indoor"])
+def test_prior_space_is_invariant_to_exposure(family: str) -> None:
+    radiance = torch.rand(3, 8, 16) ** 3 * 10
+    torch.testing.assert_close(to_prior_space(7.5 * radiance, family), to_prior_space(radiance, family))
+
+
+def test_radiance_scale_maps_median_to_target() -> None:
+    radiance = torch.full((3, 4, 8), 2.0)
+    assert radiance_scale(radiance, MEDIAN_TARGETS["outdoor"]) == pytest.approx(2.0 / MEDIAN_TARGETS["outdoor"])
+
+
+def test_resize_area_preserves_mean_and_shape() -> None:
+    image = torch.rand(3, 64, 128)
+    small = resize_area(image, 16)
+    assert small.shape == (3, 16, 32)
+    assert float(small.mean()) == pytest.approx(float(image.mean()), rel=1e-5)
+    assert resize_area(torch.rand(3, 20, 50), 8).shape == (3, 8, 16)
+
+
+def test_roll_columns_is_a_rotation() -> None:
+    x = torch.randn(3, 3, 4, 8)
+    shifts = torch.tensor([0, 3, 7])
+    rolled = roll_columns(x, shifts)
+    for i, s in enumerate(shifts.tolist()):
+        assert torch.equal(rolled[i], torch.roll(x[i], s, dims=-1))
+
+
+def test_augment_keeps_shape_and_content() -> None:
+    x = torch.randn(6, 3, 4, 8)
+    y = augment(x, torch.Generator().manual_seed(0))
+    assert y.shape == x.shape
+    for xi, yi in zip(x, y):
+        candidates = [torch.roll(v, s, dims=-1) for v in (xi, xi.flip(-1)) for s in range(8)]
+        assert any(torch.equal(yi, c) for c in candidates)
+
+
+def test_dataset_over_mixed_folder(tmp_path) -> None:
+    rng = np.random.default_rng(0)
+    write_exr(tmp_path / "a.exr", rng.uniform(0, 50, (32, 64, 3)).astype(np.float32))
+    Image.fromarray(rng.integers(0, 255, (20, 40, 3), dtype=np.uint8)).save(tmp_path / "b.png")
+    (tmp_path / "notes.txt").write_text("ignored")
+    assert [p.name for p in list_panoramas(tmp_path)] == ["a.exr", "b.png"]
+    ds = EnvmapDataset(tmp_path, 8, "outdoor")
+    assert len(ds) == 2 and ds.images.shape == (2, 3, 8, 16)
+    batch = ds.batch(5, torch.Generator().manual_seed(1))
+    assert batch.shape == (5, 3, 8, 16) and batch.min() >= -1 and batch.max() <= 1
+
+
+def test_hdr_files_are_read(tmp_path) -> None:
+    from dpi import backend
+
+    mi = backend.mitsuba()
+    image = np.random.default_rng(1).uniform(0.01, 20, (8, 16, 3)).astype(np.float32)
+    mi.Bitmap(image).write(str(tmp_path / "sky.hdr"))
+    read = read_panorama(tmp_path / "sky.hdr")
+    # RGBE shares one exponent per pixel: error is relative to the pixel's largest channel
+    assert (np.abs(read - image) <= 0.01 * image.max(-1, keepdims=True)).all()
+
+
+def test_empty_folder_is_an_error(tmp_path) -> None:
+    with pytest.raises(FileNotFoundError, match="no panoramas"):
+        list_panoramas(tmp_path)
+
+
+def test_split_files_is_deterministic_and_disjoint(tmp_path) -> None:
+    files = [tmp_path / f"{i}.exr" for i in range(10)]
+    train, held = split_files(files, 0.2, seed=3)
+    assert len(held) == 2 and set(train).isdisjoint(held) and split_files(files, 0.2, seed=3) == (train, held)

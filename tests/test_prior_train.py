@@ -1,0 +1,66 @@
+"""Prior training on a handful of generated maps: loss falls, runs resume, exported models sample."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from dpi.exr import write_exr
+from dpi.prior.data import EnvmapDataset
+from dpi.prior.outdoor import outdoor_envmap
+from dpi.prior.sample import draw_samples, load_prior, sample_to_files
+from dpi.prior.train import TrainConfig, export_model, train
+from dpi.prior.unet import SMALL_CONFIGS
+
+
+@pytest.fixture(scope="module")
+def maps_dir(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("maps")
+    for i in range(4):
+        write_exr(folder / f"m{i}.exr", outdoor_envmap(16, np.random.default_rng(i)))
+    return folder
+
+
+def config(tmp_path, maps_dir, steps: int) -> TrainConfig:
+    return TrainConfig(family="outdoor", data_dir=str(maps_dir), out=str(tmp_path / "model.pt"),
+                       model=SMALL_CONFIGS["tiny"], steps=steps, batch_size=8, lr=2e-3, sample_every=0,
+                       checkpoint_every=10, log_every=1, seed=0)
+
+
+def logged_losses(tmp_path) -> list[float]:
+    return [json.loads(line)["mse"] for line in (tmp_path / "model.log.jsonl").read_text().splitlines()]
+
+
+def test_loss_falls(tmp_path, maps_dir) -> None:
+    torch.set_num_threads(1)
+    train(config(tmp_path, maps_dir, 30), progress=False)
+    losses = logged_losses(tmp_path)
+    assert len(losses) == 30
+    assert np.mean(losses[-6:]) < 0.8 * np.mean(losses[:6])
+
+
+def test_resume_continues_the_step_count(tmp_path, maps_dir) -> None:
+    data = EnvmapDataset(maps_dir, 16, "outdoor")
+    train(config(tmp_path, maps_dir, 5), data, progress=False)
+    cfg = config(tmp_path, maps_dir, 8)
+    cfg.sample_every, cfg.sample_steps = 8, 2
+    last = train(cfg, data, progress=False)
+    assert last["step"] == 8 and len(logged_losses(tmp_path)) == 8
+    assert torch.load(tmp_path / "model.pt", weights_only=True)["step"] == 8
+    assert (tmp_path / "model_samples" / "step_000008.png").is_file()
+
+
+def test_exported_model_samples(tmp_path, maps_dir) -> None:
+    train(config(tmp_path, maps_dir, 2), progress=False)
+    export_model(tmp_path / "model.pt", tmp_path / "shipped.pt")
+    shipped = torch.load(tmp_path / "shipped.pt", weights_only=True)
+    assert "optimizer" not in shipped and shipped["model"]["out.2.weight"].dtype == torch.float16
+    prior = load_prior(tmp_path / "shipped.pt")
+    assert prior.family == "outdoor" and prior.height == 16 and prior.tone_curve.gamma == 2.4
+    x = draw_samples(prior, 1, steps=3)
+    assert x.shape == (1, 3, 16, 32) and torch.isfinite(x).all() and x.abs().max() <= 1
+    paths = sample_to_files(tmp_path / "shipped.pt", tmp_path / "samples", count=2, steps=2)
+    assert len(paths) == 2 and (tmp_path / "samples" / "samples.png").is_file()
