@@ -145,3 +145,10 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
     bar.close()
     save_atomic(checkpoint_dict(cfg, model, ema, optimizer, step, time.perf_counter() - start), out)
     return record
+
+
+def train_and_export(cfg: TrainConfig, dest: str | Path) -> dict:
+    """Train (resuming from the working checkpoint `cfg.out`) and export the EMA model to `dest`."""
+    record = train(cfg)
+    export_model(cfg.out, dest)
+    return record
