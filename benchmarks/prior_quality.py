@@ -1,0 +1,154 @@
+"""Sample quality of the default priors: distribution distance, wrap seam, sampling time.
+
+    .venv/bin/python benchmarks/prior_quality.py [--families outdoor indoor] [--count 64] [--steps 100]
+
+Features (no download): hand-crafted statistics of each prior-space map: mean colour of 8
+latitude bands, a 2x4 colour thumbnail, an 8-bin luminance histogram, an 8-bin histogram of
+gradient magnitudes and per-channel standard deviations (67 numbers). The distance is the Frechet
+distance between Gaussians fitted to these features (FID's formula, our features): "FSD".
+Held-out maps are freshly generated with a seed the training data never used. References:
+training maps vs held-out (the floor) and a Gaussian-blurred noise baseline (far away).
+The wrap seam is the mean |x[..., 0] - x[..., W-1]| divided by the mean difference of
+neighbouring interior columns (1 = as smooth as the rest; paper Fig. 12 ablation).
+Also writes models/{family}_samples.png: samples (left) next to their nearest training map
+(right, nearest over all azimuth rolls and flips).
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from scipy import linalg
+from torch.nn import functional as F
+
+from dpi import backend
+from dpi.prior.data import EnvmapDataset, list_panoramas
+from dpi.prior.procedural import make_envmap_dataset
+from dpi.prior.sample import DEFAULT_MODELS, MODELS_DIR, draw_samples, load_prior, write_grid
+
+HELD_OUT_SEED = 1000
+
+
+def features(x: torch.Tensor) -> np.ndarray:
+    """Hand-crafted statistics (B, 67) of prior-space maps (B, 3, H, W)."""
+    b = x.shape[0]
+    bands = F.adaptive_avg_pool2d(x, (8, 1)).reshape(b, -1)
+    thumb = F.adaptive_avg_pool2d(x, (2, 4)).reshape(b, -1)
+    lum = x.mean(1)
+    lum_hist = torch.stack([torch.histc(v, 8, -1, 1) / v.numel() for v in lum])
+    grad = (lum.diff(dim=-1)[:, :-1].abs() + lum.diff(dim=-2)[..., :-1].abs())
+    grad_hist = torch.stack([torch.histc(v, 8, 0, 0.5) / v.numel() for v in grad])
+    std = x.std(dim=(2, 3))
+    return torch.cat([bands, thumb, lum_hist, grad_hist, std], dim=1).double().numpy()
+
+
+def frechet_distance(a: np.ndarray, b: np.ndarray) -> float:
+    """||mu_a - mu_b||^2 + Tr(S_a + S_b - 2 (S_a S_b)^(1/2)) of Gaussians fitted to feature rows."""
+    mu_a, mu_b = a.mean(0), b.mean(0)
+    s_a, s_b = np.cov(a, rowvar=False), np.cov(b, rowvar=False)
+    covmean = linalg.sqrtm(s_a @ s_b)
+    return float(((mu_a - mu_b) ** 2).sum() + np.trace(s_a + s_b - 2 * np.real(covmean)))
+
+
+def seam_ratio(x: torch.Tensor) -> float:
+    """Mean wrap-seam jump divided by the mean jump between neighbouring interior columns."""
+    seam = (x[..., 0] - x[..., -1]).abs().mean()
+    interior = (x[..., 1:] - x[..., :-1]).abs().mean()
+    return float(seam / interior)
+
+
+def blurred_noise(count: int, height: int, seed: int) -> torch.Tensor:
+    """A far-away baseline: smooth random images in [-1, 1]."""
+    g = torch.Generator().manual_seed(seed)
+    noise = F.interpolate(torch.rand(count, 3, 4, 8, generator=g) * 2 - 1, size=(height, 2 * height), mode="bilinear")
+    return noise.clamp(-1, 1)
+
+
+def nearest_training_maps(samples: torch.Tensor, train: torch.Tensor) -> torch.Tensor:
+    """For each sample, the training map (any azimuth roll or flip) with the smallest L2 distance."""
+    width = train.shape[-1]
+    best = torch.full((len(samples),), float("inf"))
+    out = torch.zeros_like(samples)
+    flat_s = samples.reshape(len(samples), -1)
+    for variant in (train, train.flip(-1)):
+        for shift in range(width):
+            cand = torch.roll(variant, shift, dims=-1).reshape(len(train), -1)
+            d = torch.cdist(flat_s, cand)
+            value, idx = d.min(dim=1)
+            better = value < best
+            best = torch.where(better, value, best)
+            out[better] = torch.roll(variant[idx[better]], shift, dims=-1)
+    return out
+
+
+def held_out_maps(family: str, count: int, height: int) -> torch.Tensor:
+    """Freshly generated maps of the family (a seed the training data never used), in prior space."""
+    with tempfile.TemporaryDirectory() as tmp:
+        data_height = 64 if family == "outdoor" else 32
+        make_envmap_dataset(family, count, data_height, tmp, seed=HELD_OUT_SEED, progress=False)
+        return EnvmapDataset(tmp, height, family).images
+
+
+def pair_grid(samples: torch.Tensor, nearest: torch.Tensor) -> torch.Tensor:
+    """Interleave samples and their nearest maps: [s0, n0, s1, n1, ...]."""
+    return torch.stack([samples, nearest], dim=1).reshape(-1, *samples.shape[1:])
+
+
+def evaluate_family(family: str, data_dir: Path, count: int, steps: int, timing_steps: list[int]) -> list[tuple]:
+    """Rows (family, quantity, value) of the table for one default model."""
+    prior = load_prior(DEFAULT_MODELS[family])
+    train = EnvmapDataset(data_dir, prior.height, family, files=list_panoramas(data_dir)).images
+    held = held_out_maps(family, count, prior.height)
+    start = time.perf_counter()
+    rolled = draw_samples(prior, count, steps, seed=1, random_roll=True)
+    seconds = (time.perf_counter() - start) / count
+    plain = draw_samples(prior, count, steps, seed=1, random_roll=False)
+    train_subset = train[torch.randperm(len(train), generator=torch.Generator().manual_seed(0))[:count]]
+    f_held = features(held)
+    rows = [
+        (family, f"FSD samples ({steps} steps, roll) vs held-out", frechet_distance(features(rolled), f_held)),
+        (family, f"FSD samples ({steps} steps, no roll) vs held-out", frechet_distance(features(plain), f_held)),
+        (family, "FSD training maps vs held-out (floor)", frechet_distance(features(train_subset), f_held)),
+        (family, "FSD blurred noise vs held-out (baseline)", frechet_distance(features(blurred_noise(count, prior.height, 0)), f_held)),
+        (family, "seam ratio, samples with random roll", seam_ratio(rolled)),
+        (family, "seam ratio, samples without roll", seam_ratio(plain)),
+        (family, "seam ratio, held-out maps", seam_ratio(held)),
+        (family, f"seconds per map, {steps} steps (batch 16)", seconds),
+    ]
+    for n in timing_steps:
+        start = time.perf_counter()
+        draw_samples(prior, 4, n, seed=2)
+        rows.append((family, f"seconds per map, {n} steps (batch 4)", (time.perf_counter() - start) / 4))
+    shown = rolled[:8]
+    write_grid(MODELS_DIR / f"{family}_samples.png", pair_grid(shown, nearest_training_maps(shown, train)), columns=4)
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--families", nargs="+", default=["outdoor", "indoor"])
+    parser.add_argument("--data-root", default="results/prior_data", help="training data: {root}/{family}/")
+    parser.add_argument("--count", type=int, default=96, help="samples and held-out maps per family")
+    parser.add_argument("--steps", type=int, default=50)
+    parser.add_argument("--timing-steps", type=int, nargs="*", default=[25, 100, 250])
+    parser.add_argument("--threads", type=int, default=1)
+    args = parser.parse_args()
+    backend.mitsuba(threads=args.threads)
+    torch.manual_seed(0)
+    rows = []
+    for family in args.families:
+        rows += evaluate_family(family, Path(args.data_root) / family, args.count, args.steps, args.timing_steps)
+    width = max(len(r[1]) for r in rows)
+    print(f"| family  | {'quantity':<{width}} | value    |")
+    print(f"|---------|{'-' * (width + 2)}|----------|")
+    for family, name, value in rows:
+        print(f"| {family:<7} | {name:<{width}} | {value:8.4g} |")
+
+
+if __name__ == "__main__":
+    main()
