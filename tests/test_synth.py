@@ -1,0 +1,55 @@
+"""Synthetic captures: procedural shapes, materials, the written capture, and its safety rules."""
+
+import json
+
+import numpy as np
+import pytest
+
+from dpi.capture import load_capture
+from dpi.exr import read_exr
+from dpi.images import read_mask
+from dpi.synth.capture import MARKER, SynthConfig, make_synthetic_capture
+from dpi.synth.shapes import SHAPES, make_shape
+from dpi.synth.textures import procedural_materials
+
+
+@pytest.mark.parametrize("name", SHAPES)
+def test_shapes_are_closed_outward_surfaces_with_uvs(name):
+    mesh = make_shape(name, resolution=24)
+    v, f = mesh.vertices, mesh.faces
+    assert mesh.uvs.min() >= 0 and mesh.uvs.max() <= 1 and len(mesh.uvs) == len(v)
+    # Divergence theorem: signed volume > 0 iff faces are wound with outward normals.
+    volume = np.einsum("ij,ij->i", v[f[:, 0]], np.cross(v[f[:, 1]], v[f[:, 2]])).sum() / 6
+    assert volume > 0.3
+
+
+def test_materials_are_in_range_and_structured():
+    m = procedural_materials(32, roughness=0.4, metallic=0.2, seed=1)
+    assert m.albedo.shape == (32, 32, 3) and m.roughness.shape == (32, 32, 1)
+    assert 0 < m.albedo.min() and m.albedo.max() <= 1 and m.albedo.std() > 0.05
+    assert abs(float(m.roughness.mean()) - 0.4) < 0.1 and np.allclose(m.metallic, 0.2)
+
+
+def test_capture_is_complete_and_valid(tiny_capture):
+    capture = load_capture(tiny_capture)
+    assert len(capture.views) == 5 and [v.name for v in capture.held_out_views] == ["r_004"]
+    assert capture.mesh_has_uv and set(capture.gt) == {"envmap", "albedo", "roughness", "metallic"}
+    assert all(p == "given" for p in capture.provenance.values())
+    env = read_exr(tiny_capture / "gt" / "envmap.exr")
+    assert env.shape == (8, 16, 3) and np.isfinite(env).all()
+    masks = [read_mask(v.mask) for v in capture.views]
+    assert all(0.1 < m.mean() < 0.9 for m in masks)
+    assert json.loads((tiny_capture / MARKER).read_text())["views"] == 5
+
+
+def test_refuses_to_overwrite_a_foreign_folder(tmp_path):
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "photo.jpg").write_bytes(b"x")
+    with pytest.raises(FileExistsError, match="not a synthetic capture"):
+        make_synthetic_capture(tmp_path / "mine", SynthConfig(views=1))
+    assert (tmp_path / "mine" / "photo.jpg").exists()
+
+
+def test_unknown_settings_are_rejected():
+    with pytest.raises(ValueError, match="colour"):
+        SynthConfig.from_dict({"colour": 1})
