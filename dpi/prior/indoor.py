@@ -2,7 +2,7 @@
 
 A room is a closed box (walls, floor, ceiling with random diffuse albedo) with windows (area
 emitters whose radiance texture is a patch of a procedural outdoor map, so they show sky above
-ground), ceiling panel lights, spot lights and furniture blocks. Mitsuba has no spherical sensor,
+ground), ceiling panel lights, sometimes a spot light, and furniture blocks. Mitsuba has no spherical sensor,
 so the map is rendered by handing one jittered ray per texel and sample, leaving a point inside
 the room in the texel's direction, to the `path` integrator's `sample` (dpi's +Y-up convention).
 """
@@ -10,6 +10,7 @@ the room in the texel's direction, to the `path` integrator's `sample` (dpi's +Y
 from __future__ import annotations
 
 import numpy as np
+from scipy.ndimage import median_filter
 
 from dpi import backend
 from dpi.envmap import directions_from_angles
@@ -79,11 +80,11 @@ def room_scene(rng: np.random.Generator) -> tuple[dict, np.ndarray]:
     # Ceiling panels and spot lights.
     for k in range(rng.integers(0 if windows else 1, 4)):
         pos = np.array([rng.uniform(0.5, size[0] - 0.5), size[1] - 0.01, rng.uniform(0.5, size[2] - 0.5)])
-        half = rng.uniform(0.1, 0.4)
-        colour = WARM_WHITE ** rng.uniform(0, 1.5) * rng.uniform(10, 60)
+        half = rng.uniform(0.15, 0.6)
+        colour = WARM_WHITE ** rng.uniform(0, 1.5) * rng.uniform(5, 30)
         scene[f"panel_{k}"] = {**rectangle(mi, pos, -y_axis, half, half * rng.uniform(0.3, 1), z_axis),
                                "emitter": {"type": "area", "radiance": {"type": "rgb", "value": colour.tolist()}}}
-    for k in range(rng.integers(0, 3)):
+    for k in range(int(rng.uniform() < 0.3)):
         pos = np.array([rng.uniform(0.3, size[0] - 0.3), size[1] - 0.05, rng.uniform(0.3, size[2] - 0.3)])
         target = np.array([rng.uniform(0, size[0]), 0.0, rng.uniform(0, size[2])])
         scene[f"spot_{k}"] = {"type": "spot", "intensity": {"type": "rgb", "value": (WARM_WHITE * rng.uniform(5, 40)).tolist()},
@@ -154,7 +155,15 @@ def render_equirects(rooms: list[tuple[dict, np.ndarray]], height: int, spp: int
     return radiance.astype(np.float32)
 
 
+def fill_dropouts(env: np.ndarray, ratio: float = 0.3) -> np.ndarray:
+    """Replace texels far darker than their 3x3 neighbourhood (all paths missed the lights) by its median."""
+    padded = np.concatenate([env[:, -1:], env, env[:, :1]], axis=1)  # wrap in azimuth
+    median = median_filter(padded, size=(3, 3, 1), mode="nearest")[:, 1:-1]
+    lum, local = env.mean(-1), median.mean(-1)
+    return np.where((lum < ratio * local)[..., None], median, env)
+
+
 def indoor_envmaps(height: int, rng: np.random.Generator, count: int) -> np.ndarray:
     """`count` random (count, H, 2H, 3) float32 indoor maps: furnished, lit rooms seen from a point inside."""
     rooms = [room_scene(rng) for _ in range(count)]
-    return render_equirects(rooms, height, SPP, int(rng.integers(2**31)))
+    return np.stack([fill_dropouts(env) for env in render_equirects(rooms, height, SPP, int(rng.integers(2**31)))])
