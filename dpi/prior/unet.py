@@ -61,10 +61,10 @@ def attention_ds_from_resolutions(image_size: int, resolutions: str) -> tuple[in
 
 PAPER_CONFIG = UNetConfig(
     image_size=256, num_channels=256, num_res_blocks=3, channel_mult=(1, 1, 2, 2, 4, 4),
-    attention_ds=attention_ds_from_resolutions(256, "32,16,8"), num_head_channels=64,
-    learn_sigma=True, use_scale_shift_norm=True, resblock_updown=True, use_new_attention_order=False,
+    attention_ds=attention_ds_from_resolutions(256, "32,16,8"), num_heads=4, num_head_channels=64,
+    learn_sigma=True, use_scale_shift_norm=True, resblock_updown=True, use_new_attention_order=False, dropout=0.1,
 )
-"""The authors' checkpoints (guided-diffusion 256x256 flags, 3 res blocks per the issue)."""
+"""The authors' indoor/outdoor checkpoints (flags of configs/model_config_{indoor,outdoor}.yaml in LinjieLyu/DPI)."""
 
 SMALL_CONFIGS = {
     "tiny": UNetConfig(image_size=16, num_channels=8, num_res_blocks=1, channel_mult=(1, 2), attention_ds=(2,),
