@@ -29,6 +29,8 @@ def cmd_train_prior(args: argparse.Namespace) -> None:
     from dpi.prior.unet import SMALL_CONFIGS
 
     _threads(args.threads)
+    if args.model not in SMALL_CONFIGS:
+        raise SystemExit(f"unknown --model {args.model!r}; choose from {', '.join(sorted(SMALL_CONFIGS))}")
     config = TrainConfig(family=args.family, data_dir=args.data, out=args.out, model=SMALL_CONFIGS[args.model],
                          steps=args.steps, batch_size=args.batch_size, lr=args.lr, max_minutes=args.max_minutes,
                          sample_every=args.sample_every, checkpoint_every=args.checkpoint_every,
