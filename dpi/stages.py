@@ -13,19 +13,21 @@ import torch
 
 from dpi import backend
 from dpi.atomic import write_json
-from dpi.capture import Capture, load_capture, read_capture_json, write_capture_json
+from dpi.capture import load_capture, read_capture_json, write_capture_json
 from dpi.evaluate import evaluate_sample, missing, summarize, write_csv
 from dpi.render import RenderSettings
 from dpi.seeding import seed_for
 from dpi.solve.classic import ClassicConfig, classic_sample
-from dpi.prior.sample import Prior, load_default_prior, load_prior, write_grid
+from dpi.prior.sample import DEFAULT_MODELS, load_prior, write_grid
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import DPSConfig, dps_sample
+from dpi.solve.sds import SDSConfig, sds_sample
 from dpi.solve.init import path_traced_init
 from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.priors import PRIOR_NAMES
 
-METHODS = (*PRIOR_NAMES, "dps")
+METHODS = (*PRIOR_NAMES, "dps", "sds")
+DIFFUSION_METHODS = ("dps", "sds")
 from dpi.solve.problem import InverseProblem, ProblemSettings
 
 
@@ -62,28 +64,28 @@ def init_stage(capture_json: str | Path, out_dir: str | Path, scene: str, init_c
     result.save(out_dir, trace_name="log.json")
 
 
-def scene_prior(capture: Capture, prior_cfg: dict[str, Any]) -> Prior:
-    """The diffusion prior of a scene: its family from scene.yaml (else the config's default), and the
-    checkpoint configured for that family (else the shipped default model)."""
-    family = capture.options.get("prior", prior_cfg.get("family", "outdoor"))
-    checkpoint = prior_cfg.get("checkpoints", {}).get(family)
-    return load_prior(checkpoint) if checkpoint else load_default_prior(family)
-
-
 def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | Path, scene: str, method: str,
-                 k: int, method_cfg: dict[str, Any], settings: SolveSettings, prior_cfg: dict[str, Any] | None = None,
+                 k: int, method_cfg: dict[str, Any], settings: SolveSettings, prior_checkpoint: str | Path | None = None,
                  progress: bool = True) -> None:
-    """Posterior sample k of a method for one scene, into out_dir (envmap, textures, trace.json)."""
+    """Posterior sample k of a method for one scene, into out_dir (envmap, textures, trace.json).
+
+    `dps` and `sds` use the diffusion prior in `prior_checkpoint` (default: the shipped model of the scene's
+    family, from scene.yaml's `prior`, else outdoor)."""
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
     problem = load_problem(capture_json, settings)
     init = Decomposition.load(init_dir, settings.problem.texture_size)
     seed = seed_for(scene, method, k)
-    if method == "dps":
-        cfg = DPSConfig.from_dict({"radiance_scale": problem.capture.options.get("radiance_scale"), **method_cfg})
-        dps = dps_sample(problem, scene_prior(problem.capture, prior_cfg or {}), init, cfg, seed, progress)
-        result = dps.decomposition
-        write_grid(Path(out_dir) / "x0_strip.png", torch.stack(dps.snapshots), columns=len(dps.snapshots))
+    if method in DIFFUSION_METHODS:
+        checkpoint = prior_checkpoint or DEFAULT_MODELS[problem.capture.options.get("prior", "outdoor")]
+        prior = load_prior(checkpoint)
+        values = {"radiance_scale": problem.capture.options.get("radiance_scale"), **method_cfg}
+        if method == "dps":
+            dps = dps_sample(problem, prior, init, DPSConfig.from_dict(values), seed, progress)
+            result = dps.decomposition
+            write_grid(Path(out_dir) / "x0_strip.png", torch.stack(dps.snapshots), columns=len(dps.snapshots))
+        else:
+            result = sds_sample(problem, prior, init, SDSConfig.from_dict(values), seed, progress)
     else:
         result = classic_sample(problem, method, init, ClassicConfig.from_dict(method_cfg), seed, progress)
     result.trace.info.update({"scene": scene, "k": k})

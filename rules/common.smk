@@ -4,7 +4,10 @@ from pathlib import Path
 
 from snakemake.utils import validate
 
+import yaml
+
 from dpi.capture import inspect_capture
+from dpi.prior.sample import DEFAULT_MODELS
 
 validate(config, "config.schema.yaml")
 
@@ -16,7 +19,7 @@ METHODS = config["methods"]
 
 wildcard_constraints:
     scene=r"[^/]+",
-    method="|".join(["none", "global_norm", "smoothness", "chromaticity"]),
+    method="|".join(["none", "global_norm", "smoothness", "chromaticity", "dps", "sds"]),
     k=r"\d+",
 
 
@@ -69,6 +72,24 @@ def method_samples(method):
 def method_params(method):
     """A method's settings without the sample count, so adding samples reruns no existing job."""
     return {k: v for k, v in config["method_params"].get(method, {}).items() if k != "samples"}
+
+
+@lru_cache(maxsize=None)
+def scene_family(scene):
+    """Prior family of a scene: `prior` of its synthetic entry or scene.yaml, else the configured default."""
+    if is_synthetic(scene):
+        return config["synthetic"][scene].get("prior", config["illumination_prior"]["family"])
+    options = capture_dir(scene) / "scene.yaml"
+    data = yaml.safe_load(options.read_text()) if options.is_file() else None
+    return (data or {}).get("prior", config["illumination_prior"]["family"])
+
+
+def prior_checkpoint(wildcards):
+    """The diffusion prior a dps/sds job uses (none for other methods): configured, else the shipped model."""
+    if wildcards.method not in ("dps", "sds"):
+        return []
+    family = scene_family(wildcards.scene)
+    return [config["illumination_prior"]["checkpoints"].get(family, str(DEFAULT_MODELS[family]))]
 
 
 def solve_params():

@@ -26,6 +26,7 @@ rule sample:
     input:
         unpack(scene_inputs),
         init=rules.init.output.log,
+        prior=prior_checkpoint,
     output:
         env=f"{RESULTS}/{{scene}}/{{method}}/{{k}}/envmap.exr",
         albedo=f"{RESULTS}/{{scene}}/{{method}}/{{k}}/albedo.exr",

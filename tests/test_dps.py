@@ -74,3 +74,12 @@ def test_nan_network_output_is_skipped_not_propagated(problem_and_init):
     result = dps_sample(problem, prior, init, DPSConfig(steps=4, refine_iterations=1), seed=2, progress=False)
     assert result.decomposition.trace.nan_skips == 1
     assert torch.isfinite(result.decomposition.env).all()
+
+
+def test_sds_ablation_runs_finite(problem_and_init):
+    from dpi.solve.sds import SDSConfig, sds_sample
+
+    problem, init = problem_and_init
+    d = sds_sample(problem, tiny_prior(), init, SDSConfig(iterations=3), seed=3, progress=False)
+    assert d.env.shape == (4, 8, 3) and torch.isfinite(d.env).all()
+    assert len(d.trace.steps) == 3 and d.trace.info["sds_weight"] > 0

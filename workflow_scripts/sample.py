@@ -9,4 +9,5 @@ w = snakemake.wildcards
 with log_to(snakemake.log[0]):
     sample_stage(snakemake.input.capture, Path(snakemake.input.init).parent, Path(snakemake.output.trace).parent,
                  w.scene, w.method, int(w.k), snakemake.params.method,
-                 SolveSettings.from_config(snakemake.params.solve, snakemake.threads))
+                 SolveSettings.from_config(snakemake.params.solve, snakemake.threads),
+                 prior_checkpoint=snakemake.input.prior[0] if snakemake.input.prior else None)
