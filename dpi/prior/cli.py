@@ -32,7 +32,8 @@ def cmd_train_prior(args: argparse.Namespace) -> None:
     if args.model not in SMALL_CONFIGS:
         raise SystemExit(f"unknown --model {args.model!r}; choose from {', '.join(sorted(SMALL_CONFIGS))}")
     config = TrainConfig(family=args.family, data_dir=args.data, out=args.out, model=SMALL_CONFIGS[args.model],
-                         steps=args.steps, batch_size=args.batch_size, lr=args.lr, max_minutes=args.max_minutes,
+                         steps=args.steps, batch_size=args.batch_size, lr=args.lr, ema_decay=args.ema_decay,
+                         max_minutes=args.max_minutes,
                          sample_every=args.sample_every, checkpoint_every=args.checkpoint_every,
                          device=args.device, seed=args.seed)
     train(config)
@@ -66,6 +67,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--steps", type=int, default=20000)
     p.add_argument("--batch-size", type=int, default=16)
     p.add_argument("--lr", type=float, default=2e-4)
+    p.add_argument("--ema-decay", type=float, default=0.995)
     p.add_argument("--max-minutes", type=float, default=None, help="stop (with a checkpoint) after this wall time")
     p.add_argument("--sample-every", type=int, default=1000)
     p.add_argument("--checkpoint-every", type=int, default=100)
