@@ -8,6 +8,7 @@
 #     steps: 20000
 #     batch_size: 16
 #     lr: 0.0002
+#     ema_decay: 0.995
 #     max_minutes: null    # stop training after this wall time (the checkpoint resumes next run)
 #     sample_every: 1000
 #     device: cpu
@@ -15,7 +16,7 @@
 #     indoor: {count: 1200, data_height: 32}
 PRIOR = config.get("prior", {})
 PRIOR_DEFAULTS = {"count": 3000, "data_height": 64, "seed": 0, "model": "small_32x64", "steps": 20000,
-                  "batch_size": 16, "lr": 2e-4, "max_minutes": None, "sample_every": 1000, "device": "cpu",
+                  "batch_size": 16, "lr": 2e-4, "ema_decay": 0.995, "max_minutes": None, "sample_every": 1000, "device": "cpu",
                   "threads": 1}
 PRIOR_FAMILY_DEFAULTS = {"indoor": {"count": 1200, "data_height": 32}}
 
@@ -55,7 +56,7 @@ rule train_prior:
     params:
         checkpoint=lambda w: f"{RESULTS}/prior/{w.family}/train/checkpoint.pt",
         settings=lambda w: {k: prior_setting(w.family, k) for k in
-                            ("model", "steps", "batch_size", "lr", "max_minutes", "sample_every", "device", "seed")},
+                            ("model", "steps", "batch_size", "lr", "ema_decay", "max_minutes", "sample_every", "device", "seed")},
     wildcard_constraints:
         family="outdoor|indoor",
     threads: lambda w: prior_setting(w.family, "threads")
