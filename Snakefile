@@ -16,4 +16,5 @@ include: "rules/prior.smk"
 rule all:
     input:
         f"{RESULTS}/eval/summary.csv",
+        all_figures(),
     default_target: True

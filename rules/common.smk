@@ -97,6 +97,17 @@ def solve_params():
     return {"render": config["render"], "problem": config["problem"]}
 
 
+def ground_truth_envmap(scene):
+    """The capture's gt/envmap.exr, or None (synthetic captures always have one)."""
+    path = capture_dir(scene) / "gt" / "envmap.exr"
+    return str(path) if is_synthetic(scene) or path.is_file() else None
+
+
+def all_figures():
+    """The env-map grid of every scene."""
+    return [f"{RESULTS}/{scene}/eval/envmaps.png" for scene in SCENES]
+
+
 def all_evaluations():
     """Every per-sample metric file of every scene and method."""
     return [

@@ -27,3 +27,18 @@ rule summary:
         f"{RESULTS}/logs/summary.log",
     script:
         "../workflow_scripts/summary.py"
+
+
+rule envmap_figure:
+    input:
+        lambda w: [f"{RESULTS}/{w.scene}/{m}/{k}/envmap.exr" for m in METHODS for k in range(method_samples(m))],
+    output:
+        report(f"{RESULTS}/{{scene}}/eval/envmaps.png", caption="../report/envmaps.rst", category="Env maps"),
+    params:
+        rows=lambda w: [(m, [f"{RESULTS}/{w.scene}/{m}/{k}/envmap.exr" for k in range(method_samples(m))])
+                        for m in METHODS],
+        reference=lambda w: ground_truth_envmap(w.scene),
+    log:
+        f"{RESULTS}/{{scene}}/logs/envmap_figure.log",
+    script:
+        "../workflow_scripts/envmap_figure.py"

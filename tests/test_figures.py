@@ -1,0 +1,26 @@
+"""Env-map figure: a readable PNG grid with one row per method plus the ground truth."""
+
+import numpy as np
+from PIL import Image
+
+from dpi.exr import write_exr
+from dpi.figures import display_env, envmap_grid
+
+
+def test_display_aligns_scale_to_the_reference():
+    env = np.random.default_rng(0).random((4, 8, 3)).astype(np.float32)
+    np.testing.assert_allclose(display_env(10 * env, env), display_env(env, env), atol=1e-5)
+    assert 0 <= display_env(env, None).min() and display_env(env, None).max() < 1
+
+
+def test_grid_has_a_row_per_method_and_the_ground_truth(tmp_path):
+    paths = []
+    for i in range(3):
+        paths.append(tmp_path / f"e{i}.exr")
+        write_exr(paths[-1], np.full((4, 8, 3), i + 1.0, np.float32))
+    one = tmp_path / "one.png"
+    envmap_grid([("a", paths[:1])], one)
+    three = tmp_path / "three.png"
+    envmap_grid([("a", paths[:2]), ("b", paths[2:])], three, reference=paths[0])
+    h1, h3 = Image.open(one).height, Image.open(three).height
+    assert h3 > 2.5 * h1 and Image.open(three).width > Image.open(one).width
