@@ -30,7 +30,7 @@ from dpi.exr import EXRError, read_exr
 from dpi.images import HDR_SUFFIXES, IMAGE_SUFFIXES, ImageError, read_image, read_mask
 from dpi.mitsuba_xml import MitsubaXMLError, read_mesh_shapes, read_sensors
 
-SCENE_YAML_KEYS = ("prior", "held_out", "radiance_scale", "object", "notes")
+SCENE_YAML_KEYS = ("prior", "held_out", "radiance_scale", "object", "notes", "focal_length_px")
 PRIORS = ("indoor", "outdoor")
 GT_NAMES = ("envmap", "albedo", "roughness", "metallic")
 MESH_NAMES = ("mesh.ply", "mesh.obj")
@@ -80,6 +80,25 @@ class Capture:
     def held_out_views(self) -> list[View]:
         """Views kept aside for novel-view evaluation."""
         return [v for v in self.views if v.held_out]
+
+    def with_derived(self, cameras: dict[str, Camera] | None = None, masks: dict[str, Path] | None = None,
+                     mesh: Path | None = None) -> "Capture":
+        """This capture completed by derived inputs (the preprocessing stages' outputs).
+
+        cameras: view name -> Camera (views without one, e.g. images structure from motion could not
+        register, are dropped); masks: view name -> mask file; mesh: a mesh with UVs. Provenance is
+        unchanged: it records what the capture folder gave.
+        """
+        views = []
+        for v in self.views:
+            camera = v.camera if cameras is None else cameras.get(v.name)
+            if cameras is not None and camera is None:
+                continue
+            mask = v.mask if masks is None else masks.get(v.name)
+            views.append(View(v.name, v.image, mask, camera, v.held_out))
+        return Capture(self.root, views, self.mesh if mesh is None else Path(mesh),
+                       self.mesh_has_uv if mesh is None else True, dict(self.gt), dict(self.options),
+                       dict(self.provenance), self.image_size)
 
     def to_json(self) -> dict:
         """JSON-ready dict (absolute paths as strings) that `from_json` turns back into an equal Capture."""
@@ -204,6 +223,11 @@ def _read_options(root: Path) -> dict:
         raise CaptureError(f"{path}: radiance_scale must be a positive number, got {scale!r}")
     if "radiance_scale" in options:
         options["radiance_scale"] = float(scale)
+    focal = options.get("focal_length_px", 1.0)
+    if isinstance(focal, bool) or not isinstance(focal, (int, float)) or not (math.isfinite(focal) and focal > 0):
+        raise CaptureError(f"{path}: focal_length_px must be a positive number (pixels), got {focal!r}")
+    if "focal_length_px" in options:
+        options["focal_length_px"] = float(focal)
     for key in ("object", "notes"):
         if key in options and not isinstance(options[key], str):
             raise CaptureError(f"{path}: {key} must be a string, got {options[key]!r}")

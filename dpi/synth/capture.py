@@ -25,6 +25,7 @@ from dpi.exr import read_exr, write_exr
 from dpi.images import write_mask, write_png
 from dpi.render import Renderer, RenderSettings
 from dpi.skies import SkyParams, sunsky_envmap
+from dpi.synth.backdrop import BACKGROUNDS, add_detail, composite_backdrop, object_rays
 from dpi.synth.shapes import make_shape, write_ply
 from dpi.synth.textures import procedural_materials
 
@@ -62,6 +63,15 @@ class SynthConfig:
     metallic: float = 0.0
     image_format: str = "exr"
     """format of images/: exr (linear HDR) or png (sRGB LDR, like photos)"""
+    background: str = "env"
+    """what the cameras see behind the object: env (the sky), textured (a ground plane and a wall,
+    seen but not lighting the object, like a room) or plain (uniform grey, like a studio)"""
+    albedo_detail: float = 0.0
+    """strength (0-1) of a fine random pattern multiplied into the albedo, like print on a real object:
+    features for structure from motion (0: the plain procedural albedo)"""
+    photos_only: bool = False
+    """write only images/ and scene.yaml (with the held-out names), like a folder of photos; the
+    cameras, masks and mesh go to gt/ (transforms.json, masks/, mesh.ply) to measure derived ones"""
     prior: str = "outdoor"
     object_name: str = ""
     seed: int = 0
@@ -99,6 +109,8 @@ def make_synthetic_capture(out_dir: str | Path, cfg: SynthConfig, threads: int |
         raise FileExistsError(f"{out_dir}: exists and is not a synthetic capture made by dpi; not overwriting")
     if cfg.image_format not in ("exr", "png"):
         raise ValueError(f"image_format must be exr or png, got {cfg.image_format!r}")
+    if cfg.background not in BACKGROUNDS:
+        raise ValueError(f"background must be one of {', '.join(BACKGROUNDS)}, got {cfg.background!r}")
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
     try:
@@ -114,10 +126,13 @@ def make_synthetic_capture(out_dir: str | Path, cfg: SynthConfig, threads: int |
 
 def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: bool) -> None:
     """Write every file of the capture into `root` (a fresh folder)."""
+    given = root / "gt" if cfg.photos_only else root
     mesh = make_shape(cfg.shape, seed=cfg.seed)
-    write_ply(root / "mesh.ply", mesh)
+    write_ply(given / "mesh.ply", mesh)
     materials = procedural_materials(cfg.texture_size, cfg.roughness, cfg.metallic, cfg.roughness_variation,
                                      seed=cfg.seed + 1)
+    if cfg.albedo_detail:
+        materials.albedo = add_detail(materials.albedo, cfg.albedo_detail, seed=cfg.seed + 2)
     env = ground_truth_envmap(cfg)
     for name, data in (("envmap", env), ("albedo", materials.albedo), ("roughness", materials.roughness),
                        ("metallic", materials.metallic)):
@@ -129,7 +144,7 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
     for i, cam in enumerate(cameras):
         cam.extras["held_out"] = bool(cfg.held_out_every) and i % cfg.held_out_every == cfg.held_out_every - 1
 
-    renderer = Renderer(root / "mesh.ply", cameras, env.shape[0], cfg.texture_size,
+    renderer = Renderer(given / "mesh.ply", cameras, env.shape[0], cfg.texture_size,
                         RenderSettings(spp=cfg.spp, max_depth=cfg.max_depth, threads=threads))
     tensors = [torch.from_numpy(a) for a in (env, materials.albedo, materials.roughness, materials.metallic)]
     other = "png" if cfg.image_format == "exr" else "exr"
@@ -137,14 +152,20 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
         with torch.no_grad():
             image = renderer.render(*tensors, view=i, seed=10_000 + i).numpy()
         image = np.clip(image, 0.0, None)
+        if cfg.background != "env":
+            image = composite_backdrop(image, *object_rays(renderer, i), cfg.background, env,
+                                       ground=-2.5, wall_radius=2.5 * cfg.camera_distance, seed=cfg.seed)
         for fmt, folder in ((cfg.image_format, "images"), (other, "preview")):
             path = root / folder / f"{cam.name}.{fmt}"
             write_exr(path, image) if fmt == "exr" else write_png(path, image)
-        write_mask(root / "masks" / f"{cam.name}.png", renderer.coverage(i) >= 0.5)
+        write_mask(given / "masks" / f"{cam.name}.png", renderer.coverage(i) >= 0.5)
 
     frames = [(f"images/{cam.name}.{cfg.image_format}", cam) for cam in cameras]
-    write_json(root / "transforms.json", write_transforms(frames))
+    write_json(given / "transforms.json", write_transforms(frames))
     scene = {"prior": cfg.prior, "object": cfg.object_name or cfg.shape}
+    if cfg.photos_only:
+        scene["held_out"] = [cam.name for cam in cameras if cam.extras["held_out"]]
+        scene["focal_length_px"] = float(cameras[0].fx)  # what a photo's EXIF would tell
     write_text(root / "scene.yaml", yaml.safe_dump(scene, sort_keys=False))
     write_json(root / MARKER, asdict(cfg))
 

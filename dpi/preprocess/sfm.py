@@ -1,0 +1,328 @@
+"""Camera poses from plain photos: structure from motion with COLMAP (pycolmap), normalised for dpi.
+
+`run_sfm` runs COLMAP's classic pipeline on the capture's images: SIFT features with one camera
+shared by all images (a single pinhole, or known intrinsics), exhaustive matching for small
+captures and sequential matching (neighbours in file order, with loop closure off) for large
+ones, then incremental mapping. The model is checked (enough images registered, one model, a
+small mean reprojection error) and each failure stops with an `SfMError` that carries the
+summary. `normalise` then moves the model into dpi's frame: the object (the sparse points that
+most cameras have in view) centred at the origin with radius 1, +Y up (the normal of the ring
+of cameras, signed like the cameras' own up), and the first camera looking along -Z.
+
+COLMAP's `cam_from_world` maps world points into OpenCV camera axes (x right, y down, looking
+along +z); dpi's cameras are OpenGL camera-to-world matrices (y up, looking along -z), so
+`c2w_gl = inverse(cam_from_world) @ diag(1, -1, -1, 1)`. COLMAP's pixel centres sit at
+half-integers, as in `dpi.cameras.pixel_rays`, so the principal point carries over unchanged.
+"""
+
+from __future__ import annotations
+
+import logging
+import shutil
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from dpi.cameras import Camera
+
+log = logging.getLogger(__name__)
+
+CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
+MATCHERS = ("auto", "exhaustive", "sequential")
+
+
+class SfMError(RuntimeError):
+    """Structure from motion failed; `summary` holds what was found (registered images, models, errors)."""
+
+    def __init__(self, message: str, summary: dict | None = None):
+        super().__init__(message)
+        self.summary = summary or {}
+
+
+@dataclass
+class SfMConfig:
+    """Settings of the COLMAP pipeline and of the checks on its result."""
+
+    matcher: str = "auto"
+    """auto (exhaustive up to exhaustive_max_images images, else sequential) | exhaustive | sequential"""
+    exhaustive_max_images: int = 120
+    """largest capture matched exhaustively under matcher=auto"""
+    sequential_overlap: int = 15
+    """neighbours (in file order) each image is matched with by the sequential matcher"""
+    max_image_size: int = 1600
+    """images are downscaled to this longest side for feature extraction"""
+    max_features: int = 8192
+    """SIFT features per image"""
+    peak_threshold: float = 0.004
+    """SIFT contrast threshold (COLMAP's default 0.0067 finds few features in small or soft images)"""
+    init_min_inliers: int = 30
+    """verified matches the initial image pair needs (COLMAP's default 100 suits large photos)"""
+    focal_length_px: float | None = None
+    """known focal length in pixels (fixed during mapping); None: estimated (EXIF or 1.2 x image size first)"""
+    min_registered_fraction: float = 0.9
+    """fewer registered images than this fraction of the capture is an error"""
+    max_reprojection_error_px: float = 1.5
+    """a mean reprojection error above this is an error"""
+    object_view_fraction: float = 0.75
+    """a sparse point is on the object when at least this fraction of the cameras has it in view"""
+    min_track_length: int = 3
+    """sparse points seen in fewer images are dropped"""
+    seed: int = 0
+
+
+@dataclass
+class SparseModel:
+    """Registered cameras (view name -> Camera), sparse points (N, 3) with colours (N, 3) in [0, 1],
+    which points are on the object, and a summary of the run."""
+
+    cameras: dict[str, Camera]
+    points: np.ndarray
+    colors: np.ndarray
+    on_object: np.ndarray
+    summary: dict = field(default_factory=dict)
+
+
+def colmap_to_camera(cam_from_world: np.ndarray, width: int, height: int, fx: float, fy: float, cx: float,
+                     cy: float, name: str) -> Camera:
+    """dpi Camera (OpenGL camera-to-world) from COLMAP's 3x4 world-to-camera matrix (OpenCV axes)."""
+    w2c = np.eye(4)
+    w2c[:3, :4] = np.asarray(cam_from_world, dtype=np.float64)
+    return Camera(np.linalg.inv(w2c) @ CV_TO_GL, int(width), int(height), float(fx), float(fy), float(cx),
+                  float(cy), name)
+
+
+def _pinhole(camera) -> tuple[float, float, float, float]:
+    """(fx, fy, cx, cy) of a COLMAP pinhole camera model."""
+    params = np.asarray(camera.params, dtype=np.float64)
+    if camera.model_name == "SIMPLE_PINHOLE":
+        return params[0], params[0], params[1], params[2]
+    if camera.model_name == "PINHOLE":
+        return params[0], params[1], params[2], params[3]
+    raise SfMError(f"unexpected COLMAP camera model {camera.model_name}")
+
+
+def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = None,
+            threads: int = 1) -> SparseModel:
+    """COLMAP on `images` (all in one folder; view name = file stem), in `work_dir` (database, model).
+
+    Returns the model in COLMAP's own frame; see `normalise`."""
+    import pycolmap
+
+    cfg = cfg or SfMConfig()
+    if cfg.matcher not in MATCHERS:
+        raise ValueError(f"matcher must be one of {', '.join(MATCHERS)}, got {cfg.matcher!r}")
+    images = [Path(p) for p in images]
+    folders = {p.parent.resolve() for p in images}
+    if len(folders) != 1:
+        raise ValueError("run_sfm: images must all be in one folder")
+    image_dir = folders.pop()
+    work = Path(work_dir)
+    if work.exists():
+        shutil.rmtree(work)
+    (work / "sparse").mkdir(parents=True)
+    database = work / "database.db"
+    device = pycolmap.Device.cpu
+    times = {}
+
+    start = time.perf_counter()
+    reader = pycolmap.ImageReaderOptions()
+    reader.camera_model = "SIMPLE_PINHOLE"
+    if cfg.focal_length_px:
+        from PIL import Image
+
+        with Image.open(images[0]) as im:
+            width, height = im.size
+        reader.camera_params = f"{cfg.focal_length_px},{width / 2},{height / 2}"
+    extraction = pycolmap.FeatureExtractionOptions()
+    extraction.num_threads = threads
+    extraction.max_image_size = cfg.max_image_size
+    extraction.sift.max_num_features = cfg.max_features
+    extraction.sift.peak_threshold = cfg.peak_threshold
+    pycolmap.extract_features(database, image_dir, image_names=[p.name for p in images],
+                              camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
+                              extraction_options=extraction, device=device)
+    times["extract_s"] = time.perf_counter() - start
+
+    start = time.perf_counter()
+    matching = pycolmap.FeatureMatchingOptions()
+    matching.num_threads = threads
+    matcher = cfg.matcher
+    if matcher == "auto":
+        matcher = "exhaustive" if len(images) <= cfg.exhaustive_max_images else "sequential"
+    if matcher == "exhaustive":
+        pycolmap.match_exhaustive(database, matching_options=matching, device=device)
+    else:
+        pairing = pycolmap.SequentialPairingOptions()
+        pairing.overlap = cfg.sequential_overlap
+        pairing.num_threads = threads
+        pycolmap.match_sequential(database, matching_options=matching, pairing_options=pairing, device=device)
+    times["match_s"] = time.perf_counter() - start
+
+    start = time.perf_counter()
+    options = pycolmap.IncrementalPipelineOptions()
+    options.num_threads = threads
+    options.random_seed = cfg.seed
+    options.mapper.random_seed = cfg.seed
+    options.triangulation.random_seed = cfg.seed
+    options.mapper.init_min_num_inliers = cfg.init_min_inliers
+    options.mapper.abs_pose_min_num_inliers = max(10, cfg.init_min_inliers // 2)
+    options.min_model_size = 3
+    if cfg.focal_length_px:
+        options.ba_refine_focal_length = False
+        options.mapper.abs_pose_refine_focal_length = False
+    models = pycolmap.incremental_mapping(database, image_dir, work / "sparse", options)
+    times["map_s"] = time.perf_counter() - start
+
+    sizes = sorted((m.num_reg_images() for m in models.values()), reverse=True)
+    summary = {"images": len(images), "matcher": matcher, "models": len(models), "model_sizes": sizes,
+               **{k: round(v, 3) for k, v in times.items()}}
+    if not models:
+        raise SfMError(f"{image_dir}: COLMAP reconstructed no model from {len(images)} images "
+                       "(too few matching features: textureless object and background, or too little overlap)",
+                       summary)
+    model = max(models.values(), key=lambda m: m.num_reg_images())
+    registered = model.num_reg_images()
+    summary.update(registered=registered, mean_reprojection_error_px=float(model.compute_mean_reprojection_error()),
+                   points=model.num_points3D())
+    log.info("sfm summary: %s", summary)
+    if registered < cfg.min_registered_fraction * len(images):
+        several = f"; {len(models)} disconnected models of {sizes} images" if len(models) > 1 else ""
+        raise SfMError(f"{image_dir}: COLMAP registered {registered} of {len(images)} images, fewer than "
+                       f"min_registered_fraction={cfg.min_registered_fraction}{several}", summary)
+    if len(models) > 1:
+        log.warning("%d disconnected models %s: using the largest; the other images get no camera", len(models), sizes)
+    if summary["mean_reprojection_error_px"] > cfg.max_reprojection_error_px:
+        raise SfMError(f"{image_dir}: mean reprojection error {summary['mean_reprojection_error_px']:.2f} px "
+                       f"exceeds max_reprojection_error_px={cfg.max_reprojection_error_px}", summary)
+
+    cameras = {}
+    for image in model.images.values():
+        if not image.has_pose:
+            continue
+        cam = model.cameras[image.camera_id]
+        name = Path(image.name).stem
+        cameras[name] = colmap_to_camera(image.cam_from_world().matrix(), cam.width, cam.height, *_pinhole(cam),
+                                         name)
+    pts = [(p.xyz, p.color, p.track.length()) for p in model.points3D.values()]
+    xyz = np.array([p[0] for p in pts], dtype=np.float64).reshape(-1, 3)
+    rgb = np.array([p[1] for p in pts], dtype=np.float64).reshape(-1, 3) / 255.0
+    keep = np.array([p[2] >= cfg.min_track_length for p in pts], dtype=bool)
+    on_object = object_points(xyz[keep], list(cameras.values()), cfg.object_view_fraction)
+    summary["object_points"] = int(on_object.sum())
+    return SparseModel(cameras, xyz[keep], rgb[keep], on_object, summary)
+
+
+def in_view_fraction(points: np.ndarray, cameras: list[Camera]) -> np.ndarray:
+    """Fraction (N,) of the cameras whose image contains each point (in front, inside the frame)."""
+    count = np.zeros(len(points))
+    for cam in cameras:
+        xy, depth = cam.project(points)
+        count += (depth > 0) & (xy[:, 0] >= 0) & (xy[:, 0] < cam.width) & (xy[:, 1] >= 0) & (xy[:, 1] < cam.height)
+    return count / max(len(cameras), 1)
+
+
+def object_points(points: np.ndarray, cameras: list[Camera], fraction: float) -> np.ndarray:
+    """Which sparse points are on the object: those most cameras have in view (a walk-around keeps the
+    object in frame; the surroundings leave it) within the largest sphere around the point the
+    cameras look at that every camera sees whole."""
+    from dpi.preprocess.masks import visible_sphere
+
+    centre, radius = visible_sphere(cameras)
+    near = np.linalg.norm(points - centre, axis=1) <= radius / 0.9
+    return near & (in_view_fraction(points, cameras) >= fraction)
+
+
+def axes_centre(cameras: list[Camera]) -> np.ndarray:
+    """Least-squares point nearest to every camera's optical axis (what a walk-around looks at)."""
+    a, b = np.zeros((3, 3)), np.zeros(3)
+    for cam in cameras:
+        d = -cam.c2w[:3, 2] / np.linalg.norm(cam.c2w[:3, 2])
+        p = np.eye(3) - np.outer(d, d)
+        a += p
+        b += p @ cam.center
+    return np.linalg.lstsq(a, b, rcond=None)[0]
+
+
+def up_direction(cameras: list[Camera]) -> np.ndarray:
+    """Scene up: the normal of the plane through the camera centres (a ring), signed like the cameras'
+    mean up vector; the mean up vector itself when the centres do not span a plane clearly."""
+    centres = np.array([c.center for c in cameras])
+    mean_up = np.mean([c.c2w[:3, 1] for c in cameras], axis=0)
+    mean_up /= np.linalg.norm(mean_up)
+    if len(cameras) < 3:
+        return mean_up
+    _, s, vt = np.linalg.svd(centres - centres.mean(0))
+    if s[2] > 0.5 * s[1]:
+        return mean_up
+    normal = vt[2]
+    return normal if normal @ mean_up >= 0 else -normal
+
+
+def similarity_to_dpi(model: SparseModel) -> tuple[float, np.ndarray, np.ndarray]:
+    """(scale s, rotation R, centre c) of the map x -> s R (x - c) into dpi's normalised frame."""
+    cameras = list(model.cameras.values())
+    up = up_direction(cameras)
+    forward = -cameras[0].c2w[:3, 2]
+    forward = forward - (forward @ up) * up
+    if np.linalg.norm(forward) < 1e-6:
+        forward = np.cross(up, [1.0, 0.0, 0.0]) if abs(up[0]) < 0.9 else np.cross(up, [0.0, 0.0, 1.0])
+    back = -forward / np.linalg.norm(forward)
+    right = np.cross(up, back)
+    rotation = np.stack([right, up, back])  # rows: new x, y, z axes in COLMAP coordinates
+    pts = model.points[model.on_object]
+    if len(pts) >= 20:
+        local = pts @ rotation.T
+        lo, hi = np.percentile(local, 2, axis=0), np.percentile(local, 98, axis=0)
+        centre = rotation.T @ ((lo + hi) / 2)
+        radius = np.percentile(np.linalg.norm(pts - centre, axis=1), 98)
+    else:
+        log.warning("only %d sparse points on the object: centring on the cameras' optical axes", len(pts))
+        centre = axes_centre(cameras)
+        radius = 0.25 * np.median([np.linalg.norm(c.center - centre) for c in cameras])
+    return 1.0 / float(radius), rotation, centre
+
+
+def transform_camera(camera: Camera, scale: float, rotation: np.ndarray, centre: np.ndarray) -> Camera:
+    """A camera moved by the similarity x -> scale * rotation @ (x - centre)."""
+    c2w = np.eye(4)
+    c2w[:3, :3] = rotation @ camera.c2w[:3, :3]
+    c2w[:3, 3] = scale * rotation @ (camera.c2w[:3, 3] - centre)
+    return Camera(c2w, camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy, camera.name,
+                  dict(camera.extras))
+
+
+def normalise(model: SparseModel) -> SparseModel:
+    """The model in dpi's frame: object at the origin with radius ~1, +Y up, first camera looking along -Z."""
+    scale, rotation, centre = similarity_to_dpi(model)
+    cameras = {n: transform_camera(c, scale, rotation, centre) for n, c in model.cameras.items()}
+    points = scale * (model.points - centre) @ rotation.T
+    summary = {**model.summary, "normalisation": {"scale": scale, "rotation": rotation.tolist(),
+                                                  "centre": centre.tolist()}}
+    return SparseModel(cameras, points, model.colors, model.on_object, summary)
+
+
+def write_points_ply(path: str | Path, points: np.ndarray, colors: np.ndarray, on_object: np.ndarray) -> None:
+    """Sparse points as an ASCII PLY (x, y, z, red, green, blue, object flag)."""
+    from dpi.atomic import write_text
+
+    lines = ["ply", "format ascii 1.0", f"element vertex {len(points)}", "property float x", "property float y",
+             "property float z", "property uchar red", "property uchar green", "property uchar blue",
+             "property uchar object", "end_header"]
+    rgb = np.clip(np.round(colors * 255), 0, 255).astype(int)
+    lines += [f"{p[0]:.6f} {p[1]:.6f} {p[2]:.6f} {c[0]} {c[1]} {c[2]} {int(o)}"
+              for p, c, o in zip(points, rgb, on_object)]
+    write_text(path, "\n".join(lines) + "\n")
+
+
+def read_points_ply(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(points, colours in [0, 1], object flags) from a file written by `write_points_ply`."""
+    text = Path(path).read_text().split("end_header\n", 1)[1]
+    data = np.loadtxt(text.splitlines(), ndmin=2) if text.strip() else np.zeros((0, 7))
+    return data[:, :3], data[:, 3:6] / 255.0, data[:, 6].astype(bool)
+
+
+def config_dict(cfg: SfMConfig) -> dict:
+    """The settings as a plain dict (recorded in the summary)."""
+    return asdict(cfg)

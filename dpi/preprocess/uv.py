@@ -1,0 +1,129 @@
+"""UV atlas of a mesh (xatlas) and baking of functions of surface position into textures.
+
+`parametrize` cuts the mesh into charts and packs them into the unit square; vertices on chart
+seams are duplicated, so the result is a mesh with one UV per vertex, which Mitsuba reads from a
+PLY (`write_uv_mesh` uses Mitsuba's own writer). Texel (row, col) of an R x R bitmap texture
+covers u in [col/R, (col+1)/R) and v in [row/R, (row+1)/R) of the UVs *stored in the PLY*:
+Mitsuba 3.9 reads PLY texture coordinates as they are and indexes bitmap rows by v (row 0 at
+v = 0). Its OBJ loader flips v on reading (v -> 1 - v), so for an OBJ file the row is
+R - 1 - floor(v R); dpi writes PLY. The round-trip test bakes, renders and compares.
+
+`bake` fills a texture with a function of the 3-D surface point each texel maps to, rasterising
+all triangles at once in UV space (numpy, no loop over triangles), then spreads the charts'
+edge texels into the gutters so bilinear lookups at seams never read empty texels.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from dpi.synth.shapes import TriangleMesh
+
+
+@dataclass
+class UVConfig:
+    """Settings of the atlas."""
+
+    texture_size: int = 512
+    """texture resolution the charts are packed for (gutters are measured in its texels)"""
+    padding: int = 2
+    """texels between charts"""
+
+
+def parametrize(vertices: np.ndarray, faces: np.ndarray, cfg: UVConfig | None = None) -> TriangleMesh:
+    """Mesh with a UV atlas: vertices duplicated along chart seams, per-vertex UVs in [0, 1]."""
+    import xatlas
+
+    cfg = cfg or UVConfig()
+    atlas = xatlas.Atlas()
+    atlas.add_mesh(np.ascontiguousarray(vertices, np.float32), np.ascontiguousarray(faces, np.uint32))
+    pack = xatlas.PackOptions()
+    pack.resolution = cfg.texture_size
+    pack.padding = cfg.padding
+    atlas.generate(xatlas.ChartOptions(), pack)
+    vmapping, indices, uvs = atlas[0]
+    return TriangleMesh(np.asarray(vertices, np.float64)[vmapping], np.asarray(indices, np.int64),
+                        np.asarray(uvs, np.float64))
+
+
+def texel_centres_uv(size: int) -> tuple[np.ndarray, np.ndarray]:
+    """(u, v) of every texel centre of a size x size texture, as (size, size) arrays (row 0 at v = 0)."""
+    rows, cols = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
+    return (cols + 0.5) / size, (rows + 0.5) / size
+
+
+def rasterize_uv(mesh: TriangleMesh, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Triangle index (size, size) (-1: no triangle) and barycentric coordinates (size, size, 3) of
+    each texel centre, all triangles at once."""
+    tri_uv = mesh.uvs[mesh.faces]  # (F, 3, 2)
+    col_f = tri_uv[..., 0] * size - 0.5
+    row_f = tri_uv[..., 1] * size - 0.5
+    c0 = np.clip(np.floor(col_f.min(1)).astype(np.int64), 0, size - 1)
+    c1 = np.clip(np.ceil(col_f.max(1)).astype(np.int64), 0, size - 1)
+    r0 = np.clip(np.floor(row_f.min(1)).astype(np.int64), 0, size - 1)
+    r1 = np.clip(np.ceil(row_f.max(1)).astype(np.int64), 0, size - 1)
+    ncols, nrows = c1 - c0 + 1, r1 - r0 + 1
+    counts = ncols * nrows
+    tri = np.repeat(np.arange(len(mesh.faces)), counts)
+    offset = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    col = c0[tri] + offset % ncols[tri]
+    row = r0[tri] + offset // ncols[tri]
+    u, v = (col + 0.5) / size, (row + 0.5) / size
+    a, b, c = tri_uv[tri, 0], tri_uv[tri, 1], tri_uv[tri, 2]
+    e1, e2 = b - a, c - a
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    px, py = u - a[:, 0], v - a[:, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w1 = (px * e2[:, 1] - py * e2[:, 0]) / det
+        w2 = (e1[:, 0] * py - e1[:, 1] * px) / det
+    w0 = 1.0 - w1 - w2
+    eps = -1e-9
+    inside = (np.abs(det) > 1e-20) & (w0 >= eps) & (w1 >= eps) & (w2 >= eps)
+    index = np.full((size, size), -1, np.int64)
+    bary = np.zeros((size, size, 3))
+    index[row[inside], col[inside]] = tri[inside]
+    bary[row[inside], col[inside]] = np.stack([w0, w1, w2], -1)[inside]
+    return index, bary
+
+
+def bake(mesh: TriangleMesh, function: Callable[[np.ndarray], np.ndarray], size: int) -> np.ndarray:
+    """Texture (size, size, C) whose texels hold `function` (points (N, 3) -> values (N, C)) at the
+    surface points they map to; gutter texels copy the nearest chart texel."""
+    from scipy.ndimage import distance_transform_edt
+
+    index, bary = rasterize_uv(mesh, size)
+    covered = index >= 0
+    tri = mesh.vertices[mesh.faces[index[covered]]]  # (N, 3, 3)
+    points = np.einsum("nk,nkd->nd", bary[covered], tri)
+    values = np.asarray(function(points), dtype=np.float64)
+    values = values.reshape(len(points), -1)
+    texture = np.zeros((size, size, values.shape[1]))
+    texture[covered] = values
+    if not covered.all():
+        _, (rows, cols) = distance_transform_edt(~covered, return_indices=True)
+        texture = texture[rows, cols]
+    return texture.astype(np.float32)
+
+
+def write_uv_mesh(path: str | Path, mesh: TriangleMesh) -> None:
+    """Write a UV-mapped mesh as a PLY through Mitsuba's writer (Mitsuba reads it back exactly)."""
+    from dpi.synth.shapes import write_ply
+
+    write_ply(path, mesh)
+
+
+def atlas_stage_summary(mesh: TriangleMesh, seconds: float) -> dict:
+    """Counts and time of an atlas, for the stage's summary."""
+    return {"vertices": len(mesh.vertices), "faces": len(mesh.faces), "seconds": round(seconds, 3)}
+
+
+def uv_atlas(vertices: np.ndarray, faces: np.ndarray, cfg: UVConfig | None = None) -> tuple[TriangleMesh, dict]:
+    """`parametrize` with a summary (vertex/face counts, seconds)."""
+    start = time.perf_counter()
+    mesh = parametrize(vertices, faces, cfg)
+    return mesh, atlas_stage_summary(mesh, time.perf_counter() - start)
