@@ -88,7 +88,8 @@ def _mean_std(values: list[Any]) -> tuple[Any, Any]:
 def summarize(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """One row per (scene, method): metric means/stds, sigma2_sample of env and albedo, timings.
 
-    Each record has scene, method, sample, metrics (dict), sample_dir (Path) and init_seconds.
+    Each record has scene, method, sample, metrics (dict) and sample_dir (Path); `sample_seconds` is
+    the wall time of the job that made the sample (for method `init`, the initialisation).
     """
     groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
     for r in records:
@@ -102,7 +103,6 @@ def summarize(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
         albedos = [_normalized_albedo(read_exr(Path(r["sample_dir"]) / "albedo.exr")) for r in recs]
         row["env_sigma2_sample"] = sample_variance(envs) if len(recs) > 1 else missing("one sample")
         row["albedo_sigma2_sample"] = sample_variance(albedos) if len(recs) > 1 else missing("one sample")
-        row["init_seconds"] = recs[0].get("init_seconds", missing("no init log"))
         rows.append(row)
     return rows
 

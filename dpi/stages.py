@@ -14,7 +14,7 @@ import torch
 from dpi import backend
 from dpi.atomic import write_json
 from dpi.capture import load_capture, read_capture_json, write_capture_json
-from dpi.evaluate import evaluate_sample, missing, summarize, write_csv
+from dpi.evaluate import evaluate_sample, summarize, write_csv
 from dpi.render import RenderSettings
 from dpi.seeding import seed_for
 from dpi.solve.classic import ClassicConfig, classic_sample
@@ -50,9 +50,14 @@ def capture_stage(capture_dir: str | Path, out_json: str | Path) -> None:
     write_capture_json(load_capture(capture_dir), out_json)
 
 
-def load_problem(capture_json: str | Path, settings: SolveSettings) -> InverseProblem:
-    """The inverse problem of a validated capture."""
-    return InverseProblem(read_capture_json(capture_json), settings.problem, settings.render)
+def load_problem(capture_json: str | Path, settings: SolveSettings, derived: dict | None = None) -> InverseProblem:
+    """The inverse problem of a validated capture, completed by the cameras, masks and UV mesh that
+    preprocessing derived where the capture lacks them (default: next to capture.json; `derived`
+    overrides with keys cameras, masks, mesh)."""
+    from dpi.preprocess.stages import complete_capture
+
+    capture = complete_capture(read_capture_json(capture_json), Path(capture_json).parent, derived)
+    return InverseProblem(capture, settings.problem, settings.render)
 
 
 def init_stage(capture_json: str | Path, out_dir: str | Path, scene: str, init_cfg: dict[str, Any],
@@ -97,25 +102,18 @@ def evaluate_stage(capture_json: str | Path, sample_dir: str | Path, out_json: s
     """Metrics of one sample against held-out views and ground truth, as JSON."""
     problem = load_problem(capture_json, settings)
     sample = Decomposition.load(sample_dir, settings.problem.texture_size)
-    trace_path = Path(sample_dir) / "trace.json"
-    seconds = json.loads(trace_path.read_text())["summary"]["seconds"] if trace_path.is_file() else None
+    traces = [Path(sample_dir) / name for name in ("trace.json", "log.json") if (Path(sample_dir) / name).is_file()]
+    seconds = json.loads(traces[0].read_text())["summary"]["seconds"] if traces else None
     metrics = evaluate_sample(problem, sample, spp, seed_for(scene, method, k, "eval"), seconds)
     write_json(out_json, {"scene": scene, "method": method, "sample": k, "sample_dir": str(sample_dir),
                           "metrics": metrics})
 
 
 def summary_stage(eval_jsons: list[str | Path], out_csv: str | Path, samples_csv: str | Path | None = None) -> None:
-    """Aggregate per-sample metric files into summary.csv (one row per scene x method)."""
-    records = []
-    for path in eval_jsons:
-        record = json.loads(Path(path).read_text())
-        init_log = Path(record["sample_dir"]).parent.parent / "init" / "log.json"
-        record["init_seconds"] = (json.loads(init_log.read_text())["summary"]["seconds"]
-                                  if init_log.is_file() else missing("no init log"))
-        records.append(record)
+    """Aggregate per-sample metric files into summary.csv (one row per scene x method, init included)."""
+    records = [json.loads(Path(path).read_text()) for path in eval_jsons]
     write_csv(out_csv, summarize(records))
     if samples_csv is not None:
         rows = [{"scene": r["scene"], "method": r["method"], "sample": r["sample"],
                  **{k: v for k, v in r["metrics"].items() if k != "notes"}} for r in records]
         write_csv(samples_csv, rows)
-

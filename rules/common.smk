@@ -37,7 +37,8 @@ def is_synthetic(scene):
 def given(scene):
     """What the capture provides (cameras, masks, mesh, mesh_has_uv), decided at parse time."""
     if is_synthetic(scene):
-        return {"cameras": True, "masks": True, "mesh": True, "mesh_has_uv": True}
+        have = not config["synthetic"][scene].get("photos_only", False)
+        return {"cameras": have, "masks": have, "mesh": have, "mesh_has_uv": have}
     return inspect_capture(capture_dir(scene))
 
 
@@ -56,7 +57,7 @@ def scene_inputs(wildcards):
     if not have["cameras"]:
         inputs["cameras"] = f"{RESULTS}/{scene}/poses/transforms.json"
     if not have["masks"]:
-        inputs["masks"] = f"{RESULTS}/{scene}/masks/done.flag"
+        inputs["masks"] = f"{RESULTS}/{scene}/masks"
     if not have["mesh"]:
         inputs["mesh"] = f"{RESULTS}/{scene}/geometry/mesh_uv.ply"
     elif not have["mesh_has_uv"]:
@@ -109,8 +110,8 @@ def all_figures():
 
 
 def all_evaluations():
-    """Every per-sample metric file of every scene and method."""
-    return [
+    """Every per-sample metric file of every scene and method, and of each scene's initialisation."""
+    return [f"{RESULTS}/{scene}/eval/init/0.json" for scene in SCENES] + [
         f"{RESULTS}/{scene}/eval/{method}/{k}.json"
         for scene in SCENES
         for method in METHODS

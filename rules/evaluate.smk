@@ -17,6 +17,22 @@ rule evaluate:
         "../workflow_scripts/evaluate.py"
 
 
+rule evaluate_init:
+    input:
+        capture=f"{RESULTS}/{{scene}}/capture.json",
+        sample=rules.init.output.log,
+    output:
+        f"{RESULTS}/{{scene}}/eval/init/0.json",
+    params:
+        spp=config["evaluate"]["spp"],
+        solve=solve_params(),
+    threads: config["threads"]["evaluate"]
+    log:
+        f"{RESULTS}/{{scene}}/logs/eval/init.log",
+    script:
+        "../workflow_scripts/evaluate.py"
+
+
 rule summary:
     input:
         all_evaluations(),

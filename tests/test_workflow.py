@@ -68,9 +68,11 @@ def workdir(tmp_path_factory) -> Path:
 
 def test_default_target_runs_end_to_end(workdir):
     rows = list(csv.DictReader(open(workdir / "results" / "eval" / "summary.csv")))
-    assert {(r["scene"], r["method"]) for r in rows} == {("tiny", "none"), ("tiny", "smoothness")}
+    assert {(r["scene"], r["method"]) for r in rows} == {("tiny", "init"), ("tiny", "none"), ("tiny", "smoothness")}
     for row in rows:
-        assert float(row["novel_psnr"]) > 5 and float(row["env_psnr"]) > 0 and row["samples"] == "2"
+        assert float(row["novel_psnr"]) > 5 and float(row["env_psnr"]) > 0
+        assert row["samples"] == ("1" if row["method"] == "init" else "2")
+    assert (workdir / "results" / "tiny" / "eval" / "envmaps.png").is_file()
     for k in range(2):
         assert (workdir / "results" / "tiny" / "none" / str(k) / "envmap.exr").is_file()
     assert (workdir / "results" / "tiny" / "logs" / "init.log").is_file()
@@ -83,14 +85,14 @@ def test_second_run_does_nothing(workdir):
 def test_changing_one_method_reruns_only_its_jobs(workdir, tmp_path):
     changed = {"method_params": {"smoothness": {"iterations": 3, "views_per_step": 1}}}
     out = snakemake(workdir, "-n", "--configfile", str(write_config(tmp_path / "c.yaml", changed)))
-    assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "summary": 1, "all": 1}
-    assert "results/tiny/none/" not in out.split("Job stats")[0]
+    assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "envmap_figure": 1, "summary": 1, "all": 1}
+    assert "output: results/tiny/none/" not in out
 
 
 def test_adding_a_sample_runs_only_the_new_one(workdir):
     out = snakemake(workdir, "-n", "--config", "samples=3")
-    assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "summary": 1, "all": 1}
-    assert "results/tiny/none/2/" in out and "results/tiny/none/0/" not in out
+    assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "envmap_figure": 1, "summary": 1, "all": 1}
+    assert "output: results/tiny/none/2/" in out and "output: results/tiny/none/0/" not in out
 
 
 def test_given_inputs_skip_their_stages_and_missing_ones_are_planned(workdir, tmp_path):

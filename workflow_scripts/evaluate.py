@@ -1,4 +1,4 @@
-"""Rule evaluate: metrics of one posterior sample."""
+"""Rules evaluate and evaluate_init: metrics of one posterior sample (or of the initialisation)."""
 
 from pathlib import Path
 
@@ -6,7 +6,8 @@ from dpi.logs import log_to
 from dpi.stages import SolveSettings, evaluate_stage
 
 w = snakemake.wildcards
+method, k = getattr(w, "method", "init"), int(getattr(w, "k", 0))
 with log_to(snakemake.log[0]):
     evaluate_stage(snakemake.input.capture, Path(snakemake.input.sample).parent, snakemake.output[0], w.scene,
-                   w.method, int(w.k), snakemake.params.spp,
+                   method, k, snakemake.params.spp,
                    SolveSettings.from_config(snakemake.params.solve, snakemake.threads))
