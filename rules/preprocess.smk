@@ -26,42 +26,95 @@ rule capture:
         "../workflow_scripts/capture.py"
 
 
-# Placeholders for captures without cameras, masks or a UV-mapped mesh (real-world photos):
-# they are only scheduled when a capture lacks the input, and stop with a clear message.
+# Stages that derive what a photo capture lacks (dpi.preprocess). Each is scheduled only when the
+# capture does not give its output (see `given` and `scene_inputs` in common.smk):
+# poses (COLMAP) -> masks (GrabCut / keying) -> geometry (carved SDF + cleanup) -> uv (xatlas).
+
+
+def derived_cameras(wildcards):
+    """The poses stage's outputs a later stage reads, when the capture has no cameras."""
+    if given(wildcards.scene)["cameras"]:
+        return {}
+    return {"cameras": f"{RESULTS}/{wildcards.scene}/poses/transforms.json",
+            "points": f"{RESULTS}/{wildcards.scene}/poses/points.ply"}
+
+
+def derived_masks(wildcards):
+    """The masks folder the geometry stage reads, when the capture has no masks."""
+    return {} if given(wildcards.scene)["masks"] else {"masks": f"{RESULTS}/{wildcards.scene}/masks"}
+
+
+def uv_source(wildcards):
+    """The mesh the uv stage parametrises: the reconstructed one, or the capture's own (in capture.json)."""
+    return {} if given(wildcards.scene)["mesh"] else {"mesh": f"{RESULTS}/{wildcards.scene}/geometry/mesh.ply"}
+
+
 rule poses:
     input:
-        f"{RESULTS}/{{scene}}/capture.json",
+        capture=f"{RESULTS}/{{scene}}/capture.json",
     output:
-        f"{RESULTS}/{{scene}}/poses/transforms.json",
+        cameras=f"{RESULTS}/{{scene}}/poses/transforms.json",
+        points=f"{RESULTS}/{{scene}}/poses/points.ply",
+        summary=f"{RESULTS}/{{scene}}/poses/summary.json",
     params:
-        stage="poses (COLMAP)",
+        settings=config["preprocess"]["sfm"],
+    threads: config["threads"]["preprocess"]
     log:
         f"{RESULTS}/{{scene}}/logs/poses.log",
+    benchmark:
+        f"{RESULTS}/{{scene}}/benchmarks/poses.tsv"
     script:
-        "../workflow_scripts/not_available.py"
+        "../workflow_scripts/poses.py"
 
 
 rule masks:
     input:
-        f"{RESULTS}/{{scene}}/capture.json",
+        unpack(derived_cameras),
+        capture=f"{RESULTS}/{{scene}}/capture.json",
     output:
-        f"{RESULTS}/{{scene}}/masks/done.flag",
+        directory(f"{RESULTS}/{{scene}}/masks"),
     params:
-        stage="foreground masks",
+        settings=config["preprocess"]["masks"],
+    threads: 1
     log:
         f"{RESULTS}/{{scene}}/logs/masks.log",
+    benchmark:
+        f"{RESULTS}/{{scene}}/benchmarks/masks.tsv"
     script:
-        "../workflow_scripts/not_available.py"
+        "../workflow_scripts/masks.py"
+
+
+rule geometry:
+    input:
+        unpack(derived_cameras),
+        unpack(derived_masks),
+        capture=f"{RESULTS}/{{scene}}/capture.json",
+    output:
+        mesh=f"{RESULTS}/{{scene}}/geometry/mesh.ply",
+        summary=f"{RESULTS}/{{scene}}/geometry/summary.json",
+    params:
+        settings=config["preprocess"]["geometry"],
+    threads: 1
+    log:
+        f"{RESULTS}/{{scene}}/logs/geometry.log",
+    benchmark:
+        f"{RESULTS}/{{scene}}/benchmarks/geometry.tsv"
+    script:
+        "../workflow_scripts/geometry.py"
 
 
 rule uv:
     input:
-        f"{RESULTS}/{{scene}}/capture.json",
+        unpack(uv_source),
+        capture=f"{RESULTS}/{{scene}}/capture.json",
     output:
         f"{RESULTS}/{{scene}}/geometry/mesh_uv.ply",
     params:
-        stage="surface reconstruction / UV atlas",
+        settings=config["preprocess"]["uv"],
+    threads: 1
     log:
         f"{RESULTS}/{{scene}}/logs/uv.log",
+    benchmark:
+        f"{RESULTS}/{{scene}}/benchmarks/uv.tsv"
     script:
-        "../workflow_scripts/not_available.py"
+        "../workflow_scripts/uv.py"

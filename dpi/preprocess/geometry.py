@@ -6,8 +6,9 @@ inside). A voxel projected into a view reads that distance, scaled to world unit
 over the focal length. The standard visual hull keeps a voxel when *no* view sees it outside,
 i.e. it takes the maximum over views; here the field is the `outside_votes`-th largest value, so
 a voxel is carved only when that many views agree, and one or two bad masks (a bite out of the
-object) cannot carve the object away. Views that do not see a voxel do not vote, and a voxel
-seen by fewer than `min_view_fraction` of the views is outside. A coarse pass over the box
+object) cannot carve the object away. A voxel outside a view's frame counts as seen outside by it (the object is in every image), unless
+`object_in_frame` is off; then views that do not see a voxel do not vote, and a voxel seen by
+fewer than `min_view_fraction` of the views is outside. A coarse pass over the box
 around the point the cameras look at finds the object's extent; the fine pass carves that box.
 
 **Surface.** Marching cubes (scikit-image) extracts the zero level set; pymeshlab then removes
@@ -40,8 +41,10 @@ class GeometryConfig:
     """voxels along the side of the search box (coarse pass)"""
     outside_votes: int = 2
     """views that must see a voxel outside its silhouette to carve it (tolerates outside_votes - 1 bad masks)"""
+    object_in_frame: bool = True
+    """the whole object is inside every image: a voxel outside a view's frame is outside the object"""
     min_view_fraction: float = 0.5
-    """a voxel inside fewer than this fraction of the views' frames is outside"""
+    """without object_in_frame: a voxel inside fewer than this fraction of the views' frames is outside"""
     margin: float = 0.08
     """margin around the coarse hull's box, as a fraction of its size"""
     smoothing_steps: int = 10
@@ -82,11 +85,12 @@ def _sample(image: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 def carve_points(cameras: list[Camera], distances: list[np.ndarray], points: np.ndarray, outside_votes: int = 2,
-                 min_view_fraction: float = 0.5, far: float = 1.0) -> np.ndarray:
+                 min_view_fraction: float = 0.5, far: float = 1.0, in_frame: bool = True) -> np.ndarray:
     """Carved signed distance (N,) at world points (N, 3): the `outside_votes`-th largest of the views'
     silhouette distances (world units, negative inside); `far` where too few views see a point.
 
-    distances: each view's `signed_distance_2d` of its mask."""
+    distances: each view's `signed_distance_2d` of its mask. in_frame: the object lies inside every
+    image, so a point outside a view's frame (or behind it) is outside the object for that view."""
     points = np.asarray(points, np.float32)
     k = max(1, int(outside_votes))
     top = np.full((k, len(points)), -np.inf, np.float32)  # k largest per-view distances, descending
@@ -99,9 +103,9 @@ def carve_points(cameras: list[Camera], distances: list[np.ndarray], points: np.
             x = cam.fx * p[:, 0] / depth + cam.cx
             y = -cam.fy * p[:, 1] / depth + cam.cy
         valid = (depth > 1e-6) & (x >= 0) & (x < cam.width) & (y >= 0) & (y < cam.height)
-        value = np.full(len(points), -np.inf, np.float32)
+        value = np.full(len(points), far if in_frame else -np.inf, np.float32)
         value[valid] = _sample(sdf2d, x[valid], y[valid]) * depth[valid] / cam.fx
-        seen += valid
+        seen += valid | in_frame
         for j in range(k):  # insert into the sorted top-k
             larger = np.maximum(top[j], value)
             value = np.minimum(top[j], value)
@@ -122,7 +126,8 @@ def grid_points(lo: np.ndarray, hi: np.ndarray, resolution: int) -> tuple[np.nda
 
 
 def carve(cameras: list[Camera], distances: list[np.ndarray], lo: np.ndarray, hi: np.ndarray, resolution: int,
-          outside_votes: int = 2, min_view_fraction: float = 0.5) -> tuple[np.ndarray, np.ndarray, float]:
+          outside_votes: int = 2, min_view_fraction: float = 0.5,
+          in_frame: bool = True) -> tuple[np.ndarray, np.ndarray, float]:
     """Carved signed-distance field (nx, ny, nz) over the box [lo, hi], negative inside, its origin
     (centre of voxel 0) and voxel size.
 
@@ -134,11 +139,12 @@ def carve(cameras: list[Camera], distances: list[np.ndarray], lo: np.ndarray, hi
     half, half_origin, half_size = grid_points(lo, hi, max(2, resolution // 2))
     far = 4 * half_size
     coarse = carve_points(cameras, distances, half.reshape(-1, 3), outside_votes, min_view_fraction,
-                          far).reshape(half.shape[:3])
+                          far, in_frame).reshape(half.shape[:3])
     index = (grid.reshape(-1, 3) - half_origin) / half_size
     field = map_coordinates(coarse, index.T, order=1, mode="nearest").astype(np.float32)
     band = np.abs(field) < 2.0 * half_size
-    field[band] = carve_points(cameras, distances, grid.reshape(-1, 3)[band], outside_votes, min_view_fraction, far)
+    field[band] = carve_points(cameras, distances, grid.reshape(-1, 3)[band], outside_votes, min_view_fraction, far,
+                               in_frame)
     return field.reshape(grid.shape[:3]), origin, size
 
 
@@ -205,7 +211,7 @@ def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray],
     distances = [signed_distance_2d(m) for m in masks]
     lo, hi = search_box(cameras)
     coarse, origin, size = carve(cameras, distances, lo, hi, cfg.coarse_resolution, cfg.outside_votes,
-                                 cfg.min_view_fraction)
+                                 cfg.min_view_fraction, cfg.object_in_frame)
     inside = np.argwhere(coarse < 0)
     if not len(inside):
         raise ValueError("carving left no voxel inside every silhouette (masks and cameras disagree)")
@@ -220,7 +226,7 @@ def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray],
 
     start = time.perf_counter()
     field, origin, size = carve(cameras, distances, box_lo, box_hi, cfg.resolution, cfg.outside_votes,
-                                cfg.min_view_fraction)
+                                cfg.min_view_fraction, cfg.object_in_frame)
     times["carve_s"] = time.perf_counter() - start
     start = time.perf_counter()
     vertices, faces = marching_cubes(field, origin, size)

@@ -95,14 +95,25 @@ def hull_prior(points_xy: np.ndarray, shape: tuple[int, int], cfg: MaskConfig) -
 
 
 def _prior_from_region(region: np.ndarray, cfg: MaskConfig) -> np.ndarray:
-    """GrabCut labels around a region that roughly covers the object."""
+    """GrabCut labels around a region that roughly covers the object (the object is inside the
+    image, so a thin strip along the border is background too)."""
     import cv2
 
     size = max(np.sqrt(region.sum()), 1.0)
     labels = np.full(region.shape, cv2.GC_BGD, np.uint8)
     labels[_grow(region, int(round(cfg.background_margin * size)))] = cv2.GC_PR_BGD
     labels[_grow(region, int(round(cfg.hull_margin * size)))] = cv2.GC_PR_FGD
+    _border_background(labels)
     return labels
+
+
+def _border_background(labels: np.ndarray, border: float = 0.03) -> None:
+    """Mark a strip along the image border (a `border` fraction of the shorter side) as background."""
+    import cv2
+
+    b = max(1, int(round(border * min(labels.shape))))
+    for strip in (labels[:b], labels[-b:], labels[:, :b], labels[:, -b:]):
+        strip[...] = cv2.GC_BGD
 
 
 def sphere_prior(camera: Camera, centre: np.ndarray, radius: float, cfg: MaskConfig,
@@ -116,9 +127,7 @@ def sphere_prior(camera: Camera, centre: np.ndarray, radius: float, cfg: MaskCon
     yy, xx = np.mgrid[: camera.height, : camera.width]
     disc = (xx + 0.5 - xy[0, 0]) ** 2 + (yy + 0.5 - xy[0, 1]) ** 2 <= r * r
     labels = np.where(disc, cv2.GC_PR_FGD, cv2.GC_PR_BGD).astype(np.uint8)
-    b = max(1, int(round(border * min(camera.width, camera.height))))
-    for strip in (labels[:b], labels[-b:], labels[:, :b], labels[:, -b:]):
-        strip[...] = cv2.GC_BGD
+    _border_background(labels, border)
     return labels
 
 

@@ -1,0 +1,9 @@
+"""Rule masks: foreground masks of a capture's views (GrabCut with a sparse-point prior, or keying)."""
+
+from dpi.logs import log_to
+from dpi.preprocess.stages import masks_stage
+
+inputs = snakemake.input
+with log_to(snakemake.log[0]):
+    masks_stage(inputs.capture, snakemake.output[0], snakemake.params.settings,
+                cameras_json=inputs.get("cameras"), points_ply=inputs.get("points"))

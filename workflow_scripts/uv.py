@@ -1,0 +1,8 @@
+"""Rule uv: UV atlas (xatlas) of the reconstructed mesh or of the capture's mesh without UVs."""
+
+from dpi.logs import log_to
+from dpi.preprocess.stages import uv_stage
+
+with log_to(snakemake.log[0]):
+    uv_stage(snakemake.input.capture, snakemake.output[0], snakemake.params.settings,
+             mesh=snakemake.input.get("mesh"))
