@@ -96,13 +96,29 @@ def test_adding_a_sample_runs_only_the_new_one(workdir):
 
 
 def test_given_inputs_skip_their_stages_and_missing_ones_are_planned(workdir, tmp_path):
-    shutil.copytree(workdir / "captures" / "tiny", tmp_path / "captures" / "given")
-    (tmp_path / "captures" / "given" / ".synth.json").unlink()
-    shutil.copytree(tmp_path / "captures" / "given", tmp_path / "captures" / "nocams")
-    (tmp_path / "captures" / "nocams" / "transforms.json").unlink()
-    config = {**TINY_CONFIG, "scenes": ["given", "nocams"], "synthetic": {}}
+    import trimesh
+
+    captures = tmp_path / "captures"
+    shutil.copytree(workdir / "captures" / "tiny", captures / "given")
+    (captures / "given" / ".synth.json").unlink()
+    for kind in ("nocams", "nomasks", "nouv", "photos"):
+        shutil.copytree(captures / "given", captures / kind)
+    (captures / "nocams" / "transforms.json").unlink()
+    shutil.rmtree(captures / "nomasks" / "masks")
+    mesh = trimesh.load(captures / "nouv" / "mesh.ply", process=False)
+    trimesh.Trimesh(mesh.vertices, mesh.faces, process=False).export(captures / "nouv" / "mesh.ply")
+    for name in ("transforms.json", "mesh.ply"):
+        (captures / "photos" / name).unlink()
+    shutil.rmtree(captures / "photos" / "masks")
+    config = {**TINY_CONFIG, "scenes": ["given", "nocams", "nomasks", "nouv", "photos"], "synthetic": {}}
     write_config(tmp_path / "config.yaml", config)
-    out = snakemake(tmp_path, "-n", "results/given/init/log.json")
-    assert planned_jobs(out) == {"capture": 1, "init": 1}
-    out = snakemake(tmp_path, "-n", "results/nocams/init/log.json")
-    assert planned_jobs(out) == {"capture": 1, "poses": 1, "init": 1}
+    expected = {
+        "given": {},
+        "nocams": {"poses": 1},
+        "nomasks": {"masks": 1},
+        "nouv": {"uv": 1},
+        "photos": {"poses": 1, "masks": 1, "geometry": 1, "uv": 1},
+    }
+    for scene, stages in expected.items():
+        out = snakemake(tmp_path, "-n", f"results/{scene}/init/log.json")
+        assert planned_jobs(out) == {"capture": 1, **stages, "init": 1}, scene
