@@ -5,7 +5,7 @@ step t:
   eps     = roll^-1(eps_theta(roll(x_t), t))            fresh random azimuth roll (Eq. 15)
   x0_hat  = (x_t - sqrt(1 - abar_t) eps) / sqrt(abar_t), clamped to [-1, 1]
   L       = scale * f^-1(x0_hat)                        env map in scene radiance
-  loss    = sum_i ||y_i - R(L, k, c_i)||^2               over a few training views
+  loss    = ||y - R(L, k, c)||                           over the foreground of a few training views
   g       = d loss / d x_t  (through renderer and network), rescaled to max|g| <= bound
   x_{t-1} = mu_theta(x_t, t) + sigma_t z  -  rho_t g
 and one Adam step on albedo / roughness / metallic against the same loss (env detached: one
@@ -150,7 +150,7 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
             continue
         views = problem.sample_views(cfg.views_per_step, generator)
         env = prior_to_env(x0_hat, prior, scale, height)
-        loss = problem.data_loss(env, materials, views, seed=seed * 7919 + n)
+        loss = problem.residual_norm(env, materials, views, seed=seed * 7919 + n)
         optimizer.zero_grad()
         guided = bool(torch.isfinite(loss))
         if guided:

@@ -75,6 +75,17 @@ class InverseProblem:
         diff = to_loss_space(rendered, space) - to_loss_space(self.images[view], space)
         return (mask * diff.square()).sum() / (3 * mask.sum().clamp_min(1))
 
+    def residual_norm(self, env: torch.Tensor, materials: MaterialTextures, views: list[int], seed: int) -> torch.Tensor:
+        """||y - R(env, materials)|| over the foreground pixels of `views`: the DPS guidance loss,
+        whose gradient keeps its size as the fit improves (unlike a mean of squares)."""
+        total = torch.zeros(())
+        space = self.settings.loss_space
+        for j, v in enumerate(views):
+            rendered = self.render(env, materials, v, seed * 1009 + j)
+            diff = to_loss_space(rendered, space) - to_loss_space(self.images[v], space)
+            total = total + (self.masks[v][..., None].to(diff.dtype) * diff.square()).sum()
+        return total.sqrt()
+
     def data_loss(self, env: torch.Tensor, materials: MaterialTextures, views: list[int], seed: int) -> torch.Tensor:
         """Sum of per-view foreground MSEs over `views` (each rendered with its own seed)."""
         return sum(self.view_loss(self.render(env, materials, v, seed * 1009 + j), v) for j, v in enumerate(views))
