@@ -116,3 +116,18 @@ def test_sampling_is_reproducible_with_a_seed() -> None:
     a = sample(d, model, (1, 3, 16, 32), torch.Generator().manual_seed(5))
     b = sample(d, model, (1, 3, 16, 32), torch.Generator().manual_seed(5))
     assert torch.equal(a, b)
+
+
+@pytest.mark.parametrize("steps", [10, 1000])
+def test_sampling_with_the_exact_eps_recovers_a_point_mass(steps: int) -> None:
+    base = base_diffusion()
+    x_star = torch.rand(1, 3, 4, 8) * 2 - 1
+
+    def oracle(x: torch.Tensor, t: torch.Tensor) -> torch.Tensor:  # optimal eps when the data is x_star only
+        abar = torch.as_tensor(base.alphas_cumprod)[t].float().reshape(-1, 1, 1, 1)
+        eps = (x - abar.sqrt() * x_star) / (1 - abar).sqrt()
+        return torch.cat([eps, torch.zeros_like(eps)], dim=1)
+
+    d = respaced(base, evenly_spaced_timesteps(1000, steps))
+    x = sample(d, oracle, (2, 3, 4, 8), torch.Generator().manual_seed(0), random_roll=False)
+    torch.testing.assert_close(x, x_star.expand(2, -1, -1, -1), atol=1e-4, rtol=0)

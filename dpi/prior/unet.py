@@ -37,7 +37,9 @@ class UNetConfig:
     resblock_updown: bool = True
     use_new_attention_order: bool = False
     dropout: float = 0.0
-    norm_groups: int = 32  # GroupNorm groups (guided-diffusion: 32); no parameter depends on it
+    norm_groups: int = 32  # GroupNorm groups (guided-diffusion: 32); no parameter depends on it. Keep several
+    # channels per group: with one channel per group the output head cannot carry the image mean, and
+    # samples get strong random colour casts
 
     @property
     def out_channels(self) -> int:
@@ -70,9 +72,9 @@ SMALL_CONFIGS = {
     "tiny": UNetConfig(image_size=16, num_channels=8, num_res_blocks=1, channel_mult=(1, 2), attention_ds=(2,),
                        num_heads=2, norm_groups=4),
     "small_32x64": UNetConfig(image_size=32, num_channels=32, num_res_blocks=1, channel_mult=(1, 2, 2, 2),
-                              attention_ds=(4, 8), num_head_channels=32),
+                              attention_ds=(4, 8), num_head_channels=32, norm_groups=8),
     "medium_32x64": UNetConfig(image_size=32, num_channels=64, num_res_blocks=2, channel_mult=(1, 2, 2, 2),
-                               attention_ds=(4, 8), num_head_channels=32),
+                               attention_ds=(4, 8), num_head_channels=32, norm_groups=16),
 }
 """CPU-sized configs: 'tiny' for tests, 'small_32x64' for the shipped default models."""
 
