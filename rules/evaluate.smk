@@ -11,6 +11,9 @@ rule evaluate:
         spp=config["evaluate"]["spp"],
         solve=solve_params(),
     threads: config["threads"]["evaluate"]
+    resources:
+        mem_mb=config["resources"]["evaluate"]["mem_mb"],
+        runtime=config["resources"]["evaluate"]["runtime"],
     log:
         f"{RESULTS}/{{scene}}/logs/eval/{{method}}/{{k}}.log",
     script:
@@ -27,6 +30,9 @@ rule evaluate_init:
         spp=config["evaluate"]["spp"],
         solve=solve_params(),
     threads: config["threads"]["evaluate"]
+    resources:
+        mem_mb=config["resources"]["evaluate"]["mem_mb"],
+        runtime=config["resources"]["evaluate"]["runtime"],
     log:
         f"{RESULTS}/{{scene}}/logs/eval/init.log",
     script:

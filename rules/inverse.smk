@@ -14,6 +14,10 @@ rule init:
         init=config["init"],
         solve=solve_params(),
     threads: config["threads"]["init"]
+    resources:
+        mem_mb=config["resources"]["init"]["mem_mb"],
+        runtime=config["resources"]["init"]["runtime"],
+        gpu=config["resources"]["init"]["gpu"],
     log:
         f"{RESULTS}/{{scene}}/logs/init.log",
     benchmark:
@@ -37,6 +41,10 @@ rule sample:
         method=lambda w: method_params(w.method),
         solve=solve_params(),
     threads: config["threads"]["sample"]
+    resources:
+        mem_mb=config["resources"]["sample"]["mem_mb"],
+        runtime=config["resources"]["sample"]["runtime"],
+        gpu=config["resources"]["sample"]["gpu"],
     log:
         f"{RESULTS}/{{scene}}/logs/{{method}}/{{k}}.log",
     benchmark:
