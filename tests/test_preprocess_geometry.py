@@ -66,3 +66,32 @@ def test_votes_tolerate_a_bad_mask(views, truth):
                      *truth, samples=20_000)
     assert robust["chamfer_rel"] < 0.01, robust
     assert strict["completeness_p95_rel"] > 2 * robust["completeness_p95_rel"], (strict, robust)
+
+
+def test_concave_torus_keeps_its_hole(mi, tmp_path):
+    """The bumpy torus (a hole, concave bumps) carved from ray-cast masks of 16 views."""
+    from dpi.synth.shapes import bumpy_torus, write_ply
+
+    shape = bumpy_torus(resolution=32)
+    write_ply(tmp_path / "torus.ply", shape)
+    scene = mi.load_dict({"type": "scene", "object": {"type": "ply", "filename": str(tmp_path / "torus.ply")}})
+    cameras = [from_fov(c2w, SIZE, SIZE, 40.0, f"v{i}") for i, c2w in enumerate(orbit(16, 4.0, (-20.0, 15.0, 50.0)))]
+    masks = []
+    for cam in cameras:
+        origins, dirs = (a[:, :, 0].reshape(-1, 3).astype(np.float32) for a in pixel_rays(cam))
+        ray = mi.Ray3f(mi.Point3f(*origins.T), mi.Vector3f(*dirs.T))
+        masks.append(np.array(scene.ray_test(ray), dtype=bool).reshape(SIZE, SIZE))
+    vertices, faces, _ = reconstruct_surface(cameras, masks, FAST)
+    error = chamfer(vertices, faces, shape.vertices, shape.faces, samples=20_000)
+    assert error["chamfer_rel"] < 0.02, error
+    assert abs(winding_number(vertices, faces, np.zeros(3))) < 0.1  # the centre of the hole is outside
+    assert abs(winding_number(vertices, faces, shape.vertices[0] * 0.99) - 1) < 0.1  # near the tube's wall: inside
+
+
+def winding_number(vertices: np.ndarray, faces: np.ndarray, point: np.ndarray) -> float:
+    """Generalised winding number of a closed mesh around a point (1 inside, 0 outside)."""
+    a, b, c = (vertices[faces[:, i]] - point for i in range(3))
+    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+    det = np.einsum("ij,ij->i", a, np.cross(b, c))
+    div = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la + np.einsum("ij,ij->i", c, a) * lb
+    return float(2 * np.arctan2(det, div).sum() / (4 * np.pi))

@@ -79,7 +79,7 @@ def test_consensus_prior_without_points(cameras, tmp_path):
         images[cam.name] = tmp_path / f"{cam.name}.png"
         write_png(images[cam.name], image)
     summary = derive_masks(images, {c.name: c for c in cameras}, tmp_path / "masks", MaskConfig(method="grabcut"))
-    assert summary["prior"] == "consensus hull"
+    assert summary["prior"] == "sphere, then consensus hull"
     ious = [mask_iou(read_mask(tmp_path / "masks" / f"{n}.png"), truths[n]) for n in truths]
     assert np.mean(ious) > 0.9, ious
 

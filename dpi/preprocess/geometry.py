@@ -66,7 +66,8 @@ def signed_distance_2d(mask: np.ndarray) -> np.ndarray:
     m = mask.astype(np.uint8)
     outside = cv2.distanceTransform(1 - m, cv2.DIST_L2, 5)
     inside = cv2.distanceTransform(m, cv2.DIST_L2, 5)
-    return np.where(mask, 0.5 - inside, outside - 0.5).astype(np.float32)
+    bound = float(sum(mask.shape))  # an empty or full mask has no boundary: distances saturate
+    return np.clip(np.where(mask, 0.5 - inside, outside - 0.5), -bound, bound).astype(np.float32)
 
 
 def _sample(image: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -74,6 +75,8 @@ def _sample(image: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     import cv2
 
     n = len(x)
+    if n == 0:
+        return np.zeros(0, np.float32)
     width = 4096
     rows = -(-n // width)
     mx = np.zeros(rows * width, np.float32)

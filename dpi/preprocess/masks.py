@@ -8,10 +8,11 @@ Two classical methods, chosen per image:
   grown by a margin, is *probably foreground*; a band around it is *probably background*, and
   only what lies far outside is *background* for sure. No single point is a hard seed, so a few
   stray points cannot force a wrong region into the mask. Without (enough) sparse points on the
-  object, e.g. for given cameras or a textureless object, the prior is a *consensus*: a first
-  GrabCut pass from the projection of the sphere the cameras look at, the visual hull those masks
-  agree on (a voxel is carved when several views see it outside, so single failures do not
-  matter), and a second pass from that hull's projection into each view.
+  object (given cameras, a textureless object) the first prior is the projection of the sphere
+  the cameras look at. A second pass then starts from the *consensus*: the visual hull the
+  first masks agree on (a voxel is carved when several views see it outside, so single failures
+  do not matter), projected into each view; where GrabCut still disagrees with it, the
+  projected hull is the mask.
 
 Either way the largest connected component is kept and small holes are filled; holes larger
 than `fill_holes_below` of the object (the hole of a torus) are kept.
@@ -41,6 +42,8 @@ class MaskConfig:
     """auto (keying on a uniform background, else GrabCut) | grabcut | key"""
     hull_margin: float = 0.05
     """growth of the projected points' hull that is probably foreground, as a fraction of its size"""
+    hull_core: float = 0.12
+    """the hull shrunk by this fraction of its size is foreground for sure (a region, never single points; 0: off)"""
     background_margin: float = 0.35
     """beyond this growth of the hull (fraction of its size) pixels are background for sure"""
     grabcut_iterations: int = 4
@@ -52,8 +55,10 @@ class MaskConfig:
     """holes smaller than this fraction of the mask's area are filled"""
     min_points: int = 30
     """fewer object points than this: the consensus prior (sphere, then the carved hull of a first pass)"""
+    consensus: bool = True
+    """refine with a second GrabCut pass from the visual hull the first pass's masks agree on"""
     consensus_votes: int = 3
-    """views that must agree to carve a voxel from the first-pass hull of the consensus prior"""
+    """views that must agree to carve a voxel from the first-pass hull"""
 
 
 def border_colour(image8: np.ndarray, width: float = 0.04) -> tuple[np.ndarray, float]:
@@ -91,7 +96,13 @@ def hull_prior(points_xy: np.ndarray, shape: tuple[int, int], cfg: MaskConfig) -
     hull = cv2.convexHull(np.round(points_xy).astype(np.int32).reshape(-1, 1, 2))
     inside = np.zeros(shape, np.uint8)
     cv2.fillConvexPoly(inside, hull, 1)
-    return _prior_from_region(inside > 0, cfg)
+    labels = _prior_from_region(inside > 0, cfg)
+    if cfg.hull_core > 0:  # the core of the hull, well inside the object's points, is foreground for sure
+        size = max(np.sqrt(inside.sum()), 1.0)
+        r = int(round(cfg.hull_core * size))
+        disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+        labels[cv2.erode(inside, disc) > 0] = cv2.GC_FGD
+    return labels
 
 
 def _prior_from_region(region: np.ndarray, cfg: MaskConfig) -> np.ndarray:
@@ -231,10 +242,11 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
     pictures = {n: read_image(images[n]) for n in names}
     use_points = points is not None and len(points) >= cfg.min_points
     priors = {}
-    if not use_points and cfg.method != "key":
+    if cfg.consensus and cfg.method != "key":
         centre, radius = visible_sphere([cameras[n] for n in names])
         sphere = (centre, 0.7 * radius)
-        first = {n: object_mask(pictures[n], cameras[n], cfg, None, sphere)[0] for n in names}
+        first = {n: object_mask(pictures[n], cameras[n], cfg, points if use_points else None, sphere)[0]
+                 for n in names}
         votes = min(cfg.consensus_votes, max(1, len(names) // 4))
         voxels, size = consensus_hull([cameras[n] for n in names], [first[n] for n in names], votes)
         if len(voxels):
@@ -242,18 +254,45 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
         else:
             log.warning("first-pass masks agree on no hull; keeping them")
             priors = {n: None for n in names}
-    summary = {"views": {}, "prior": "sparse points" if use_points else "consensus hull"}
+    first_prior = "sparse points" if use_points else "sphere"
+    summary = {"views": {}, "prior": f"{first_prior}, then consensus hull" if priors else first_prior}
     for name in names:
         if name in priors and priors[name] is None:
             mask, method = first[name], "grabcut"
         else:
             mask, method = object_mask(pictures[name], cameras[name], cfg, points if use_points else None,
-                                       labels=priors.get(name))
+                                       sphere_or_none(priors, cameras, names), labels=priors.get(name))
+            if priors.get(name) is not None:
+                hull = np.isin(priors[name], (cv2_labels().GC_PR_FGD,))
+                if mask_overlap(mask, hull) < 0.5:  # GrabCut lost the object: keep the views' consensus
+                    log.warning("%s: GrabCut disagrees with the consensus hull; using the hull's projection", name)
+                    mask, method = clean_mask(hull, cfg.fill_holes_below), "consensus hull"
         if not mask.any():
             raise ValueError(f"{images[name]}: empty foreground mask ({method}); check the capture or the mask settings")
         write_mask(out_dir / f"{name}.png", mask)
         summary["views"][name] = {"method": method, "foreground_fraction": round(float(mask.mean()), 4)}
     return summary
+
+
+def sphere_or_none(priors: dict, cameras: dict[str, Camera], names: list[str]):
+    """The loose sphere prior for views without a consensus prior (only when no points are given)."""
+    if priors:
+        return None
+    centre, radius = visible_sphere([cameras[n] for n in names])
+    return centre, 0.7 * radius
+
+
+def cv2_labels():
+    """The cv2 module (GrabCut label constants), imported lazily."""
+    import cv2
+
+    return cv2
+
+
+def mask_overlap(a: np.ndarray, b: np.ndarray) -> float:
+    """Intersection over union of two boolean masks."""
+    union = np.logical_or(a, b).sum()
+    return float(np.logical_and(a, b).sum() / union) if union else 1.0
 
 
 def visible_sphere(cameras: list[Camera]) -> tuple[np.ndarray, float]:

@@ -57,8 +57,10 @@ class SfMConfig:
     """SIFT features per image"""
     peak_threshold: float = 0.004
     """SIFT contrast threshold (COLMAP's default 0.0067 finds few features in small or soft images)"""
-    init_min_inliers: int = 30
+    init_min_inliers: int = 50
     """verified matches the initial image pair needs (COLMAP's default 100 suits large photos)"""
+    min_pose_inliers: int = 30
+    """2D-3D inliers a further image needs to be registered (COLMAP's default)"""
     focal_length_px: float | None = None
     """known focal length in pixels (fixed during mapping); None: estimated (EXIF or 1.2 x image size first)"""
     min_registered_fraction: float = 0.9
@@ -69,6 +71,9 @@ class SfMConfig:
     """a sparse point is on the object when at least this fraction of the cameras has it in view"""
     min_track_length: int = 3
     """sparse points seen in fewer images are dropped"""
+    reject_off_centre: bool = True
+    """drop registered views that do not have the object (the point all cameras look at) in frame:
+    in a walk-around capture those are misregistrations (e.g. on repetitive backgrounds)"""
     seed: int = 0
 
 
@@ -167,7 +172,7 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
     options.mapper.random_seed = cfg.seed
     options.triangulation.random_seed = cfg.seed
     options.mapper.init_min_num_inliers = cfg.init_min_inliers
-    options.mapper.abs_pose_min_num_inliers = max(10, cfg.init_min_inliers // 2)
+    options.mapper.abs_pose_min_num_inliers = cfg.min_pose_inliers
     options.min_model_size = 3
     if cfg.focal_length_px:
         options.ba_refine_focal_length = False
@@ -205,6 +210,15 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
         name = Path(image.name).stem
         cameras[name] = colmap_to_camera(image.cam_from_world().matrix(), cam.width, cam.height, *_pinhole(cam),
                                          name)
+    rejected = off_centre_views(cameras) if cfg.reject_off_centre else []
+    if rejected:
+        log.warning("dropping %d views that do not look at the object (misregistered): %s", len(rejected), rejected)
+        cameras = {n: c for n, c in cameras.items() if n not in rejected}
+    summary.update(rejected_views=rejected, registered=len(cameras))
+    if len(cameras) < cfg.min_registered_fraction * len(images):
+        raise SfMError(f"{image_dir}: {len(cameras)} of {len(images)} images registered consistently "
+                       f"({len(rejected)} do not look at the object), fewer than "
+                       f"min_registered_fraction={cfg.min_registered_fraction}", summary)
     pts = [(p.xyz, p.color, p.track.length()) for p in model.points3D.values()]
     xyz = np.array([p[0] for p in pts], dtype=np.float64).reshape(-1, 3)
     rgb = np.array([p[1] for p in pts], dtype=np.float64).reshape(-1, 3) / 255.0
@@ -232,6 +246,22 @@ def object_points(points: np.ndarray, cameras: list[Camera], fraction: float) ->
     centre, radius = visible_sphere(cameras)
     near = np.linalg.norm(points - centre, axis=1) <= radius / 0.9
     return near & (in_view_fraction(points, cameras) >= fraction)
+
+
+def off_centre_views(cameras: dict[str, Camera], rounds: int = 3) -> list[str]:
+    """Views whose image does not contain the point the (other) cameras look at, found by
+    alternating the least-squares centre of the optical axes and the views that see it."""
+    keep = dict(cameras)
+    for _ in range(rounds):
+        if len(keep) < 3:
+            break
+        centre = axes_centre(list(keep.values()))
+        inside = {}
+        for name, cam in cameras.items():
+            xy, depth = cam.project(centre[None])
+            inside[name] = bool(depth[0] > 0 and 0 <= xy[0, 0] < cam.width and 0 <= xy[0, 1] < cam.height)
+        keep = {n: c for n, c in cameras.items() if inside[n]}
+    return sorted(n for n in cameras if n not in keep)
 
 
 def axes_centre(cameras: list[Camera]) -> np.ndarray:
