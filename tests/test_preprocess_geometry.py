@@ -34,7 +34,7 @@ def truth():
     return np.asarray(sphere.vertices), np.asarray(sphere.faces)
 
 
-FAST = GeometryConfig(resolution=64, coarse_resolution=32, target_faces=6000, remesh_iterations=1, remesh_edge=2.0)
+FAST = GeometryConfig(resolution=64, coarse_resolution=32, target_faces=6000, remesh_iterations=1)
 
 
 def test_signed_distance_2d_is_negative_inside():

@@ -53,8 +53,9 @@ class GeometryConfig:
     """face budget of the decimated mesh"""
     remesh_iterations: int = 3
     """isotropic remeshing iterations (0: none)"""
-    remesh_edge: float = 1.0
-    """target edge length of the remeshing, percent of the bounding-box diagonal"""
+    remesh_edge: float | None = None
+    """target edge length of the remeshing, percent of the bounding-box diagonal (None: the length
+    whose equilateral triangles keep the face budget)"""
     min_component: float = 20.0
     """components with a diagonal below this percent of the whole are removed"""
 
@@ -194,8 +195,12 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray, cfg: GeometryConfig) -> 
         ms.meshing_decimation_quadric_edge_collapse(targetfacenum=cfg.target_faces, preservenormal=True,
                                                     preservetopology=True, optimalplacement=True)
     if cfg.remesh_iterations:
-        ms.meshing_isotropic_explicit_remeshing(iterations=cfg.remesh_iterations,
-                                                targetlen=pymeshlab.PercentageValue(cfg.remesh_edge))
+        if cfg.remesh_edge is None:
+            area = ms.get_geometric_measures()["surface_area"]
+            target = pymeshlab.PureValue(float(np.sqrt(4 * area / (np.sqrt(3) * cfg.target_faces))))
+        else:
+            target = pymeshlab.PercentageValue(cfg.remesh_edge)
+        ms.meshing_isotropic_explicit_remeshing(iterations=cfg.remesh_iterations, targetlen=target)
     ms.meshing_repair_non_manifold_edges()
     ms.meshing_remove_unreferenced_vertices()
     mesh = ms.current_mesh()
