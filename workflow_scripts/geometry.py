@@ -6,4 +6,4 @@ from dpi.preprocess.stages import geometry_stage
 inputs = snakemake.input
 with log_to(snakemake.log[0]):
     geometry_stage(inputs.capture, snakemake.output.mesh, snakemake.params.settings,
-                   cameras_json=inputs.get("cameras"), masks_dir=inputs.get("masks"))
+                   cameras_json=inputs.get("cameras"), masks_dir=inputs.get("masks"), threads=snakemake.threads)

@@ -21,8 +21,6 @@ from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from dpi.atomic import write_json
 from dpi.capture import Capture, read_capture_json
 from dpi.cameras import Camera, read_transforms, write_transforms
@@ -115,12 +113,21 @@ def poses_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | 
     return model.summary
 
 
+def set_threads(threads: int) -> None:
+    """Use `threads` CPU threads in OpenCV (GrabCut, distance transforms, remapping)."""
+    import cv2
+
+    cv2.setNumThreads(max(1, int(threads)))
+
+
 def masks_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None,
-                cameras_json: str | Path | None = None, points_ply: str | Path | None = None) -> dict:
+                cameras_json: str | Path | None = None, points_ply: str | Path | None = None,
+                threads: int = 1) -> dict:
     """Foreground masks of every view with a camera: masks/{view}.png and masks/summary.json."""
     from dpi.preprocess.masks import MaskConfig, derive_masks
     from dpi.preprocess.sfm import read_points_ply
 
+    set_threads(threads)
     capture = read_capture_json(capture_json)
     cameras = read_cameras(cameras_json) if cameras_json else {v.name: v.camera for v in capture.views if v.camera}
     points = None
@@ -136,10 +143,12 @@ def masks_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | 
 
 
 def geometry_stage(capture_json: str | Path, out_mesh: str | Path, settings: dict | None = None,
-                   cameras_json: str | Path | None = None, masks_dir: str | Path | None = None) -> dict:
+                   cameras_json: str | Path | None = None, masks_dir: str | Path | None = None,
+                   threads: int = 1) -> dict:
     """Carved and cleaned surface of the object: geometry/mesh.ply and geometry/summary.json."""
     from dpi.preprocess.geometry import GeometryConfig, reconstruct_surface, write_mesh_ply
 
+    set_threads(threads)
     capture = read_capture_json(capture_json)
     cameras = read_cameras(cameras_json) if cameras_json else {v.name: v.camera for v in capture.views if v.camera}
     masks = ({p.stem: p for p in Path(masks_dir).glob("*.png")} if masks_dir
