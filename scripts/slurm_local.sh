@@ -126,7 +126,7 @@ wait_idle() {
 start() {
   install_packages
   mkdir -p "$STATE"
-  running slurmctld && running slurmd && running munged && wait_idle && return 0
+  if running slurmctld && running slurmd && running munged && wait_idle; then echo "export SLURM_CONF=$CONF"; return 0; fi
   write_config
   start_munge
   running slurmctld || slurmctld -f "$CONF"

@@ -63,7 +63,7 @@ def test_tiny_workflow_runs_through_slurm(slurm, tmp_path):
     cmd = ["timeout", "-s", "INT", "600", str(SNAKEMAKE), "-s", str(REPO / "Snakefile"),
            "--directory", str(tmp_path), "--profile", str(REPO / "profiles" / "slurm"),
            "--default-resources", *profile_default_resources(slurm_partition=f'"{PARTITION}"', mem_mb=500),
-           "--slurm-keep-successful-logs", "--slurm-init-seconds-before-status-checks", "3"]
+           "--slurm-keep-successful-logs", "--slurm-init-seconds-before-status-checks", "5"]
     started = time.monotonic()
     proc = subprocess.run(cmd, capture_output=True, text=True, env={**slurm, "PYTHONWARNINGS": "ignore"},
                           cwd=tmp_path)
