@@ -24,6 +24,7 @@ from dpi.capture import load_capture, write_capture_json
 from dpi.images import read_mask
 from dpi.preprocess.accuracy import align_mesh, chamfer, mask_iou, pose_errors
 from dpi.preprocess.geometry import read_mesh
+from dpi.preprocess.sfm import SfMError
 from dpi.preprocess.stages import geometry_stage, masks_stage, poses_stage, read_cameras, uv_stage
 from dpi.synth.capture import SynthConfig, make_synthetic_capture
 
@@ -33,17 +34,21 @@ def run_capture(root: Path, work: Path, threads: int) -> dict:
     work.mkdir(parents=True, exist_ok=True)
     write_capture_json(load_capture(root), work / "capture.json")
     row, capture_json = {}, work / "capture.json"
-    start = time.perf_counter()
-    poses_stage(capture_json, work / "poses", {"max_features": 2048}, threads=threads)
-    row["poses_s"] = time.perf_counter() - start
     truth = read_cameras(root / "gt" / "transforms.json")
-    cameras = read_cameras(work / "poses" / "transforms.json")
-    errors = pose_errors(cameras, truth)
-    row.update(registered=f"{errors['views']}/{len(truth)}", rot_deg_mean=errors["rotation_error_deg_mean"],
-               rot_deg_max=errors["rotation_error_deg_max"], centre_pct_mean=100 * errors["centre_error_mean"])
     start = time.perf_counter()
-    summary = masks_stage(capture_json, work / "masks", {}, work / "poses" / "transforms.json",
-                          work / "poses" / "points.ply")
+    try:
+        poses_stage(capture_json, work / "poses", {"max_features": 2048}, threads=threads)
+        cameras_json, points = work / "poses" / "transforms.json", work / "poses" / "points.ply"
+        cameras = read_cameras(cameras_json)
+        errors = pose_errors(cameras, truth)
+        row.update(registered=f"{errors['views']}/{len(truth)}", rot_deg_mean=errors["rotation_error_deg_mean"],
+                   rot_deg_max=errors["rotation_error_deg_max"], centre_pct_mean=100 * errors["centre_error_mean"])
+    except SfMError as exc:  # e.g. a plain background: measure the other stages with the true cameras
+        row["registered"] = f"failed ({exc.summary.get('registered', 0)}/{len(truth)}), true cameras used"
+        cameras_json, points, cameras = root / "gt" / "transforms.json", None, truth
+    row["poses_s"] = time.perf_counter() - start
+    start = time.perf_counter()
+    summary = masks_stage(capture_json, work / "masks", {}, cameras_json, points)
     row["masks_s"] = time.perf_counter() - start
     ious = [mask_iou(read_mask(work / "masks" / f"{n}.png"), read_mask(root / "gt" / "masks" / f"{n}.png"))
             for n in truth if n in cameras]
@@ -51,7 +56,7 @@ def run_capture(root: Path, work: Path, threads: int) -> dict:
     row.update(mask_prior=summary["prior"] if "grabcut" in methods else "key", iou_mean=np.mean(ious),
                iou_min=np.min(ious))
     start = time.perf_counter()
-    geometry_stage(capture_json, work / "geometry" / "mesh.ply", {}, work / "poses" / "transforms.json", work / "masks")
+    geometry_stage(capture_json, work / "geometry" / "mesh.ply", {}, cameras_json, work / "masks")
     row["geometry_s"] = time.perf_counter() - start
     vertices, faces = read_mesh(work / "geometry" / "mesh.ply")
     error = chamfer(align_mesh(vertices, cameras, truth), faces, *read_mesh(root / "gt" / "mesh.ply"))
