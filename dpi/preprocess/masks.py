@@ -212,7 +212,15 @@ def region_prior(camera: Camera, voxels: np.ndarray, voxel_size: float, cfg: Mas
     region = np.zeros((camera.height, camera.width), bool)
     region[xy[keep, 1].astype(int), xy[keep, 0].astype(int)] = True
     radius = int(np.ceil(camera.fx * voxel_size / max(float(np.median(depth[keep])), 1e-9))) if keep.any() else 0
-    return _prior_from_region(_grow(region, radius), cfg)
+    region = _grow(region, radius)
+    labels = _prior_from_region(region, cfg)
+    if cfg.hull_core > 0:  # deep inside the views' consensus: foreground for sure
+        import cv2
+
+        r = int(round(cfg.hull_core * max(np.sqrt(region.sum()), 1.0)))
+        disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+        labels[cv2.erode(region.astype(np.uint8), disc) > 0] = cv2.GC_FGD
+    return labels
 
 
 def consensus_hull(cameras: list[Camera], masks: list[np.ndarray], votes: int,
@@ -263,7 +271,7 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
             mask, method = object_mask(pictures[name], cameras[name], cfg, points if use_points else None,
                                        sphere_or_none(priors, cameras, names), labels=priors.get(name))
             if priors.get(name) is not None:
-                hull = np.isin(priors[name], (cv2_labels().GC_PR_FGD,))
+                hull = np.isin(priors[name], (cv2_labels().GC_FGD, cv2_labels().GC_PR_FGD))
                 if mask_overlap(mask, hull) < 0.5:  # GrabCut lost the object: keep the views' consensus
                     log.warning("%s: GrabCut disagrees with the consensus hull; using the hull's projection", name)
                     mask, method = clean_mask(hull, cfg.fill_holes_below), "consensus hull"
