@@ -6,8 +6,8 @@
 #     seed: 0
 #     model: small_32x64   # name in dpi.prior.unet.SMALL_CONFIGS
 #     steps: 20000
-#     batch_size: 16
-#     lr: 0.0002
+#     batch_size: 8
+#     lr: 0.0003
 #     ema_decay: 0.995
 #     max_minutes: null    # stop training after this wall time (the checkpoint resumes next run)
 #     sample_every: 1000
@@ -16,7 +16,7 @@
 #     indoor: {count: 1200, data_height: 32}
 PRIOR = config.get("prior", {})
 PRIOR_DEFAULTS = {"count": 3000, "data_height": 64, "seed": 0, "model": "small_32x64", "steps": 20000,
-                  "batch_size": 16, "lr": 2e-4, "ema_decay": 0.995, "max_minutes": None, "sample_every": 1000, "device": "cpu",
+                  "batch_size": 8, "lr": 3e-4, "ema_decay": 0.995, "max_minutes": None, "sample_every": 1000, "device": "cpu",
                   "threads": 1}
 PRIOR_FAMILY_DEFAULTS = {"indoor": {"count": 1200, "data_height": 32}}
 
