@@ -36,8 +36,8 @@ class TrainConfig:
     out: str  # checkpoint path; resumed when it exists
     model: UNetConfig = field(default_factory=lambda: SMALL_CONFIGS["small_32x64"])
     steps: int = 20000  # total optimiser steps (including resumed ones)
-    batch_size: int = 16
-    lr: float = 2e-4
+    batch_size: int = 8
+    lr: float = 3e-4
     ema_decay: float = 0.995  # with warm-up min(decay, (1 + step) / (10 + step)); short CPU runs want < 0.999
     num_timesteps: int = 1000
     max_minutes: float | None = None  # stop after this wall time (checkpoint written)
