@@ -17,14 +17,14 @@ from __future__ import annotations
 import json
 import logging
 import time
-from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
 from dpi.atomic import write_json
-from dpi.capture import Capture, read_capture_json
 from dpi.cameras import Camera, read_transforms, write_transforms
+from dpi.capture import Capture, read_capture_json
 from dpi.images import read_mask
+from dpi.settings import settings_from_dict
 
 log = logging.getLogger(__name__)
 
@@ -33,16 +33,6 @@ POINTS = Path("poses") / "points.ply"
 MASKS = Path("masks")
 MESH = Path("geometry") / "mesh.ply"
 MESH_UV = Path("geometry") / "mesh_uv.ply"
-
-
-def from_dict(cls, values: dict[str, Any] | None):
-    """A settings dataclass from a (partial) dict; unknown keys are an error naming the valid ones."""
-    values = dict(values or {})
-    known = {f.name for f in fields(cls)}
-    unknown = sorted(set(values) - known)
-    if unknown:
-        raise ValueError(f"unknown {cls.__name__} settings {unknown}; valid: {', '.join(sorted(known))}")
-    return cls(**values)
 
 
 def read_cameras(path: str | Path) -> dict[str, Camera]:
@@ -85,7 +75,7 @@ def poses_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | 
     from dpi.preprocess.sfm import SfMConfig, SfMError, normalise, run_sfm, write_points_ply
 
     capture = read_capture_json(capture_json)
-    cfg = from_dict(SfMConfig, settings)
+    cfg = settings_from_dict(SfMConfig, settings)
     if cfg.focal_length_px is None and "focal_length_px" in capture.options:
         cfg.focal_length_px = float(capture.options["focal_length_px"])
     out_dir = Path(out_dir)
@@ -135,7 +125,7 @@ def masks_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | 
         xyz, _, on_object = read_points_ply(points_ply)
         points = xyz[on_object]
     start = time.perf_counter()
-    summary = derive_masks({v.name: v.image for v in capture.views}, cameras, out_dir, from_dict(MaskConfig, settings),
+    summary = derive_masks({v.name: v.image for v in capture.views}, cameras, out_dir, settings_from_dict(MaskConfig, settings),
                            points)
     summary["seconds"] = round(time.perf_counter() - start, 3)
     write_json(Path(out_dir) / "summary.json", summary)
@@ -158,7 +148,7 @@ def geometry_stage(capture_json: str | Path, out_mesh: str | Path, settings: dic
         raise ValueError(f"{capture_json}: {len(names)} views have both a camera and a mask; carving needs at least 3")
     start = time.perf_counter()
     vertices, faces, summary = reconstruct_surface([cameras[n] for n in names], [read_mask(masks[n]) for n in names],
-                                                   from_dict(GeometryConfig, settings))
+                                                   settings_from_dict(GeometryConfig, settings))
     summary["seconds"] = round(time.perf_counter() - start, 3)
     write_mesh_ply(out_mesh, vertices, faces)
     write_json(Path(out_mesh).parent / "summary.json", summary)
@@ -176,7 +166,7 @@ def uv_stage(capture_json: str | Path, out_mesh: str | Path, settings: dict | No
     if source is None:
         raise ValueError(f"{capture_json}: no mesh to parametrise (the capture has none; run the geometry stage)")
     vertices, faces = read_mesh(source)
-    atlas, summary = uv_atlas(vertices, faces, from_dict(UVConfig, settings))
+    atlas, summary = uv_atlas(vertices, faces, settings_from_dict(UVConfig, settings))
     write_uv_mesh(out_mesh, atlas)
     summary["source"] = str(source)
     write_json(Path(out_mesh).with_name("uv_summary.json"), summary)

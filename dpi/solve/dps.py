@@ -27,6 +27,7 @@ from dpi.materials import MaterialTextures
 from dpi.prior.data import radiance_scale
 from dpi.prior.diffusion import Diffusion, model_output_with_random_roll, model_timesteps, p_mean_variance
 from dpi.prior.sample import Prior
+from dpi.settings import settings_from_dict
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.init import START_ALBEDO
 from dpi.solve.optimize import OptimizeConfig, all_finite, fit
@@ -68,10 +69,7 @@ class DPSConfig:
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> "DPSConfig":
         """Config from a `method_params.dps` entry."""
-        unknown = set(values) - set(cls.__dataclass_fields__)
-        if unknown:
-            raise ValueError(f"unknown dps settings: {', '.join(sorted(unknown))}")
-        cfg = cls(**values)
+        cfg = settings_from_dict(cls, values)
         if cfg.rho_schedule not in RHO_SCHEDULES:
             raise ValueError(f"rho_schedule must be one of {RHO_SCHEDULES}, got {cfg.rho_schedule!r}")
         return cfg

@@ -18,6 +18,7 @@ from tqdm import tqdm
 
 from dpi.prior.diffusion import model_output_with_random_roll, q_sample, split_model_output
 from dpi.prior.sample import Prior
+from dpi.settings import settings_from_dict
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import estimate_radiance_scale, prior_to_env
 from dpi.solve.init import START_ALBEDO
@@ -46,10 +47,7 @@ class SDSConfig:
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> "SDSConfig":
         """Config from a `method_params.sds` entry."""
-        unknown = set(values) - set(cls.__dataclass_fields__)
-        if unknown:
-            raise ValueError(f"unknown sds settings: {', '.join(sorted(unknown))}")
-        return cls(**values)
+        return settings_from_dict(cls, values)
 
 
 def sds_gradient(prior: Prior, x: torch.Tensor, generator: torch.Generator, t_min: float, t_max: float) -> torch.Tensor:

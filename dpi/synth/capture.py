@@ -24,6 +24,7 @@ from dpi.cameras import from_fov, orbit, write_transforms
 from dpi.exr import read_exr, write_exr
 from dpi.images import write_mask, write_png
 from dpi.render import Renderer, RenderSettings
+from dpi.settings import settings_from_dict
 from dpi.skies import SkyParams, sunsky_envmap
 from dpi.synth.backdrop import BACKGROUNDS, add_detail, composite_backdrop, object_rays
 from dpi.synth.shapes import make_shape, write_ply
@@ -79,14 +80,10 @@ class SynthConfig:
     @classmethod
     def from_dict(cls, values: dict) -> "SynthConfig":
         """Config from a (possibly partial) dict, e.g. a `synthetic:` entry of config.yaml."""
-        known = cls.__dataclass_fields__
-        unknown = set(values) - set(known)
-        if unknown:
-            raise ValueError(f"unknown synthetic-capture settings: {', '.join(sorted(unknown))}")
         values = dict(values)
         if "elevations_deg" in values:
             values["elevations_deg"] = tuple(float(e) for e in values["elevations_deg"])
-        return cls(**values)
+        return settings_from_dict(cls, values)
 
 
 def ground_truth_envmap(cfg: SynthConfig) -> np.ndarray:
