@@ -6,6 +6,7 @@ import os
 from pathlib import Path
 
 import numpy as np
+import torch
 from PIL import Image
 
 from dpi.atomic import atomic_path
@@ -18,6 +19,26 @@ IMAGE_SUFFIXES = LDR_SUFFIXES + HDR_SUFFIXES
 
 class ImageError(ValueError):
     """An image file is missing, unreadable or holds unusable values; the message names the file."""
+
+
+REC709_LUMA = (0.2126, 0.7152, 0.0722)
+
+
+def luminance(rgb: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
+    """Rec. 709 luminance (...,) of linear RGB (..., 3), as numpy or torch (keeping dtype and device)."""
+    if isinstance(rgb, torch.Tensor):
+        return rgb @ torch.tensor(REC709_LUMA, dtype=rgb.dtype, device=rgb.device)
+    rgb = np.asarray(rgb)
+    return rgb @ np.array(REC709_LUMA, dtype=rgb.dtype if rgb.dtype.kind == "f" else np.float64)
+
+
+def resize(image: torch.Tensor, height: int, width: int) -> torch.Tensor:
+    """(H, W, C) image resampled to height x width: area average down, bilinear up (no-op when equal)."""
+    if tuple(image.shape[:2]) == (height, width):
+        return image
+    mode = "area" if height <= image.shape[0] else "bilinear"
+    out = torch.nn.functional.interpolate(image.permute(2, 0, 1)[None], size=(height, width), mode=mode)
+    return out[0].permute(1, 2, 0).contiguous()
 
 
 def srgb_to_linear(c: np.ndarray) -> np.ndarray:

@@ -12,6 +12,7 @@ import numpy as np
 import torch
 
 from dpi.exr import read_exr, write_exr
+from dpi.images import resize
 
 CHANNELS = {"albedo": 3, "roughness": 1, "metallic": 1}
 RANGES = {"albedo": (0.0, 1.0), "roughness": (0.02, 1.0), "metallic": (0.0, 1.0)}
@@ -62,9 +63,5 @@ class MaterialTextures:
 
 
 def resize_texture(t: torch.Tensor, size: int | None) -> torch.Tensor:
-    """Area/bilinear resample of an (R, R, C) texture to size x size (no-op for None or same size)."""
-    if size is None or t.shape[0] == size:
-        return t
-    mode = "area" if size < t.shape[0] else "bilinear"
-    out = torch.nn.functional.interpolate(t.permute(2, 0, 1)[None], size=(size, size), mode=mode)
-    return out[0].permute(1, 2, 0).contiguous()
+    """Area/bilinear resample of an (R, R, C) texture to size x size (no-op for None)."""
+    return t if size is None else resize(t, size, size)

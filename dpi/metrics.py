@@ -13,7 +13,8 @@ import numpy as np
 import torch
 from skimage.metrics import structural_similarity
 
-LUMA = np.array([0.2126, 0.7152, 0.0722])
+from dpi.images import luminance, resize
+
 EPS = 1e-6
 
 
@@ -36,14 +37,12 @@ def resize_area(image: np.ndarray, height: int, width: int) -> np.ndarray:
     """Area-average (down) or bilinear (up) resampling of an (H, W, C) image."""
     if image.shape[:2] == (height, width):
         return image
-    t = torch.from_numpy(np.ascontiguousarray(image, dtype=np.float32)).permute(2, 0, 1)[None]
-    mode = "area" if height <= image.shape[0] else "bilinear"
-    return torch.nn.functional.interpolate(t, size=(height, width), mode=mode)[0].permute(1, 2, 0).numpy()
+    return resize(torch.from_numpy(np.ascontiguousarray(image, dtype=np.float32)), height, width).numpy()
 
 
 def env_scale(estimate: np.ndarray, reference: np.ndarray) -> float:
     """Global factor aligning an env map to a reference (log-space least squares on luminance)."""
-    ye, yr = estimate @ LUMA, reference @ LUMA
+    ye, yr = luminance(estimate), luminance(reference)
     return float(np.exp(np.mean(np.log(yr + EPS) - np.log(ye + EPS))))
 
 
@@ -71,7 +70,7 @@ def albedo_mse(estimate: np.ndarray, reference: np.ndarray) -> tuple[float, np.n
 
 def normalized_env(env: np.ndarray) -> np.ndarray:
     """Env map divided by its median luminance, tone-mapped: scale-free, for spread across samples."""
-    return tonemap(env / max(float(np.median(env @ LUMA)), EPS))
+    return tonemap(env / max(float(np.median(luminance(env))), EPS))
 
 
 def sample_variance(samples: list[np.ndarray]) -> float:

@@ -121,14 +121,18 @@ class Renderer:
         return self._render(env_data.contiguous(), albedo.contiguous(), roughness.contiguous(),
                             metallic.contiguous(), int(view), seed, int(spp or self.settings.spp))
 
-    def coverage(self, view: int, supersample: int = 4) -> np.ndarray:
-        """Fraction (h, w) of each pixel of `view` covered by the object (ray casting, s x s rays)."""
+    def object_hits(self, view: int, supersample: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Sub-pixel rays of `view` ((h, w, s*s, 3) origins and directions) and whether each hits the object."""
         mi = self.mi
         origins, dirs = pixel_rays(self.cameras[view], supersample)
         o, d = origins.reshape(-1, 3).astype(np.float32), dirs.reshape(-1, 3).astype(np.float32)
         ray = mi.Ray3f(mi.Point3f(o[:, 0], o[:, 1], o[:, 2]), mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))
-        hit = np.array(self.scene.ray_test(ray), dtype=np.float32)
-        return hit.reshape(origins.shape[:3]).mean(-1)
+        hits = np.array(self.scene.ray_test(ray), dtype=bool).reshape(origins.shape[:3])
+        return origins, dirs, hits
+
+    def coverage(self, view: int, supersample: int = 4) -> np.ndarray:
+        """Fraction (h, w) of each pixel of `view` covered by the object (ray casting, s x s rays)."""
+        return self.object_hits(view, supersample)[2].mean(-1)
 
     @staticmethod
     def _check(t: torch.Tensor, shape: tuple[int, ...], name: str) -> None:

@@ -16,12 +16,11 @@ import numpy as np
 import torch
 from torch.nn import functional as F
 
-from dpi.images import IMAGE_SUFFIXES, read_image
+from dpi.images import IMAGE_SUFFIXES, luminance, read_image
 from dpi.tonecurve import TONE_CURVES, ToneCurve
 
 PANORAMA_SUFFIXES = IMAGE_SUFFIXES + (".hdr",)
 MEDIAN_TARGETS = {"outdoor": 0.3, "indoor": 0.05}
-LUMINANCE = torch.tensor([0.2126, 0.7152, 0.0722])
 
 
 def read_panorama(path: str | Path) -> np.ndarray:
@@ -46,7 +45,7 @@ def resize_area(image: torch.Tensor, height: int) -> torch.Tensor:
 
 def radiance_scale(radiance: torch.Tensor, median_target: float) -> float:
     """Per-map scale s with median luminance(radiance / s) = median_target; radiance is (3, H, W)."""
-    lum = torch.einsum("c,chw->hw", LUMINANCE.to(radiance), radiance)
+    lum = luminance(radiance.permute(1, 2, 0))
     median = float(lum.median())
     return max(median, 1e-8) / median_target
 

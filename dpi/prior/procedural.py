@@ -12,6 +12,7 @@ from tqdm import tqdm
 
 from dpi.atomic import write_json
 from dpi.exr import write_exr
+from dpi.images import luminance
 
 MAX_DYNAMIC_RANGE = 1e8  # max / median luminance above this is implausible for our generators
 CHUNKS = {"outdoor": 1, "indoor": 8}  # maps per generator call (indoor rooms share one path-tracing launch)
@@ -32,11 +33,6 @@ def generator(family: str) -> Callable[[int, np.random.Generator, int], np.ndarr
 
         return indoor_envmaps
     raise ValueError(f"unknown env-map family {family!r}; use 'outdoor' or 'indoor'")
-
-
-def luminance(env: np.ndarray) -> np.ndarray:
-    """Rec. 709 luminance (...,) of linear RGB (..., 3)."""
-    return env @ np.array([0.2126, 0.7152, 0.0722], dtype=env.dtype)
 
 
 def check_envmap(env: np.ndarray, height: int) -> float:

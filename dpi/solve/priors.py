@@ -12,13 +12,7 @@ from typing import Callable
 
 import torch
 
-LUMINANCE = torch.tensor([0.2126, 0.7152, 0.0722])
-
-
-def luminance(env: torch.Tensor) -> torch.Tensor:
-    """Rec. 709 luminance (H, W) of a linear RGB map."""
-    return env @ LUMINANCE.to(env)
-
+from dpi.images import luminance
 
 def global_norm_penalty(env: torch.Tensor, reference_median: float) -> torch.Tensor:
     """(log median luminance - log reference)^2."""

@@ -120,18 +120,6 @@ def composite_backdrop(image: np.ndarray, origins: np.ndarray, dirs: np.ndarray,
     return np.clip(out, 0.0, None).astype(np.float32)
 
 
-def object_rays(renderer, view: int, supersample: int = 3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Sub-pixel rays of a Renderer's view, (h, w, s*s, 3) origins and directions, and whether each hits the object."""
-    from dpi.cameras import pixel_rays
-
-    mi = renderer.mi
-    origins, dirs = pixel_rays(renderer.cameras[view], supersample)
-    o, d = origins.reshape(-1, 3).astype(np.float32), dirs.reshape(-1, 3).astype(np.float32)
-    ray = mi.Ray3f(mi.Point3f(o[:, 0], o[:, 1], o[:, 2]), mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))
-    hits = np.array(renderer.scene.ray_test(ray), dtype=bool).reshape(origins.shape[:3])
-    return origins, dirs, hits
-
-
 def add_detail(albedo: np.ndarray, strength: float, seed: int = 0, cells: int = 32) -> np.ndarray:
     """Albedo (R, R, 3) multiplied by a pattern of random cells (`cells` across the texture), as
     printed texture on a real object: 1 - strength + strength * pattern, pattern in [0.1, 1]."""

@@ -26,7 +26,7 @@ from dpi.images import write_mask, write_png
 from dpi.render import Renderer, RenderSettings
 from dpi.settings import settings_from_dict
 from dpi.skies import SkyParams, sunsky_envmap
-from dpi.synth.backdrop import BACKGROUNDS, add_detail, composite_backdrop, object_rays
+from dpi.synth.backdrop import BACKGROUNDS, add_detail, composite_backdrop
 from dpi.synth.shapes import make_shape, write_ply
 from dpi.synth.textures import procedural_materials
 
@@ -150,7 +150,7 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
             image = renderer.render(*tensors, view=i, seed=10_000 + i).numpy()
         image = np.clip(image, 0.0, None)
         if cfg.background != "env":
-            image = composite_backdrop(image, *object_rays(renderer, i), cfg.background, env,
+            image = composite_backdrop(image, *renderer.object_hits(i, supersample=3), cfg.background, env,
                                        ground=-2.5, wall_radius=2.5 * cfg.camera_distance, seed=cfg.seed)
         for fmt, folder in ((cfg.image_format, "images"), (other, "preview")):
             path = root / folder / f"{cam.name}.{fmt}"
