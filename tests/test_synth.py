@@ -8,7 +8,7 @@ import pytest
 from dpi.capture import load_capture
 from dpi.exr import read_exr
 from dpi.images import read_mask
-from dpi.synth.capture import MARKER, SynthConfig, make_synthetic_capture
+from dpi.synth.capture import MARKER, SynthConfig, ground_truth_envmap, make_synthetic_capture
 from dpi.synth.shapes import SHAPES, make_shape
 from dpi.synth.textures import procedural_materials
 
@@ -53,3 +53,16 @@ def test_refuses_to_overwrite_a_foreign_folder(tmp_path):
 def test_unknown_settings_are_rejected():
     with pytest.raises(ValueError, match="colour"):
         SynthConfig.from_dict({"colour": 1})
+
+
+@pytest.mark.parametrize("family", ["outdoor", "indoor"])
+def test_procedural_ground_truth_maps_are_seeded_and_distinct_per_seed(family):
+    maps = [ground_truth_envmap(SynthConfig(environment=family, environment_seed=s, env_height=8)) for s in (0, 0, 1)]
+    assert maps[0].shape == (8, 16, 3) and np.isfinite(maps[0]).all() and (maps[0] >= 0).all()
+    same, other = np.abs(maps[0] - maps[1]).mean(), np.abs(maps[0] - maps[2]).mean()
+    assert same < 0.3 * other  # indoor maps are path traced: equal up to Monte Carlo noise
+
+
+def test_unknown_environment_is_rejected():
+    with pytest.raises(ValueError, match="environment"):
+        ground_truth_envmap(SynthConfig(environment="moon"))

@@ -23,6 +23,7 @@ from dpi.atomic import write_json, write_text
 from dpi.cameras import from_fov, orbit, write_transforms
 from dpi.exr import read_exr, write_exr
 from dpi.images import write_mask, write_png
+from dpi.prior.procedural import generator
 from dpi.render import Renderer, RenderSettings
 from dpi.settings import settings_from_dict
 from dpi.skies import SkyParams, sunsky_envmap
@@ -31,6 +32,7 @@ from dpi.synth.shapes import make_shape, write_ply
 from dpi.synth.textures import procedural_materials
 
 MARKER = ".synth.json"
+EVALUATION_SEED_STREAM = 7_919  # ground-truth maps draw from default_rng([this, seed]); datasets from [seed, chunk], seed 0
 
 
 @dataclass
@@ -54,7 +56,12 @@ class SynthConfig:
     env_height: int = 32
     """height of the ground-truth sky map (width is twice this)"""
     envmap: str | None = None
-    """optional EXR to use as ground-truth environment instead of a procedural sky"""
+    """optional EXR to use as ground-truth environment instead of a procedural one"""
+    environment: str = "sunsky"
+    """procedural ground-truth environment: sunsky (Mitsuba's sky from the sun_* and turbidity
+    fields), or a map of the prior's generators, outdoor or indoor (drawn by environment_seed
+    from a seed stream the training datasets never use)"""
+    environment_seed: int = 0
     sun_elevation_deg: float = 35.0
     sun_azimuth_deg: float = 60.0
     turbidity: float = 3.0
@@ -74,7 +81,9 @@ class SynthConfig:
     """write only images/ and scene.yaml (with the held-out names), like a folder of photos; the
     cameras, masks and mesh go to gt/ (transforms.json, masks/, mesh.ply) to measure derived ones"""
     prior: str = "outdoor"
-    object_name: str = ""
+    object: str = ""
+    """name of the object (scene.yaml `object`; default the shape): scenes of one object under
+    different illuminations form the groups of albedo sigma2_invar"""
     seed: int = 0
 
     @classmethod
@@ -87,12 +96,17 @@ class SynthConfig:
 
 
 def ground_truth_envmap(cfg: SynthConfig) -> np.ndarray:
-    """The capture's ground-truth environment: the given EXR, or a procedural sunsky."""
+    """The capture's ground-truth environment: the given EXR, a procedural sunsky, outdoor or indoor map."""
     if cfg.envmap:
         env = read_exr(cfg.envmap)
         if env.shape[1] != 2 * env.shape[0]:
             raise ValueError(f"{cfg.envmap}: environment map must be H x 2H, got {env.shape[:2]}")
         return env if env.shape[-1] == 3 else np.repeat(env, 3, -1)
+    if cfg.environment in ("outdoor", "indoor"):
+        rng = np.random.default_rng([EVALUATION_SEED_STREAM, cfg.environment_seed])
+        return generator(cfg.environment)(cfg.env_height, rng, 1)[0].astype(np.float32)
+    if cfg.environment != "sunsky":
+        raise ValueError(f"environment must be sunsky, outdoor or indoor, got {cfg.environment!r}")
     sky = SkyParams(cfg.sun_elevation_deg, cfg.sun_azimuth_deg, cfg.turbidity)
     return sunsky_envmap(cfg.env_height, sky)
 
@@ -159,7 +173,7 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
 
     frames = [(f"images/{cam.name}.{cfg.image_format}", cam) for cam in cameras]
     write_json(given / "transforms.json", write_transforms(frames))
-    scene = {"prior": cfg.prior, "object": cfg.object_name or cfg.shape}
+    scene = {"prior": cfg.prior, "object": cfg.object or cfg.shape}
     if cfg.photos_only:
         scene["held_out"] = [cam.name for cam in cameras if cam.extras["held_out"]]
         scene["focal_length_px"] = float(cameras[0].fx)  # what a photo's EXIF would tell
