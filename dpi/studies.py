@@ -56,3 +56,13 @@ def roughness_sweep(roughnesses: list[float], prior: Prior, folder: str | Path, 
         rows.append({"roughness": roughness, "metallic": material_for(roughness)["metallic"],
                      "env_sigma2_sample": sample_variance([normalized_env(e.numpy()) for e in envs])})
     return rows
+
+
+def pareto_front(rows: list[dict[str, float]], minimize: tuple[str, ...], maximize: tuple[str, ...]) -> list[bool]:
+    """Per row, whether no other row is at least as good in every objective and better in one."""
+    def dominates(a: dict[str, float], b: dict[str, float]) -> bool:
+        no_worse = all(a[k] <= b[k] for k in minimize) and all(a[k] >= b[k] for k in maximize)
+        better = any(a[k] < b[k] for k in minimize) or any(a[k] > b[k] for k in maximize)
+        return no_worse and better
+
+    return [not any(dominates(other, row) for other in rows if other is not row) for row in rows]

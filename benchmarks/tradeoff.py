@@ -1,0 +1,165 @@
+"""Run time of one `dps` sample against env-map, albedo and novel-view error, over the cost knobs.
+
+On the demo object (the demo's synthetic capture; other image resolutions are rendered into
+results/benchmarks/captures), starting from one path-traced initialisation (resampled to each
+env-map and texture size), one knob at a time is varied around the base setting: diffusion steps,
+render spp, image resolution, views per step, env-map height and texture size; then the quality
+presets of config.yaml. Prints seconds per sample and the errors, marks the Pareto front (time vs
+env PSNR, albedo MSE and view PSNR), and writes the table (CSV) and a plot.
+
+    .venv/bin/python benchmarks/tradeoff.py [--knobs steps spp ...] [--presets draft default] [--threads 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import time
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import yaml
+
+from dpi.capture import load_capture
+from dpi.evaluate import evaluate_sample
+from dpi.prior.sample import load_default_prior
+from dpi.render import RenderSettings
+from dpi.solve.decomposition import Decomposition
+from dpi.solve.dps import DPSConfig, dps_sample
+from dpi.solve.init import path_traced_init
+from dpi.solve.optimize import OptimizeConfig
+from dpi.solve.problem import InverseProblem, ProblemSettings
+from dpi.studies import pareto_front
+from dpi.synth.capture import SynthConfig, make_synthetic_capture
+
+ROOT = Path(__file__).resolve().parent.parent
+OUT = ROOT / "results" / "benchmarks"
+
+
+@dataclass(frozen=True)
+class Setting:
+    """The cost knobs of one dps run."""
+
+    steps: int = 100
+    spp: int = 16
+    resolution: int = 64
+    views_per_step: int = 1
+    env_height: int = 16
+    texture_size: int = 64
+    refine_iterations: int = 100
+
+
+SWEEPS = {"steps": [25, 50, 100, 250, 1000], "spp": [4, 16, 64], "resolution": [32, 64],
+          "views_per_step": [1, 2, 4], "env_height": [8, 16, 32], "texture_size": [32, 64, 128]}
+
+
+def preset_setting(preset: dict) -> Setting:
+    """The knobs a config.yaml preset sets (others at the base values)."""
+    dps = preset.get("method_params", {}).get("dps", {})
+    keys = {"steps", "views_per_step", "refine_iterations"}
+    return Setting(spp=preset.get("render", {}).get("spp", Setting.spp),
+                   env_height=preset.get("problem", {}).get("env_height", Setting.env_height),
+                   texture_size=preset.get("problem", {}).get("texture_size", Setting.texture_size),
+                   **{k: v for k, v in dps.items() if k in keys})
+
+
+def capture_at(resolution: int, threads: int) -> Path:
+    """The demo capture at an image resolution (the demo's own folder at its configured size)."""
+    demo = yaml.safe_load((ROOT / "config.yaml").read_text())["synthetic"]["demo"]
+    folder = ROOT / "captures" / "demo" if demo.get("width") == resolution else OUT / "captures" / f"demo_{resolution}"
+    if not (folder / ".synth.json").exists():
+        make_synthetic_capture(folder, SynthConfig.from_dict({**demo, "width": resolution, "height": resolution}),
+                               threads=threads, progress=False)
+    return folder
+
+
+def run(setting: Setting, init_dir: Path, prior, threads: int, seed: int) -> dict[str, float]:
+    """One dps sample at `setting`: seconds and errors against ground truth and held-out views."""
+    capture = load_capture(capture_at(setting.resolution, threads))
+    problem = InverseProblem(capture, ProblemSettings(env_height=setting.env_height, texture_size=setting.texture_size),
+                             RenderSettings(spp=setting.spp, threads=threads))
+    init = Decomposition.load(init_dir, setting.texture_size)
+    cfg = DPSConfig(steps=setting.steps, views_per_step=setting.views_per_step,
+                    refine_iterations=setting.refine_iterations)
+    start = time.perf_counter()
+    result = dps_sample(problem, prior, init, cfg, seed=seed, progress=False).decomposition
+    seconds = time.perf_counter() - start
+    m = evaluate_sample(problem, result, spp=64, seed=1, seconds=seconds)
+    return {"seconds": seconds, "env_psnr": m["env_psnr"], "albedo_mse": m["albedo_mse"], "view_psnr": m["novel_psnr"]}
+
+
+def plot(rows: list[dict], front: list[bool], path: Path) -> None:
+    """Seconds per sample against each error, Pareto-front settings highlighted."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    for ax, key, label in zip(axes, ("env_psnr", "albedo_mse", "view_psnr"),
+                              ("env-map PSNR (dB)", "albedo MSE", "held-out view PSNR (dB)")):
+        for row, best in zip(rows, front):
+            ax.scatter(row["seconds"], row[key], c="tab:red" if best else "tab:gray", s=30 if best else 14)
+            ax.annotate(row["label"], (row["seconds"], row[key]), fontsize=6, xytext=(3, 2), textcoords="offset points")
+        ax.set_xscale("log")
+        ax.set_xlabel("seconds per dps sample")
+        ax.set_ylabel(label)
+    fig.suptitle("dps run time vs error on the demo (red: Pareto front)")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--knobs", nargs="*", default=list(SWEEPS), choices=list(SWEEPS))
+    parser.add_argument("--presets", nargs="*", default=["draft", "default"],
+                        help="config.yaml presets to measure too (paper: 1000 steps, meant for a GPU)")
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+
+    base = Setting()
+    demo = capture_at(base.resolution, args.threads)
+    init_dir = OUT / "tradeoff_init"
+    if not (init_dir / "log.json").exists():
+        problem = InverseProblem(load_capture(demo), ProblemSettings(base.env_height, base.texture_size),
+                                 RenderSettings(spp=16, threads=args.threads))
+        path_traced_init(problem, OptimizeConfig(iterations=200), seed=0, progress=False).save(init_dir, "log.json")
+    prior = load_default_prior(load_capture(demo).options.get("prior", "outdoor"))
+
+    presets = yaml.safe_load((ROOT / "config.yaml").read_text()).get("presets", {})
+    todo: dict[Setting, str] = {base: "base"}
+    for knob in args.knobs:
+        for value in SWEEPS[knob]:
+            todo.setdefault(replace(base, **{knob: value}), f"{knob}={value}")
+    for name in args.presets:
+        setting = preset_setting(presets[name])
+        todo[setting] = f"{todo[setting]} = {name}" if setting in todo else name
+
+    print(f"dps on the demo, {args.threads} threads, base {asdict(base)}")
+    print(f"{'setting':<26} {'s/sample':>9} {'env PSNR':>9} {'albedo MSE':>11} {'view PSNR':>10}")
+    rows = []
+    for setting, label in todo.items():
+        row = {"label": label, **asdict(setting), **run(setting, init_dir, prior, args.threads, args.seed)}
+        rows.append(row)
+        print(f"{label:<26} {row['seconds']:>9.1f} {row['env_psnr']:>9.2f} {row['albedo_mse']:>11.5f} "
+              f"{row['view_psnr']:>10.2f}", flush=True)
+    front = pareto_front(rows, minimize=("seconds", "albedo_mse"), maximize=("env_psnr", "view_psnr"))
+    print("Pareto front (no other setting is faster and at least as accurate on every error):")
+    for row, best in zip(rows, front):
+        if best:
+            print(f"  {row['label']}: {row['seconds']:.1f} s, env {row['env_psnr']:.2f} dB, "
+                  f"albedo {row['albedo_mse']:.5f}, view {row['view_psnr']:.2f} dB")
+    OUT.mkdir(parents=True, exist_ok=True)
+    with open(OUT / "tradeoff.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=[*rows[0], "pareto"])
+        writer.writeheader()
+        writer.writerows({**row, "pareto": best} for row, best in zip(rows, front))
+    plot(rows, front, OUT / "tradeoff.png")
+    print(f"wrote {OUT / 'tradeoff.csv'} and {OUT / 'tradeoff.png'}")
+
+
+if __name__ == "__main__":
+    main()
