@@ -17,4 +17,5 @@ rule all:
     input:
         f"{RESULTS}/eval/summary.csv",
         all_figures(),
+        f"{RESULTS}/report.html",
     default_target: True

@@ -64,3 +64,21 @@ rule envmap_figure:
         f"{RESULTS}/{{scene}}/logs/envmap_figure.log",
     script:
         "../workflow_scripts/envmap_figure.py"
+
+
+rule report:
+    input:
+        summary=rules.summary.output.summary,
+        evaluations=all_evaluations(),
+    output:
+        html=report(f"{RESULTS}/report.html", caption="../report/report.rst", category="Report"),
+        figures=directory(f"{RESULTS}/report"),
+    params:
+        results=RESULTS,
+        spp=config["evaluate"]["spp"],
+        solve=solve_params(),
+    threads: config["threads"]["evaluate"]
+    log:
+        f"{RESULTS}/logs/report.log",
+    script:
+        "../workflow_scripts/report.py"

@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
-# Idempotent set-up: Debian libraries (libLLVM >= 16 for Mitsuba's CPU backend, libusb for open3d),
-# a local virtualenv (.venv) with the pinned Python packages, and dpi itself (editable).
+# Idempotent set-up: Debian packages (libLLVM >= 16 for Mitsuba's CPU backend, libusb for open3d,
+# headless Chromium for the report test), a local virtualenv (.venv) with the pinned Python packages,
+# and dpi itself (editable).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 VENV=${VENV:-.venv}
 PYTHON=${PYTHON:-python3}
-DEBIAN_PACKAGES=(libllvm19 libusb-1.0-0)
+DEBIAN_PACKAGES=(libllvm19 libusb-1.0-0 chromium)
 
 missing=()
 for pkg in "${DEBIAN_PACKAGES[@]}"; do

@@ -29,6 +29,8 @@ def test_default_target_runs_end_to_end(workdir):
         assert float(row["novel_psnr"]) > 5 and float(row["env_psnr"]) > 0
         assert row["samples"] == ("1" if row["method"] == "init" else "2")
     assert (workdir / "results" / "tiny" / "eval" / "envmaps.png").is_file()
+    assert "<table" in (workdir / "results" / "report.html").read_text()
+    assert (workdir / "results" / "report" / "tiny" / "held_out.png").is_file()
     for k in range(2):
         assert (workdir / "results" / "tiny" / "none" / str(k) / "envmap.exr").is_file()
     assert (workdir / "results" / "tiny" / "logs" / "init.log").is_file()
@@ -41,13 +43,13 @@ def test_second_run_does_nothing(workdir):
 def test_changing_one_method_reruns_only_its_jobs(workdir, tmp_path):
     changed = {"method_params": {"smoothness": {"iterations": 3, "views_per_step": 1}}}
     out = snakemake(workdir, "-n", "--configfile", str(write_config(tmp_path / "c.yaml", changed)))
-    assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "envmap_figure": 1, "summary": 1, "all": 1}
+    assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "envmap_figure": 1, "summary": 1, "report": 1, "all": 1}
     assert "output: results/tiny/none/" not in out
 
 
 def test_adding_a_sample_runs_only_the_new_one(workdir):
     out = snakemake(workdir, "-n", "--config", "samples=3")
-    assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "envmap_figure": 1, "summary": 1, "all": 1}
+    assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "envmap_figure": 1, "summary": 1, "report": 1, "all": 1}
     assert "output: results/tiny/none/2/" in out and "output: results/tiny/none/0/" not in out
 
 

@@ -1,0 +1,152 @@
+"""The HTML report: built from a small fake results tree, every image loads in headless Chromium."""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+import subprocess
+from html.parser import HTMLParser
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dpi.capture import read_capture_json
+from dpi.exr import read_exr, write_exr
+from dpi.metric_table import direction, metric_table
+from dpi.render import RenderSettings
+from dpi.report import Page, build_report, quality_section, roughness_section
+from dpi.solve.problem import ProblemSettings
+from dpi.stages import SolveSettings, capture_stage
+
+METHODS = {"init": 1, "none": 2, "dps": 2}
+ROUGHNESS = {"glossy": 0.1, "rough": 0.6}
+SETTINGS = SolveSettings(RenderSettings(spp=4, threads=2), ProblemSettings(env_height=4, texture_size=8))
+PROBE = """<script>
+window.addEventListener("load", () => {
+  for (const img of document.images) img.setAttribute("data-natural-width", img.naturalWidth);
+  document.body.setAttribute("data-probed", "yes");
+});
+</script>"""
+
+
+def summary_rows(naturalness: bool = True) -> list[dict[str, str]]:
+    """summary.csv rows of both scenes: init has one sample; dps is missing an LPIPS value."""
+    rows = []
+    for s, scene in enumerate(ROUGHNESS):
+        for m, (method, samples) in enumerate(METHODS.items()):
+            row = {"scene": scene, "method": method, "samples": str(samples), "novel_psnr": f"{20 + m + s}",
+                   "novel_psnr_std": "0.5", "novel_lpips": "missing: no LPIPS weights" if method == "dps" else
+                   f"{0.1 * (m + 1)}", "albedo_mse": f"{0.01 * (3 - m)}",
+                   "env_sigma2_sample": "missing: one sample" if samples == 1 else f"{0.001 * (m + 1) * (s + 1)}"}
+            if naturalness:
+                row["env_naturalness"] = "missing: one sample" if samples == 1 else f"{m + 2 * s}"
+            rows.append(row)
+    return rows
+
+
+def write_summary(path: Path, rows: list[dict[str, str]]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory, tiny_capture) -> Path:
+    """Two scenes of one object (copies of the tiny capture, roughness 0.1 and 0.6) with random samples."""
+    root = tmp_path_factory.mktemp("report")
+    rng = np.random.default_rng(0)
+    gt_env = read_exr(tiny_capture / "gt" / "envmap.exr")
+    for scene, roughness in ROUGHNESS.items():
+        capture = shutil.copytree(tiny_capture, root / "captures" / scene)
+        marker = json.loads((capture / ".synth.json").read_text())
+        (capture / ".synth.json").write_text(json.dumps({**marker, "roughness": roughness}))
+        capture_stage(capture, root / "results" / scene / "capture.json")
+        for method, samples in METHODS.items():
+            for k in range(samples):
+                folder = root / "results" / scene / ("init" if method == "init" else f"{method}/{k}")
+                write_exr(folder / "envmap.exr", gt_env[::2, ::2] * rng.uniform(0.5, 2, (4, 8, 3)).astype(np.float32))
+                write_exr(folder / "albedo.exr", rng.uniform(0.1, 0.9, (8, 8, 3)).astype(np.float32))
+                write_exr(folder / "roughness.exr", np.full((8, 8, 1), roughness, np.float32))
+                write_exr(folder / "metallic.exr", np.zeros((8, 8, 1), np.float32))
+            note = {"metrics": {"notes": {"env": "global log-luminance scale alignment"}}}
+            (root / "results" / scene / "eval" / method).mkdir(parents=True)
+            (root / "results" / scene / "eval" / method / "0.json").write_text(json.dumps(note))
+    write_summary(root / "results" / "eval" / "summary.csv", summary_rows())
+    return root / "results"
+
+
+class Images(HTMLParser):
+    """The attributes of every <img> and whether a metrics table is present."""
+
+    def __init__(self, html: str):
+        super().__init__()
+        self.images: list[dict[str, str]] = []
+        self.table = False
+        self.feed(html)
+
+    def handle_starttag(self, tag, attrs):
+        self.images += [dict(attrs)] if tag == "img" else []
+        self.table |= tag == "table" and ("class", "metrics") in attrs
+
+
+def chromium_dom(page: Path, tmp_path: Path) -> str:
+    """The DOM of a page after load in headless Chromium, with each img's naturalWidth written into it."""
+    probe = page.with_name("probe.html")
+    probe.write_text(page.read_text().replace("</body>", PROBE + "\n</body>"))
+    cmd = [shutil.which("chromium"), "--headless", "--no-sandbox", "--disable-gpu", f"--user-data-dir={tmp_path}",
+           "--virtual-time-budget=5000", "--dump-dom", probe.as_uri()]
+    try:
+        return subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=True).stdout
+    finally:
+        probe.unlink()
+
+
+@pytest.mark.skipif(shutil.which("chromium") is None,
+                    reason="headless Chromium is not installed (Debian `chromium`; scripts/setup.sh installs it)")
+def test_every_image_of_the_report_loads_in_chromium(results, tmp_path):
+    page = results / "report.html"
+    build_report(results, page, results / "report", spp=4, settings=SETTINGS)
+    written = Images(page.read_text())
+    assert written.table
+    alts = {img["alt"] for img in written.images}
+    assert {"quality vs diversity", "roughness vs diversity"} <= alts
+    for scene in ROUGHNESS:
+        assert {f"{scene} {what}" for what in ("input views", "env maps", "textures", "held-out views")} <= alts
+    assert all(not img["src"].startswith(("/", "file:", "http")) for img in written.images)
+
+    loaded = Images(chromium_dom(page, tmp_path))
+    assert loaded.table and len(loaded.images) == len(written.images)
+    assert all(int(img.get("data-natural-width", 0)) > 0 for img in loaded.images), loaded.images
+
+
+def test_table_marks_the_best_value_per_scene_and_greys_missing_ones():
+    table = metric_table(summary_rows())
+    lines = table.splitlines()
+    glossy_dps, rough_init = lines[5], lines[6]
+    assert lines[3].startswith('<tr class="scene-start">') and rough_init.startswith('<tr class="scene-start">')
+    # dps: the best held-out PSNR (22), albedo MSE (0.01) and naturalness of its scene; its LPIPS is missing.
+    assert glossy_dps.count('class="best"') == 3 and "22" in glossy_dps and "0.01" in glossy_dps
+    assert '<td class="missing" title="no LPIPS weights">missing</td>' in glossy_dps
+    assert "&plusmn; 0.5" in glossy_dps
+    assert table.count('class="best"') == 2 * 4  # psnr, lpips, mse, naturalness per scene; sigma2 never
+
+
+@pytest.mark.parametrize("column, expected", [("novel_psnr", 1), ("env_ssim", 1), ("env_naturalness", 1),
+                                              ("novel_lpips", -1), ("env_fid", -1), ("env_niqe", -1),
+                                              ("albedo_mse", -1), ("albedo_sigma2_invar", -1),
+                                              ("env_sigma2_sample", 0), ("sample_seconds", 0), ("samples", 0)])
+def test_direction_of_each_metric(column, expected):
+    assert direction(column) == expected
+
+
+def test_without_naturalness_or_sweep_the_page_says_so(results, tmp_path):
+    page = Page(tmp_path / "report.html", tmp_path / "report")
+    quality = quality_section(summary_rows(naturalness=False), page)
+    assert "Marker size is constant: summary.csv has no env_naturalness column" in quality
+    one_scene = [r for r in summary_rows() if r["scene"] == "glossy"]
+    capture = read_capture_json(results / "glossy" / "capture.json")
+    assert "no roughness sweep" in roughness_section(one_scene, {"glossy": capture}, page)
