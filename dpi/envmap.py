@@ -9,6 +9,8 @@ its `envmap.data` parameter (one after the map in older versions; one on each si
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import torch
 
@@ -75,6 +77,24 @@ def unpad_from_mitsuba(data: np.ndarray, width: int) -> np.ndarray:
     return data[:, start : start + width]
 
 
-def rotate_azimuth(env: np.ndarray, shift: int) -> np.ndarray:
-    """Roll a map by `shift` columns: a rotation of the environment about the up axis."""
-    return np.roll(env, shift, axis=1)
+def rotate_azimuth(env: np.ndarray, degrees: float) -> np.ndarray:
+    """The (H, W, C) map of the environment turned by `degrees` about the up axis (+Y, right-handed:
+    counter-clockwise seen from above). Azimuth phi becomes phi - degrees, so the columns roll by
+    -degrees / 360 * W, interpolated linearly between whole texels."""
+    shift = -degrees / 360.0 * env.shape[1]
+    whole = math.floor(shift)
+    frac = shift - whole
+    rolled = np.roll(env, whole, axis=1)
+    return rolled if frac == 0 else (1 - frac) * rolled + frac * np.roll(env, whole + 1, axis=1)
+
+
+def pad_equirect(x: torch.Tensor, pad: int) -> torch.Tensor:
+    """Pad a channels-first map (..., H, W) by `pad` texels following the sphere: circularly in
+    azimuth, and across each pole into the rows on the opposite side (rolled by W/2, rows mirrored)."""
+    if pad == 0:
+        return x
+    half = x.shape[-1] // 2
+    top = torch.roll(x[..., :pad, :].flip(-2), half, dims=-1)
+    bottom = torch.roll(x[..., -pad:, :].flip(-2), half, dims=-1)
+    x = torch.cat([top, x, bottom], dim=-2)
+    return torch.cat([x[..., -pad:], x, x[..., :pad]], dim=-1)

@@ -20,13 +20,14 @@ from dpi.seeding import seed_for
 from dpi.solve.classic import ClassicConfig, classic_sample
 from dpi.prior.sample import DEFAULT_MODELS, load_prior, write_grid
 from dpi.solve.decomposition import Decomposition
+from dpi.solve.dip import DIPConfig, dip_sample
 from dpi.solve.dps import DPSConfig, dps_sample
 from dpi.solve.sds import SDSConfig, sds_sample
 from dpi.solve.init import path_traced_init
 from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.priors import PRIOR_NAMES
 
-METHODS = (*PRIOR_NAMES, "dps", "sds")
+METHODS = (*PRIOR_NAMES, "dip", "dps", "sds")
 DIFFUSION_METHODS = ("dps", "sds")
 from dpi.solve.problem import InverseProblem, ProblemSettings
 
@@ -91,6 +92,8 @@ def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | 
             write_grid(Path(out_dir) / "x0_strip.png", torch.stack(dps.snapshots), columns=len(dps.snapshots))
         else:
             result = sds_sample(problem, prior, init, SDSConfig.from_dict(values), seed, progress)
+    elif method == "dip":
+        result = dip_sample(problem, init, DIPConfig.from_dict(method_cfg), seed, progress)
     else:
         result = classic_sample(problem, method, init, ClassicConfig.from_dict(method_cfg), seed, progress)
     result.trace.info.update({"scene": scene, "k": k})

@@ -19,7 +19,7 @@ METHODS = config["methods"]
 
 wildcard_constraints:
     scene=r"[^/]+",
-    method="|".join(["none", "global_norm", "smoothness", "chromaticity", "dps", "sds"]),
+    method="|".join(["none", "global_norm", "smoothness", "chromaticity", "dip", "dps", "sds"]),
     k=r"\d+",
 
 

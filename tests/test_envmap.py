@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from dpi.envmap import (direction_to_texel, pad_for_mitsuba, texel_directions, texel_solid_angles,
+from dpi.envmap import (direction_to_texel, pad_equirect, pad_for_mitsuba, texel_directions, texel_solid_angles,
                         unpad_from_mitsuba)
 
 
@@ -64,3 +64,13 @@ def test_sunsky_sun_lands_in_its_texel_with_ground_below(mi):
     assert row < 8  # sun above the horizon in the +Y-up map
     ground = env[8:].mean()
     assert 0 < ground < env[:8].mean()
+
+
+def test_equirect_padding_wraps_azimuth_and_crosses_the_poles():
+    env = torch.arange(2 * 3 * 6, dtype=torch.float32).reshape(1, 2, 3, 6)
+    padded = pad_equirect(env, 1)
+    assert padded.shape == (1, 2, 5, 8)
+    inner = padded[..., 1:-1]
+    torch.testing.assert_close(padded[..., 1:-1, 0], env[..., -1])  # left of column 0: the last column
+    torch.testing.assert_close(inner[..., 0, :], torch.roll(env[..., 0, :], 3, dims=-1))  # over the north pole
+    torch.testing.assert_close(inner[..., -1, :], torch.roll(env[..., -1, :], 3, dims=-1))  # under the south pole

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 import torch
 
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.init import START_ALBEDO
-from dpi.solve.optimize import OptimizeConfig, fit
+from dpi.solve.init import starting_materials
+from dpi.solve.optimize import OptimizeConfig, fit, flat_config, method_config_from_dict
 from dpi.solve.priors import make_prior
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
@@ -33,9 +33,7 @@ class ClassicConfig:
     @classmethod
     def from_dict(cls, values: dict) -> "ClassicConfig":
         """Config from a flat dict: OptimizeConfig keys plus this class's own."""
-        values = dict(values)
-        own = {k: values.pop(k) for k in ("prior_weight_ratio", "start_noise") if k in values}
-        return cls(optimize=OptimizeConfig.from_dict(values), **own)
+        return method_config_from_dict(cls, values)
 
 
 def balanced_weight(data0: float, prior0: float, ratio: float) -> float:
@@ -49,10 +47,8 @@ def classic_sample(problem: InverseProblem, method: str, init: Decomposition, cf
     generator = torch.Generator().manual_seed(seed)
     prior = make_prior(method, init.env)
     log_env = init.env.clamp_min(1e-6).log() + cfg.start_noise * torch.randn(init.env.shape, generator=generator)
-    materials = init.materials.detached()
-    materials.albedo.fill_(START_ALBEDO)
-    trace = Trace(info={"method": method, "seed": seed, "config": {**vars(cfg.optimize),
-                        "prior_weight_ratio": cfg.prior_weight_ratio, "start_noise": cfg.start_noise}})
+    materials = starting_materials(init)
+    trace = Trace(info={"method": method, "seed": seed, "config": flat_config(cfg)})
     weight = 0.0
     if prior is not None:
         with torch.no_grad():

@@ -29,7 +29,7 @@ from dpi.prior.diffusion import Diffusion, model_output_with_random_roll, model_
 from dpi.prior.sample import Prior
 from dpi.settings import settings_from_dict
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.init import START_ALBEDO
+from dpi.solve.init import starting_materials
 from dpi.solve.optimize import OptimizeConfig, all_finite, fit
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
@@ -124,8 +124,7 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
     height = problem.settings.env_height
     trace = Trace(info={"method": "dps", "seed": seed, "radiance_scale": scale, "family": prior.family,
                         "config": vars(cfg).copy()})
-    materials = init.materials.detached()
-    materials.albedo.fill_(START_ALBEDO)
+    materials = starting_materials(init)
     free = [t.requires_grad_(True) for _, t in materials.items()]
     optimizer = torch.optim.Adam([{"params": [materials.albedo], "lr": cfg.lr_albedo},
                                   {"params": [materials.roughness], "lr": cfg.lr_roughness},

@@ -29,6 +29,13 @@ def starting_log_env(problem: InverseProblem) -> torch.Tensor:
     return torch.full((h, 2 * h, 3), math.log(level))
 
 
+def starting_materials(init: Decomposition) -> MaterialTextures:
+    """Where every posterior method starts: the init's roughness and metallic, a grey albedo."""
+    materials = init.materials.detached()
+    materials.albedo.fill_(START_ALBEDO)
+    return materials
+
+
 def path_traced_init(problem: InverseProblem, cfg: OptimizeConfig, seed: int, progress: bool = True) -> Decomposition:
     """Fit env map + materials from constant starting values; returns them with the trace."""
     trace = Trace(info={"stage": "init", "config": vars(cfg).copy(), "seed": seed})

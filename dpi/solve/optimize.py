@@ -1,21 +1,24 @@
 """Joint Adam optimisation of a free environment map and material textures against the views.
 
 The shared loop of the path-traced initialisation and of the optimisation-based priors
-(`none`, `global_norm`, `smoothness`, `chromaticity`). The map is optimised as log-radiance, so a
-step changes radiance relatively (HDR maps span many orders of magnitude); materials are
-optimised directly and clamped to their valid ranges after every step. A step whose loss or
-gradients are not finite is skipped and counted in the trace.
+(`none`, `global_norm`, `smoothness`, `chromaticity`, `dip`). The map is an `EnvModel`: a module
+whose forward pass gives log-radiance, either the free texels themselves (`FreeEnvMap`) or a
+network that generates them (`dip`). Log-radiance makes a step change radiance relatively (HDR
+maps span many orders of magnitude); materials are optimised directly and clamped to their valid
+ranges after every step. A step whose loss or gradients are not finite is skipped and counted in
+the trace.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Callable
+from dataclasses import dataclass, fields
+from typing import Any, Callable, TypeVar
 
 import torch
 from tqdm import tqdm
 
 from dpi.materials import MaterialTextures
+from dpi.settings import settings_from_dict
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
 
@@ -31,7 +34,7 @@ class OptimizeConfig:
     views_per_step: int = 4
     """training views rendered per step (all views if larger than their number)"""
     lr_env: float = 3e-2
-    """Adam learning rate on the log-radiance of the env map"""
+    """Adam learning rate of the env map's parameters (its log-radiance texels; dip: the network weights)"""
     lr_albedo: float = 2e-2
     lr_roughness: float = 1.5e-2
     lr_metallic: float = 1e-2
@@ -46,10 +49,55 @@ class OptimizeConfig:
         values = dict(values)
         if "optimize_materials" in values:
             values["optimize_materials"] = tuple(values["optimize_materials"])
-        return cls(**values)
+        return settings_from_dict(cls, values)
+
+
+MethodConfig = TypeVar("MethodConfig")
+
+
+def method_config_from_dict(cls: type[MethodConfig], values: dict[str, Any] | None) -> MethodConfig:
+    """A method's config dataclass, whose `optimize` field is an OptimizeConfig, from one flat dict
+    (a `method_params` entry): its own keys by name, the rest for OptimizeConfig; unknown keys are an error."""
+    values = dict(values or {})
+    own = {f.name for f in fields(cls)} - {"optimize"}
+    known = own | {f.name for f in fields(OptimizeConfig)}
+    unknown = sorted(set(values) - known)
+    if unknown:
+        raise ValueError(f"unknown {cls.__name__} settings {unknown}; valid: {', '.join(sorted(known))}")
+    optimize = OptimizeConfig.from_dict({k: v for k, v in values.items() if k not in own})
+    return cls(optimize=optimize, **{k: v for k, v in values.items() if k in own})
+
+
+def flat_config(cfg: Any) -> dict[str, Any]:
+    """The flat dict of a method config (inverse of `method_config_from_dict`), for its trace."""
+    return {**vars(cfg.optimize), **{k: v for k, v in vars(cfg).items() if k != "optimize"}}
 
 
 PriorFn = Callable[[torch.Tensor], torch.Tensor]
+
+
+class EnvModel(torch.nn.Module):
+    """A parametrisation of the env map: `forward()` gives its log-radiance (H, 2H, 3)."""
+
+    def constrain_(self) -> None:
+        """Project the parameters back into their valid set after an optimiser step (default: none)."""
+
+
+class FreeEnvMap(EnvModel):
+    """The map's log-radiance texels as free parameters, clamped to LOG_ENV_RANGE after each step."""
+
+    def __init__(self, log_env: torch.Tensor):
+        super().__init__()
+        self.log_env = torch.nn.Parameter(log_env.detach().clone())
+
+    def forward(self) -> torch.Tensor:
+        """The log-radiance map itself."""
+        return self.log_env
+
+    @torch.no_grad()
+    def constrain_(self) -> None:
+        """Keep radiance inside about [1e-6, 1e6]."""
+        self.log_env.clamp_(*LOG_ENV_RANGE)
 
 
 def all_finite(tensors: list[torch.Tensor]) -> bool:
@@ -60,10 +108,18 @@ def all_finite(tensors: list[torch.Tensor]) -> bool:
 def fit(problem: InverseProblem, log_env: torch.Tensor, materials: MaterialTextures, cfg: OptimizeConfig,
         seed: int, trace: Trace, prior: PriorFn | None = None, prior_weight: float = 0.0,
         progress: bool = True) -> tuple[torch.Tensor, MaterialTextures]:
-    """Minimise data loss (+ prior_weight * prior(env)); returns the final log-env and materials."""
-    log_env = log_env.detach().clone().requires_grad_(cfg.optimize_env)
+    """Minimise data loss (+ prior_weight * prior(env)) over free texels; returns the final log-env and materials."""
+    return fit_env_model(problem, FreeEnvMap(log_env), materials, cfg, seed, trace, prior, prior_weight, progress)
+
+
+def fit_env_model(problem: InverseProblem, env_model: EnvModel, materials: MaterialTextures, cfg: OptimizeConfig,
+                  seed: int, trace: Trace, prior: PriorFn | None = None, prior_weight: float = 0.0,
+                  progress: bool = True) -> tuple[torch.Tensor, MaterialTextures]:
+    """Minimise data loss (+ prior_weight * prior(env)) over the env model's parameters (updated in
+    place) and the materials; returns the final log-env and materials."""
+    env_model.requires_grad_(cfg.optimize_env)
     materials = materials.detached()
-    groups = [{"params": [log_env], "lr": cfg.lr_env}] if cfg.optimize_env else []
+    groups = [{"params": list(env_model.parameters()), "lr": cfg.lr_env}] if cfg.optimize_env else []
     for name, tensor in materials.items():
         if name in cfg.optimize_materials:
             tensor.requires_grad_(True)
@@ -74,7 +130,7 @@ def fit(problem: InverseProblem, log_env: torch.Tensor, materials: MaterialTextu
     for step in tqdm(range(cfg.iterations), desc="optimise", disable=not progress, mininterval=2.0):
         t0 = trace.seconds
         views = problem.sample_views(cfg.views_per_step, generator)
-        env = log_env.exp()
+        env = env_model().exp()
         data = problem.data_loss(env, materials, views, seed=seed * 100_003 + step)
         reg = prior(env) if prior is not None and prior_weight > 0 else torch.zeros(())
         loss = data + prior_weight * reg
@@ -90,9 +146,9 @@ def fit(problem: InverseProblem, log_env: torch.Tensor, materials: MaterialTextu
             trace.skip(step, "non-finite gradient")
             continue
         optimizer.step()
-        with torch.no_grad():
-            log_env.clamp_(*LOG_ENV_RANGE)
+        env_model.constrain_()
         materials.clamp_()
         trace.record(step=step, loss=loss.item(), data=data.item(), prior=reg.item(), views=views,
                      seconds=round(trace.seconds - t0, 4))
-    return log_env.detach(), materials.detached()
+    with torch.no_grad():
+        return env_model().detach(), materials.detached()

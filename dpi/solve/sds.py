@@ -21,7 +21,7 @@ from dpi.prior.sample import Prior
 from dpi.settings import settings_from_dict
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import estimate_radiance_scale, prior_to_env
-from dpi.solve.init import START_ALBEDO
+from dpi.solve.init import starting_materials
 from dpi.solve.optimize import all_finite
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
@@ -70,8 +70,7 @@ def sds_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
     start = torch.nn.functional.interpolate(init.env.permute(2, 0, 1)[None], size=(prior.height, 2 * prior.height),
                                             mode="area")
     x = prior.tone_curve.with_scale(scale).to_prior(start).clamp(-0.999, 0.999).requires_grad_(True)
-    materials = init.materials.detached()
-    materials.albedo.fill_(START_ALBEDO)
+    materials = starting_materials(init)
     free = [x, *(t.requires_grad_(True) for _, t in materials.items())]
     optimizer = torch.optim.Adam([{"params": [x], "lr": cfg.lr_map},
                                   {"params": [materials.albedo], "lr": cfg.lr_albedo},
