@@ -6,6 +6,7 @@
     dpi sample results/demo/capture.json results/demo/init results/demo/none/0 --method none --k 0
     dpi evaluate results/demo/capture.json results/demo/none/0 results/demo/eval/none/0.json
     dpi summary results/demo/eval/*/*.json --out results/eval/summary.csv
+    dpi relight results/demo/capture.json results/demo/dps/0 results/demo/relit --envmap sky.exr --orbit 8
 """
 
 from __future__ import annotations
@@ -88,6 +89,31 @@ def cmd_summary(args: argparse.Namespace) -> None:
     summary_stage(args.evals, args.out, args.samples_out)
 
 
+def cmd_relight(args: argparse.Namespace) -> None:
+    """Re-render a decomposition under a new environment map, from new views, with material edits."""
+    from dataclasses import replace
+
+    from dpi.relight import MaterialEdit, RelightConfig, relight_sample
+
+    edit = MaterialEdit(args.albedo_scale, args.roughness, args.metallic)
+    cfg = RelightConfig(args.envmap, args.rotate_deg, args.env_height, args.orbit, args.orbit_elevation_deg,
+                        args.exposure, args.seed, edit)
+    render = replace(_settings(args).render, spp=args.spp)
+    names = relight_sample(args.capture_json, args.sample, args.out, cfg, render)
+    print(f"wrote {len(names)} views to {args.out}")
+
+
+def _rgb(text: str) -> tuple[float, float, float]:
+    """R,G,B (or one value for all three) as three floats."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected R,G,B numbers, got {text!r}") from None
+    if len(values) not in (1, 3):
+        raise argparse.ArgumentTypeError(f"expected one or three numbers, got {text!r}")
+    return tuple(values * 3 if len(values) == 1 else values)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the `dpi` command."""
     parser = argparse.ArgumentParser(prog="dpi", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -140,6 +166,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("evals", nargs="+", help="per-sample metric JSON files")
     p.add_argument("--out", required=True)
     p.add_argument("--samples-out", dest="samples_out", default=None, help="also write per-sample rows here")
+
+    p = add("relight", cmd_relight, "re-render a decomposition under a new environment map and/or from new "
+            "views, optionally with edited materials (relighting, material editing)", capture_json=True)
+    p.add_argument("sample", help="decomposition folder (envmap.exr, albedo/roughness/metallic.exr), e.g. "
+                   "results/demo/dps/0 or results/demo/init")
+    p.add_argument("out", help="output folder: {view}.exr (linear) and {view}.png (sRGB) per view, relight.json")
+    p.add_argument("--envmap", help="EXR environment map to light with, any size (resampled to H x 2H); "
+                   "default: the decomposition's own")
+    p.add_argument("--rotate", dest="rotate_deg", type=float, default=0.0, metavar="DEG",
+                   help="turn the environment by DEG degrees about the up (+Y) axis, "
+                   "counter-clockwise seen from above")
+    p.add_argument("--env-height", dest="env_height", type=int, metavar="H",
+                   help="resample the map to H x 2H (default: the decomposition's map height)")
+    p.add_argument("--orbit", type=int, default=0, metavar="N",
+                   help="render N cameras on a ring around the object instead of the capture's cameras")
+    p.add_argument("--orbit-elevation", dest="orbit_elevation_deg", type=float, default=20.0, metavar="DEG",
+                   help="elevation of the orbit cameras (default 20)")
+    p.add_argument("--albedo-scale", dest="albedo_scale", type=_rgb, metavar="R,G,B",
+                   help="multiply the albedo per channel (one value scales all three)")
+    p.add_argument("--roughness", type=float, help="replace the roughness texture by this value")
+    p.add_argument("--metallic", type=float, help="replace the metallic texture by this value")
+    p.add_argument("--spp", type=int, default=64, help="samples per pixel (default 64)")
+    p.add_argument("--exposure", type=float, default=1.0, help="exposure of the PNGs (the EXRs stay linear)")
+    p.add_argument("--seed", type=int, default=0, help="sampler seed")
 
     register_prior_commands(sub)
     return parser
