@@ -57,7 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--threads", type=int, default=1)
-    p.set_defaults(func=cmd_make_envmaps)
+    p.set_defaults(fn=cmd_make_envmaps)
 
     p = subparsers.add_parser("train-prior", help="train a diffusion prior on a folder of env maps")
     p.add_argument("--family", choices=["outdoor", "indoor"], required=True, help="selects the tone curve")
@@ -74,7 +74,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--device", default="cpu")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--threads", type=int, default=1)
-    p.set_defaults(func=cmd_train_prior)
+    p.set_defaults(fn=cmd_train_prior)
 
     p = subparsers.add_parser("sample-prior", help="draw unconditional env maps from a prior checkpoint")
     p.add_argument("--checkpoint", required=True)
@@ -85,7 +85,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--no-roll", action="store_true", help="disable the per-step random roll (Eq. 15)")
     p.add_argument("--device", default="cpu")
     p.add_argument("--threads", type=int, default=1)
-    p.set_defaults(func=cmd_sample_prior)
+    p.set_defaults(fn=cmd_sample_prior)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -93,7 +93,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="dpi-prior", description=__doc__)
     register(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(argv)
-    args.func(args)
+    args.fn(args)
 
 
 if __name__ == "__main__":
