@@ -8,7 +8,9 @@ import yaml
 
 from dpi.capture import inspect_capture
 from dpi.prior.sample import DEFAULT_MODELS
+from dpi.settings import apply_preset
 
+apply_preset(config)  # the quality preset fills what the config leaves unset
 validate(config, "config.schema.yaml")
 
 CAPTURES = config["captures_dir"]
