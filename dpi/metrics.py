@@ -52,11 +52,16 @@ def tonemap(radiance: np.ndarray) -> np.ndarray:
     return radiance / (1.0 + radiance)
 
 
-def env_metrics(estimate: np.ndarray, reference: np.ndarray) -> dict[str, float]:
-    """PSNR/SSIM of a scale-aligned, tone-mapped env map against the reference (resized to it)."""
+def aligned_env(estimate: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Tone-mapped scale-aligned estimate and reference (resized to the estimate), and the scale."""
     reference = resize_area(reference, *estimate.shape[:2])
     s = env_scale(estimate, reference)
-    a, b = tonemap(s * estimate), tonemap(reference)
+    return tonemap(s * estimate), tonemap(reference), s
+
+
+def env_metrics(estimate: np.ndarray, reference: np.ndarray) -> dict[str, float]:
+    """PSNR/SSIM of a scale-aligned, tone-mapped env map against the reference (resized to it)."""
+    a, b, s = aligned_env(estimate, reference)
     return {"env_psnr": psnr(a, b), "env_ssim": ssim(a, b), "env_scale": s}
 
 

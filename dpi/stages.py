@@ -14,7 +14,7 @@ import torch
 from dpi import backend
 from dpi.atomic import write_json
 from dpi.capture import load_capture, read_capture_json, write_capture_json
-from dpi.evaluate import evaluate_sample, summarize, write_csv
+from dpi.evaluate import evaluate_sample, sample_rows, summarize, write_csv
 from dpi.render import RenderSettings
 from dpi.seeding import seed_for
 from dpi.solve.classic import ClassicConfig, classic_sample
@@ -101,22 +101,27 @@ def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | 
 
 
 def evaluate_stage(capture_json: str | Path, sample_dir: str | Path, out_json: str | Path, scene: str,
-                   method: str, k: int, spp: int, settings: SolveSettings) -> None:
-    """Metrics of one sample against held-out views and ground truth, as JSON."""
+                   method: str, k: int, spp: int, settings: SolveSettings,
+                   prior_checkpoint: str | Path | None = None) -> None:
+    """Metrics of one sample against held-out views and ground truth, as JSON, with the scene's object
+    (scene.yaml `object`, else the scene) and ground-truth env map for the summary's set metrics.
+    Naturalness uses the prior in `prior_checkpoint` (default: the shipped model of the scene's family)."""
     problem = load_problem(capture_json, settings)
     sample = Decomposition.load(sample_dir, settings.problem.texture_size)
     traces = [Path(sample_dir) / name for name in ("trace.json", "log.json") if (Path(sample_dir) / name).is_file()]
     seconds = json.loads(traces[0].read_text())["summary"]["seconds"] if traces else None
-    metrics = evaluate_sample(problem, sample, spp, seed_for(scene, method, k, "eval"), seconds)
+    prior = load_prior(prior_checkpoint) if prior_checkpoint else None
+    metrics = evaluate_sample(problem, sample, spp, seed_for(scene, method, k, "eval"), seconds, prior)
+    gt_envmap = problem.capture.gt.get("envmap")
     write_json(out_json, {"scene": scene, "method": method, "sample": k, "sample_dir": str(sample_dir),
-                          "metrics": metrics})
+                          "object": problem.capture.options.get("object", scene),
+                          "gt_envmap": str(gt_envmap) if gt_envmap else None, "metrics": metrics})
 
 
 def summary_stage(eval_jsons: list[str | Path], out_csv: str | Path, samples_csv: str | Path | None = None) -> None:
     """Aggregate per-sample metric files into summary.csv (one row per scene x method, init included)."""
     records = [json.loads(Path(path).read_text()) for path in eval_jsons]
-    write_csv(out_csv, summarize(records))
+    summary = summarize(records)
+    write_csv(out_csv, summary)
     if samples_csv is not None:
-        rows = [{"scene": r["scene"], "method": r["method"], "sample": r["sample"],
-                 **{k: v for k, v in r["metrics"].items() if k != "notes"}} for r in records]
-        write_csv(samples_csv, rows)
+        write_csv(samples_csv, sample_rows(records, summary))

@@ -1,9 +1,13 @@
-"""Metric known answers: identical images, a known shift, scaled maps and albedos."""
+"""Metric known answers: identical images, a known shift, scaled maps and albedos, and the summary's
+set metrics (sigma2_invar across the illuminations of an object, init seconds, FID without weights)."""
 
 import numpy as np
 import pytest
 
+from dpi.evaluate import sample_rows, summarize
+from dpi.exr import write_exr
 from dpi.metrics import albedo_mse, env_metrics, psnr, sample_variance, ssim
+from dpi.perceptual import INCEPTION_WEIGHTS, WEIGHTS_ENV
 
 
 def test_psnr_known_answers():
@@ -45,3 +49,34 @@ def test_albedo_mse_aligns_each_channel():
 def test_sample_variance_known_answer():
     assert sample_variance([np.zeros(4), np.full(4, 2.0)]) == pytest.approx(2.0)
     assert sample_variance([np.ones(3)]) == 0.0
+
+
+def toy_record(root, scene, method, albedo, obj=None, seconds=1.0):
+    """An evaluation record of a sample with a constant env map and the given albedo."""
+    sample_dir = root / scene / method
+    write_exr(sample_dir / "envmap.exr", np.ones((4, 8, 3), np.float32))
+    write_exr(sample_dir / "albedo.exr", albedo.astype(np.float32))
+    record = {"scene": scene, "method": method, "sample": 0, "sample_dir": str(sample_dir), "gt_envmap": None,
+              "metrics": {"sample_seconds": seconds}}
+    return record if obj is None else {**record, "object": obj}
+
+
+def test_summary_set_metrics(tmp_path, monkeypatch):
+    monkeypatch.setenv(WEIGHTS_ENV, str(tmp_path / "no_weights"))
+    flat = np.ones((2, 2, 3))
+    pattern = 7.0 * np.array([[0.5, 1.5], [1.5, 0.5]])[..., None] * flat  # mean-normalised: 0.5 / 1.5
+    records = [toy_record(tmp_path, "sunny", "m", flat, "cube"), toy_record(tmp_path, "cloudy", "m", pattern, "cube"),
+               toy_record(tmp_path, "ball", "m", flat),  # no object key: its own scene
+               toy_record(tmp_path, "sunny", "init", flat, "cube", seconds=12.0)]
+    rows = {(r["scene"], r["method"]): r for r in summarize(records)}
+    # two illuminations of the cube: per-texel variance (1 - 0.5)^2 / 2 = (1 - 1.5)^2 / 2 = 0.125
+    assert rows[("sunny", "m")]["albedo_sigma2_invar"] == pytest.approx(0.125)
+    assert rows[("cloudy", "m")]["albedo_sigma2_invar"] == pytest.approx(0.125)
+    assert rows[("ball", "m")]["albedo_sigma2_invar"] == "missing: one illumination of object ball"
+    assert rows[("sunny", "init")]["albedo_sigma2_invar"] == "missing: one illumination of object cube"
+    assert rows[("sunny", "m")]["init_seconds"] == 12.0
+    assert rows[("cloudy", "m")]["init_seconds"] == "missing: no init evaluation"
+    fid = rows[("sunny", "m")]["env_fid"]
+    assert fid.startswith("missing: ") and INCEPTION_WEIGHTS in fid
+    per_sample = sample_rows(records, list(rows.values()))
+    assert per_sample[1]["albedo_sigma2_invar"] == pytest.approx(0.125) and per_sample[1]["env_fid"] == fid
