@@ -87,12 +87,15 @@ def scene_family(scene):
     return (data or {}).get("prior", config["illumination_prior"]["family"])
 
 
-def prior_checkpoint(wildcards):
-    """The diffusion prior a dps/sds job uses (none for other methods): configured, else the shipped model."""
-    if wildcards.method not in ("dps", "sds"):
-        return []
+def scene_prior(wildcards):
+    """The diffusion prior of a scene's family: configured, else the shipped model (evaluation's naturalness)."""
     family = scene_family(wildcards.scene)
-    return [config["illumination_prior"]["checkpoints"].get(family, str(DEFAULT_MODELS[family]))]
+    return config["illumination_prior"]["checkpoints"].get(family, str(DEFAULT_MODELS[family]))
+
+
+def prior_checkpoint(wildcards):
+    """The diffusion prior a dps/sds job uses (none for other methods)."""
+    return [scene_prior(wildcards)] if wildcards.method in ("dps", "sds") else []
 
 
 def solve_params():

@@ -5,6 +5,7 @@ rule evaluate:
     input:
         capture=f"{RESULTS}/{{scene}}/capture.json",
         sample=rules.sample.output.trace,
+        prior=scene_prior,
     output:
         f"{RESULTS}/{{scene}}/eval/{{method}}/{{k}}.json",
     params:
@@ -24,6 +25,7 @@ rule evaluate_init:
     input:
         capture=f"{RESULTS}/{{scene}}/capture.json",
         sample=rules.init.output.log,
+        prior=scene_prior,
     output:
         f"{RESULTS}/{{scene}}/eval/init/0.json",
     params:

@@ -10,4 +10,4 @@ method, k = getattr(w, "method", "init"), int(getattr(w, "k", 0))
 with log_to(snakemake.log[0]):
     evaluate_stage(snakemake.input.capture, Path(snakemake.input.sample).parent, snakemake.output[0], w.scene,
                    method, k, snakemake.params.spp,
-                   SolveSettings.from_config(snakemake.params.solve, snakemake.threads))
+                   SolveSettings.from_config(snakemake.params.solve, snakemake.threads), snakemake.input.prior)
