@@ -7,7 +7,8 @@ capture: pose errors after Umeyama alignment, mask IoU, Chamfer distance (% of t
 diagonal) and the seconds of every stage. Not a timed test: numbers depend on the machine.
 
     .venv/bin/python benchmarks/preprocess_accuracy.py                     # defaults below
-    .venv/bin/python benchmarks/preprocess_accuracy.py --views 40 --size 320 --shapes blob
+    .venv/bin/python benchmarks/preprocess_accuracy.py --views 40 --size 400 --backgrounds textured
+    .venv/bin/python benchmarks/preprocess_accuracy.py --captures /tmp/pp   # keep the renders, reuse them
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from dpi.preprocess.accuracy import align_mesh, chamfer, mask_iou, pose_errors
 from dpi.preprocess.geometry import read_mesh
 from dpi.preprocess.sfm import SfMError
 from dpi.preprocess.stages import geometry_stage, masks_stage, poses_stage, read_cameras, uv_stage
-from dpi.synth.capture import SynthConfig, make_synthetic_capture
+from dpi.synth.capture import MARKER, SynthConfig, make_synthetic_capture
 
 
 def run_capture(root: Path, work: Path, threads: int) -> dict:
@@ -75,20 +76,24 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=240)
     parser.add_argument("--spp", type=int, default=8)
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--captures", help="render the captures into this folder and reuse those already there "
+                        "(default: a temporary folder)")
     args = parser.parse_args()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for shape in args.shapes:
             for background in args.backgrounds:
-                root = Path(tmp) / f"{shape}_{background}"
+                name = f"{shape}_{background}_{args.views}x{args.size}_{args.spp}spp"
+                root = Path(args.captures or tmp) / name
                 cfg = SynthConfig(shape=shape, views=args.views, held_out_every=8, width=args.size, height=args.size,
                                   spp=args.spp, texture_size=256, camera_distance=6.0, elevations_deg=(15.0, 30.0),
                                   albedo_detail=0.6, background=background, image_format="png", photos_only=True)
                 start = time.perf_counter()
-                make_synthetic_capture(root, cfg, threads=args.threads, progress=False)
+                if not (root / MARKER).is_file():
+                    make_synthetic_capture(root, cfg, threads=args.threads, progress=False)
                 render_s = time.perf_counter() - start
                 try:
-                    row = run_capture(root, Path(tmp) / f"work_{shape}_{background}", args.threads)
+                    row = run_capture(root, Path(tmp) / f"work_{name}", args.threads)
                 except Exception as exc:  # a failing stage is a result too
                     row = {"error": f"{type(exc).__name__}: {str(exc)[:80]}"}
                 rows.append({"shape": shape, "background": background, "render_s": render_s, **row})

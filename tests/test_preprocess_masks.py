@@ -1,5 +1,6 @@
-"""Foreground masks: colour keying on a plain background, GrabCut from a sparse-point hull on a
-textured one, the consensus prior without points, and the clean-up (largest part, small holes)."""
+"""Foreground masks: colour keying on a plain background, GrabCut from the sphere and sparse-point
+hull prior on a textured one, consensus rounds from the views' visual hull, outlier points, the
+hull's projection, and the clean-up (largest part, small holes)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,8 @@ import pytest
 from dpi.cameras import from_fov, orbit, pixel_rays
 from dpi.images import srgb_to_linear
 from dpi.preprocess.accuracy import mask_iou
-from dpi.preprocess.masks import MaskConfig, clean_mask, derive_masks, object_mask
+from dpi.preprocess.masks import (MaskConfig, clean_mask, derive_masks, drop_outliers, mesh_silhouette,
+                                  object_mask, refine_masks, visible_sphere)
 from dpi.synth.backdrop import backdrop_texture
 
 SIZE = 64
@@ -41,33 +43,69 @@ def cameras():
     return [from_fov(c2w, SIZE, SIZE, 40.0, f"v{i}") for i, c2w in enumerate(orbit(12, 4.0, (10.0, 35.0)))]
 
 
+@pytest.fixture(scope="module")
+def sphere(cameras):
+    centre, radius = visible_sphere(cameras)
+    return centre, MaskConfig().sphere_fraction * radius
+
+
 def surface_points(count: int = 200, seed: int = 0) -> np.ndarray:
     p = np.random.default_rng(seed).normal(size=(count, 3))
     return p / np.linalg.norm(p, axis=1, keepdims=True)
 
 
-def test_uniform_background_is_keyed(cameras):
+def test_uniform_background_is_keyed(cameras, sphere):
     image, truth = sphere_view(cameras[0], "plain")
-    mask, method = object_mask(image, cameras[0], MaskConfig(), surface_points())
+    mask, method = object_mask(image, cameras[0], MaskConfig(), sphere, surface_points())
     assert method == "key"
     assert mask_iou(mask, truth) > 0.97
 
 
-def test_textured_background_uses_grabcut_from_the_points_hull(cameras):
+def test_textured_background_uses_grabcut_from_the_sphere_and_points_hull(cameras, sphere):
     ious = []
     for i, cam in enumerate(cameras[:4]):
         image, truth = sphere_view(cam, "textured", seed=i)
-        mask, method = object_mask(image, cam, MaskConfig(), surface_points(60, seed=i))
+        mask, method = object_mask(image, cam, MaskConfig(), sphere, surface_points(60, seed=i))
         assert method == "grabcut"
         ious.append(mask_iou(mask, truth))
     assert np.mean(ious) > 0.95, ious
 
 
-def test_stray_points_do_not_become_foreground(cameras):
+def test_stray_points_do_not_become_foreground(cameras, sphere):
     image, truth = sphere_view(cameras[1], "textured", seed=1)
     points = np.concatenate([surface_points(60), [[2.5, 2.0, 0.0]]])  # one far-off point widens the hull
-    mask, _ = object_mask(image, cameras[1], MaskConfig(), points)
+    mask, _ = object_mask(image, cameras[1], MaskConfig(), sphere, points)
     assert mask_iou(mask, truth) > 0.9
+
+
+def test_outlier_points_are_dropped():
+    points = np.concatenate([surface_points(60), [[2.5, 2.0, 0.0]]])
+    kept = drop_outliers(points, 2.0)
+    assert len(kept) >= 55 and not (np.linalg.norm(kept, axis=1) > 1.5).any()
+    assert len(drop_outliers(points, 0.0)) == len(points)
+
+
+def test_mesh_silhouette_matches_the_true_outline(cameras):
+    import trimesh
+
+    icosphere = trimesh.creation.icosphere(subdivisions=5)
+    for cam in cameras[:3]:
+        outline = mesh_silhouette(cam, np.asarray(icosphere.vertices), np.asarray(icosphere.faces))
+        assert mask_iou(outline, sphere_view(cam, "plain")[1]) > 0.97
+
+
+def test_consensus_round_removes_one_views_background_patch(cameras):
+    images, truths = zip(*(sphere_view(cam, "textured", seed=i) for i, cam in enumerate(cameras)))
+    masks = [t.copy() for t in truths]
+    masks[2][:28, :28] = True  # a patch of background taken for the object (joined to it below)
+    masks[2][20:40, 15:25] = True
+    cfg = MaskConfig(consensus_votes=[0.25], consensus_bands=[0.08], consensus_resolution=48)
+    from dpi.images import to_uint8
+
+    refined, methods = refine_masks([to_uint8(im) for im in images], list(cameras), masks, cfg)
+    assert mask_iou(masks[2], truths[2]) < 0.8
+    assert mask_iou(refined[2], truths[2]) > 0.9 and methods[2] == "grabcut"
+    assert np.mean([mask_iou(m, t) for m, t in zip(refined, truths)]) > 0.93
 
 
 def test_consensus_prior_without_points(cameras, tmp_path):
@@ -79,7 +117,7 @@ def test_consensus_prior_without_points(cameras, tmp_path):
         images[cam.name] = tmp_path / f"{cam.name}.png"
         write_png(images[cam.name], image)
     summary = derive_masks(images, {c.name: c for c in cameras}, tmp_path / "masks", MaskConfig(method="grabcut"))
-    assert summary["prior"] == "sphere, then consensus hull"
+    assert summary["prior"] == "sphere" and summary["consensus_rounds"] == 2
     ious = [mask_iou(read_mask(tmp_path / "masks" / f"{n}.png"), truths[n]) for n in truths]
     assert np.mean(ious) > 0.9, ious
 

@@ -1,7 +1,8 @@
 """Deriving what a photo capture lacks: cameras, masks, a surface and its UV atlas.
 
 - `sfm`: camera poses by structure from motion (COLMAP via pycolmap), normalised for dpi;
-- `masks`: foreground masks (colour keying, or GrabCut from a sparse-point / consensus-hull prior);
+- `masks`: foreground masks (colour keying, or GrabCut from a sphere / sparse-point prior, refined
+  in rounds from the visual hull the views agree on);
 - `geometry`: a voxel signed-distance field carved from masks, marching cubes, pymeshlab clean-up;
 - `uv`: UV atlas (xatlas) and baking of functions of position into textures;
 - `stages`: the stage functions the workflow's rules `poses`, `masks`, `geometry`, `uv` run, and

@@ -210,31 +210,40 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray, cfg: GeometryConfig) -> 
     return vertices, faces
 
 
+def visual_hull(cameras: list[Camera], masks: list[np.ndarray], resolution: int, coarse_resolution: int = 48,
+                outside_votes: int = 2, min_view_fraction: float = 0.5, in_frame: bool = True,
+                margin: float = 0.08) -> tuple[np.ndarray, np.ndarray, float, dict]:
+    """Carved field (negative inside) over the object's box, its origin and voxel size, and the box found.
+
+    A coarse pass over the search box finds the object's extent; the fine pass carves that box (grown
+    by `margin` of its size) with `resolution` voxels along its longest side."""
+    distances = [signed_distance_2d(m) for m in masks]
+    lo, hi = search_box(cameras)
+    coarse, origin, size = carve(cameras, distances, lo, hi, coarse_resolution, outside_votes, min_view_fraction,
+                                 in_frame)
+    inside = np.argwhere(coarse < 0)
+    if not len(inside):
+        raise ValueError("carving left no voxel inside every silhouette (masks and cameras disagree)")
+    box_lo = origin + (inside.min(0) - 1) * size
+    box_hi = origin + (inside.max(0) + 1) * size
+    pad = margin * (box_hi - box_lo).max()
+    box_lo, box_hi = box_lo - pad, box_hi + pad
+    touches = bool((inside.min(0) == 0).any() or (inside.max(0) == np.array(coarse.shape) - 1).any())
+    if touches:
+        log.warning("the carved object touches the search box: cameras may not keep the whole object in view")
+    field, origin, size = carve(cameras, distances, box_lo, box_hi, resolution, outside_votes, min_view_fraction,
+                                in_frame)
+    return field, origin, size, {"box": [box_lo.tolist(), box_hi.tolist()], "touches_search_box": touches}
+
+
 def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray],
                         cfg: GeometryConfig | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """Watertight mesh (vertices, faces) of the object seen in the masks, and a summary with timings."""
     cfg = cfg or GeometryConfig()
     times = {}
     start = time.perf_counter()
-    distances = [signed_distance_2d(m) for m in masks]
-    lo, hi = search_box(cameras)
-    coarse, origin, size = carve(cameras, distances, lo, hi, cfg.coarse_resolution, cfg.outside_votes,
-                                 cfg.min_view_fraction, cfg.object_in_frame)
-    inside = np.argwhere(coarse < 0)
-    if not len(inside):
-        raise ValueError("carving left no voxel inside every silhouette (masks and cameras disagree)")
-    box_lo = origin + (inside.min(0) - 1) * size
-    box_hi = origin + (inside.max(0) + 1) * size
-    pad = cfg.margin * (box_hi - box_lo).max()
-    box_lo, box_hi = box_lo - pad, box_hi + pad
-    touches = bool((inside.min(0) == 0).any() or (inside.max(0) == np.array(coarse.shape) - 1).any())
-    if touches:
-        log.warning("the carved object touches the search box: cameras may not keep the whole object in view")
-    times["coarse_s"] = time.perf_counter() - start
-
-    start = time.perf_counter()
-    field, origin, size = carve(cameras, distances, box_lo, box_hi, cfg.resolution, cfg.outside_votes,
-                                cfg.min_view_fraction, cfg.object_in_frame)
+    field, origin, size, box = visual_hull(cameras, masks, cfg.resolution, cfg.coarse_resolution, cfg.outside_votes,
+                                           cfg.min_view_fraction, cfg.object_in_frame, cfg.margin)
     times["carve_s"] = time.perf_counter() - start
     start = time.perf_counter()
     vertices, faces = marching_cubes(field, origin, size)
@@ -242,8 +251,7 @@ def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray],
     start = time.perf_counter()
     vertices, faces = clean_mesh(vertices, faces, cfg)
     times["cleanup_s"] = time.perf_counter() - start
-    summary = {"box": [box_lo.tolist(), box_hi.tolist()], "voxel_size": size, "grid": list(field.shape),
-               "vertices": len(vertices), "faces": len(faces), "touches_search_box": touches,
+    summary = {**box, "voxel_size": size, "grid": list(field.shape), "vertices": len(vertices), "faces": len(faces),
                **{k: round(v, 3) for k, v in times.items()}}
     return vertices, faces, summary
 

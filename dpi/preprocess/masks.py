@@ -3,16 +3,20 @@
 Two classical methods, chosen per image:
 - **colour keying** when the background is uniform (the image border has one colour, as in a
   studio or turntable capture): foreground is every pixel whose colour differs from the key;
-- **GrabCut** otherwise, seeded by a soft prior: the object's sparse 3-D points (from
-  structure from motion) are projected into the view, and the convex hull of their projections,
-  grown by a margin, is *probably foreground*; a band around it is *probably background*, and
-  only what lies far outside is *background* for sure. No single point is a hard seed, so a few
-  stray points cannot force a wrong region into the mask. Without (enough) sparse points on the
-  object (given cameras, a textureless object) the first prior is the projection of the sphere
-  the cameras look at. A second pass then starts from the *consensus*: the visual hull the
-  first masks agree on (a voxel is carved when several views see it outside, so single failures
-  do not matter), projected into each view; where GrabCut still disagrees with it, the
-  projected hull is the mask.
+- **GrabCut** otherwise, started from a soft prior: the disc of the sphere every camera sees whole
+  (the object is what the cameras look at) is *probably foreground*, the rest of the image
+  *probably background*, and a thin strip along the border *background*. The object's sparse 3-D
+  points (from structure from motion) add the convex hull of their projections, grown by a margin,
+  as probably foreground, and that hull shrunk by a margin as *foreground*: a region, never single
+  points, so a few stray points cannot force a wrong region into the mask.
+
+**Consensus rounds** then refine the GrabCut masks with what the views agree on: the visual hull
+of the current masks, carved where at least a fraction of the views see a voxel outside them (so
+a part that some views miss, or a patch of background that one view takes for the object, does
+not matter), is projected into every view, and GrabCut decides only in a band around the
+projected outline: deeper inside is foreground, farther outside background. Each round lowers
+the votes and narrows the band. Where GrabCut still disagrees with the projection, the
+projection is the mask.
 
 Either way the largest connected component is kept and small holes are filled; holes larger
 than `fill_holes_below` of the object (the hole of a torus) are kept.
@@ -21,7 +25,7 @@ than `fill_holes_below` of the object (the hole of a torus) are kept.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -40,25 +44,32 @@ class MaskConfig:
 
     method: str = "auto"
     """auto (keying on a uniform background, else GrabCut) | grabcut | key"""
+    sphere_fraction: float = 0.7
+    """first GrabCut prior: the disc of this fraction of the sphere every camera sees whole is probably foreground"""
     hull_margin: float = 0.05
-    """growth of the projected points' hull that is probably foreground, as a fraction of its size"""
+    """growth of the projected object points' hull that is probably foreground, as a fraction of its size"""
     hull_core: float = 0.12
-    """the hull shrunk by this fraction of its size is foreground for sure (a region, never single points; 0: off)"""
-    background_margin: float = 0.35
-    """beyond this growth of the hull (fraction of its size) pixels are background for sure"""
-    grabcut_iterations: int = 4
+    """the points' hull shrunk by this fraction of its size is foreground for sure (a region; 0: off)"""
+    min_points: int = 30
+    """with fewer object points the first prior is the sphere alone"""
+    outlier_std_ratio: float = 2.0
+    """object points farther from their neighbours than the mean plus this many standard deviations
+    are dropped before the hull (open3d's statistical outlier removal; 0: keep all)"""
+    grabcut_iterations: int = 5
     key_max_spread: float = 0.06
     """the background is uniform when the border's colours (sRGB, 0-1) spread less than this"""
     key_threshold: float = 0.1
     """keying: a pixel is foreground when its sRGB colour is farther than this from the key colour"""
     fill_holes_below: float = 0.01
     """holes smaller than this fraction of the mask's area are filled"""
-    min_points: int = 30
-    """fewer object points than this: the consensus prior (sphere, then the carved hull of a first pass)"""
-    consensus: bool = True
-    """refine with a second GrabCut pass from the visual hull the first pass's masks agree on"""
-    consensus_votes: int = 3
-    """views that must agree to carve a voxel from the first-pass hull"""
+    consensus_votes: list[float] = field(default_factory=lambda: [0.25, 0.125])
+    """one consensus round per entry: the fraction of the views that must see a voxel outside their
+    masks to carve it from the hull (at least 2 views; []: no rounds)"""
+    consensus_bands: list[float] = field(default_factory=lambda: [0.08, 0.04])
+    """per round: half-width of the band around the projected hull's outline in which GrabCut
+    decides, as a fraction of the object's size in the image"""
+    consensus_resolution: int = 96
+    """voxels along the longest side of the consensus hull's box"""
 
 
 def border_colour(image8: np.ndarray, width: float = 0.04) -> tuple[np.ndarray, float]:
@@ -87,35 +98,9 @@ def _grow(mask: np.ndarray, pixels: int) -> np.ndarray:
     return cv2.dilate(mask.astype(np.uint8), disc) > 0
 
 
-def hull_prior(points_xy: np.ndarray, shape: tuple[int, int], cfg: MaskConfig) -> np.ndarray:
-    """GrabCut label image (h, w) from projected points: the grown convex hull probably foreground,
-    a band around it probably background, the rest background."""
-    import cv2
-
-    h, w = shape
-    hull = cv2.convexHull(np.round(points_xy).astype(np.int32).reshape(-1, 1, 2))
-    inside = np.zeros(shape, np.uint8)
-    cv2.fillConvexPoly(inside, hull, 1)
-    labels = _prior_from_region(inside > 0, cfg)
-    if cfg.hull_core > 0:  # the core of the hull, well inside the object's points, is foreground for sure
-        size = max(np.sqrt(inside.sum()), 1.0)
-        r = int(round(cfg.hull_core * size))
-        disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-        labels[cv2.erode(inside, disc) > 0] = cv2.GC_FGD
-    return labels
-
-
-def _prior_from_region(region: np.ndarray, cfg: MaskConfig) -> np.ndarray:
-    """GrabCut labels around a region that roughly covers the object (the object is inside the
-    image, so a thin strip along the border is background too)."""
-    import cv2
-
-    size = max(np.sqrt(region.sum()), 1.0)
-    labels = np.full(region.shape, cv2.GC_BGD, np.uint8)
-    labels[_grow(region, int(round(cfg.background_margin * size)))] = cv2.GC_PR_BGD
-    labels[_grow(region, int(round(cfg.hull_margin * size)))] = cv2.GC_PR_FGD
-    _border_background(labels)
-    return labels
+def _shrink(mask: np.ndarray, pixels: int) -> np.ndarray:
+    """Erode a boolean mask by a disc of radius `pixels`."""
+    return ~_grow(~mask, pixels)
 
 
 def _border_background(labels: np.ndarray, border: float = 0.03) -> None:
@@ -127,18 +112,65 @@ def _border_background(labels: np.ndarray, border: float = 0.03) -> None:
         strip[...] = cv2.GC_BGD
 
 
-def sphere_prior(camera: Camera, centre: np.ndarray, radius: float, cfg: MaskConfig,
-                 border: float = 0.03) -> np.ndarray:
-    """Loose GrabCut labels from a sphere: its projected disc probably foreground, the rest probably
-    background, and a thin strip along the image border background for sure."""
+def points_hull(camera: Camera, points: np.ndarray) -> np.ndarray | None:
+    """Convex hull (h, w) of the projections of the points (N, 3) in the view; None when fewer than 3 are in it."""
     import cv2
 
-    xy, depth = camera.project(np.asarray(centre, dtype=np.float64)[None])
-    r = camera.fx * radius / max(float(depth[0]), 1e-9)
+    xy, depth = camera.project(points)
+    inside = (depth > 0) & (xy[:, 0] >= 0) & (xy[:, 0] < camera.width) & (xy[:, 1] >= 0) & (xy[:, 1] < camera.height)
+    if inside.sum() < 3:
+        return None
+    hull = cv2.convexHull(np.round(xy[inside] - 0.5).astype(np.int32).reshape(-1, 1, 2))
+    region = np.zeros((camera.height, camera.width), np.uint8)
+    cv2.fillConvexPoly(region, hull, 1)
+    return region > 0
+
+
+def drop_outliers(points: np.ndarray, std_ratio: float, neighbours: int = 8) -> np.ndarray:
+    """Points (N, 3) without statistical outliers: those whose mean distance to their `neighbours`
+    nearest points exceeds the average by `std_ratio` standard deviations (open3d)."""
+    import open3d as o3d
+
+    if std_ratio <= 0 or len(points) <= neighbours:
+        return points
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, np.float64)))
+    _, keep = cloud.remove_statistical_outlier(nb_neighbors=neighbours, std_ratio=std_ratio)
+    return np.asarray(points)[np.asarray(keep, dtype=np.int64)]
+
+
+def first_prior(camera: Camera, sphere: tuple[np.ndarray, float], cfg: MaskConfig,
+                points: np.ndarray | None = None) -> np.ndarray:
+    """GrabCut labels (h, w) of the first pass: the projected disc of `sphere` (centre, radius) and
+    the grown hull of the object's projected points (N, 3) probably foreground, the hull's core
+    foreground, the rest probably background and a strip along the image border background."""
+    import cv2
+
+    xy, depth = camera.project(np.asarray(sphere[0], dtype=np.float64)[None])
+    r = camera.fx * sphere[1] / max(float(depth[0]), 1e-9)
     yy, xx = np.mgrid[: camera.height, : camera.width]
-    disc = (xx + 0.5 - xy[0, 0]) ** 2 + (yy + 0.5 - xy[0, 1]) ** 2 <= r * r
-    labels = np.where(disc, cv2.GC_PR_FGD, cv2.GC_PR_BGD).astype(np.uint8)
-    _border_background(labels, border)
+    region = (xx + 0.5 - xy[0, 0]) ** 2 + (yy + 0.5 - xy[0, 1]) ** 2 <= r * r
+    core = np.zeros_like(region)
+    hull = points_hull(camera, points) if points is not None and len(points) >= cfg.min_points else None
+    if hull is not None:
+        size = max(np.sqrt(hull.sum()), 1.0)
+        region |= _grow(hull, int(round(cfg.hull_margin * size)))
+        if cfg.hull_core > 0:
+            core = _shrink(hull, int(round(cfg.hull_core * size)))
+    labels = np.where(region, cv2.GC_PR_FGD, cv2.GC_PR_BGD).astype(np.uint8)
+    labels[core] = cv2.GC_FGD
+    _border_background(labels)
+    return labels
+
+
+def band_prior(outline: np.ndarray, band: int) -> np.ndarray:
+    """GrabCut labels (h, w) around a projected outline: probably foreground / background within
+    `band` pixels inside / outside it, foreground deeper inside, background farther outside."""
+    import cv2
+
+    labels = np.full(outline.shape, cv2.GC_BGD, np.uint8)
+    labels[_grow(outline, band)] = cv2.GC_PR_BGD
+    labels[outline] = cv2.GC_PR_FGD
+    labels[_shrink(outline, band)] = cv2.GC_FGD
     return labels
 
 
@@ -172,14 +204,11 @@ def clean_mask(mask: np.ndarray, fill_holes_below: float) -> np.ndarray:
     return out
 
 
-def object_mask(image: np.ndarray, camera: Camera, cfg: MaskConfig, points: np.ndarray | None = None,
-                sphere: tuple[np.ndarray, float] | None = None,
-                labels: np.ndarray | None = None) -> tuple[np.ndarray, str]:
-    """Foreground mask (h, w) of one linear RGB image, and the method used ("key" or "grabcut").
+def object_mask(image: np.ndarray, camera: Camera, cfg: MaskConfig, sphere: tuple[np.ndarray, float],
+                points: np.ndarray | None = None) -> tuple[np.ndarray, str]:
+    """First-pass foreground mask (h, w) of one linear RGB image, and the method used ("key" or "grabcut").
 
-    The GrabCut prior is `labels` when given, else the hull of the object's sparse points (N, 3)
-    projected by the camera, else the projection of `sphere` (centre, radius).
-    """
+    GrabCut starts from `first_prior` of the sphere (centre, radius) and the object's points (N, 3)."""
     image8 = to_uint8(image)
     colour, spread = border_colour(image8)
     method = cfg.method
@@ -188,113 +217,99 @@ def object_mask(image: np.ndarray, camera: Camera, cfg: MaskConfig, points: np.n
     if method == "key":
         mask = key_mask(image8, colour, max(cfg.key_threshold, 2 * spread))
     else:
-        xy = np.zeros((0, 2))
-        if labels is None and points is not None and len(points):
-            xy, depth = camera.project(points)
-            inside = (depth > 0) & (xy[:, 0] >= 0) & (xy[:, 0] < camera.width) & (xy[:, 1] >= 0) & (xy[:, 1] < camera.height)
-            xy = xy[inside]
-        if labels is not None:
-            pass
-        elif len(xy) >= min(cfg.min_points, 8):
-            labels = hull_prior(xy, image.shape[:2], cfg)
-        elif sphere is not None:
-            labels = sphere_prior(camera, sphere[0], sphere[1], cfg)
-        else:
-            raise ValueError(f"view {camera.name!r}: no object points and no sphere prior for GrabCut")
-        mask = grabcut(image8, labels, cfg.grabcut_iterations)
+        mask = grabcut(image8, first_prior(camera, sphere, cfg, points), cfg.grabcut_iterations)
     return clean_mask(mask, cfg.fill_holes_below), method
 
 
-def region_prior(camera: Camera, voxels: np.ndarray, voxel_size: float, cfg: MaskConfig) -> np.ndarray:
-    """GrabCut labels from the projection of occupied voxel centres (N, 3) of a hull into a view."""
-    xy, depth = camera.project(voxels)
-    keep = (depth > 0) & (xy[:, 0] >= 0) & (xy[:, 0] < camera.width) & (xy[:, 1] >= 0) & (xy[:, 1] < camera.height)
-    region = np.zeros((camera.height, camera.width), bool)
-    region[xy[keep, 1].astype(int), xy[keep, 0].astype(int)] = True
-    radius = int(np.ceil(camera.fx * voxel_size / max(float(np.median(depth[keep])), 1e-9))) if keep.any() else 0
-    region = _grow(region, radius)
-    labels = _prior_from_region(region, cfg)
-    if cfg.hull_core > 0:  # deep inside the views' consensus: foreground for sure
-        import cv2
+def mesh_silhouette(camera: Camera, vertices: np.ndarray, faces: np.ndarray, supersample: int = 4) -> np.ndarray:
+    """Pixels (h, w) at least half covered by a triangle mesh in the view (faces behind the camera dropped).
 
-        r = int(round(cfg.hull_core * max(np.sqrt(region.sum()), 1.0)))
-        disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-        labels[cv2.erode(region.astype(np.uint8), disc) > 0] = cv2.GC_FGD
-    return labels
+    Triangles are filled on a `supersample` times finer grid (OpenCV also fills the pixels its edges
+    touch, which widens an outline by about half a pixel of the grid) and averaged per pixel."""
+    import cv2
+
+    xy, depth = camera.project(vertices)
+    faces = faces[(depth[faces] > 0).all(1)]
+    s = supersample
+    triangles = np.round((xy[faces] * s - 0.5) * 8).astype(np.int32)  # 3 fractional bits; centres at +0.5
+    fine = np.zeros((camera.height * s, camera.width * s), np.uint8)
+    cv2.fillPoly(fine, list(triangles), 1, shift=3)
+    return fine.reshape(camera.height, s, camera.width, s).mean(axis=(1, 3)) >= 0.5
 
 
-def consensus_hull(cameras: list[Camera], masks: list[np.ndarray], votes: int,
-                   resolution: int = 64) -> tuple[np.ndarray, float]:
-    """Centres (N, 3) of the voxels inside the hull that first-pass masks agree on, and the voxel size."""
-    from dpi.preprocess.geometry import carve, grid_points, search_box, signed_distance_2d
+def consensus_outlines(cameras: list[Camera], masks: list[np.ndarray], votes: int,
+                       resolution: int) -> list[np.ndarray]:
+    """Each view's projection of the visual hull carved from `masks` where `votes` views see a voxel outside."""
+    from dpi.preprocess.geometry import marching_cubes, visual_hull
 
-    lo, hi = search_box(cameras)
-    field, origin, size = carve(cameras, [signed_distance_2d(m) for m in masks], lo, hi, resolution, votes)
-    inside = np.argwhere(field < 0)
-    return origin + inside * size, size
+    field, origin, size, _ = visual_hull(cameras, masks, resolution, outside_votes=votes)
+    vertices, faces = marching_cubes(field, origin, size)
+    return [mesh_silhouette(camera, vertices, faces) for camera in cameras]
+
+
+def refine_masks(images8: list[np.ndarray | None], cameras: list[Camera], masks: list[np.ndarray],
+                 cfg: MaskConfig) -> tuple[list[np.ndarray], list[str]]:
+    """The consensus rounds (module notes): the hull comes from every view's mask, and the views with an
+    8-bit sRGB image (None: keep the mask, e.g. a keyed one) are cut again. Returns the masks and each
+    view's method ("grabcut", "consensus hull" where GrabCut lost the object, "kept")."""
+    if len(cfg.consensus_votes) != len(cfg.consensus_bands):
+        raise ValueError("consensus_votes and consensus_bands must have one entry per round")
+    methods = ["grabcut" if image8 is not None else "kept" for image8 in images8]
+    for fraction, band in zip(cfg.consensus_votes, cfg.consensus_bands):
+        votes = max(2, int(round(fraction * len(cameras))))
+        try:
+            outlines = consensus_outlines(cameras, masks, votes, cfg.consensus_resolution)
+        except ValueError as exc:
+            log.warning("consensus round skipped: %s", exc)
+            break
+        masks = list(masks)
+        for i, (image8, outline) in enumerate(zip(images8, outlines)):
+            if image8 is None:
+                continue
+            width = max(2, int(round(band * np.sqrt(outline.sum()))))
+            masks[i] = clean_mask(grabcut(image8, band_prior(outline, width), cfg.grabcut_iterations),
+                                  cfg.fill_holes_below)
+            methods[i] = "grabcut"
+            if mask_overlap(masks[i], outline) < 0.5:  # GrabCut lost the object: keep the views' consensus
+                log.warning("%s: GrabCut disagrees with the consensus hull; using the hull's projection",
+                            cameras[i].name)
+                masks[i], methods[i] = clean_mask(outline, cfg.fill_holes_below), "consensus hull"
+    return masks, methods
 
 
 def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: str | Path,
                  cfg: MaskConfig | None = None, points: np.ndarray | None = None) -> dict:
     """Write one mask PNG per view (out_dir/{view}.png) and return a summary (prior, method per view, areas).
 
-    Views without a camera get no mask. With fewer than `min_points` object points the GrabCut
-    prior is the consensus hull of a first pass (see the module notes).
-    """
+    Views without a camera get no mask. `points`: the object's sparse points (N, 3), if any."""
     cfg = cfg or MaskConfig()
     if cfg.method not in METHODS:
         raise ValueError(f"mask method must be one of {', '.join(METHODS)}, got {cfg.method!r}")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     names = [n for n in images if n in cameras]
-    pictures = {n: read_image(images[n]) for n in names}
+    views = [cameras[n] for n in names]
+    pictures = [read_image(images[n]) for n in names]
+    centre, radius = visible_sphere(views)
+    sphere = (centre, cfg.sphere_fraction * radius)
+    if points is not None:
+        points = drop_outliers(points, cfg.outlier_std_ratio)
+    first = [object_mask(picture, camera, cfg, sphere, points) for picture, camera in zip(pictures, views)]
+    masks, methods = [m for m, _ in first], [method for _, method in first]
     use_points = points is not None and len(points) >= cfg.min_points
-    priors = {}
-    if cfg.consensus and cfg.method != "key":
-        centre, radius = visible_sphere([cameras[n] for n in names])
-        sphere = (centre, 0.7 * radius)
-        first = {n: object_mask(pictures[n], cameras[n], cfg, points if use_points else None, sphere)[0]
-                 for n in names}
-        votes = min(cfg.consensus_votes, max(1, len(names) // 4))
-        voxels, size = consensus_hull([cameras[n] for n in names], [first[n] for n in names], votes)
-        if len(voxels):
-            priors = {n: region_prior(cameras[n], voxels, size, cfg) for n in names}
-        else:
-            log.warning("first-pass masks agree on no hull; keeping them")
-            priors = {n: None for n in names}
-    first_prior = "sparse points" if use_points else "sphere"
-    summary = {"views": {}, "prior": f"{first_prior}, then consensus hull" if priors else first_prior}
-    for name in names:
-        if name in priors and priors[name] is None:
-            mask, method = first[name], "grabcut"
-        else:
-            mask, method = object_mask(pictures[name], cameras[name], cfg, points if use_points else None,
-                                       sphere_or_none(priors, cameras, names), labels=priors.get(name))
-            if priors.get(name) is not None:
-                hull = np.isin(priors[name], (cv2_labels().GC_FGD, cv2_labels().GC_PR_FGD))
-                if mask_overlap(mask, hull) < 0.5:  # GrabCut lost the object: keep the views' consensus
-                    log.warning("%s: GrabCut disagrees with the consensus hull; using the hull's projection", name)
-                    mask, method = clean_mask(hull, cfg.fill_holes_below), "consensus hull"
+    summary = {"views": {}, "prior": "sphere and sparse points" if use_points else "sphere", "consensus_rounds": 0}
+    if "grabcut" in methods and cfg.consensus_votes:
+        to_cut = [to_uint8(p) if method == "grabcut" else None for p, method in zip(pictures, methods)]
+        refined, new_methods = refine_masks(to_cut, views, masks, cfg)
+        masks = refined
+        methods = [old if new == "kept" else new for old, new in zip(methods, new_methods)]
+        summary["consensus_rounds"] = len(cfg.consensus_votes)
+    for name, mask, method in zip(names, masks, methods):
         if not mask.any():
             raise ValueError(f"{images[name]}: empty foreground mask ({method}); check the capture or the mask settings")
         write_mask(out_dir / f"{name}.png", mask)
         summary["views"][name] = {"method": method, "foreground_fraction": round(float(mask.mean()), 4)}
     return summary
-
-
-def sphere_or_none(priors: dict, cameras: dict[str, Camera], names: list[str]):
-    """The loose sphere prior for views without a consensus prior (only when no points are given)."""
-    if priors:
-        return None
-    centre, radius = visible_sphere([cameras[n] for n in names])
-    return centre, 0.7 * radius
-
-
-def cv2_labels():
-    """The cv2 module (GrabCut label constants), imported lazily."""
-    import cv2
-
-    return cv2
 
 
 def mask_overlap(a: np.ndarray, b: np.ndarray) -> float:
