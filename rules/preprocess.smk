@@ -59,6 +59,9 @@ rule poses:
     params:
         settings=config["preprocess"]["sfm"],
     threads: config["threads"]["preprocess"]
+    resources:
+        mem_mb=config["resources"]["poses"]["mem_mb"],
+        runtime=config["resources"]["poses"]["runtime"],
     log:
         f"{RESULTS}/{{scene}}/logs/poses.log",
     benchmark:
@@ -76,6 +79,9 @@ rule masks:
     params:
         settings=config["preprocess"]["masks"],
     threads: 1
+    resources:
+        mem_mb=config["resources"]["masks"]["mem_mb"],
+        runtime=config["resources"]["masks"]["runtime"],
     log:
         f"{RESULTS}/{{scene}}/logs/masks.log",
     benchmark:
@@ -95,6 +101,9 @@ rule geometry:
     params:
         settings=config["preprocess"]["geometry"],
     threads: 1
+    resources:
+        mem_mb=config["resources"]["geometry"]["mem_mb"],
+        runtime=config["resources"]["geometry"]["runtime"],
     log:
         f"{RESULTS}/{{scene}}/logs/geometry.log",
     benchmark:
@@ -112,6 +121,9 @@ rule uv:
     params:
         settings=config["preprocess"]["uv"],
     threads: 1
+    resources:
+        mem_mb=config["resources"]["uv"]["mem_mb"],
+        runtime=config["resources"]["uv"]["runtime"],
     log:
         f"{RESULTS}/{{scene}}/logs/uv.log",
     benchmark:
