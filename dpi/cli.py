@@ -7,6 +7,7 @@
     dpi evaluate results/demo/capture.json results/demo/none/0 results/demo/eval/none/0.json
     dpi summary results/demo/eval/*/*.json --out results/eval/summary.csv
     dpi relight results/demo/capture.json results/demo/dps/0 results/demo/relit --envmap sky.exr --orbit 8
+    dpi preprocess captures/myobject results/myobject --threads 2
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from pathlib import Path
 import yaml
 
 from dpi.capture import CaptureError
+from dpi.preprocess.sfm import SfMError
 from dpi.prior.cli import register as register_prior_commands
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "config.yaml"
@@ -103,6 +105,24 @@ def cmd_relight(args: argparse.Namespace) -> None:
     print(f"wrote {len(names)} views to {args.out}")
 
 
+def cmd_preprocess(args: argparse.Namespace) -> None:
+    """Derive the cameras, masks, mesh and UV atlas a capture lacks (the workflow's preprocessing)."""
+    from dpi.capture import inspect_capture
+    from dpi.preprocess.stages import STAGES, needed_stages, preprocess_capture
+
+    stages = needed_stages(inspect_capture(args.capture))
+    if args.dry_run:
+        for stage in STAGES:
+            print(f"{stage:9s} {'run' if stage in stages else 'skipped: given by the capture'}")
+        return
+    config = _config(args.config)
+    threads = args.threads or config.get("threads", {}).get("preprocess", 1)
+    report = preprocess_capture(args.capture, args.out, config.get("preprocess", {}), threads)
+    for stage, summary in report.items():
+        print(f"{stage:9s} " + ("given" if summary == "given" else f"derived in {summary.get('seconds', 0):.1f} s"))
+    print(f"wrote {args.out}")
+
+
 def _rgb(text: str) -> tuple[float, float, float]:
     """R,G,B (or one value for all three) as three floats."""
     try:
@@ -122,7 +142,7 @@ def build_parser() -> argparse.ArgumentParser:
     def add(name: str, fn, help_text: str, capture_json: bool = False) -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=help_text, description=help_text)
         p.set_defaults(fn=fn)
-        p.add_argument("--threads", type=int, default=None, help="CPU threads for Dr.Jit and torch")
+        p.add_argument("--threads", type=int, default=None, help="CPU threads (Dr.Jit and torch; COLMAP and OpenCV)")
         p.add_argument("--config", default=None, help="config.yaml with render/problem/stage settings")
         if capture_json:
             p.add_argument("capture_json", help="capture.json written by `dpi validate --out`")
@@ -191,6 +211,28 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--exposure", type=float, default=1.0, help="exposure of the PNGs (the EXRs stay linear)")
     p.add_argument("--seed", type=int, default=0, help="sampler seed")
 
+    p = add("preprocess", cmd_preprocess, "derive what a photo capture lacks (cameras, masks, mesh, UV atlas) "
+            "without Snakemake")
+    p.formatter_class = argparse.RawDescriptionHelpFormatter
+    p.description = """Derive what a capture lacks, as the workflow's rules poses -> masks -> geometry -> uv do,
+skipping every stage whose output the capture gives:
+
+  poses     COLMAP structure from motion     runs without transforms.json / camera.xml
+  masks     colour keying or GrabCut         runs without masks/
+  geometry  voxel carving + mesh clean-up    runs without mesh.ply / mesh.obj
+  uv        xatlas UV atlas                  runs without a mesh that has UVs
+
+Writes OUT/capture.json, OUT/poses/, OUT/masks/, OUT/geometry/mesh.ply and mesh_uv.ply, with each
+stage's summary (JSON): the layout of the workflow's results/{scene}/, so `dpi init OUT/capture.json ...`
+reads the derived inputs. Settings come from the `preprocess:` section of --config (default: the
+repository's config.yaml), --threads (COLMAP and OpenCV threads) from its threads.preprocess. A
+known focal length in pixels belongs in the capture's scene.yaml (focal_length_px). Every needed
+stage runs again on each call; the workflow caches them."""
+    p.add_argument("capture", metavar="CAPTURE", help="capture folder: images/ and whatever else it gives")
+    p.add_argument("out", metavar="OUT", help="results folder to write (e.g. results/myobject)")
+    p.add_argument("-n", "--dry-run", dest="dry_run", action="store_true",
+                   help="only list which stages would run and which the capture makes unnecessary")
+
     register_prior_commands(sub)
     return parser
 
@@ -200,7 +242,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         args.fn(args)
-    except (CaptureError, FileExistsError, ValueError) as exc:
+    except (CaptureError, FileExistsError, ValueError, SfMError) as exc:
         print(f"dpi {args.command}: error: {exc}", file=sys.stderr)
         return 2
     return 0

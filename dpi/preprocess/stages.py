@@ -171,3 +171,45 @@ def uv_stage(capture_json: str | Path, out_mesh: str | Path, settings: dict | No
     summary["source"] = str(source)
     write_json(Path(out_mesh).with_name("uv_summary.json"), summary)
     return summary
+
+
+STAGES = ("poses", "masks", "geometry", "uv")
+
+
+def needed_stages(given: dict[str, bool]) -> list[str]:
+    """The stages a capture needs, in order, from what it gives (`dpi.capture.inspect_capture`), as the
+    workflow schedules them: poses without cameras, masks without masks, geometry without a mesh, uv
+    without a mesh with UVs."""
+    needed = {"poses": not given["cameras"], "masks": not given["masks"], "geometry": not given["mesh"],
+              "uv": not given["mesh_has_uv"]}
+    return [stage for stage in STAGES if needed[stage]]
+
+
+def preprocess_capture(capture_dir: str | Path, results_dir: str | Path, settings: dict[str, Any] | None = None,
+                       threads: int = 1) -> dict[str, Any]:
+    """Derive what a capture lacks without Snakemake: capture.json, then the needed stages in order, in
+    the workflow's layout under `results_dir` (its results/{scene}/). `settings`: config.yaml's
+    `preprocess:` section. Returns each stage's summary, or "given"."""
+    from dpi.capture import inspect_capture
+    from dpi.stages import capture_stage
+
+    results_dir, settings = Path(results_dir), settings or {}
+    capture_json = results_dir / "capture.json"
+    capture_stage(capture_dir, capture_json)
+    stages = needed_stages(inspect_capture(capture_dir))
+    cameras = results_dir / POSES if "poses" in stages else None
+    points = results_dir / POINTS if "poses" in stages else None
+    masks = results_dir / MASKS if "masks" in stages else None
+    mesh = results_dir / MESH if "geometry" in stages else None
+    report: dict[str, Any] = {stage: "given" for stage in STAGES}
+    for stage in stages:
+        log.info("preprocess %s: %s", capture_dir, stage)
+        if stage == "poses":
+            report[stage] = poses_stage(capture_json, results_dir / POSES.parent, settings.get("sfm"), threads)
+        elif stage == "masks":
+            report[stage] = masks_stage(capture_json, masks, settings.get("masks"), cameras, points, threads)
+        elif stage == "geometry":
+            report[stage] = geometry_stage(capture_json, mesh, settings.get("geometry"), cameras, masks, threads)
+        else:
+            report[stage] = uv_stage(capture_json, results_dir / MESH_UV, settings.get("uv"), mesh)
+    return report

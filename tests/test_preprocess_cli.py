@@ -1,0 +1,75 @@
+"""`dpi preprocess`: the stages a capture needs, as the workflow plans them, run without Snakemake."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import yaml
+
+from dpi.cameras import from_fov, orbit, write_transforms
+from dpi.cli import main
+from dpi.images import read_mask, write_png
+from dpi.preprocess.accuracy import mask_iou
+from dpi.preprocess.stages import needed_stages
+from test_preprocess_masks import sphere_view
+
+FAST = {"preprocess": {"geometry": {"resolution": 48, "coarse_resolution": 24, "target_faces": 3000,
+                                    "remesh_iterations": 1},
+                       "uv": {"texture_size": 128}}}
+
+
+@pytest.mark.parametrize("given, stages", [
+    ({"cameras": True, "masks": True, "mesh": True, "mesh_has_uv": True}, []),
+    ({"cameras": False, "masks": True, "mesh": True, "mesh_has_uv": True}, ["poses"]),
+    ({"cameras": True, "masks": True, "mesh": True, "mesh_has_uv": False}, ["uv"]),
+    ({"cameras": False, "masks": False, "mesh": False, "mesh_has_uv": False}, ["poses", "masks", "geometry", "uv"]),
+])
+def test_needed_stages_follow_what_the_capture_gives(given, stages):
+    assert needed_stages(given) == stages
+
+
+@pytest.fixture()
+def capture_with_cameras(tmp_path):
+    """Photos of a sphere on a plain background with their cameras, no masks or mesh."""
+    root = tmp_path / "capture"
+    cameras = [from_fov(c2w, 64, 64, 40.0, f"v{i}") for i, c2w in enumerate(orbit(12, 4.0, (10.0, 35.0)))]
+    truths = {}
+    for cam in cameras:
+        image, truths[cam.name] = sphere_view(cam, "plain")
+        write_png(root / "images" / f"{cam.name}.png", image)
+    (root / "transforms.json").write_text(json.dumps(write_transforms([(f"images/{c.name}.png", c) for c in cameras])))
+    return root, truths
+
+
+def test_dry_run_lists_the_needed_stages(capture_with_cameras, tmp_path, capsys):
+    root, _ = capture_with_cameras
+    assert main(["preprocess", str(root), str(tmp_path / "out"), "--dry-run"]) == 0
+    lines = dict(line.split(None, 1) for line in capsys.readouterr().out.splitlines())
+    assert lines["poses"].startswith("skipped") and lines["masks"] == "run" and lines["uv"] == "run"
+    assert not (tmp_path / "out").exists()
+
+
+def test_preprocess_derives_masks_mesh_and_uvs_and_skips_given_cameras(capture_with_cameras, tmp_path, capsys):
+    from dpi.capture import read_capture_json
+    from dpi.preprocess.stages import complete_capture
+
+    root, truths = capture_with_cameras
+    config = tmp_path / "config.yaml"
+    config.write_text(yaml.safe_dump(FAST))
+    out = tmp_path / "out"
+    assert main(["preprocess", str(root), str(out), "--config", str(config), "--threads", "1"]) == 0
+    printed = capsys.readouterr().out
+    assert "poses     given" in printed and "uv        derived" in printed
+    assert not (out / "poses").exists()
+    ious = [mask_iou(read_mask(out / "masks" / f"{name}.png"), truth) for name, truth in truths.items()]
+    assert np.mean(ious) > 0.95, ious
+    capture = complete_capture(read_capture_json(out / "capture.json"), out)
+    assert capture.provenance == {"cameras": "given", "masks": "derived", "mesh": "derived", "uv": "derived"}
+    assert capture.mesh == out / "geometry" / "mesh_uv.ply" and capture.mesh.is_file()
+
+
+def test_capture_errors_are_one_message(tmp_path, capsys):
+    assert main(["preprocess", str(tmp_path / "missing"), str(tmp_path / "out")]) == 2
+    assert "dpi preprocess: error:" in capsys.readouterr().err
