@@ -2,7 +2,7 @@
 
 import shutil
 
-from tests.workflow_helpers import REPO, planned_jobs, snakemake
+from workflow_helpers import REPO, planned_jobs, snakemake
 
 
 def dry_run(tmp_path, name: str) -> dict[str, int]:
