@@ -114,6 +114,8 @@ def plot(rows: list[dict], front: list[bool], path: Path) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--knobs", nargs="*", default=list(SWEEPS), choices=list(SWEEPS))
+    parser.add_argument("--values", nargs="*", default=[], metavar="KNOB=V1,V2",
+                        help="replace a knob's swept values, e.g. steps=25,100")
     parser.add_argument("--presets", nargs="*", default=["draft", "default"],
                         help="config.yaml presets to measure too (paper: 1000 steps, meant for a GPU)")
     parser.add_argument("--threads", type=int, default=2)
@@ -129,10 +131,11 @@ def main() -> None:
         path_traced_init(problem, OptimizeConfig(iterations=200), seed=0, progress=False).save(init_dir, "log.json")
     prior = load_default_prior(load_capture(demo).options.get("prior", "outdoor"))
 
+    sweeps = {**SWEEPS, **{k: [int(v) for v in vs.split(",")] for k, vs in (a.split("=") for a in args.values)}}
     presets = yaml.safe_load((ROOT / "config.yaml").read_text()).get("presets", {})
     todo: dict[Setting, str] = {base: "base"}
     for knob in args.knobs:
-        for value in SWEEPS[knob]:
+        for value in sweeps[knob]:
             todo.setdefault(replace(base, **{knob: value}), f"{knob}={value}")
     for name in args.presets:
         setting = preset_setting(presets[name])
