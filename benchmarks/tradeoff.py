@@ -22,7 +22,7 @@ import yaml
 
 from dpi.capture import load_capture
 from dpi.evaluate import evaluate_sample
-from dpi.prior.sample import load_default_prior
+from dpi.prior.sample import load_scene_prior
 from dpi.render import RenderSettings
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import DPSConfig, dps_sample
@@ -123,13 +123,13 @@ def main() -> None:
     args = parser.parse_args()
 
     base = Setting()
-    demo = capture_at(base.resolution, args.threads)
+    demo = load_capture(capture_at(base.resolution, args.threads))
     init_dir = OUT / "tradeoff_init"
     if not (init_dir / "log.json").exists():
-        problem = InverseProblem(load_capture(demo), ProblemSettings(base.env_height, base.texture_size),
+        problem = InverseProblem(demo, ProblemSettings(base.env_height, base.texture_size),
                                  RenderSettings(spp=16, threads=args.threads))
         path_traced_init(problem, OptimizeConfig(iterations=200), seed=0, progress=False).save(init_dir, "log.json")
-    prior = load_default_prior(load_capture(demo).options.get("prior", "outdoor"))
+    prior = load_scene_prior(demo.options)
 
     sweeps = {**SWEEPS, **{k: [int(v) for v in vs.split(",")] for k, vs in (a.split("=") for a in args.values)}}
     presets = yaml.safe_load((ROOT / "config.yaml").read_text()).get("presets", {})

@@ -21,7 +21,6 @@ import numpy as np
 import torch
 
 from dpi.atomic import atomic_path
-from dpi.capture import Capture
 from dpi.exr import read_exr
 from dpi.images import linear_to_srgb
 from dpi.metrics import aligned_env, albedo_mse, env_metrics, normalized_env, psnr, resize_area, sample_variance, ssim
@@ -29,7 +28,7 @@ from dpi.naturalness import naturalness
 from dpi.niqe import ENV_HEIGHT, env_niqe
 from dpi.perceptual import (ALEXNET_WEIGHTS, INCEPTION_WEIGHTS, LPIPS_MIN_SIZE, azimuth_rolls, frechet_distance,
                             inception_features, lpips_distance, missing_weights, pretrained_inception, pretrained_lpips)
-from dpi.prior.sample import DEFAULT_MODELS, Prior, load_prior
+from dpi.prior.sample import Prior, load_scene_prior
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.problem import InverseProblem
 
@@ -93,19 +92,14 @@ def ground_truth_metrics(decomposition: Decomposition, gt: dict[str, Path]) -> d
     return out
 
 
-def scene_prior(capture: Capture) -> Prior:
-    """The shipped diffusion prior of the capture's family (scene.yaml `prior`, else outdoor), as sampling uses."""
-    return load_prior(DEFAULT_MODELS[capture.options.get("prior", "outdoor")])
-
-
 def evaluate_sample(problem: InverseProblem, decomposition: Decomposition, spp: int, seed: int,
                     seconds: float | None, prior: Prior | None = None) -> dict[str, Any]:
-    """All per-sample metrics of one decomposition; `prior` scores naturalness (default: `scene_prior`)."""
+    """All per-sample metrics of one decomposition; `prior` scores naturalness (default: the scene's shipped prior)."""
     env = decomposition.env.numpy()
     return {**novel_view_metrics(problem, decomposition, spp, seed),
             **ground_truth_metrics(decomposition, problem.capture.gt),
             "env_niqe": env_niqe(env),
-            "env_naturalness": naturalness(env, prior or scene_prior(problem.capture)),
+            "env_naturalness": naturalness(env, prior or load_scene_prior(problem.capture.options)),
             "sample_seconds": seconds if seconds is not None else missing("no trace"),
             "notes": NOTES}
 

@@ -18,7 +18,7 @@ from dpi.evaluate import evaluate_sample, sample_rows, summarize, write_csv
 from dpi.render import RenderSettings
 from dpi.seeding import seed_for
 from dpi.solve.classic import ClassicConfig, classic_sample
-from dpi.prior.sample import DEFAULT_MODELS, load_prior, write_grid
+from dpi.prior.sample import load_scene_prior, write_grid
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dip import DIPConfig, dip_sample
 from dpi.solve.dps import DPSConfig, dps_sample
@@ -83,8 +83,7 @@ def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | 
     init = Decomposition.load(init_dir, settings.problem.texture_size)
     seed = seed_for(scene, method, k)
     if method in DIFFUSION_METHODS:
-        checkpoint = prior_checkpoint or DEFAULT_MODELS[problem.capture.options.get("prior", "outdoor")]
-        prior = load_prior(checkpoint)
+        prior = load_scene_prior(problem.capture.options, prior_checkpoint)
         values = {"radiance_scale": problem.capture.options.get("radiance_scale"), **method_cfg}
         if method == "dps":
             dps = dps_sample(problem, prior, init, DPSConfig.from_dict(values), seed, progress)
@@ -110,7 +109,7 @@ def evaluate_stage(capture_json: str | Path, sample_dir: str | Path, out_json: s
     sample = Decomposition.load(sample_dir, settings.problem.texture_size)
     traces = [Path(sample_dir) / name for name in ("trace.json", "log.json") if (Path(sample_dir) / name).is_file()]
     seconds = json.loads(traces[0].read_text())["summary"]["seconds"] if traces else None
-    prior = load_prior(prior_checkpoint) if prior_checkpoint else None
+    prior = load_scene_prior(problem.capture.options, prior_checkpoint)
     metrics = evaluate_sample(problem, sample, spp, seed_for(scene, method, k, "eval"), seconds, prior)
     gt_envmap = problem.capture.gt.get("envmap")
     write_json(out_json, {"scene": scene, "method": method, "sample": k, "sample_dir": str(sample_dir),

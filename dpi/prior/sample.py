@@ -47,6 +47,11 @@ def load_prior(checkpoint: str | Path, device: str | torch.device = "cpu") -> Pr
                  height=meta["height"], median_target=tone["median_target"])
 
 
+def load_scene_prior(options: dict, checkpoint: str | Path | None = None) -> Prior:
+    """The prior in `checkpoint`, else the shipped model of a scene's family (scene.yaml `prior`, else outdoor)."""
+    return load_prior(checkpoint or DEFAULT_MODELS[options.get("prior", "outdoor")])
+
+
 def load_default_prior(family: str, device: str | torch.device = "cpu") -> Prior:
     """The shipped default prior of a family ('outdoor' or 'indoor') from models/."""
     if family not in DEFAULT_MODELS:
