@@ -31,6 +31,10 @@ METHODS = (*PRIOR_NAMES, "dip", "dps", "sds")
 DIFFUSION_METHODS = ("dps", "sds")
 from dpi.solve.problem import InverseProblem, ProblemSettings
 
+RESUME_FILE = ".resume.pt"
+"""a long job's resume state in its output folder: no Snakemake output, so it outlives the deletion of a
+killed job's outputs and the rerun continues from it (dpi.solve.checkpoint)"""
+
 
 @dataclass
 class SolveSettings:
@@ -65,7 +69,8 @@ def init_stage(capture_json: str | Path, out_dir: str | Path, scene: str, init_c
                settings: SolveSettings, progress: bool = True) -> None:
     """Path-traced initialisation of one scene into out_dir (envmap.exr, textures, log.json)."""
     problem = load_problem(capture_json, settings)
-    result = path_traced_init(problem, OptimizeConfig.from_dict(init_cfg), seed_for(scene, "init"), progress)
+    result = path_traced_init(problem, OptimizeConfig.from_dict(init_cfg), seed_for(scene, "init"), progress,
+                              Path(out_dir) / RESUME_FILE)
     result.trace.info["variant"] = backend.mitsuba().variant()
     result.save(out_dir, trace_name="log.json")
 
@@ -86,15 +91,17 @@ def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | 
         prior = load_scene_prior(problem.capture.options, prior_checkpoint)
         values = {"radiance_scale": problem.capture.options.get("radiance_scale"), **method_cfg}
         if method == "dps":
-            dps = dps_sample(problem, prior, init, DPSConfig.from_dict(values), seed, progress)
+            dps = dps_sample(problem, prior, init, DPSConfig.from_dict(values), seed, progress,
+                             Path(out_dir) / RESUME_FILE)
             result = dps.decomposition
             write_grid(Path(out_dir) / "x0_strip.png", torch.stack(dps.snapshots), columns=len(dps.snapshots))
         else:
             result = sds_sample(problem, prior, init, SDSConfig.from_dict(values), seed, progress)
     elif method == "dip":
-        result = dip_sample(problem, init, DIPConfig.from_dict(method_cfg), seed, progress)
+        result = dip_sample(problem, init, DIPConfig.from_dict(method_cfg), seed, progress, Path(out_dir) / RESUME_FILE)
     else:
-        result = classic_sample(problem, method, init, ClassicConfig.from_dict(method_cfg), seed, progress)
+        result = classic_sample(problem, method, init, ClassicConfig.from_dict(method_cfg), seed, progress,
+                                Path(out_dir) / RESUME_FILE)
     result.trace.info.update({"scene": scene, "k": k})
     result.save(out_dir)
 

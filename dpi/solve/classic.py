@@ -9,6 +9,7 @@ have the same magnitude at the start (times `prior_weight_ratio`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import torch
 
@@ -42,8 +43,9 @@ def balanced_weight(data0: float, prior0: float, ratio: float) -> float:
 
 
 def classic_sample(problem: InverseProblem, method: str, init: Decomposition, cfg: ClassicConfig, seed: int,
-                   progress: bool = True) -> Decomposition:
-    """One posterior sample of an optimisation-based prior, from the init decomposition."""
+                   progress: bool = True, checkpoint: Path | None = None) -> Decomposition:
+    """One posterior sample of an optimisation-based prior, from the init decomposition (`checkpoint`:
+    the fit's resume file)."""
     generator = torch.Generator().manual_seed(seed)
     prior = make_prior(method, init.env)
     log_env = init.env.clamp_min(1e-6).log() + cfg.start_noise * torch.randn(init.env.shape, generator=generator)
@@ -56,5 +58,6 @@ def classic_sample(problem: InverseProblem, method: str, init: Decomposition, cf
             data0 = float(problem.data_loss(env0, materials, problem.train_ids, seed))
             weight = balanced_weight(data0, float(prior(env0)), cfg.prior_weight_ratio)
     trace.info["prior_weight"] = weight
-    log_env, materials = fit(problem, log_env, materials, cfg.optimize, seed, trace, prior, weight, progress)
+    log_env, materials = fit(problem, log_env, materials, cfg.optimize, seed, trace, prior, weight, progress,
+                             checkpoint)
     return Decomposition(log_env.exp(), materials, trace)

@@ -19,6 +19,7 @@ rendering) to the init map. The seed's weights and code make samples differ.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import torch
 from torch import nn
@@ -139,8 +140,9 @@ def fit_to_map(model: EnvModel, target: torch.Tensor, iterations: int, lr: float
 
 
 def dip_sample(problem: InverseProblem, init: Decomposition, cfg: DIPConfig, seed: int,
-               progress: bool = True) -> Decomposition:
-    """One `dip` sample: the network (seeded) warmed up on the init map, then fitted jointly with the materials."""
+               progress: bool = True, checkpoint: Path | None = None) -> Decomposition:
+    """One `dip` sample: the network (seeded) warmed up on the init map, then fitted jointly with the
+    materials (`checkpoint`: the joint fit's resume file; the short warm-up is rerun)."""
     target = init.env.clamp_min(1e-6).log()
     model = DeepImagePrior(target.shape[0], target.mean(dim=(0, 1)), cfg, seed)
     warmup_error = fit_to_map(model, target, cfg.warmup_iterations, cfg.optimize.lr_env)
@@ -149,5 +151,5 @@ def dip_sample(problem: InverseProblem, init: Decomposition, cfg: DIPConfig, see
                         "network_parameters": sum(p.numel() for p in model.parameters()),
                         "warmup_error": warmup_error})
     log_env, materials = fit_env_model(problem, model, starting_materials(init), cfg.optimize, seed, trace,
-                                       progress=progress)
+                                       progress=progress, checkpoint=checkpoint)
     return Decomposition(log_env.exp(), materials, trace)

@@ -12,11 +12,15 @@ and one Adam step on albedo / roughness / metallic against the same loss (env de
 render and one backward pass give both gradients). After the last step the materials are refined
 with the clean map fixed. A step with non-finite loss or gradient takes the plain reverse step
 and skips the material update; a non-finite network output skips the step. All are counted in the trace.
+Given a `checkpoint` file the reverse loop saves its state there every `checkpoint_every` steps and a
+rerun continues from it (see dpi.solve.checkpoint); the refinement, short, is simply run again. The
+file is deleted when the sample is done.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -28,6 +32,7 @@ from dpi.prior.data import radiance_scale
 from dpi.prior.diffusion import Diffusion, model_output_with_random_roll, model_timesteps, p_mean_variance
 from dpi.prior.sample import Prior
 from dpi.settings import settings_from_dict
+from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.init import starting_materials
 from dpi.solve.optimize import OptimizeConfig, all_finite, fit
@@ -35,6 +40,8 @@ from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
 
 RHO_SCHEDULES = ("linear", "step", "constant")
+CHECKPOINT_EVERY = 10
+"""reverse steps between two saves of the resume state (a save costs far less than one step)"""
 
 
 @dataclass
@@ -116,8 +123,10 @@ def prior_to_env(x0: torch.Tensor, prior: Prior, scale: float, height: int) -> t
 
 
 def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: DPSConfig, seed: int,
-               progress: bool = True) -> DPSResult:
-    """One posterior sample: reverse diffusion guided by the renderer, joint material steps, refinement."""
+               progress: bool = True, checkpoint: Path | None = None,
+               checkpoint_every: int = CHECKPOINT_EVERY) -> DPSResult:
+    """One posterior sample: reverse diffusion guided by the renderer, joint material steps, refinement.
+    With a `checkpoint` file the sample continues from the state a killed run of it left there."""
     generator = torch.Generator().manual_seed(seed)
     diffusion: Diffusion = prior.schedule(cfg.steps)
     scale = cfg.radiance_scale or estimate_radiance_scale(init.env, prior)
@@ -131,10 +140,17 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
                                   {"params": [materials.metallic], "lr": cfg.lr_metallic}])
     rho = rho_schedule(cfg, diffusion.num_timesteps)
     keep = set(np.linspace(0, diffusion.num_timesteps - 1, cfg.strip_frames).round().astype(int).tolist())
-    snapshots: list[torch.Tensor] = []
     x = torch.randn((1, 3, prior.height, 2 * prior.height), generator=generator)
-    for n, i in enumerate(tqdm(reversed(range(diffusion.num_timesteps)), total=diffusion.num_timesteps,
-                               desc="dps", disable=not progress, mininterval=2.0)):
+    store = checkpoint_for(checkpoint, checkpoint_every, "dps", vars(cfg), seed, scale, problem_identity(problem),
+                           init.env, dict(init.materials.items()), prior.family, prior.model.state_dict())
+    state = store.resume({"x": x, **dict(materials.items())}, optimizer, generator, trace) if store else None
+    start, snapshots = (state.step, state.snapshots) if state else (0, [])
+    for n in tqdm(range(start, diffusion.num_timesteps), initial=start, total=diffusion.num_timesteps, desc="dps",
+                  disable=not progress, mininterval=2.0):
+        if store and store.due(n, start):
+            store.save(LoopState.capture(n, {"x": x, **dict(materials.items())}, optimizer, generator, trace,
+                                         snapshots))
+        i = diffusion.num_timesteps - 1 - n
         t0 = trace.seconds
         x = x.detach().requires_grad_(True)
         t = torch.full((1,), i, dtype=torch.long)
@@ -180,4 +196,6 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
                        progress=progress)
     trace.info["refine"] = refine_trace.summary()
     trace.nan_skips += refine_trace.nan_skips
+    if store:
+        store.remove()
     return DPSResult(Decomposition(env, materials, trace), snapshots)

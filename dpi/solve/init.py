@@ -8,6 +8,7 @@ the mean observed foreground radiance.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import torch
 
@@ -36,10 +37,13 @@ def starting_materials(init: Decomposition) -> MaterialTextures:
     return materials
 
 
-def path_traced_init(problem: InverseProblem, cfg: OptimizeConfig, seed: int, progress: bool = True) -> Decomposition:
-    """Fit env map + materials from constant starting values; returns them with the trace."""
+def path_traced_init(problem: InverseProblem, cfg: OptimizeConfig, seed: int, progress: bool = True,
+                     checkpoint: Path | None = None) -> Decomposition:
+    """Fit env map + materials from constant starting values; returns them with the trace (`checkpoint`:
+    the fit's resume file)."""
     trace = Trace(info={"stage": "init", "config": vars(cfg).copy(), "seed": seed})
     materials = MaterialTextures.constant(problem.settings.texture_size, START_ALBEDO, START_ROUGHNESS,
                                           START_METALLIC)
-    log_env, materials = fit(problem, starting_log_env(problem), materials, cfg, seed, trace, progress=progress)
+    log_env, materials = fit(problem, starting_log_env(problem), materials, cfg, seed, trace, progress=progress,
+                             checkpoint=checkpoint)
     return Decomposition(log_env.exp(), materials, trace)

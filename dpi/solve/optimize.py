@@ -6,12 +6,14 @@ whose forward pass gives log-radiance, either the free texels themselves (`FreeE
 network that generates them (`dip`). Log-radiance makes a step change radiance relatively (HDR
 maps span many orders of magnitude); materials are optimised directly and clamped to their valid
 ranges after every step. A step whose loss or gradients are not finite is skipped and counted in
-the trace.
+the trace. Given a `checkpoint` file the loop saves its state there every `checkpoint_every` steps
+and a rerun continues from it (see dpi.solve.checkpoint); the file is deleted when the fit is done.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from pathlib import Path
 from typing import Any, Callable, TypeVar
 
 import torch
@@ -19,10 +21,13 @@ from tqdm import tqdm
 
 from dpi.materials import MaterialTextures
 from dpi.settings import settings_from_dict
+from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
 
 LOG_ENV_RANGE = (-14.0, 14.0)  # radiance in about [1e-6, 1e6]
+CHECKPOINT_EVERY = 25
+"""Adam steps between two saves of a fit's resume state (a save costs far less than one render)"""
 
 
 @dataclass
@@ -107,18 +112,23 @@ def all_finite(tensors: list[torch.Tensor]) -> bool:
 
 def fit(problem: InverseProblem, log_env: torch.Tensor, materials: MaterialTextures, cfg: OptimizeConfig,
         seed: int, trace: Trace, prior: PriorFn | None = None, prior_weight: float = 0.0,
-        progress: bool = True) -> tuple[torch.Tensor, MaterialTextures]:
+        progress: bool = True, checkpoint: Path | None = None,
+        checkpoint_every: int = CHECKPOINT_EVERY) -> tuple[torch.Tensor, MaterialTextures]:
     """Minimise data loss (+ prior_weight * prior(env)) over free texels; returns the final log-env and materials."""
-    return fit_env_model(problem, FreeEnvMap(log_env), materials, cfg, seed, trace, prior, prior_weight, progress)
+    return fit_env_model(problem, FreeEnvMap(log_env), materials, cfg, seed, trace, prior, prior_weight, progress,
+                         checkpoint, checkpoint_every)
 
 
 def fit_env_model(problem: InverseProblem, env_model: EnvModel, materials: MaterialTextures, cfg: OptimizeConfig,
                   seed: int, trace: Trace, prior: PriorFn | None = None, prior_weight: float = 0.0,
-                  progress: bool = True) -> tuple[torch.Tensor, MaterialTextures]:
+                  progress: bool = True, checkpoint: Path | None = None,
+                  checkpoint_every: int = CHECKPOINT_EVERY) -> tuple[torch.Tensor, MaterialTextures]:
     """Minimise data loss (+ prior_weight * prior(env)) over the env model's parameters (updated in
-    place) and the materials; returns the final log-env and materials."""
+    place) and the materials; returns the final log-env and materials. With a `checkpoint` file the
+    fit continues from the state a killed run of the same fit left there."""
     env_model.requires_grad_(cfg.optimize_env)
     materials = materials.detached()
+    tensors = {**{f"env.{name}": t for name, t in env_model.state_dict().items()}, **dict(materials.items())}
     groups = [{"params": list(env_model.parameters()), "lr": cfg.lr_env}] if cfg.optimize_env else []
     for name, tensor in materials.items():
         if name in cfg.optimize_materials:
@@ -127,7 +137,14 @@ def fit_env_model(problem: InverseProblem, env_model: EnvModel, materials: Mater
     free = [p for g in groups for p in g["params"]]
     optimizer = torch.optim.Adam(groups) if groups else None
     generator = torch.Generator().manual_seed(seed)
-    for step in tqdm(range(cfg.iterations), desc="optimise", disable=not progress, mininterval=2.0):
+    store = checkpoint_for(checkpoint, checkpoint_every, "fit", vars(cfg), seed, prior_weight,
+                           problem_identity(problem), tensors)
+    state = store.resume(tensors, optimizer, generator, trace) if store else None
+    start = state.step if state else 0
+    for step in tqdm(range(start, cfg.iterations), initial=start, total=cfg.iterations, desc="optimise",
+                     disable=not progress, mininterval=2.0):
+        if store and store.due(step, start):
+            store.save(LoopState.capture(step, tensors, optimizer, generator, trace))
         t0 = trace.seconds
         views = problem.sample_views(cfg.views_per_step, generator)
         env = env_model().exp()
@@ -150,5 +167,7 @@ def fit_env_model(problem: InverseProblem, env_model: EnvModel, materials: Mater
         materials.clamp_()
         trace.record(step=step, loss=loss.item(), data=data.item(), prior=reg.item(), views=views,
                      seconds=round(trace.seconds - t0, 4))
+    if store:
+        store.remove()
     with torch.no_grad():
         return env_model().detach(), materials.detached()
