@@ -12,6 +12,7 @@ from typing import Any
 import torch
 
 from dpi import backend
+from dpi.adaptive import AdaptiveConfig, plan_steps
 from dpi.atomic import write_json
 from dpi.capture import load_capture, read_capture_json, write_capture_json
 from dpi.evaluate import evaluate_sample, sample_rows, summarize, write_csv
@@ -77,11 +78,12 @@ def init_stage(capture_json: str | Path, out_dir: str | Path, scene: str, init_c
 
 def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | Path, scene: str, method: str,
                  k: int, method_cfg: dict[str, Any], settings: SolveSettings, prior_checkpoint: str | Path | None = None,
-                 progress: bool = True) -> None:
+                 adaptive: AdaptiveConfig | None = None, progress: bool = True) -> None:
     """Posterior sample k of a method for one scene, into out_dir (envmap, textures, trace.json).
 
     `dps` and `sds` use the diffusion prior in `prior_checkpoint` (default: the shipped model of the scene's
-    family, from scene.yaml's `prior`, else outdoor)."""
+    family, from scene.yaml's `prior`, else outdoor). `dps` runs fewer steps on a diffuse scene (`adaptive`,
+    default AdaptiveConfig()); the decision and its reason are in the trace's info."""
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
     problem = load_problem(capture_json, settings)
@@ -91,9 +93,13 @@ def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | 
         prior = load_scene_prior(problem.capture.options, prior_checkpoint)
         values = {"radiance_scale": problem.capture.options.get("radiance_scale"), **method_cfg}
         if method == "dps":
-            dps = dps_sample(problem, prior, init, DPSConfig.from_dict(values), seed, progress,
-                             Path(out_dir) / RESUME_FILE)
+            cfg = DPSConfig.from_dict(values)
+            requested = cfg.steps
+            cfg.steps, reason = plan_steps(init.materials, cfg.steps, adaptive or AdaptiveConfig())
+            print(f"adaptive: {reason}", flush=True)
+            dps = dps_sample(problem, prior, init, cfg, seed, progress, Path(out_dir) / RESUME_FILE)
             result = dps.decomposition
+            result.trace.info["adaptive"] = {"steps": cfg.steps, "requested_steps": requested, "reason": reason}
             write_grid(Path(out_dir) / "x0_strip.png", torch.stack(dps.snapshots), columns=len(dps.snapshots))
         else:
             result = sds_sample(problem, prior, init, SDSConfig.from_dict(values), seed, progress)

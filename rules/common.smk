@@ -1,4 +1,5 @@
 # Config validation and the small input functions every rule shares.
+import json
 from functools import lru_cache
 from pathlib import Path
 
@@ -6,6 +7,7 @@ from snakemake.utils import validate
 
 import yaml
 
+from dpi.adaptive import AdaptiveConfig, stop_rule_applies
 from dpi.capture import inspect_capture
 from dpi.prior.sample import DEFAULT_MODELS
 from dpi.settings import apply_preset
@@ -13,6 +15,7 @@ from dpi.settings import apply_preset
 apply_preset(config)  # the quality preset fills what the config leaves unset
 validate(config, "config.schema.yaml")
 
+ADAPTIVE = config["adaptive"]
 CAPTURES = config["captures_dir"]
 RESULTS = config["results_dir"]
 SCENES = config["scenes"]
@@ -72,6 +75,15 @@ def method_samples(method):
     return config["method_params"].get(method, {}).get("samples", config["samples"])
 
 
+def drawn_samples(scene, method):
+    """Samples of a method that exist in the end: all, or as many as the stop rule's plan says."""
+    samples = method_samples(method)
+    if not stop_rule_applies(AdaptiveConfig.from_dict(ADAPTIVE), samples):
+        return samples
+    plan = checkpoints.sample_plan.get(scene=scene, method=method).output[0]
+    return json.loads(Path(plan).read_text())["samples"]
+
+
 def method_params(method):
     """A method's settings without the sample count, so adding samples reruns no existing job."""
     return {k: v for k, v in config["method_params"].get(method, {}).items() if k != "samples"}
@@ -114,11 +126,43 @@ def all_figures():
     return [f"{RESULTS}/{scene}/eval/envmaps.png" for scene in SCENES]
 
 
-def all_evaluations():
-    """Every per-sample metric file of every scene and method, and of each scene's initialisation."""
+def adaptive_params(*prefixes):
+    """The `adaptive` settings a rule uses (keys starting with a prefix), so changing others reruns nothing."""
+    return {k: v for k, v in ADAPTIVE.items() if k.startswith(prefixes)}
+
+
+def first_samples(method):
+    """Samples of a method drawn whatever the stop rule decides (all when it does not apply)."""
+    samples = method_samples(method)
+    return ADAPTIVE["min_samples"] if stop_rule_applies(AdaptiveConfig.from_dict(ADAPTIVE), samples) else samples
+
+
+def sample_plans(scenes=SCENES):
+    """The stop rule's plan files: inputs of whatever aggregates samples, so a missing or changed plan reruns it."""
+    return [f"{RESULTS}/{scene}/{method}/plan.json" for scene in scenes for method in METHODS
+            if first_samples(method) < method_samples(method)]
+
+
+def fixed_evaluations():
+    """Metric files that exist whatever the stop rule decides: each scene's init and first samples."""
     return [f"{RESULTS}/{scene}/eval/init/0.json" for scene in SCENES] + [
         f"{RESULTS}/{scene}/eval/{method}/{k}.json"
         for scene in SCENES
         for method in METHODS
-        for k in range(method_samples(method))
+        for k in range(first_samples(method))
     ]
+
+
+def planned_evaluations(wildcards):
+    """Metric files of the samples the stop rule's plans add (an input function: plans are checkpoints)."""
+    return [
+        f"{RESULTS}/{scene}/eval/{method}/{k}.json"
+        for scene in SCENES
+        for method in METHODS
+        for k in range(first_samples(method), drawn_samples(scene, method))
+    ]
+
+
+def sample_envmaps(scene):
+    """Per method of a scene, the env maps of the samples it draws: [(method, [paths])]."""
+    return [(m, [f"{RESULTS}/{scene}/{m}/{k}/envmap.exr" for k in range(drawn_samples(scene, m))]) for m in METHODS]

@@ -43,7 +43,9 @@ rule evaluate_init:
 
 rule summary:
     input:
-        all_evaluations(),
+        evaluations=fixed_evaluations(),
+        planned=planned_evaluations,
+        plans=sample_plans(),
     output:
         summary=report(f"{RESULTS}/eval/summary.csv", caption="../report/summary.rst", category="Metrics"),
         samples=f"{RESULTS}/eval/samples.csv",
@@ -55,12 +57,13 @@ rule summary:
 
 rule envmap_figure:
     input:
-        lambda w: [f"{RESULTS}/{w.scene}/{m}/{k}/envmap.exr" for m in METHODS for k in range(method_samples(m))],
+        lambda w: [f"{RESULTS}/{w.scene}/{m}/{k}/envmap.exr" for m in METHODS for k in range(first_samples(m))],
+        lambda w: [path for _, paths in sample_envmaps(w.scene) for path in paths],
+        lambda w: sample_plans([w.scene]),
     output:
         report(f"{RESULTS}/{{scene}}/eval/envmaps.png", caption="../report/envmaps.rst", category="Env maps"),
     params:
-        rows=lambda w: [(m, [f"{RESULTS}/{w.scene}/{m}/{k}/envmap.exr" for k in range(method_samples(m))])
-                        for m in METHODS],
+        rows=lambda w: sample_envmaps(w.scene),
         reference=lambda w: ground_truth_envmap(w.scene),
     log:
         f"{RESULTS}/{{scene}}/logs/envmap_figure.log",
@@ -71,7 +74,9 @@ rule envmap_figure:
 rule report:
     input:
         summary=rules.summary.output.summary,
-        evaluations=all_evaluations(),
+        evaluations=fixed_evaluations(),
+        planned=planned_evaluations,
+        plans=sample_plans(),
     output:
         html=report(f"{RESULTS}/report.html", caption="../report/report.rst", category="Report"),
         figures=directory(f"{RESULTS}/report"),

@@ -40,6 +40,7 @@ rule sample:
     params:
         method=lambda w: method_params(w.method),
         solve=solve_params(),
+        adaptive=lambda w: adaptive_params("diffuse_") if w.method == "dps" else {},
     threads: config["threads"]["sample"]
     resources:
         mem_mb=config["resources"]["sample"]["mem_mb"],
@@ -51,3 +52,19 @@ rule sample:
         f"{RESULTS}/{{scene}}/benchmarks/{{method}}/{{k}}.tsv"
     script:
         "../workflow_scripts/sample.py"
+
+
+# The sample stop rule (dpi.adaptive): once a method's first samples exist, decide how many it
+# draws in all. Only methods with more than adaptive.min_samples samples wait for it.
+checkpoint sample_plan:
+    input:
+        lambda w: [f"{RESULTS}/{w.scene}/{w.method}/{k}/envmap.exr" for k in range(ADAPTIVE["min_samples"])],
+    output:
+        f"{RESULTS}/{{scene}}/{{method}}/plan.json",
+    params:
+        samples=lambda w: method_samples(w.method),
+        adaptive=adaptive_params("sample_stop", "min_samples", "agree_tolerance"),
+    log:
+        f"{RESULTS}/{{scene}}/logs/{{method}}/plan.log",
+    script:
+        "../workflow_scripts/sample_plan.py"

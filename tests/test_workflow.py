@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import shutil
 from pathlib import Path
 
@@ -47,8 +48,9 @@ def test_changing_one_method_reruns_only_its_jobs(workdir, tmp_path):
     assert "output: results/tiny/none/" not in out
 
 
-def test_adding_a_sample_runs_only_the_new_one(workdir):
-    out = snakemake(workdir, "-n", "--config", "samples=3")
+def test_adding_a_sample_runs_only_the_new_one(workdir, tmp_path):
+    more = write_config(tmp_path / "more.yaml", {"samples": 3, "adaptive": {"sample_stop": False}})
+    out = snakemake(workdir, "-n", "--configfile", str(more))
     assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "envmap_figure": 1, "summary": 1, "report": 1, "all": 1}
     assert "output: results/tiny/none/2/" in out and "output: results/tiny/none/0/" not in out
 
@@ -80,3 +82,26 @@ def test_given_inputs_skip_their_stages_and_missing_ones_are_planned(workdir, tm
     for scene, stages in expected.items():
         out = snakemake(tmp_path, "-n", f"results/{scene}/init/log.json")
         assert planned_jobs(out) == {"capture": 1, **stages, "init": 1}, scene
+
+
+def summary_samples(wd: Path) -> dict[str, str]:
+    return {r["method"]: r["samples"] for r in csv.DictReader(open(wd / "results" / "eval" / "summary.csv"))}
+
+
+def test_stop_rule_draws_the_remaining_samples_only_when_the_first_ones_differ(workdir, tmp_path):
+    wd = tmp_path / "wd"
+    shutil.copytree(workdir, wd)
+    agree = {"samples": 3, "adaptive": {"agree_tolerance": 1e9}}
+    out = snakemake(wd, "--configfile", str(write_config(tmp_path / "agree.yaml", agree)))
+    plan = json.loads((wd / "results" / "tiny" / "none" / "plan.json").read_text())
+    assert plan["samples"] == 2 and plan["requested"] == 3 and "agree" in plan["reason"]
+    assert not (wd / "results" / "tiny" / "none" / "2").exists()
+    assert summary_samples(wd) == {"init": "1", "none": "2", "smoothness": "2"}
+    assert "agree_tolerance" in (wd / "results" / "tiny" / "logs" / "none" / "plan.log").read_text()
+
+    differ = {"samples": 3, "adaptive": {"agree_tolerance": 0.0}}
+    out = snakemake(wd, "--configfile", str(write_config(tmp_path / "differ.yaml", differ)))
+    assert "checkpoint sample_plan" in out
+    assert json.loads((wd / "results" / "tiny" / "none" / "plan.json").read_text())["samples"] == 3
+    assert (wd / "results" / "tiny" / "none" / "2" / "envmap.exr").is_file()
+    assert summary_samples(wd) == {"init": "1", "none": "3", "smoothness": "3"}

@@ -2,6 +2,7 @@
 
 from pathlib import Path
 
+from dpi.adaptive import AdaptiveConfig
 from dpi.logs import log_to
 from dpi.stages import SolveSettings, sample_stage
 
@@ -10,4 +11,5 @@ with log_to(snakemake.log[0]):
     sample_stage(snakemake.input.capture, Path(snakemake.input.init).parent, Path(snakemake.output.trace).parent,
                  w.scene, w.method, int(w.k), snakemake.params.method,
                  SolveSettings.from_config(snakemake.params.solve, snakemake.threads),
-                 prior_checkpoint=snakemake.input.prior[0] if snakemake.input.prior else None)
+                 prior_checkpoint=snakemake.input.prior[0] if snakemake.input.prior else None,
+                 adaptive=AdaptiveConfig.from_dict(snakemake.params.adaptive))
