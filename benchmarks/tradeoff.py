@@ -3,9 +3,10 @@
 On the demo object (the demo's synthetic capture; other image resolutions are rendered into
 results/benchmarks/captures), starting from one path-traced initialisation (resampled to each
 env-map and texture size), one knob at a time is varied around the base setting: diffusion steps,
-render spp, image resolution, views per step, env-map height and texture size; then the quality
-presets of config.yaml. Prints seconds per sample and the errors, marks the Pareto front (time vs
-env PSNR, albedo MSE and view PSNR), and writes the table (CSV) and a plot.
+render spp, image resolution, views per step, env-map height, texture size and material refinement
+iterations; then the quality presets of config.yaml. Prints seconds per sample and the errors,
+marks the Pareto front (time vs env PSNR, albedo MSE and view PSNR), and writes the table (CSV)
+and a plot.
 
     .venv/bin/python benchmarks/tradeoff.py [--knobs steps spp ...] [--presets draft default] [--threads 2]
 """
@@ -50,7 +51,8 @@ class Setting:
 
 
 SWEEPS = {"steps": [25, 50, 100, 250, 1000], "spp": [4, 16, 64], "resolution": [32, 64],
-          "views_per_step": [1, 2, 4], "env_height": [8, 16, 32], "texture_size": [32, 64, 128]}
+          "views_per_step": [1, 2, 4], "env_height": [8, 16, 32], "texture_size": [32, 64, 128],
+          "refine_iterations": [50, 100, 200]}
 
 
 def preset_setting(preset: dict) -> Setting:
