@@ -32,7 +32,7 @@ PHOTO_CONFIG = {
     "evaluate": {"spp": 8},
     "preprocess": {"sfm": {"max_features": 2048}, "geometry": {"resolution": 96, "target_faces": 8000},
                    "uv": {"texture_size": 256}},
-    "threads": {"synth": 2, "init": 2, "sample": 1, "evaluate": 2, "preprocess": 2},
+    "threads": {"synth": 2, "init": 2, "sample": 1, "evaluate": 2, "preprocess": 1},  # 1: COLMAP is deterministic only single-threaded
 }
 
 pytestmark = pytest.mark.slow
