@@ -37,7 +37,8 @@ from dpi.prior.diffusion import Diffusion, model_output_with_random_roll, model_
 from dpi.prior.sample import Prior, load_scene_prior
 from dpi.render import Renderer, RenderSettings
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.dps import DPSConfig, estimate_radiance_scale, prior_to_env, rho_schedule, scale_to_bound
+from dpi.solve.dps import (DPSConfig, estimate_radiance_scale, material_optimizer, prior_to_env, rho_schedule,
+                           scale_to_bound)
 from dpi.solve.init import starting_materials
 from dpi.solve.problem import InverseProblem, ProblemSettings
 
@@ -101,9 +102,7 @@ def make_loop(threads: int, seed: int) -> Loop:
     materials = starting_materials(init)
     for _, t in materials.items():
         t.requires_grad_(True)
-    optimizer = torch.optim.Adam([{"params": [materials.albedo], "lr": cfg.lr_albedo},
-                                  {"params": [materials.roughness], "lr": cfg.lr_roughness},
-                                  {"params": [materials.metallic], "lr": cfg.lr_metallic}])
+    optimizer = material_optimizer(materials, cfg)
     diffusion = prior.schedule(cfg.steps)
     x = torch.randn((1, 3, prior.height, 2 * prior.height), generator=generator)
     return Loop(problem, prior, diffusion, cfg, estimate_radiance_scale(init.env, prior), x, materials, optimizer,
@@ -185,7 +184,6 @@ def setting_line(setting: Setting) -> str:
     """The knobs that matter for one step, on one line."""
     return (f"{setting.resolution}x{setting.resolution} images, {setting.spp} spp, env {setting.env_height}x"
             f"{2 * setting.env_height}, textures {setting.texture_size}, {setting.views_per_step} view/step")
-
 
 
 def main() -> None:

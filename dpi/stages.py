@@ -89,6 +89,7 @@ def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | 
     problem = load_problem(capture_json, settings)
     init = Decomposition.load(init_dir, settings.problem.texture_size)
     seed = seed_for(scene, method, k)
+    resume = Path(out_dir) / RESUME_FILE
     if method in DIFFUSION_METHODS:
         prior = load_scene_prior(problem.capture.options, prior_checkpoint)
         values = {"radiance_scale": problem.capture.options.get("radiance_scale"), **method_cfg}
@@ -97,17 +98,16 @@ def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | 
             requested = cfg.steps
             cfg.steps, reason = plan_steps(init.materials, cfg.steps, adaptive or AdaptiveConfig())
             print(f"adaptive: {reason}", flush=True)
-            dps = dps_sample(problem, prior, init, cfg, seed, progress, Path(out_dir) / RESUME_FILE)
+            dps = dps_sample(problem, prior, init, cfg, seed, progress, resume)
             result = dps.decomposition
             result.trace.info["adaptive"] = {"steps": cfg.steps, "requested_steps": requested, "reason": reason}
             write_grid(Path(out_dir) / "x0_strip.png", torch.stack(dps.snapshots), columns=len(dps.snapshots))
         else:
             result = sds_sample(problem, prior, init, SDSConfig.from_dict(values), seed, progress)
     elif method == "dip":
-        result = dip_sample(problem, init, DIPConfig.from_dict(method_cfg), seed, progress, Path(out_dir) / RESUME_FILE)
+        result = dip_sample(problem, init, DIPConfig.from_dict(method_cfg), seed, progress, resume)
     else:
-        result = classic_sample(problem, method, init, ClassicConfig.from_dict(method_cfg), seed, progress,
-                                Path(out_dir) / RESUME_FILE)
+        result = classic_sample(problem, method, init, ClassicConfig.from_dict(method_cfg), seed, progress, resume)
     result.trace.info.update({"scene": scene, "k": k})
     result.save(out_dir)
 

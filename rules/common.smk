@@ -16,6 +16,7 @@ apply_preset(config)  # the quality preset fills what the config leaves unset
 validate(config, "config.schema.yaml")
 
 ADAPTIVE = config["adaptive"]
+ADAPTIVE_CONFIG = AdaptiveConfig.from_dict(ADAPTIVE)
 CAPTURES = config["captures_dir"]
 RESULTS = config["results_dir"]
 SCENES = config["scenes"]
@@ -78,7 +79,7 @@ def method_samples(method):
 def drawn_samples(scene, method):
     """Samples of a method that exist in the end: all, or as many as the stop rule's plan says."""
     samples = method_samples(method)
-    if not stop_rule_applies(AdaptiveConfig.from_dict(ADAPTIVE), samples):
+    if first_samples(method) == samples:
         return samples
     plan = checkpoints.sample_plan.get(scene=scene, method=method).output[0]
     return json.loads(Path(plan).read_text())["samples"]
@@ -134,7 +135,7 @@ def adaptive_params(*prefixes):
 def first_samples(method):
     """Samples of a method drawn whatever the stop rule decides (all when it does not apply)."""
     samples = method_samples(method)
-    return ADAPTIVE["min_samples"] if stop_rule_applies(AdaptiveConfig.from_dict(ADAPTIVE), samples) else samples
+    return ADAPTIVE_CONFIG.min_samples if stop_rule_applies(ADAPTIVE_CONFIG, samples) else samples
 
 
 def sample_plans(scenes=SCENES):

@@ -57,7 +57,6 @@ rule summary:
 
 rule envmap_figure:
     input:
-        lambda w: [f"{RESULTS}/{w.scene}/{m}/{k}/envmap.exr" for m in METHODS for k in range(first_samples(m))],
         lambda w: [path for _, paths in sample_envmaps(w.scene) for path in paths],
         lambda w: sample_plans([w.scene]),
     output:

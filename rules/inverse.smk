@@ -58,7 +58,7 @@ rule sample:
 # draws in all. Only methods with more than adaptive.min_samples samples wait for it.
 checkpoint sample_plan:
     input:
-        lambda w: [f"{RESULTS}/{w.scene}/{w.method}/{k}/envmap.exr" for k in range(ADAPTIVE["min_samples"])],
+        lambda w: [f"{RESULTS}/{w.scene}/{w.method}/{k}/envmap.exr" for k in range(ADAPTIVE_CONFIG.min_samples)],
     output:
         f"{RESULTS}/{{scene}}/{{method}}/plan.json",
     params:

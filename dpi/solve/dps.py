@@ -107,6 +107,13 @@ def scale_to_bound(g: torch.Tensor, bound: float) -> torch.Tensor:
     return g * (bound / peak) if peak > bound else g
 
 
+def material_optimizer(materials: MaterialTextures, cfg: DPSConfig) -> torch.optim.Adam:
+    """Adam on albedo / roughness / metallic at their own learning rates: one step per reverse step."""
+    return torch.optim.Adam([{"params": [materials.albedo], "lr": cfg.lr_albedo},
+                             {"params": [materials.roughness], "lr": cfg.lr_roughness},
+                             {"params": [materials.metallic], "lr": cfg.lr_metallic}])
+
+
 def estimate_radiance_scale(init_env: torch.Tensor, prior: Prior) -> float:
     """Scene radiance per unit of the prior's normalised radiance: the init map's median luminance
     over the median the prior was trained with (the same normalisation as its training maps)."""
@@ -135,9 +142,7 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
                         "config": vars(cfg).copy()})
     materials = starting_materials(init)
     free = [t.requires_grad_(True) for _, t in materials.items()]
-    optimizer = torch.optim.Adam([{"params": [materials.albedo], "lr": cfg.lr_albedo},
-                                  {"params": [materials.roughness], "lr": cfg.lr_roughness},
-                                  {"params": [materials.metallic], "lr": cfg.lr_metallic}])
+    optimizer = material_optimizer(materials, cfg)
     rho = rho_schedule(cfg, diffusion.num_timesteps)
     keep = set(np.linspace(0, diffusion.num_timesteps - 1, cfg.strip_frames).round().astype(int).tolist())
     x = torch.randn((1, 3, prior.height, 2 * prior.height), generator=generator)
