@@ -27,8 +27,9 @@ from scipy import linalg
 from torch.nn import functional as F
 
 from dpi import backend
-from dpi.prior.data import EnvmapDataset, list_panoramas
+from dpi.prior.data import EnvmapDataset
 from dpi.prior.procedural import make_envmap_dataset
+from dpi.tonecurve import Encoding
 from dpi.prior.sample import DEFAULT_MODELS, MODELS_DIR, draw_samples, load_prior, write_grid
 
 HELD_OUT_SEED = 1000
@@ -86,12 +87,12 @@ def nearest_training_maps(samples: torch.Tensor, train: torch.Tensor) -> torch.T
     return out
 
 
-def held_out_maps(family: str, count: int, height: int) -> torch.Tensor:
+def held_out_maps(family: str, count: int, height: int, encoding: Encoding) -> torch.Tensor:
     """Freshly generated maps of the family (a seed the training data never used), in prior space."""
     with tempfile.TemporaryDirectory() as tmp:
         data_height = 64 if family == "outdoor" else 32
         make_envmap_dataset(family, count, data_height, tmp, seed=HELD_OUT_SEED, progress=False)
-        return EnvmapDataset(tmp, height, family).images
+        return EnvmapDataset.from_folder(tmp, height, family, encoding).images
 
 
 def pair_grid(samples: torch.Tensor, nearest: torch.Tensor) -> torch.Tensor:
@@ -102,8 +103,8 @@ def pair_grid(samples: torch.Tensor, nearest: torch.Tensor) -> torch.Tensor:
 def evaluate_family(family: str, data_dir: Path, count: int, steps: int, timing_steps: list[int]) -> list[tuple]:
     """Rows (family, quantity, value) of the table for one default model."""
     prior = load_prior(DEFAULT_MODELS[family])
-    train = EnvmapDataset(data_dir, prior.height, family, files=list_panoramas(data_dir)).images
-    held = held_out_maps(family, count, prior.height)
+    train = EnvmapDataset.from_folder(data_dir, prior.height, family, prior.encoding).images
+    held = held_out_maps(family, count, prior.height, prior.encoding)
     start = time.perf_counter()
     rolled = draw_samples(prior, count, steps, seed=1, random_roll=True)
     seconds = (time.perf_counter() - start) / count

@@ -6,7 +6,7 @@ weights and constants, the diffusion model's variational bound on -log p(x0). Th
 that error (the prior's training `mse` term), averaged over fixed timesteps and fixed noise draws
 (the same for every map, so scores compare), with the map in the prior's training normalisation:
 resampled to the prior's resolution, divided by the scale that brings its median luminance to
-`median_target`, through the family's tone curve. Higher is more natural.
+`median_target`, through the prior's encoding. Higher is more natural.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ def prior_image(env: np.ndarray, prior: Prior) -> torch.Tensor:
     """An HDR env map (H, W, 3) as the prior saw its training maps: (3, h, 2h) in [-1, 1]."""
     radiance = resize(torch.from_numpy(np.ascontiguousarray(env, dtype=np.float32)), prior.height, 2 * prior.height)
     radiance = radiance.permute(2, 0, 1)
-    return prior.tone_curve.with_scale(radiance_scale(radiance, prior.median_target)).to_prior(radiance)
+    return prior.encoding.with_scale(radiance_scale(radiance, prior.median_target)).to_prior(radiance)
 
 
 @torch.no_grad()

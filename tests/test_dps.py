@@ -19,7 +19,7 @@ from dpi.tonecurve import TONE_CURVES
 def tiny_prior(height: int = 8) -> Prior:
     torch.manual_seed(0)
     model = UNetModel(SMALL_CONFIGS["tiny"]).eval()
-    return Prior(model=model, diffusion=base_diffusion(1000, True), tone_curve=TONE_CURVES["outdoor"],
+    return Prior(model=model, diffusion=base_diffusion(1000, True), encoding=TONE_CURVES["outdoor"],
                  family="outdoor", height=height, median_target=0.1)
 
 

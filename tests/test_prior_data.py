@@ -8,24 +8,42 @@ import torch
 from PIL import Image
 
 from dpi.exr import write_exr
-from dpi.prior.data import (MEDIAN_TARGETS, EnvmapDataset, augment, list_panoramas, prior_tone_curve,
-                            radiance_scale, read_panorama, resize_area, roll_columns, split_files,
+from dpi.prior.data import (MEDIAN_TARGETS, EnvmapDataset, augment, list_panoramas, median_target,
+                            radiance_scale, read_dataset, read_panorama, resize_area, roll_columns, split_files,
                             to_prior_space)
+from dpi.tonecurve import family_encoding
+
+ENCODINGS = [("outdoor", "paper"), ("indoor", "paper"), ("outdoor", "log")]
 
 
-@pytest.mark.parametrize("family", ["outdoor", "indoor"])
-def test_tone_curve_round_trip(family: str) -> None:
-    curve = prior_tone_curve(family, scale=0.37)
-    radiance = torch.rand(3, 8, 16) * 0.37  # well below the clamp of both curves
+@pytest.mark.parametrize("family,encoding", ENCODINGS)
+def test_encoding_round_trip(family: str, encoding: str) -> None:
+    curve = family_encoding(family, encoding).with_scale(0.37)
+    radiance = (torch.rand(3, 8, 16) + 0.01) * 0.37  # inside the range of every encoding
     torch.testing.assert_close(curve.to_radiance(curve.to_prior(radiance)), radiance, rtol=1e-4, atol=1e-7)
     x = torch.rand(3, 8, 16) * 2 - 1
     torch.testing.assert_close(curve.to_prior(curve.to_radiance(x)), x, rtol=1e-4, atol=1e-5)
 
 
-@pytest.mark.parametrize("family", ["outdoor", "indoor"])
-def test_prior_space_is_invariant_to_exposure(family: str) -> None:
+@pytest.mark.parametrize("family,encoding", ENCODINGS)
+def test_prior_space_is_invariant_to_exposure(family: str, encoding: str) -> None:
     radiance = torch.rand(3, 8, 16) ** 3 * 10
-    torch.testing.assert_close(to_prior_space(7.5 * radiance, family), to_prior_space(radiance, family))
+    enc = family_encoding(family, encoding)
+    target = median_target(family, enc)
+    torch.testing.assert_close(to_prior_space(7.5 * radiance, enc, target), to_prior_space(radiance, enc, target))
+
+
+def test_log_encoding_holds_a_sun() -> None:
+    """A texel 2000x the median (the demo's sun is 1719x) survives the round trip; the paper's curve clamps it."""
+    sky = torch.ones(3, 8, 16)
+    sky[:, 2, 5] = 2000.0
+    for encoding, kept in (("log", True), ("paper", False)):
+        enc = family_encoding("outdoor", encoding)
+        target = median_target("outdoor", enc)
+        back = enc.with_scale(radiance_scale(sky, target)).to_radiance(to_prior_space(sky, enc, target))
+        assert bool(torch.isclose(back[0, 2, 5], torch.tensor(2000.0), rtol=1e-3)) == kept
+    low, high = family_encoding("outdoor", "log").range
+    assert low <= 1e-2 and high >= 1e4
 
 
 def test_radiance_scale_maps_median_to_target() -> None:
@@ -64,10 +82,23 @@ def test_dataset_over_mixed_folder(tmp_path) -> None:
     Image.fromarray(rng.integers(0, 255, (20, 40, 3), dtype=np.uint8)).save(tmp_path / "b.png")
     (tmp_path / "notes.txt").write_text("ignored")
     assert [p.name for p in list_panoramas(tmp_path)] == ["a.exr", "b.png"]
-    ds = EnvmapDataset(tmp_path, 8, "outdoor")
+    ds = EnvmapDataset.from_folder(tmp_path, 8, "outdoor", family_encoding("outdoor"))
     assert len(ds) == 2 and ds.images.shape == (2, 3, 8, 16)
     batch = ds.batch(5, torch.Generator().manual_seed(1))
     assert batch.shape == (5, 3, 8, 16) and batch.min() >= -1 and batch.max() <= 1
+
+
+def test_packed_dataset_round_trips_within_a_quantum(tmp_path) -> None:
+    enc = family_encoding("indoor", "log")
+    x = torch.rand(4, 3, 8, 16) * 2 - 1
+    EnvmapDataset(x, "indoor", enc).save(tmp_path / "maps.npz")
+    packed = read_dataset(tmp_path / "maps.npz", 8, "indoor", enc)
+    assert packed.encoding == enc and packed.family == "indoor"
+    assert (packed.images - x).abs().max() <= 1.0 / 255 + 1e-6
+    batch = packed.batch(16, torch.Generator().manual_seed(0))
+    assert batch.min() >= -1 and batch.max() <= 1 and not torch.isin(batch, packed.images).all()  # dithered
+    with pytest.raises(ValueError, match="expected"):
+        read_dataset(tmp_path / "maps.npz", 8, "outdoor", enc)
 
 
 def test_hdr_files_are_read(tmp_path) -> None:

@@ -14,6 +14,7 @@ from dpi.prior.outdoor import outdoor_envmap
 from dpi.prior.sample import draw_samples, load_prior, sample_to_files
 from dpi.prior.train import TrainConfig, export_model, train
 from dpi.prior.unet import SMALL_CONFIGS
+from dpi.tonecurve import LogEncoding, ToneCurve, family_encoding
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +44,7 @@ def test_loss_falls(tmp_path, maps_dir) -> None:
 
 
 def test_resume_continues_the_step_count(tmp_path, maps_dir) -> None:
-    data = EnvmapDataset(maps_dir, 16, "outdoor")
+    data = EnvmapDataset.from_folder(maps_dir, 16, "outdoor", family_encoding("outdoor"))
     train(config(tmp_path, maps_dir, 5), data, progress=False)
     cfg = config(tmp_path, maps_dir, 8)
     cfg.sample_every, cfg.sample_steps = 8, 2
@@ -59,8 +60,18 @@ def test_exported_model_samples(tmp_path, maps_dir) -> None:
     shipped = torch.load(tmp_path / "shipped.pt", weights_only=True)
     assert "optimizer" not in shipped and shipped["model"]["out.2.weight"].dtype == torch.float16
     prior = load_prior(tmp_path / "shipped.pt")
-    assert prior.family == "outdoor" and prior.height == 16 and prior.tone_curve.gamma == 2.4
+    assert prior.family == "outdoor" and prior.height == 16 and prior.encoding == LogEncoding()
+    assert prior.median_target == 1.0
     x = draw_samples(prior, 1, steps=3)
     assert x.shape == (1, 3, 16, 32) and torch.isfinite(x).all() and x.abs().max() <= 1
     paths = sample_to_files(tmp_path / "shipped.pt", tmp_path / "samples", count=2, steps=2)
     assert len(paths) == 2 and (tmp_path / "samples" / "samples.png").is_file()
+
+
+def test_paper_encoding_is_recorded_and_loads(tmp_path, maps_dir) -> None:
+    cfg = config(tmp_path, maps_dir, 1)
+    cfg.encoding = "paper"
+    train(cfg, progress=False)
+    export_model(tmp_path / "model.pt", tmp_path / "shipped.pt")
+    prior = load_prior(tmp_path / "shipped.pt")
+    assert prior.encoding == ToneCurve(0.5, 2.4) and prior.median_target == 0.3

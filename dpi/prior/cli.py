@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
+from dpi.tonecurve import ENCODINGS
+
 
 def _threads(n: int) -> None:
     """Use exactly `n` torch threads (and Dr.Jit threads once Mitsuba is imported)."""
@@ -23,6 +25,16 @@ def cmd_make_envmaps(args: argparse.Namespace) -> None:
     print(json.dumps(manifest, indent=2))
 
 
+def cmd_pack_envmaps(args: argparse.Namespace) -> None:
+    """Pack a folder of env maps into one .npz in prior space (to train elsewhere)."""
+    from dpi.prior.data import EnvmapDataset
+    from dpi.tonecurve import family_encoding
+
+    data = EnvmapDataset.from_folder(args.data, args.height, args.family, family_encoding(args.family, args.encoding))
+    data.save(args.out)
+    print(f"{args.out}: {len(data)} maps of {args.height} x {2 * args.height}, {args.encoding} encoding")
+
+
 def cmd_train_prior(args: argparse.Namespace) -> None:
     """Train (or resume training) a prior on a folder of env maps."""
     from dpi.prior.train import TrainConfig, train
@@ -35,7 +47,7 @@ def cmd_train_prior(args: argparse.Namespace) -> None:
                          steps=args.steps, batch_size=args.batch_size, lr=args.lr, ema_decay=args.ema_decay,
                          max_minutes=args.max_minutes,
                          sample_every=args.sample_every, checkpoint_every=args.checkpoint_every,
-                         device=args.device, seed=args.seed)
+                         device=args.device, seed=args.seed, encoding=args.encoding)
     train(config)
 
 
@@ -59,9 +71,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--threads", type=int, default=1)
     p.set_defaults(fn=cmd_make_envmaps)
 
-    p = subparsers.add_parser("train-prior", help="train a diffusion prior on a folder of env maps")
-    p.add_argument("--family", choices=["outdoor", "indoor"], required=True, help="selects the tone curve")
+    p = subparsers.add_parser("pack-envmaps", help="pack a folder of env maps into one .npz in prior space")
+    p.add_argument("--family", choices=["outdoor", "indoor"], required=True)
     p.add_argument("--data", required=True, help="folder of .exr/.hdr/.png/.jpg panoramas")
+    p.add_argument("--height", type=int, default=32, help="map height H of the prior (width 2H)")
+    p.add_argument("--encoding", choices=ENCODINGS, default="log")
+    p.add_argument("--out", required=True, help="output .npz")
+    p.set_defaults(fn=cmd_pack_envmaps)
+
+    p = subparsers.add_parser("train-prior", help="train a diffusion prior on a folder of env maps")
+    p.add_argument("--family", choices=["outdoor", "indoor"], required=True)
+    p.add_argument("--data", required=True, help="folder of .exr/.hdr/.png/.jpg panoramas, or a packed .npz")
+    p.add_argument("--encoding", choices=ENCODINGS, default="log",
+                   help="log: log radiance around the median (holds a sun); paper: the family's tone curve")
     p.add_argument("--out", required=True, help="checkpoint path (resumed when it exists)")
     p.add_argument("--model", default="small_32x64", help="name in dpi.prior.unet.SMALL_CONFIGS")
     p.add_argument("--steps", type=int, default=20000)

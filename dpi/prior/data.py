@@ -1,11 +1,13 @@
-"""Env-map datasets for the prior: read HDR/LDR panoramas, resize, normalise, tone-map, augment.
+"""Env-map datasets for the prior: read HDR/LDR panoramas, resize, normalise, encode, augment.
 
 Radiance convention (also stored in every checkpoint): each map L is divided by a per-map scale
-s = median luminance(L) / median_target, so its median luminance becomes `median_target`
-(`MEDIAN_TARGETS`, per family), then mapped to [-1, 1] by the family's tone curve
-x = 2 a (L / s)^(1/gamma) - 1. Going back, `ToneCurve.with_scale(s).to_radiance(x)` gives HDR
-radiance for any chosen scene scale s. Augmentation is the paper's: a random horizontal roll
-(rotation about the up axis) and a random horizontal flip.
+s = median luminance(L) / median_target, so its median luminance becomes `median_target`, then
+mapped to [-1, 1] by the prior's encoding (dpi.tonecurve): log radiance (median_target 1), or the
+paper's tone curve x = 2 a (L / s)^(1/gamma) - 1 (median_target per family, `MEDIAN_TARGETS`).
+Going back, `encoding.with_scale(s).to_radiance(x)` gives HDR radiance for any chosen scene
+scale s. Augmentation is the paper's: a random horizontal roll (rotation about the up axis) and a
+random horizontal flip. A dataset can be packed into one `.npz` (x quantised to 8 bits, with its
+encoding) to train elsewhere, e.g. on a GPU machine without the generators.
 """
 
 from __future__ import annotations
@@ -16,11 +18,15 @@ import numpy as np
 import torch
 from torch.nn import functional as F
 
+from dpi.atomic import atomic_path
 from dpi.images import IMAGE_SUFFIXES, luminance, read_image
-from dpi.tonecurve import TONE_CURVES, ToneCurve
+from dpi.tonecurve import Encoding, encoding_from_dict
 
 PANORAMA_SUFFIXES = IMAGE_SUFFIXES + (".hdr",)
 MEDIAN_TARGETS = {"outdoor": 0.3, "indoor": 0.05}
+"""median luminance of a training map under the paper's tone curves (the log encoding uses 1)"""
+PACK_LEVELS = 255
+"""a packed dataset stores x in [-1, 1] as round((x + 1) / 2 * PACK_LEVELS) in uint8"""
 
 
 def read_panorama(path: str | Path) -> np.ndarray:
@@ -50,15 +56,14 @@ def radiance_scale(radiance: torch.Tensor, median_target: float) -> float:
     return max(median, 1e-8) / median_target
 
 
-def to_prior_space(radiance: torch.Tensor, family: str) -> torch.Tensor:
-    """(3, H, W) HDR radiance -> (3, H, W) prior image in [-1, 1] under the family's convention."""
-    scale = radiance_scale(radiance, MEDIAN_TARGETS[family])
-    return TONE_CURVES[family].with_scale(scale).to_prior(radiance)
+def median_target(family: str, encoding: Encoding) -> float:
+    """Median luminance of a normalised training map: 1 in log radiance, the family's under the paper's curve."""
+    return MEDIAN_TARGETS[family] if encoding.to_dict()["kind"] == "power" else 1.0
 
 
-def prior_tone_curve(family: str, scale: float = 1.0) -> ToneCurve:
-    """The family's tone curve with radiance scale `scale` (1.0: the training normalisation)."""
-    return TONE_CURVES[family].with_scale(scale)
+def to_prior_space(radiance: torch.Tensor, encoding: Encoding, target: float) -> torch.Tensor:
+    """(3, H, W) HDR radiance -> (3, H, W) prior image in [-1, 1], normalised to median luminance `target`."""
+    return encoding.with_scale(radiance_scale(radiance, target)).to_prior(radiance)
 
 
 def list_panoramas(folder: str | Path) -> list[Path]:
@@ -79,29 +84,79 @@ def roll_columns(x: torch.Tensor, shifts: torch.Tensor) -> torch.Tensor:
 def augment(x: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
     """Random per-image azimuth roll and horizontal flip of a batch (B, C, H, W) (paper's augmentation)."""
     b, width = x.shape[0], x.shape[-1]
-    shifts = torch.randint(0, width, (b,), generator=generator).to(x.device)
-    flips = (torch.rand(b, generator=generator) < 0.5).to(x.device)
+    shifts = torch.randint(0, width, (b,), generator=generator, device=x.device)
+    flips = torch.rand(b, generator=generator, device=x.device) < 0.5
     x = torch.where(flips[:, None, None, None], x.flip(-1), x)
     return roll_columns(x, shifts)
 
 
 class EnvmapDataset:
-    """All panoramas of a folder in prior space, held in memory as one (N, 3, H, 2H) tensor."""
+    """Env maps in prior space, held in memory as one (N, 3, H, 2H) tensor (on any device).
 
-    def __init__(self, folder: str | Path, height: int, family: str, files: list[Path] | None = None):
+    `quantum` is the step of a packed (8-bit) dataset: batches add uniform noise of that width, so the
+    network sees a continuous density rather than 256 levels."""
+
+    def __init__(self, images: torch.Tensor, family: str, encoding: Encoding, quantum: float = 0.0):
+        self.images = images
         self.family = family
-        self.height = height
-        self.files = files if files is not None else list_panoramas(folder)
-        images = [resize_area(torch.from_numpy(read_panorama(p)).permute(2, 0, 1), height) for p in self.files]
-        self.images = torch.stack([to_prior_space(im, family) for im in images])
+        self.encoding = encoding
+        self.height = images.shape[-2]
+        self.quantum = quantum
+
+    @classmethod
+    def from_folder(cls, folder: str | Path, height: int, family: str, encoding: Encoding,
+                    files: list[Path] | None = None) -> "EnvmapDataset":
+        """All panoramas of a folder (or the given `files`), area-resampled to `height`, normalised and encoded."""
+        target = median_target(family, encoding)
+        paths = files if files is not None else list_panoramas(folder)
+        images = [resize_area(torch.from_numpy(read_panorama(p)).permute(2, 0, 1), height) for p in paths]
+        return cls(torch.stack([to_prior_space(im, encoding, target) for im in images]), family, encoding)
+
+    @classmethod
+    def load(cls, path: str | Path) -> "EnvmapDataset":
+        """A dataset packed by `save` (one .npz file)."""
+        with np.load(path) as packed:
+            x = torch.from_numpy(packed["x"].astype(np.float32)) * (2.0 / PACK_LEVELS) - 1.0
+            meta = {"family": str(packed["family"]), "encoding": encoding_from_dict(
+                {k[len("encoding_"):]: packed[k].item() for k in packed.files if k.startswith("encoding_")})}
+        return cls(x, meta["family"], meta["encoding"], quantum=2.0 / PACK_LEVELS)
+
+    def save(self, path: str | Path) -> None:
+        """Pack the maps into one compressed .npz: x in 8 bits, the family and the encoding's parameters."""
+        levels = ((self.images.cpu().clamp(-1, 1) + 1) / 2 * PACK_LEVELS).round().to(torch.uint8).numpy()
+        encoding = {f"encoding_{k}": np.array(v) for k, v in self.encoding.to_dict().items()}
+        with atomic_path(path) as tmp:
+            with open(tmp, "wb") as handle:
+                np.savez_compressed(handle, x=levels, family=np.array(self.family), **encoding)
+
+    def to(self, device: str | torch.device) -> "EnvmapDataset":
+        """The same dataset with its maps on `device` (train where the network is)."""
+        return EnvmapDataset(self.images.to(device), self.family, self.encoding, self.quantum)
 
     def __len__(self) -> int:
         return len(self.images)
 
     def batch(self, size: int, generator: torch.Generator | None = None) -> torch.Tensor:
-        """A random augmented batch (size, 3, H, 2H) in [-1, 1], drawn with replacement."""
-        idx = torch.randint(0, len(self.images), (size,), generator=generator)
-        return augment(self.images[idx], generator)
+        """A random augmented batch (size, 3, H, 2H) in [-1, 1], drawn with replacement (`generator` on
+        the maps' device)."""
+        device = self.images.device
+        idx = torch.randint(0, len(self.images), (size,), generator=generator, device=device)
+        x = augment(self.images[idx], generator)
+        if self.quantum:
+            x = (x + self.quantum * (torch.rand(x.shape, generator=generator, device=device) - 0.5)).clamp(-1, 1)
+        return x
+
+
+def read_dataset(path: str | Path, height: int, family: str, encoding: Encoding) -> EnvmapDataset:
+    """A folder of panoramas (resampled, normalised and encoded now) or a packed .npz, which must match."""
+    if Path(path).is_dir():
+        return EnvmapDataset.from_folder(path, height, family, encoding)
+    data = EnvmapDataset.load(path)
+    found = (data.height, data.family, data.encoding.to_dict())
+    if found != (height, family, encoding.to_dict()):
+        raise ValueError(f"{path}: packed dataset has (height, family, encoding) {found}, "
+                         f"expected {(height, family, encoding.to_dict())}")
+    return data
 
 
 def split_files(files: list[Path], held_out_fraction: float, seed: int = 0) -> tuple[list[Path], list[Path]]:

@@ -57,6 +57,16 @@ class Diffusion:
         self.posterior_log_variance_clipped = np.log(np.append(self.posterior_variance[1], self.posterior_variance[1:]))
         self.posterior_mean_coef1 = b * np.sqrt(self.alphas_cumprod_prev) / (1.0 - self.alphas_cumprod)
         self.posterior_mean_coef2 = (1.0 - self.alphas_cumprod_prev) * np.sqrt(1.0 - b) / (1.0 - self.alphas_cumprod)
+        self.log_betas = np.log(b)
+        self._tables: dict[tuple[int, str], torch.Tensor] = {}
+
+    def table(self, arr: np.ndarray, device: torch.device) -> torch.Tensor:
+        """`arr` (one of this schedule's arrays) as a float64 tensor on `device`, copied there once:
+        a host-to-device copy per lookup would synchronise every training step on a GPU."""
+        key = (id(arr), str(device))
+        if key not in self._tables:
+            self._tables[key] = torch.as_tensor(arr, device=device)
+        return self._tables[key]
 
 
 def base_diffusion(num_timesteps: int = 1000, learn_sigma: bool = True) -> Diffusion:
@@ -72,43 +82,43 @@ def respaced(base: Diffusion, use_timesteps: list[int]) -> Diffusion:
     return Diffusion(betas, base.learn_sigma, base.timestep_map[keep])
 
 
-def extract(arr: np.ndarray, t: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
-    """arr[t] (B,) broadcast to the shape of `like` (B, ...), in its dtype and device."""
-    out = torch.as_tensor(arr, device=t.device)[t].to(like.dtype)
+def extract(diffusion: Diffusion, arr: np.ndarray, t: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
+    """arr[t] (B,) of one of the schedule's arrays, broadcast to the shape of `like` (B, ...), in its dtype."""
+    out = diffusion.table(arr, t.device)[t].to(like.dtype)
     return out.reshape(-1, *([1] * (like.ndim - 1)))
 
 
 def model_timesteps(diffusion: Diffusion, t: torch.Tensor) -> torch.Tensor:
     """Base timesteps (B,) the network is conditioned on for schedule indices t (B,)."""
-    return torch.as_tensor(diffusion.timestep_map, device=t.device)[t]
+    return diffusion.table(diffusion.timestep_map, t.device)[t]
 
 
 def q_sample(diffusion: Diffusion, x0: torch.Tensor, t: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
     """x_t ~ q(x_t | x_0) (B, C, H, W): sqrt(abar_t) x_0 + sqrt(1 - abar_t) noise."""
-    abar = extract(diffusion.alphas_cumprod, t, x0)
+    abar = extract(diffusion, diffusion.alphas_cumprod, t, x0)
     return abar.sqrt() * x0 + (1 - abar).sqrt() * noise
 
 
 def predict_x0(diffusion: Diffusion, x_t: torch.Tensor, t: torch.Tensor, eps: torch.Tensor) -> torch.Tensor:
     """x0_hat (B, C, H, W) = (x_t - sqrt(1 - abar_t) eps) / sqrt(abar_t), not clamped."""
-    abar = extract(diffusion.alphas_cumprod, t, x_t)
+    abar = extract(diffusion, diffusion.alphas_cumprod, t, x_t)
     return (x_t - (1 - abar).sqrt() * eps) / abar.sqrt()
 
 
 def q_posterior_mean_variance(diffusion: Diffusion, x0: torch.Tensor, x_t: torch.Tensor,
                               t: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """Mean (B, C, H, W) and clipped log variance (B, 1, 1, 1) of q(x_{t-1} | x_t, x_0)."""
-    mean = extract(diffusion.posterior_mean_coef1, t, x_t) * x0 + extract(diffusion.posterior_mean_coef2, t, x_t) * x_t
-    return mean, extract(diffusion.posterior_log_variance_clipped, t, x_t)
+    mean = extract(diffusion, diffusion.posterior_mean_coef1, t, x_t) * x0 + extract(diffusion, diffusion.posterior_mean_coef2, t, x_t) * x_t
+    return mean, extract(diffusion, diffusion.posterior_log_variance_clipped, t, x_t)
 
 
 def model_log_variance(diffusion: Diffusion, t: torch.Tensor, x_t: torch.Tensor,
                        v: torch.Tensor | None) -> torch.Tensor:
     """log sigma_t^2: learned range frac log beta_t + (1 - frac) log beta~_t with frac = (v + 1) / 2, or fixed log beta~_t."""
-    min_log = extract(diffusion.posterior_log_variance_clipped, t, x_t)
+    min_log = extract(diffusion, diffusion.posterior_log_variance_clipped, t, x_t)
     if v is None:
         return min_log.expand_as(x_t)
-    max_log = extract(np.log(diffusion.betas), t, x_t)
+    max_log = extract(diffusion, diffusion.log_betas, t, x_t)
     frac = (v + 1) / 2
     return frac * max_log + (1 - frac) * min_log
 

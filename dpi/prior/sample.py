@@ -13,7 +13,7 @@ from dpi.atomic import atomic_path, write_json
 from dpi.exr import write_exr
 from dpi.prior.diffusion import Diffusion, base_diffusion, evenly_spaced_timesteps, respaced, sample
 from dpi.prior.unet import UNetModel, load_checkpoint
-from dpi.tonecurve import ToneCurve
+from dpi.tonecurve import Encoding, encoding_from_dict
 
 MODELS_DIR = Path(__file__).resolve().parents[2] / "models"
 DEFAULT_MODELS = {"outdoor": MODELS_DIR / "outdoor_32x64.pt", "indoor": MODELS_DIR / "indoor_32x64.pt"}
@@ -21,11 +21,11 @@ DEFAULT_MODELS = {"outdoor": MODELS_DIR / "outdoor_32x64.pt", "indoor": MODELS_D
 
 @dataclass
 class Prior:
-    """A loaded prior: the network, its training schedule, the tone curve and the map height."""
+    """A loaded prior: the network, its training schedule, its encoding and the map height."""
 
     model: UNetModel
     diffusion: Diffusion
-    tone_curve: ToneCurve  # with scale 1: the training normalisation (median luminance = median_target)
+    encoding: Encoding  # with scale 1: the training normalisation (median luminance = median_target)
     family: str
     height: int
     median_target: float
@@ -43,7 +43,7 @@ def load_prior(checkpoint: str | Path, device: str | torch.device = "cpu") -> Pr
     model = load_checkpoint(checkpoint, device=device).float()
     tone = meta["tone"]
     return Prior(model=model, diffusion=base_diffusion(meta["diffusion"]["num_timesteps"], model.config.learn_sigma),
-                 tone_curve=ToneCurve(tone["a"], tone["gamma"]), family=meta["family"],
+                 encoding=encoding_from_dict(tone), family=meta["family"],
                  height=meta["height"], median_target=tone["median_target"])
 
 
@@ -107,7 +107,7 @@ def sample_to_files(checkpoint: str | Path, out_dir: str | Path, count: int = 8,
     paths = []
     for i, xi in enumerate(x):
         paths.append(out / f"sample_{i:03d}.exr")
-        write_exr(paths[-1], prior.tone_curve.to_radiance(xi).permute(1, 2, 0).numpy())
+        write_exr(paths[-1], prior.encoding.to_radiance(xi).permute(1, 2, 0).numpy())
     write_grid(out / "samples.png", x)
     write_json(out / "samples.json", {"checkpoint": str(checkpoint), "count": count, "steps": steps, "seed": seed,
                                       "random_roll": random_roll, "family": prior.family})

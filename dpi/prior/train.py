@@ -1,9 +1,11 @@
 """Training a diffusion prior on a folder of env maps: Adam, EMA, resumable atomic checkpoints, logs.
 
-A checkpoint is a dict: 'format', 'config' (UNetConfig), 'family', 'height', 'tone' (a, gamma,
-median_target), 'diffusion' (num_timesteps, schedule), 'model', 'ema', 'optimizer', 'step',
-'wall_seconds', 'train' (TrainConfig). `export_model` strips it to EMA weights (fp16) for shipping.
-Next to the checkpoint go `{stem}.log.jsonl` (one line per logged step) and `{stem}_samples/`.
+A checkpoint is a dict: 'format', 'config' (UNetConfig), 'family', 'height', 'tone' (the encoding's
+parameters, dpi.tonecurve, and median_target), 'diffusion' (num_timesteps, schedule), 'model', 'ema',
+'optimizer', 'step', 'wall_seconds', 'train' (TrainConfig). `export_model` strips it to EMA weights
+(fp16) for shipping. Next to the checkpoint go `{stem}.log.jsonl` (one line per logged step) and
+`{stem}_samples/`. On a GPU the maps live on the device and the forward pass runs in bfloat16
+autocast (`amp`), so a step is bound by the network, not by host-device copies.
 """
 
 from __future__ import annotations
@@ -18,11 +20,11 @@ import torch
 from tqdm import tqdm
 
 from dpi.atomic import atomic_path
-from dpi.prior.data import MEDIAN_TARGETS, EnvmapDataset
+from dpi.prior.data import EnvmapDataset, median_target, read_dataset
 from dpi.prior.diffusion import base_diffusion, evenly_spaced_timesteps, respaced, sample, training_losses
 from dpi.prior.sample import write_grid
 from dpi.prior.unet import SMALL_CONFIGS, UNetConfig, UNetModel, count_parameters
-from dpi.tonecurve import TONE_CURVES
+from dpi.tonecurve import family_encoding
 
 CHECKPOINT_FORMAT = "dpi-prior-v1"
 
@@ -31,8 +33,8 @@ CHECKPOINT_FORMAT = "dpi-prior-v1"
 class TrainConfig:
     """Everything a training run depends on."""
 
-    family: str  # 'outdoor' or 'indoor': selects tone curve and radiance normalisation
-    data_dir: str  # folder of panoramas
+    family: str  # 'outdoor' or 'indoor'
+    data_dir: str  # folder of panoramas, or a packed .npz (EnvmapDataset.save)
     out: str  # checkpoint path; resumed when it exists
     model: UNetConfig = field(default_factory=lambda: SMALL_CONFIGS["small_32x64"])
     steps: int = 20000  # total optimiser steps (including resumed ones)
@@ -47,23 +49,24 @@ class TrainConfig:
     log_every: int = 10
     device: str = "cpu"
     seed: int = 0
+    encoding: str = "log"  # 'log' (log radiance around the median) or 'paper' (the family's tone curve)
+    amp: bool = True  # bfloat16 autocast of the forward pass on CUDA (ignored on the CPU)
 
 
 def ema_update(ema: torch.nn.Module, model: torch.nn.Module, decay: float) -> None:
     """ema <- decay ema + (1 - decay) model, parameter by parameter."""
     with torch.no_grad():
-        for e, p in zip(ema.parameters(), model.parameters()):
-            e.lerp_(p, 1.0 - decay)
+        torch._foreach_lerp_(list(ema.parameters()), list(model.parameters()), 1.0 - decay)
 
 
 def checkpoint_dict(cfg: TrainConfig, model: UNetModel, ema: UNetModel, optimizer: torch.optim.Optimizer,
                     step: int, wall_seconds: float) -> dict:
     """The resumable checkpoint of a run."""
-    curve = TONE_CURVES[cfg.family]
+    encoding = family_encoding(cfg.family, cfg.encoding)
     return {
         "format": CHECKPOINT_FORMAT, "config": cfg.model.to_dict(), "family": cfg.family,
         "height": cfg.model.image_size,
-        "tone": {"a": curve.a, "gamma": curve.gamma, "median_target": MEDIAN_TARGETS[cfg.family]},
+        "tone": {**encoding.to_dict(), "median_target": median_target(cfg.family, encoding)},
         "diffusion": {"num_timesteps": cfg.num_timesteps, "schedule": "linear"},
         "model": model.state_dict(), "ema": ema.state_dict(), "optimizer": optimizer.state_dict(),
         "step": step, "wall_seconds": wall_seconds,
@@ -102,10 +105,12 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
     samples_dir = out.parent / f"{out.stem}_samples"
     out.parent.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(cfg.seed)
-    data = dataset or EnvmapDataset(cfg.data_dir, cfg.model.image_size, cfg.family)
+    encoding = family_encoding(cfg.family, cfg.encoding)
+    data = (dataset or read_dataset(cfg.data_dir, cfg.model.image_size, cfg.family, encoding)).to(cfg.device)
     model = UNetModel(cfg.model).to(cfg.device)
     ema = copy.deepcopy(model).eval().requires_grad_(False)
-    optimizer = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    cuda = torch.device(cfg.device).type == "cuda"
+    optimizer = torch.optim.Adam(model.parameters(), lr=cfg.lr, fused=cuda or None)
     step, wall = 0, 0.0
     if out.exists():
         ckpt = torch.load(out, map_location=cfg.device, weights_only=True)
@@ -114,17 +119,18 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
         optimizer.load_state_dict(ckpt["optimizer"])
         step, wall = ckpt["step"], ckpt["wall_seconds"]
     diffusion = base_diffusion(cfg.num_timesteps, cfg.model.learn_sigma)
-    generator = torch.Generator().manual_seed(cfg.seed * 1_000_003 + step)
+    generator = torch.Generator(device=cfg.device).manual_seed(cfg.seed * 1_000_003 + step)
     start = time.perf_counter() - wall
     deadline = None if cfg.max_minutes is None else time.perf_counter() + 60 * cfg.max_minutes
     record: dict = {"step": step}
     bar = tqdm(total=cfg.steps, initial=step, desc=f"train {cfg.family}", disable=not progress,
                postfix={"params": f"{count_parameters(model) / 1e6:.2f}M"})
     while step < cfg.steps and (deadline is None or time.perf_counter() < deadline):
-        x0 = data.batch(cfg.batch_size, generator).to(cfg.device)
-        t = torch.randint(0, cfg.num_timesteps, (cfg.batch_size,), generator=generator).to(cfg.device)
-        noise = torch.randn(x0.shape, generator=generator).to(cfg.device)
-        losses = {k: v.mean() for k, v in training_losses(diffusion, model, x0, t, noise).items()}
+        x0 = data.batch(cfg.batch_size, generator)
+        t = torch.randint(0, cfg.num_timesteps, (cfg.batch_size,), generator=generator, device=cfg.device)
+        noise = torch.randn(x0.shape, generator=generator, device=cfg.device)
+        with torch.autocast("cuda", dtype=torch.bfloat16, enabled=cuda and cfg.amp):
+            losses = {k: v.mean() for k, v in training_losses(diffusion, model, x0, t, noise).items()}
         losses_logged = {k: v.detach() for k, v in losses.items()}
         optimizer.zero_grad(set_to_none=True)
         losses["loss"].backward()

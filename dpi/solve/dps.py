@@ -122,7 +122,7 @@ def estimate_radiance_scale(init_env: torch.Tensor, prior: Prior) -> float:
 
 def prior_to_env(x0: torch.Tensor, prior: Prior, scale: float, height: int) -> torch.Tensor:
     """Prior image (1, 3, h, w) -> scene env map (H, 2H, 3) in radiance, resampled to `height`."""
-    radiance = scale * prior.tone_curve.to_radiance(x0)
+    radiance = scale * prior.encoding.to_radiance(x0)
     if radiance.shape[-2] != height:
         radiance = torch.nn.functional.interpolate(radiance, size=(height, 2 * height), mode="bilinear",
                                                    align_corners=False)

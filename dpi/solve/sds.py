@@ -69,7 +69,7 @@ def sds_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
     height = problem.settings.env_height
     start = torch.nn.functional.interpolate(init.env.permute(2, 0, 1)[None], size=(prior.height, 2 * prior.height),
                                             mode="area")
-    x = prior.tone_curve.with_scale(scale).to_prior(start).clamp(-0.999, 0.999).requires_grad_(True)
+    x = prior.encoding.with_scale(scale).to_prior(start).clamp(-0.999, 0.999).requires_grad_(True)
     materials = starting_materials(init)
     free = [x, *(t.requires_grad_(True) for _, t in materials.items())]
     optimizer = torch.optim.Adam([{"params": [x], "lr": cfg.lr_map},
