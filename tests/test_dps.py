@@ -9,7 +9,8 @@ from dpi.prior.diffusion import base_diffusion
 from dpi.prior.sample import Prior
 from dpi.prior.unet import SMALL_CONFIGS, UNetModel
 from dpi.render import RenderSettings
-from dpi.solve.dps import DPSConfig, dps_sample, rho_schedule, scale_to_bound
+from dpi.solve.dps import DPSConfig, dps_sample
+from dpi.solve.samplers import SAMPLERS, rho_schedule, scale_to_bound
 from dpi.solve.init import path_traced_init
 from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import InverseProblem, ProblemSettings
@@ -48,7 +49,7 @@ def problem_and_init(tiny_capture):
 
 def test_dps_run_is_finite_and_traced(problem_and_init):
     problem, init = problem_and_init
-    cfg = DPSConfig(steps=4, refine_iterations=2, strip_frames=3)
+    cfg = DPSConfig(sampler="paper", steps=4, refine_iterations=2, strip_frames=3)
     result = dps_sample(problem, tiny_prior(), init, cfg, seed=1, progress=False)
     d = result.decomposition
     assert d.env.shape == (4, 8, 3) and torch.isfinite(d.env).all() and (d.env >= 0).all()
@@ -71,9 +72,12 @@ def test_nan_network_output_is_skipped_not_propagated(problem_and_init):
         return out * float("nan") if calls["n"] == 2 else out
 
     prior.model.forward = flaky
-    result = dps_sample(problem, prior, init, DPSConfig(steps=4, refine_iterations=1), seed=2, progress=False)
-    assert result.decomposition.trace.nan_skips == 1
-    assert torch.isfinite(result.decomposition.env).all()
+    for sampler in SAMPLERS:
+        calls["n"] = 0
+        result = dps_sample(problem, prior, init, DPSConfig(sampler=sampler, steps=4, refine_iterations=1), seed=2,
+                            progress=False)
+        assert result.decomposition.trace.nan_skips == 1, sampler
+        assert torch.isfinite(result.decomposition.env).all()
 
 
 def test_sds_ablation_runs_finite(problem_and_init):
