@@ -32,6 +32,12 @@ def luminance(rgb: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
     return rgb @ np.array(REC709_LUMA, dtype=rgb.dtype if rgb.dtype.kind == "f" else np.float64)
 
 
+def with_luminance(rgb: np.ndarray, level: np.ndarray | float) -> np.ndarray:
+    """Colours (..., 3) rescaled to Rec. 709 luminance `level` (broadcast over leading axes): albedos from tints."""
+    rgb = np.asarray(rgb, dtype=np.float64)
+    return rgb * (np.asarray(level, dtype=np.float64) / luminance(rgb))[..., None]
+
+
 def resize(image: torch.Tensor, height: int, width: int) -> torch.Tensor:
     """(H, W, C) image resampled to height x width: area average down, bilinear up (no-op when equal)."""
     if tuple(image.shape[:2]) == (height, width):

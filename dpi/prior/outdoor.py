@@ -1,31 +1,36 @@
-"""Procedural outdoor environment maps: Mitsuba sunsky plus clouds, a skyline and a textured ground.
+"""Procedural outdoor environment maps: a mixture of landscapes, urban street canyons and overcast days.
 
-The physically based sky comes from `dpi.skies.sunsky_envmap`; on top of it, clouds (thresholded
-spherical noise) cover the sky and dim the sun, a silhouette (hills, mountains, city blocks or a
-tree line) rises above the horizon, and the Lambertian ground gets a tinted noise albedo, so the
-maps are not only smooth gradients. Everything is in dpi's (H, 2H, 3) +Y-up convention.
+Every scene is lit by one `Daylight` (`dpi.prior.daylight`: Mitsuba's sunsky, broken clouds or an
+overcast deck) and keeps a true HDR sun wherever nothing hides it. A landscape is the sky over a
+tinted, textured Lambertian ground with a silhouette (hills, mountains, city blocks or a tree
+line) on the horizon; an urban scene is a ray-cast street canyon (`dpi.prior.street`). Overcast
+scenes use either geometry. Everything is in dpi's (H, 2H, 3) +Y-up convention.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from dpi.envmap import texel_angles, texel_directions
-from dpi.skies import SkyParams, sunsky_envmap
+from dpi.envmap import direction_to_texel, texel_angles, texel_directions
+from dpi.images import with_luminance
+from dpi.prior.daylight import Daylight, add_sun, irradiance, random_daylight, spherical_noise, upper_hemisphere
+from dpi.prior.street import SNOW, SNOW_PROBABILITY, random_street, street_envmap
 
-GROUND_TINTS = np.array([[0.35, 0.45, 0.20], [0.55, 0.48, 0.35], [0.40, 0.40, 0.40], [0.30, 0.35, 0.25]])
+SCENE_KINDS = {"urban": 0.4, "landscape": 0.4, "overcast": 0.2}
+GROUND_TINTS = {  # linear RGB; only the chromaticity counts
+    "grass": [0.35, 0.45, 0.20], "dry grass": [0.50, 0.47, 0.30], "dirt": [0.55, 0.45, 0.33],
+    "concrete": [0.45, 0.45, 0.43], "sand": [0.62, 0.55, 0.42],
+}
 SKYLINE_KINDS = ("none", "hills", "mountains", "city", "trees")
+SKYLINE_SLOPE_DEG = {"none": 90.0, "hills": 25.0, "mountains": 40.0, "city": 90.0, "trees": 80.0}
 
 
-def spherical_noise(dirs: np.ndarray, rng: np.random.Generator, base_freq: float = 2.0,
-                    octaves: int = 5, features: int = 24) -> np.ndarray:
-    """Seamless fBm on the sphere (...,) with zero mean and unit std, from random Fourier features of directions (..., 3)."""
-    total = np.zeros(dirs.shape[:-1])
-    for octave in range(octaves):
-        w = rng.normal(size=(features, 3)) * base_freq * 2.0**octave
-        b = rng.uniform(0, 2 * np.pi, size=features)
-        total += 0.5**octave * np.cos(dirs @ w.T + b).sum(-1)
-    return (total - total.mean()) / (total.std() + 1e-8)
+def random_ground_albedo(rng: np.random.Generator) -> np.ndarray:
+    """RGB albedo of open ground: a grass/dirt/concrete/sand tint at luminance 0.05-0.5, or occasionally snow."""
+    if rng.uniform() < SNOW_PROBABILITY:
+        return with_luminance(SNOW, rng.uniform(0.5, 0.8))
+    tints = list(GROUND_TINTS.values())
+    return with_luminance(tints[rng.integers(len(tints))], rng.uniform(0.05, 0.5))
 
 
 def periodic_profile(phi: np.ndarray, rng: np.random.Generator, harmonics: int, roughness: float) -> np.ndarray:
@@ -42,65 +47,89 @@ def skyline_elevation(phi: np.ndarray, rng: np.random.Generator, kind: str) -> n
     if kind == "none":
         return np.zeros_like(phi)
     if kind == "hills":
-        return np.maximum(0, 3 * deg + 2.5 * deg * periodic_profile(phi, rng, 6, 1.5))
+        return np.maximum(0, 4 * deg + 3 * deg * periodic_profile(phi, rng, 6, 1.5))
     if kind == "mountains":
-        return np.maximum(0, 8 * deg + rng.uniform(3, 8) * deg * periodic_profile(phi, rng, 24, 1.0))
+        return np.maximum(0, 10 * deg + rng.uniform(3, 8) * deg * periodic_profile(phi, rng, 24, 1.0))
     if kind == "trees":
-        return np.maximum(0, 6 * deg + 2 * deg * periodic_profile(phi, rng, 60, 0.6))
+        return np.maximum(0, 7 * deg + 2 * deg * periodic_profile(phi, rng, 60, 0.6))
     edges = np.sort(rng.uniform(0, 2 * np.pi, size=rng.integers(8, 30)))
     heights = rng.uniform(2, 25, size=edges.size) * deg * (rng.uniform(size=edges.size) > 0.2)
     return heights[np.searchsorted(edges, phi) % edges.size]
 
 
-def random_sky_params(rng: np.random.Generator) -> SkyParams:
-    """Sun position, turbidity and ground albedo drawn over the range of natural daylight."""
-    elevation = rng.uniform(0.5, 4.0) if rng.uniform() < 0.08 else 90 - np.degrees(np.arccos(rng.uniform(0.03, 0.97)))
-    return SkyParams(sun_elevation_deg=float(elevation), sun_azimuth_deg=float(rng.uniform(0, 360)),
-                     turbidity=float(rng.uniform(1.8, 8.0)), ground_albedo=float(rng.uniform(0.08, 0.45)),
-                     supersample=1)
+def skyline_albedo(kind: str, ground: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """RGB albedo of a silhouette: vegetated or bare like the ground for hills, rock, dark foliage or facades."""
+    if kind == "mountains":
+        return with_luminance([0.50, 0.47, 0.44], rng.uniform(0.1, 0.35))
+    if kind == "trees":
+        return with_luminance([0.25, 0.35, 0.15], rng.uniform(0.05, 0.15))
+    if kind == "city":
+        return with_luminance([0.48, 0.46, 0.44], rng.uniform(0.15, 0.4))
+    return ground * rng.uniform(0.6, 1.0)
 
 
-def outdoor_envmap(height: int, rng: np.random.Generator) -> np.ndarray:
-    """One random (H, 2H, 3) float32 outdoor map: sunsky, clouds, skyline and textured ground."""
-    params = random_sky_params(rng)
-    full = sunsky_envmap(height, params).astype(np.float64)
-    sky_only = sunsky_envmap(height, SkyParams(**{**params.__dict__, "sun_scale": 0.0})).astype(np.float64)
-    sun_part = full - sky_only
+def silhouette_coverage(top: np.ndarray, height: int) -> np.ndarray:
+    """(H, W) fraction of each texel's elevation span below the silhouette top (W,): anti-aliased rows."""
+    theta, _ = texel_angles(height)
+    half = np.pi / (2 * height)
+    low, high = np.pi / 2 - theta - half, np.pi / 2 - theta + half
+    cover = np.clip((top[None, :] - np.maximum(low, 0)[:, None]) / (high - low)[:, None], 0, 1)
+    return cover * upper_hemisphere(height)
+
+
+def facing_normals(phi: np.ndarray, slope_deg: float) -> np.ndarray:
+    """Unit normals (W, 3) of slopes rising away from the viewer at azimuths phi, tilted `slope_deg` from flat."""
+    slope = np.radians(slope_deg)
+    away = np.stack([np.sin(phi), np.zeros_like(phi), -np.cos(phi)], axis=-1)
+    return -away * np.sin(slope) + np.array([0.0, 1.0, 0.0]) * np.cos(slope)
+
+
+def lit_radiance(light: Daylight, albedo: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Lambertian radiance (K, 3) of surfaces with albedo (K, 3) or (3,) and unit normals (K, 3), unshadowed."""
+    sun = np.maximum(normals @ light.sun, 0)[:, None] * light.sun_irradiance
+    return albedo * (irradiance(light.sky, normals) + sun) / np.pi
+
+
+def landscape_envmap(light: Daylight, rng: np.random.Generator) -> np.ndarray:
+    """(H, 2H, 3) map of open country: the sky, a textured ground and a hazy silhouette on the horizon."""
+    height = light.sky.shape[0]
     dirs = texel_directions(height)
-    theta, phi = texel_angles(height)
-    elevation = np.pi / 2 - theta[:, None] * np.ones((1, 2 * height))
-    upper = elevation > 0
+    _, phi = texel_angles(height)
+    upper = upper_hemisphere(height)[..., None]
+    ground = random_ground_albedo(rng)
+    furrows = dirs * [1.0, 3.0, 1.0]  # features foreshortened towards the horizon
+    texture = np.clip(1 + 0.25 * spherical_noise(furrows, rng, base_freq=rng.uniform(3, 8)), 0.3, 2.0)[..., None]
+    ground_radiance = lit_radiance(light, ground, np.array([[0.0, 1.0, 0.0]]))[0]
+    env = np.where(upper, light.sky, ground_radiance * texture)
 
-    # Clouds: coverage from thresholded, horizontally stretched noise; they also shade the sun.
-    stretch = dirs * np.array([1.0, rng.uniform(1.5, 4.0), 1.0])
-    cover = rng.choice([0.0, rng.uniform(0.1, 0.6), rng.uniform(0.6, 1.0)], p=[0.25, 0.5, 0.25])
-    noise = spherical_noise(stretch, rng, base_freq=rng.uniform(1.5, 4.0))
-    threshold = np.quantile(noise, 1 - cover) if cover > 0 else np.inf
-    alpha = np.clip((noise - threshold) / 0.6, 0, 1) * upper if cover > 0 else np.zeros_like(noise)
-    horizon_sky = sky_only[height // 2 - 1].mean(0)
-    sun_row, sun_col = np.unravel_index(np.argmax(sun_part[:height // 2].sum(-1)), (height // 2, 2 * height))
-    sun_visibility = 1 - 0.9 * alpha[sun_row, sun_col]
-    cloud_brightness = horizon_sky.mean() * rng.uniform(0.7, 1.8) * (1 + 0.5 * sun_visibility * (params.sun_elevation_deg > 0))
-    shading = np.clip(1 + 0.25 * spherical_noise(stretch, rng, base_freq=6.0), 0.4, 1.6)
-    cloud = cloud_brightness * shading[..., None] * np.array([1.0, 0.98, 0.95])
-    env = sky_only * (1 - alpha[..., None]) + cloud * alpha[..., None]
-    env += sun_part * upper[..., None] * sun_visibility
+    kind = SKYLINE_KINDS[rng.integers(len(SKYLINE_KINDS))]
+    top = skyline_elevation(phi, rng, kind)
+    surface = lit_radiance(light, skyline_albedo(kind, ground, rng), facing_normals(phi, SKYLINE_SLOPE_DEG[kind]))
+    haze = rng.uniform(0.1, 0.6)
+    horizon_sky = light.sky[height // 2 - 1].mean(0)
+    silhouette = (1 - haze) * surface[None] * texture + haze * horizon_sky
+    cover = silhouette_coverage(top, height)[..., None]
+    env = env * (1 - cover) + silhouette * cover
+    _, sun_col = direction_to_texel(light.sun, height)
+    return add_sun(env, light, visible=bool(np.arcsin(light.sun[1]) > top[sun_col]))
 
-    # Ground: irradiance / pi from Mitsuba's Lambertian ground, times a tinted noise albedo.
-    ground_lit = (sky_only + sun_visibility * sun_part) / params.ground_albedo
-    tint = GROUND_TINTS[rng.integers(len(GROUND_TINTS))] * rng.uniform(0.4, 1.2)
-    texture = np.clip(1 + 0.35 * spherical_noise(dirs, rng, base_freq=rng.uniform(4, 12)), 0.2, 2.0)
-    env = np.where(upper[..., None], env, ground_lit * tint * texture[..., None])
 
-    # Skyline: silhouette lit like the ground, blended into the horizon haze with distance.
-    top = skyline_elevation(phi, rng, SKYLINE_KINDS[rng.integers(len(SKYLINE_KINDS))])
-    inside = upper & (elevation < top[None, :])
-    haze = rng.uniform(0.1, 0.7)
-    object_albedo = tint * rng.uniform(0.3, 0.9) * texture[..., None]
-    ground_light = ground_lit[height - 1].mean(0)
-    silhouette = (1 - haze) * object_albedo * ground_light + haze * horizon_sky
-    env = np.where(inside[..., None], silhouette, env)
-    return np.maximum(env, 0).astype(np.float32)
+def scene_envmap(height: int, rng: np.random.Generator, kind: str) -> np.ndarray:
+    """One (H, 2H, 3) float64 map of a scene kind; overcast days take the urban or landscape geometry at random."""
+    if kind not in SCENE_KINDS:
+        raise ValueError(f"unknown outdoor scene kind {kind!r}; use one of {sorted(SCENE_KINDS)}")
+    light = random_daylight(height, rng, overcast_sky=kind == "overcast")
+    geometry = kind if kind != "overcast" else ("urban", "landscape")[rng.integers(2)]
+    if geometry == "urban":
+        return street_envmap(light, random_street(rng))
+    return landscape_envmap(light, rng)
+
+
+def outdoor_envmap(height: int, rng: np.random.Generator, kind: str | None = None) -> np.ndarray:
+    """One random (H, 2H, 3) float32 outdoor map; `kind` ('urban', 'landscape', 'overcast') forces a scene kind."""
+    if kind is None:
+        kind = str(rng.choice(list(SCENE_KINDS), p=list(SCENE_KINDS.values())))
+    return scene_envmap(height, rng, kind).astype(np.float32)
 
 
 def outdoor_envmaps(height: int, rng: np.random.Generator, count: int) -> np.ndarray:
