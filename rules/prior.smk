@@ -2,7 +2,7 @@
 # Optional config, all keys with defaults (per-family overrides under prior.<family>):
 #   prior:
 #     count: 3000          # maps per procedural dataset
-#     data_height: 64      # generated map height H (maps are H x 2H; indoor path tracing costs ~H^2)
+#     data_height: 64      # generated map height H (maps are H x 2H; indoor ray casting costs ~H^2)
 #     seed: 0
 #     model: small_32x64   # name in dpi.prior.unet.SMALL_CONFIGS
 #     steps: 20000

@@ -9,7 +9,6 @@ import pytest
 
 from dpi.exr import read_exr
 from dpi.cli import main
-from dpi.prior.indoor import indoor_envmaps
 from dpi.prior.outdoor import outdoor_envmap, spherical_noise
 from dpi.prior.procedural import EnvmapCheckError, check_envmap, luminance, make_envmap_dataset
 
@@ -27,14 +26,6 @@ def test_spherical_noise_is_standardised() -> None:
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     n = spherical_noise(dirs, np.random.default_rng(1))
     assert n.shape == (500,) and abs(n.mean()) < 1e-9 and n.std() == pytest.approx(1.0)
-
-
-def test_indoor_maps_are_valid() -> None:
-    maps = indoor_envmaps(8, np.random.default_rng(0), 2)
-    assert maps.shape == (2, 8, 16, 3)
-    for env in maps:
-        check_envmap(env, 8)
-    assert not np.array_equal(maps[0], maps[1])
 
 
 def test_check_rejects_bad_maps() -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import time
 from pathlib import Path
@@ -15,7 +16,6 @@ from dpi.exr import write_exr
 from dpi.images import luminance
 
 MAX_DYNAMIC_RANGE = 1e8  # max / median luminance above this is implausible for our generators
-CHUNKS = {"outdoor": 1, "indoor": 8}  # maps per generator call (indoor rooms share one path-tracing launch)
 
 
 class EnvmapCheckError(ValueError):
@@ -64,19 +64,20 @@ def make_envmap_dataset(family: str, count: int, height: int, out_dir: str | Pat
     out.mkdir(parents=True, exist_ok=True)
     ranges = []
     start = time.perf_counter()
-    written, rejected, chunk = 0, [], 0
+    written, rejected = 0, []
     with tqdm(total=count, desc=f"{family} maps", disable=not progress) as bar:
-        while written < count:
-            for env in make(height, np.random.default_rng([seed, chunk]), min(CHUNKS[family], count - written)):
-                try:
-                    ranges.append(check_envmap(env, height))
-                except EnvmapCheckError as exc:
-                    rejected.append(f"chunk {chunk}: {exc}")
-                    continue
-                write_exr(out / f"{family}_{written:05d}.exr", np.minimum(env, 65000.0), half=True)
-                written += 1
-                bar.update(1)
-            chunk += 1
+        for draw in itertools.count():
+            if written == count:
+                break
+            env = make(height, np.random.default_rng([seed, draw]), 1)[0]
+            try:
+                ranges.append(check_envmap(env, height))
+            except EnvmapCheckError as exc:
+                rejected.append(f"draw {draw}: {exc}")
+                continue
+            write_exr(out / f"{family}_{written:05d}.exr", np.minimum(env, 65000.0), half=True)
+            written += 1
+            bar.update(1)
     seconds = time.perf_counter() - start
     manifest = {
         "family": family, "count": count, "height": height, "seed": seed,
