@@ -114,11 +114,13 @@ def from_mitsuba_matrix(to_world: np.ndarray) -> np.ndarray:
 
 
 def orbit(n: int, radius: float, elevations_deg: tuple[float, ...], target=(0.0, 0.0, 0.0),
-          phase_deg: float = 0.0) -> list[np.ndarray]:
-    """`n` camera-to-world matrices on rings around `target` (+Y up), alternating elevations."""
+          phase_deg: float = 0.0, arc_deg: float = 360.0) -> list[np.ndarray]:
+    """`n` camera-to-world matrices on rings around `target` (+Y up), alternating elevations, spread
+    evenly over all azimuths or, for `arc_deg` < 360, over an arc of that many degrees (ends included)."""
     poses = []
+    step = 360.0 / n if arc_deg >= 360.0 else arc_deg / max(n - 1, 1)
     for i in range(n):
-        azim = math.radians(phase_deg + 360.0 * i / n)
+        azim = math.radians(phase_deg + step * i)
         elev = math.radians(elevations_deg[i % len(elevations_deg)])
         origin = np.asarray(target) + radius * np.array(
             [math.cos(elev) * math.sin(azim), math.sin(elev), math.cos(elev) * math.cos(azim)]

@@ -21,7 +21,14 @@ def cmd_make_envmaps(args: argparse.Namespace) -> None:
     from dpi.prior.procedural import make_envmap_dataset
 
     backend.mitsuba(threads=args.threads)
-    manifest = make_envmap_dataset(args.family, args.count, args.height, args.out, seed=args.seed)
+    if args.packed:
+        from dpi.prior.procedural import make_packed_dataset
+        from dpi.tonecurve import family_encoding
+
+        manifest = make_packed_dataset(args.family, args.count, args.height, args.out,
+                                       family_encoding(args.family, args.encoding), seed=args.seed)
+    else:
+        manifest = make_envmap_dataset(args.family, args.count, args.height, args.out, seed=args.seed)
     print(json.dumps(manifest, indent=2))
 
 
@@ -37,18 +44,21 @@ def cmd_pack_envmaps(args: argparse.Namespace) -> None:
 
 def cmd_train_prior(args: argparse.Namespace) -> None:
     """Train (or resume training) a prior on a folder of env maps."""
-    from dpi.prior.train import TrainConfig, train
+    from dpi.prior.train import TrainConfig, export_model, train
     from dpi.prior.unet import SMALL_CONFIGS
 
     _threads(args.threads)
     if args.model not in SMALL_CONFIGS:
         raise SystemExit(f"unknown --model {args.model!r}; choose from {', '.join(sorted(SMALL_CONFIGS))}")
     config = TrainConfig(family=args.family, data_dir=args.data, out=args.out, model=SMALL_CONFIGS[args.model],
-                         steps=args.steps, batch_size=args.batch_size, lr=args.lr, ema_decay=args.ema_decay,
+                         steps=args.steps, batch_size=args.batch_size, lr=args.lr, warmup_steps=args.warmup_steps,
+                         ema_decay=args.ema_decay, sample_steps=args.sample_steps,
                          max_minutes=args.max_minutes,
                          sample_every=args.sample_every, checkpoint_every=args.checkpoint_every,
                          device=args.device, seed=args.seed, encoding=args.encoding)
     train(config)
+    if args.export:
+        export_model(args.out, args.export)
 
 
 def cmd_sample_prior(args: argparse.Namespace) -> None:
@@ -66,7 +76,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--family", choices=["outdoor", "indoor"], required=True)
     p.add_argument("--count", type=int, default=3000)
     p.add_argument("--height", type=int, default=64, help="map height H (width 2H)")
-    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--out", required=True, help="output folder (EXR files), or .npz file with --packed")
+    p.add_argument("--packed", action="store_true", help="write one packed .npz in prior space (to train elsewhere)")
+    p.add_argument("--encoding", choices=ENCODINGS, default="log", help="encoding of a packed dataset")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--threads", type=int, default=1)
     p.set_defaults(fn=cmd_make_envmaps)
@@ -85,13 +97,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--encoding", choices=ENCODINGS, default="log",
                    help="log: log radiance around the median (holds a sun); paper: the family's tone curve")
     p.add_argument("--out", required=True, help="checkpoint path (resumed when it exists)")
+    p.add_argument("--export", default=None, help="then write the shippable model (EMA weights, fp16) here")
     p.add_argument("--model", default="small_32x64", help="name in dpi.prior.unet.SMALL_CONFIGS")
     p.add_argument("--steps", type=int, default=20000)
     p.add_argument("--batch-size", type=int, default=8)
     p.add_argument("--lr", type=float, default=3e-4)
+    p.add_argument("--warmup-steps", type=int, default=0, help="linear learning-rate warm-up")
     p.add_argument("--ema-decay", type=float, default=0.995)
     p.add_argument("--max-minutes", type=float, default=None, help="stop (with a checkpoint) after this wall time")
     p.add_argument("--sample-every", type=int, default=1000)
+    p.add_argument("--sample-steps", type=int, default=50, help="respaced steps of those sample grids")
     p.add_argument("--checkpoint-every", type=int, default=100)
     p.add_argument("--device", default="cpu")
     p.add_argument("--seed", type=int, default=0)

@@ -1,4 +1,4 @@
-"""Procedural env-map datasets for the prior: generate, check and write N maps of one family as EXR."""
+"""Procedural env-map datasets for the prior: generate, check and write N maps of one family (EXR or packed)."""
 
 from __future__ import annotations
 
@@ -11,9 +11,13 @@ from typing import Callable
 import numpy as np
 from tqdm import tqdm
 
+import torch
+
 from dpi.atomic import write_json
 from dpi.exr import write_exr
 from dpi.images import luminance
+from dpi.prior.data import EnvmapDataset, median_target, to_prior_space
+from dpi.tonecurve import Encoding
 
 MAX_DYNAMIC_RANGE = 1e8  # max / median luminance above this is implausible for our generators
 
@@ -53,21 +57,16 @@ def check_envmap(env: np.ndarray, height: int) -> float:
     return dynamic_range
 
 
-def make_envmap_dataset(family: str, count: int, height: int, out_dir: str | Path, seed: int = 0,
-                        progress: bool = True) -> dict:
-    """Write `count` checked maps `{out_dir}/{family}_{i:05d}.exr` (half float) and `manifest.json`; returns the manifest.
-
-    A generated map failing `check_envmap` is not written; it is listed under 'rejected' and replaced.
-    """
+def checked_envmaps(family: str, count: int, height: int, seed: int = 0,
+                    progress: bool = True) -> tuple[list[np.ndarray], dict]:
+    """`count` generated maps that pass `check_envmap` (map i from draws [seed, draw], failures replaced)
+    and the manifest of the run: counts, rejections with reasons, time and dynamic range."""
     make = generator(family)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    ranges = []
+    maps, ranges, rejected = [], [], []
     start = time.perf_counter()
-    written, rejected = 0, []
     with tqdm(total=count, desc=f"{family} maps", disable=not progress) as bar:
         for draw in itertools.count():
-            if written == count:
+            if len(maps) == count:
                 break
             env = make(height, np.random.default_rng([seed, draw]), 1)[0]
             try:
@@ -75,8 +74,7 @@ def make_envmap_dataset(family: str, count: int, height: int, out_dir: str | Pat
             except EnvmapCheckError as exc:
                 rejected.append(f"draw {draw}: {exc}")
                 continue
-            write_exr(out / f"{family}_{written:05d}.exr", np.minimum(env, 65000.0), half=True)
-            written += 1
+            maps.append(env)
             bar.update(1)
     seconds = time.perf_counter() - start
     manifest = {
@@ -85,7 +83,36 @@ def make_envmap_dataset(family: str, count: int, height: int, out_dir: str | Pat
         "dynamic_range_median": float(np.median(ranges)) if ranges else None,
         "dynamic_range_max": float(np.max(ranges)) if ranges else None,
     }
+    return maps, manifest
+
+
+def make_envmap_dataset(family: str, count: int, height: int, out_dir: str | Path, seed: int = 0,
+                        progress: bool = True) -> dict:
+    """Write `count` checked maps `{out_dir}/{family}_{i:05d}.exr` and `manifest.json`; returns the manifest.
+
+    Each map is stored divided by its median luminance (half floats keep their relative precision
+    there; the prior normalises every map by its median anyway). A map failing `check_envmap` is
+    not written; it is listed under 'rejected' and replaced.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    maps, manifest = checked_envmaps(family, count, height, seed, progress)
+    for i, env in enumerate(maps):
+        normalised = env / float(np.median(luminance(env)))
+        write_exr(out / f"{family}_{i:05d}.exr", np.minimum(normalised, 65000.0), half=True)
     write_json(out / "manifest.json", manifest)
+    return manifest
+
+
+def make_packed_dataset(family: str, count: int, height: int, out: str | Path, encoding: Encoding, seed: int = 0,
+                        progress: bool = True) -> dict:
+    """Generate `count` checked maps straight into a packed .npz in `encoding` (no EXR round trip) and
+    write the manifest next to it (`{out}.json`); returns the manifest."""
+    maps, manifest = checked_envmaps(family, count, height, seed, progress)
+    target = median_target(family, encoding)
+    images = torch.stack([to_prior_space(torch.from_numpy(env).permute(2, 0, 1), encoding, target) for env in maps])
+    EnvmapDataset(images, family, encoding).save(out)
+    write_json(Path(f"{out}.json"), {**manifest, "encoding": encoding.to_dict()})
     return manifest
 
 

@@ -40,6 +40,7 @@ class TrainConfig:
     steps: int = 20000  # total optimiser steps (including resumed ones)
     batch_size: int = 8
     lr: float = 3e-4
+    warmup_steps: int = 0  # linear learning-rate warm-up from 0 (large batches on a GPU want a few hundred)
     ema_decay: float = 0.995  # with warm-up min(decay, (1 + step) / (10 + step)); short CPU runs want < 0.999
     num_timesteps: int = 1000
     max_minutes: float | None = None  # stop after this wall time (checkpoint written)
@@ -134,6 +135,8 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
         losses_logged = {k: v.detach() for k, v in losses.items()}
         optimizer.zero_grad(set_to_none=True)
         losses["loss"].backward()
+        for group in optimizer.param_groups:
+            group["lr"] = cfg.lr * min(1.0, (step + 1) / cfg.warmup_steps) if cfg.warmup_steps else cfg.lr
         optimizer.step()
         step += 1
         ema_update(ema, model, min(cfg.ema_decay, (1 + step) / (10 + step)))

@@ -216,9 +216,10 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     abar_prev = float(run.diffusion.alphas_cumprod_prev[i])
     prox_weight = cfg.prox_weight * abar / (1.0 - abar)
     materials_move = n >= cfg.material_start * run.num_steps
-    floor = DARK_FLOOR * run.prior.median_target
-    with torch.no_grad():
-        state.log_map.copy_(torch.log(encoding.to_radiance(x0_hat).clamp_min(floor)))
+    if n == 0:  # later steps start from the previous step's map: the data fit accumulates across steps
+        floor = DARK_FLOOR * run.prior.median_target
+        with torch.no_grad():
+            state.log_map.copy_(torch.log(encoding.to_radiance(x0_hat).clamp_min(floor)))
     losses, skipped = [], 0
     for k in range(cfg.inner_steps):
         env = run.env(torch.exp(state.log_map), state.log_exposure)
@@ -238,7 +239,7 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
                 t.grad = None
         state.optimizer.step()
         state.materials.clamp_()
-        losses.append(float(data))
+        losses.append(float(data.detach()))
     laps.lap("render")
     with torch.no_grad():
         z = encoding.to_prior(torch.exp(state.log_map))
@@ -246,7 +247,7 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
         noise = torch.randn(z.shape, generator=gen)
         mixed = (1.0 - cfg.noise_mix) ** 0.5 * eps_hat + cfg.noise_mix ** 0.5 * noise
         state.x = abar_prev ** 0.5 * z + (1.0 - abar_prev) ** 0.5 * mixed
-    return {**record, "loss": losses[-1] if losses else None, "prox": float(prox), "prox_weight": prox_weight,
+    return {**record, "loss": losses[-1] if losses else None, "prox": float(prox.detach()), "prox_weight": prox_weight,
             "log_exposure": float(state.log_exposure.detach()), "nan_inner": skipped,
             **({"skipped": "non-finite loss or gradient"} if not losses else {}), **laps.record()}
 

@@ -22,7 +22,7 @@ from tqdm import tqdm
 from dpi.atomic import write_json, write_text
 from dpi.cameras import from_fov, orbit, write_transforms
 from dpi.exr import read_exr, write_exr
-from dpi.images import write_mask, write_png
+from dpi.images import luminance, write_mask, write_png
 from dpi.prior.procedural import generator
 from dpi.render import Renderer, RenderSettings
 from dpi.settings import settings_from_dict
@@ -50,6 +50,8 @@ class SynthConfig:
     fov_deg: float = 35.0
     camera_distance: float = 4.0
     elevations_deg: tuple[float, ...] = (10.0, 35.0)
+    arc_deg: float = 360.0
+    """azimuth range the cameras cover: 360 all around; less leaves the far side of the object unseen"""
     spp: int = 256
     """samples per pixel of the ground-truth renders"""
     max_depth: int = 5
@@ -62,6 +64,9 @@ class SynthConfig:
     fields), or a map of the prior's generators, outdoor or indoor (drawn by environment_seed
     from a seed stream the training datasets never use)"""
     environment_seed: int = 0
+    environment_clip: float | None = None
+    """clip the map's luminance at this multiple of its median, like an 8-bit panorama decoded through
+    the paper's tone curve (the paper's test maps hold no sun); None keeps the full HDR range"""
     sun_elevation_deg: float = 35.0
     sun_azimuth_deg: float = 60.0
     turbidity: float = 3.0
@@ -95,8 +100,22 @@ class SynthConfig:
         return settings_from_dict(cls, values)
 
 
+def clip_luminance(env: np.ndarray, multiple: float) -> np.ndarray:
+    """The map with each texel scaled down so its luminance is at most `multiple` times the median."""
+    lum = luminance(env)
+    limit = multiple * float(np.median(lum))
+    return (env * np.minimum(1.0, limit / np.maximum(lum, 1e-30))[..., None]).astype(np.float32)
+
+
 def ground_truth_envmap(cfg: SynthConfig) -> np.ndarray:
-    """The capture's ground-truth environment: the given EXR, a procedural sunsky, outdoor or indoor map."""
+    """The capture's ground-truth environment: the given EXR, a procedural sunsky, outdoor or indoor map
+    (luminance clipped when `environment_clip` is set)."""
+    env = procedural_envmap(cfg)
+    return env if cfg.environment_clip is None else clip_luminance(env, cfg.environment_clip)
+
+
+def procedural_envmap(cfg: SynthConfig) -> np.ndarray:
+    """The given EXR, a procedural sunsky, outdoor or indoor map, at full range."""
     if cfg.envmap:
         env = read_exr(cfg.envmap)
         if env.shape[1] != 2 * env.shape[0]:
@@ -149,7 +168,7 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
                        ("metallic", materials.metallic)):
         write_exr(root / "gt" / f"{name}.exr", data)
 
-    poses = orbit(cfg.views, cfg.camera_distance, cfg.elevations_deg, phase_deg=cfg.seed * 7.0)
+    poses = orbit(cfg.views, cfg.camera_distance, cfg.elevations_deg, phase_deg=cfg.seed * 7.0, arc_deg=cfg.arc_deg)
     names = [f"r_{i:03d}" for i in range(cfg.views)]
     cameras = [from_fov(p, cfg.width, cfg.height, cfg.fov_deg, n) for p, n in zip(poses, names)]
     for i, cam in enumerate(cameras):

@@ -1,0 +1,222 @@
+"""Posterior-sampling study: every method and every dps sampler over scenes and seeds (issue 16).
+
+Scenes are synthetic captures with ground truth, built from illuminations the priors never saw
+(procedural maps from the evaluation seed stream, Mitsuba's sunsky). The `ambiguous` group is
+where the paper shows a prior's worth: rough dielectric objects seen from few views on a limited
+arc, under a sun map, an indoor room and a map clipped to the paper's tone-curve range (like its
+8-bit test panoramas). The `glossy` group is a shiny metal object seen from all around, where a
+free fit already recovers the light and a prior can only tie. Each scene gets one initialisation;
+each method then draws one sample per seed through the workflow's own stage functions
+(dpi.stages) with config.yaml's settings (preset applied), and the workflow's evaluation scores it.
+
+    .venv/bin/python benchmarks/posterior_study.py [--scenes ...] [--methods ...] [--seeds 0 1 2] [--jobs 2]
+
+Rows go to benchmarks/results/posterior_study.csv (one per scene, method, sampler, seed; rows
+already there are kept and not rerun, so an interrupted study continues), then it prints mean +-
+std per group, method and sampler. `--dps NAME:key=value,...` adds a dps variant (dev studies).
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import csv
+import json
+import os
+import shutil
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+ROOT = Path(__file__).resolve().parent.parent
+WORK = ROOT / "results" / "benchmarks" / "posterior_study"
+CSV = ROOT / "benchmarks" / "results" / "posterior_study.csv"
+COLUMNS = ("scene", "group", "method", "sampler", "seed", "novel_psnr", "env_psnr", "env_ssim", "albedo_mse",
+           "seconds")
+SIZE = {"views": 8, "held_out_every": 4, "width": 32, "height": 32, "spp": 128, "env_height": 32,
+        "texture_size": 32}
+AMBIGUOUS = {**SIZE, "roughness": 0.7, "roughness_variation": 0.1, "metallic": 0.0, "arc_deg": 150.0,
+             "elevations_deg": (15.0, 40.0)}
+GLOSSY = {**SIZE, "roughness": 0.08, "roughness_variation": 0.0, "metallic": 1.0, "arc_deg": 360.0}
+SCENES: dict[str, tuple[str, dict[str, Any]]] = {
+    "blob_sun": ("ambiguous", {**AMBIGUOUS, "shape": "blob", "seed": 0, "environment": "outdoor",
+                               "environment_seed": 11, "prior": "outdoor"}),
+    "blob_room": ("ambiguous", {**AMBIGUOUS, "shape": "blob", "seed": 0, "environment": "indoor",
+                                "environment_seed": 12, "prior": "indoor"}),
+    "blob_ldr": ("ambiguous", {**AMBIGUOUS, "shape": "blob", "seed": 0, "environment": "outdoor",
+                               "environment_seed": 13, "environment_clip": 5.3, "prior": "outdoor"}),
+    "torus_sun": ("ambiguous", {**AMBIGUOUS, "shape": "bumpy_torus", "seed": 3, "environment": "sunsky",
+                                "sun_elevation_deg": 25.0, "sun_azimuth_deg": 200.0, "prior": "outdoor"}),
+    "torus_room": ("ambiguous", {**AMBIGUOUS, "shape": "bumpy_torus", "seed": 3, "environment": "indoor",
+                                 "environment_seed": 14, "prior": "indoor"}),
+    "torus_ldr": ("ambiguous", {**AMBIGUOUS, "shape": "bumpy_torus", "seed": 3, "environment": "outdoor",
+                                "environment_seed": 15, "environment_clip": 5.3, "prior": "outdoor"}),
+    "blob_glossy": ("glossy", {**GLOSSY, "shape": "blob", "seed": 5, "environment": "outdoor",
+                               "environment_seed": 16, "prior": "outdoor"}),
+}
+METHODS = ("init", "none", "smoothness", "sds", "dip", "dps")
+
+
+@dataclass(frozen=True)
+class Job:
+    """One sample to draw and score."""
+
+    scene: str
+    method: str
+    sampler: str
+    seed: int
+    method_cfg: dict
+    config: dict
+    rerun: bool = False
+
+
+def workflow_config() -> dict[str, Any]:
+    """config.yaml with its preset applied, at the study's sizes."""
+    from dpi.settings import apply_preset
+
+    config = apply_preset(yaml.safe_load((ROOT / "config.yaml").read_text()))
+    config["problem"] = {**config.get("problem", {}), "env_height": 16, "texture_size": 32}
+    return config
+
+
+def prepare_scene(scene: str, config: dict, threads: int) -> Path:
+    """The scene's capture, validated capture.json and initialisation (made once, then reused)."""
+    from dpi.stages import SolveSettings, capture_stage, init_stage
+    from dpi.synth.capture import SynthConfig, make_synthetic_capture
+
+    folder = WORK / scene
+    capture = folder / "capture"
+    if not (capture / ".synth.json").exists():
+        make_synthetic_capture(capture, SynthConfig.from_dict(SCENES[scene][1]), threads=threads, progress=False)
+    if not (folder / "capture.json").exists():
+        capture_stage(capture, folder / "capture.json")
+    if not (folder / "init" / "log.json").exists():
+        init_stage(folder / "capture.json", folder / "init", scene, config["init"],
+                   SolveSettings.from_config(config, threads), progress=False)
+    return folder
+
+
+def run_job(job: Job) -> dict[str, Any]:
+    """Draw (except for init) and evaluate one sample; the row of the CSV."""
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    from dpi.stages import SolveSettings, evaluate_stage, sample_stage
+
+    folder = WORK / job.scene
+    settings = SolveSettings.from_config(job.config, threads=1)
+    label = job.method if not job.sampler else f"{job.method}_{job.sampler}"
+    sample_dir = folder / "init" if job.method == "init" else folder / label / str(job.seed)
+    if job.rerun and job.method != "init":
+        shutil.rmtree(sample_dir, ignore_errors=True)
+    if job.method != "init" and not (sample_dir / "trace.json").exists():
+        sample_stage(folder / "capture.json", folder / "init", sample_dir, job.scene, job.method, job.seed,
+                     job.method_cfg, settings, progress=False)
+    out = folder / "eval" / label / f"{job.seed}.json"
+    evaluate_stage(folder / "capture.json", sample_dir, out, job.scene, job.method, job.seed,
+                   job.config["evaluate"]["spp"], settings)
+    metrics = json.loads(out.read_text())["metrics"]
+    return {"scene": job.scene, "group": SCENES[job.scene][0], "method": job.method, "sampler": job.sampler,
+            "seed": job.seed, **{k: metrics[k] for k in ("novel_psnr", "env_psnr", "env_ssim", "albedo_mse")},
+            "seconds": metrics["sample_seconds"]}
+
+
+def dps_variants(config: dict, extra: list[str]) -> dict[str, dict]:
+    """dps settings per sampler label: each built-in sampler, plus `NAME:key=value,...` variants."""
+    from dpi.solve.samplers import SAMPLERS
+
+    base = config["method_params"].get("dps", {})
+    variants = {name: {**base, "sampler": name} for name in SAMPLERS}
+    for spec in extra:
+        name, _, pairs = spec.partition(":")
+        values = {k: yaml.safe_load(v) for k, v in (p.split("=", 1) for p in pairs.split(",") if p)}
+        variants[name] = {**base, **values}
+    return variants
+
+
+def jobs_for(args: argparse.Namespace, config: dict) -> list[Job]:
+    """Every (scene, method, sampler, seed) asked for."""
+    variants = dps_variants(config, args.dps)
+    jobs = []
+    for scene in args.scenes:
+        for method in args.methods:
+            labels = {v: cfg for v, cfg in variants.items() if v in (args.samplers or variants)} \
+                if method == "dps" else {"": config["method_params"].get(method, {})}
+            for sampler, cfg in labels.items():
+                cfg = {k: v for k, v in cfg.items() if k != "samples"}
+                seeds = [0] if method == "init" else args.seeds
+                jobs.extend(Job(scene, method, sampler, s, cfg, config, args.rerun) for s in seeds)
+    return jobs
+
+
+def read_rows(path: Path) -> list[dict[str, Any]]:
+    """Rows of a study CSV (numbers parsed)."""
+    if not path.exists():
+        return []
+    with open(path, newline="") as f:
+        return [{k: (v if k in ("scene", "group", "method", "sampler") else float(v)) for k, v in row.items()}
+                for row in csv.DictReader(f)]
+
+
+def append_row(path: Path, row: dict[str, Any]) -> None:
+    """Add one row (with a header when the file is new)."""
+    new = not path.exists()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=COLUMNS)
+        if new:
+            writer.writeheader()
+        writer.writerow({k: row[k] for k in COLUMNS})
+
+
+def summary(rows: list[dict[str, Any]]) -> list[str]:
+    """Mean +- std per group, method and sampler over scenes and seeds."""
+    lines = [f"{'group':<10} {'method':<12} {'sampler':<12} {'n':>3} {'view PSNR':>13} {'env PSNR':>13} "
+             f"{'env SSIM':>13} {'albedo MSE':>17} {'seconds':>11}"]
+    keys = sorted({(r["group"], r["method"], r["sampler"]) for r in rows},
+                  key=lambda k: (k[0], METHODS.index(k[1]) if k[1] in METHODS else 99, k[2]))
+    for group, method, sampler in keys:
+        sel = [r for r in rows if (r["group"], r["method"], r["sampler"]) == (group, method, sampler)]
+        cells = []
+        for key, fmt in (("novel_psnr", ".2f"), ("env_psnr", ".2f"), ("env_ssim", ".3f"), ("albedo_mse", ".4f"),
+                         ("seconds", ".1f")):
+            values = np.array([r[key] for r in sel], dtype=float)
+            cells.append(f"{values.mean():{fmt}} +- {values.std():{fmt}}")
+        lines.append(f"{group:<10} {method:<12} {sampler:<12} {len(sel):>3} {cells[0]:>13} {cells[1]:>13} "
+                     f"{cells[2]:>13} {cells[3]:>17} {cells[4]:>11}")
+    return lines
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--scenes", nargs="*", default=list(SCENES), choices=list(SCENES))
+    parser.add_argument("--methods", nargs="*", default=list(METHODS), choices=list(METHODS))
+    parser.add_argument("--samplers", nargs="*", default=None, help="dps sampler labels to run (default: all)")
+    parser.add_argument("--seeds", nargs="*", type=int, default=[0, 1, 2])
+    parser.add_argument("--dps", nargs="*", default=[], metavar="NAME:key=value,...", help="extra dps variants")
+    parser.add_argument("--jobs", type=int, default=2, help="samples drawn side by side (1 thread each)")
+    parser.add_argument("--out", type=Path, default=CSV, help="study CSV (rows already there are not rerun)")
+    parser.add_argument("--rerun", action="store_true", help="redo rows already in the CSV (their samples too)")
+    args = parser.parse_args()
+
+    config = workflow_config()
+    for scene in args.scenes:
+        prepare_scene(scene, config, threads=2)
+    done = {(r["scene"], r["method"], r["sampler"], int(r["seed"])) for r in read_rows(args.out)}
+    todo = [j for j in jobs_for(args, config) if args.rerun or (j.scene, j.method, j.sampler, j.seed) not in done]
+    print(f"{len(todo)} samples to draw and score ({len(done)} rows already in {args.out})", flush=True)
+    with ProcessPoolExecutor(max_workers=args.jobs) as pool:
+        for row in pool.map(run_job, todo):
+            append_row(args.out, row)
+            print(f"{row['scene']:<12} {row['method']:<10} {row['sampler']:<10} seed {row['seed']}: "
+                  f"view {row['novel_psnr']:.2f} dB, env {row['env_psnr']:.2f} dB / {row['env_ssim']:.3f}, "
+                  f"albedo {row['albedo_mse']:.4f}, {row['seconds']:.1f} s", flush=True)
+    wanted = {(j.scene, j.method, j.sampler) for j in jobs_for(args, config)}
+    rows = [r for r in read_rows(args.out) if (r["scene"], r["method"], r["sampler"]) in wanted]
+    print("\n".join(summary(rows)))
+
+
+if __name__ == "__main__":
+    main()
