@@ -1,4 +1,4 @@
-"""Sample quality of the default priors: distribution distance, wrap seam, sampling time.
+"""Sample quality of the default priors: distribution distance, dynamic range, wrap seam, sampling time.
 
     .venv/bin/python benchmarks/prior_quality.py [--families outdoor indoor] [--count 64] [--steps 100]
 
@@ -10,14 +10,17 @@ Held-out maps are freshly generated with a seed the training data never used. Re
 training maps vs held-out (the floor) and a Gaussian-blurred noise baseline (far away).
 The wrap seam is the mean |x[..., 0] - x[..., W-1]| divided by the mean difference of
 neighbouring interior columns (1 = as smooth as the rest; paper Fig. 12 ablation).
+Dynamic range: per map, the energy share of its brightest 0.5 % texels (solid-angle weighted: a
+sun carries about half) and max / median luminance, for samples against held-out maps.
 Also writes models/{family}_samples.png: samples (left) next to their nearest training map
-(right, nearest over all azimuth rolls and flips).
+(right, nearest over all azimuth rolls and flips), shown as radiance (median-normalised, Reinhard,
+sRGB), and models/{family}_dynamic_range.png: histograms of log10(texel luminance / median) of
+samples and held-out maps.
 """
 
 from __future__ import annotations
 
 import argparse
-import tempfile
 import time
 from pathlib import Path
 
@@ -27,8 +30,10 @@ from scipy import linalg
 from torch.nn import functional as F
 
 from dpi import backend
-from dpi.prior.data import EnvmapDataset
-from dpi.prior.procedural import make_envmap_dataset
+from dpi.envmap import texel_solid_angles
+from dpi.images import linear_to_srgb, luminance
+from dpi.prior.data import median_target, read_dataset, to_prior_space
+from dpi.prior.procedural import checked_envmaps
 from dpi.tonecurve import Encoding
 from dpi.prior.sample import DEFAULT_MODELS, MODELS_DIR, draw_samples, load_prior, write_grid
 
@@ -89,10 +94,54 @@ def nearest_training_maps(samples: torch.Tensor, train: torch.Tensor) -> torch.T
 
 def held_out_maps(family: str, count: int, height: int, encoding: Encoding) -> torch.Tensor:
     """Freshly generated maps of the family (a seed the training data never used), in prior space."""
-    with tempfile.TemporaryDirectory() as tmp:
-        data_height = 64 if family == "outdoor" else 32
-        make_envmap_dataset(family, count, data_height, tmp, seed=HELD_OUT_SEED, progress=False)
-        return EnvmapDataset.from_folder(tmp, height, family, encoding).images
+    maps, _ = checked_envmaps(family, count, height, seed=HELD_OUT_SEED, progress=False)
+    target = median_target(family, encoding)
+    return torch.stack([to_prior_space(torch.from_numpy(m).permute(2, 0, 1), encoding, target) for m in maps])
+
+
+def luminance_over_median(x: torch.Tensor, encoding: Encoding) -> torch.Tensor:
+    """Texel luminance over the map's median (B, H, W) of prior-space maps (B, 3, H, W)."""
+    lum = luminance(encoding.to_radiance(x).permute(0, 2, 3, 1))
+    return lum / lum.flatten(1).median(dim=1).values.clamp_min(1e-30)[:, None, None]
+
+
+def top_energy_share(x: torch.Tensor, encoding: Encoding, fraction: float = 0.005) -> np.ndarray:
+    """Per map, the share of its energy (luminance x solid angle) in its brightest `fraction` of texels."""
+    energy = luminance_over_median(x, encoding) * torch.from_numpy(texel_solid_angles(x.shape[-2])).float()
+    flat = energy.flatten(1).sort(dim=1, descending=True).values
+    top = max(1, int(round(fraction * flat.shape[1])))
+    return (flat[:, :top].sum(1) / flat.sum(1)).numpy()
+
+
+def radiance_display(x: torch.Tensor, encoding: Encoding) -> torch.Tensor:
+    """Prior-space maps as viewers see radiance, back in [-1, 1] for the grid: median-normalised to
+    0.18, Reinhard, sRGB."""
+    radiance = encoding.to_radiance(x)
+    lum = luminance(radiance.permute(0, 2, 3, 1)).flatten(1).median(dim=1).values.clamp_min(1e-30)
+    scaled = radiance * (0.18 / lum)[:, None, None, None]
+    srgb = torch.from_numpy(linear_to_srgb((scaled / (1 + scaled)).numpy()))
+    return srgb * 2 - 1
+
+
+def dynamic_range_plot(path: Path, family: str, samples: torch.Tensor, held: torch.Tensor, encoding: Encoding) -> None:
+    """Histograms of log10(luminance / median) over all texels of samples and held-out maps."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 3.2))
+    bins = np.linspace(-3, 5, 65)
+    for maps, label in ((held, "held-out maps"), (samples, "prior samples")):
+        values = np.log10(luminance_over_median(maps, encoding).flatten().clamp_min(1e-3).numpy())
+        ax.hist(values, bins=bins, histtype="step", density=True, log=True, label=label)
+    ax.set_xlabel("log10(texel luminance / map median)")
+    ax.set_ylabel("density")
+    ax.set_title(f"{family}: dynamic range of {len(samples)} samples and {len(held)} held-out maps")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
 
 
 def pair_grid(samples: torch.Tensor, nearest: torch.Tensor) -> torch.Tensor:
@@ -100,11 +149,12 @@ def pair_grid(samples: torch.Tensor, nearest: torch.Tensor) -> torch.Tensor:
     return torch.stack([samples, nearest], dim=1).reshape(-1, *samples.shape[1:])
 
 
-def evaluate_family(family: str, data_dir: Path, count: int, steps: int, timing_steps: list[int]) -> list[tuple]:
+def evaluate_family(family: str, data: Path, count: int, steps: int, timing_steps: list[int]) -> list[tuple]:
     """Rows (family, quantity, value) of the table for one default model."""
     prior = load_prior(DEFAULT_MODELS[family])
-    train = EnvmapDataset.from_folder(data_dir, prior.height, family, prior.encoding).images
-    held = held_out_maps(family, count, prior.height, prior.encoding)
+    train = read_dataset(data, prior.height, family, prior.encoding).images
+    enc = prior.encoding
+    held = held_out_maps(family, count, prior.height, enc)
     start = time.perf_counter()
     rolled = draw_samples(prior, count, steps, seed=1, random_roll=True)
     seconds = (time.perf_counter() - start) / count
@@ -119,21 +169,30 @@ def evaluate_family(family: str, data_dir: Path, count: int, steps: int, timing_
         (family, "seam ratio, samples with random roll", seam_ratio(rolled)),
         (family, "seam ratio, samples without roll", seam_ratio(plain)),
         (family, "seam ratio, held-out maps", seam_ratio(held)),
+        (family, "brightest 0.5 % energy share, samples (median)", float(np.median(top_energy_share(rolled, enc)))),
+        (family, "brightest 0.5 % energy share, held-out (median)", float(np.median(top_energy_share(held, enc)))),
+        (family, "max / median luminance, samples (median)", float(luminance_over_median(rolled, enc).flatten(1)
+                                                                     .max(1).values.median())),
+        (family, "max / median luminance, held-out (median)", float(luminance_over_median(held, enc).flatten(1)
+                                                                      .max(1).values.median())),
         (family, f"seconds per map, {steps} steps (batch 16)", seconds),
     ]
     for n in timing_steps:
         start = time.perf_counter()
         draw_samples(prior, 4, n, seed=2)
         rows.append((family, f"seconds per map, {n} steps (batch 4)", (time.perf_counter() - start) / 4))
-    shown = rolled[:8]
-    write_grid(MODELS_DIR / f"{family}_samples.png", pair_grid(shown, nearest_training_maps(shown, train)), columns=4)
+    shown = rolled[:16]
+    pairs = pair_grid(shown, nearest_training_maps(shown, train))
+    write_grid(MODELS_DIR / f"{family}_samples.png", radiance_display(pairs, enc), columns=4)
+    dynamic_range_plot(MODELS_DIR / f"{family}_dynamic_range.png", family, rolled, held, enc)
     return rows
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--families", nargs="+", default=["outdoor", "indoor"])
-    parser.add_argument("--data-root", default="results/prior_data", help="training data: {root}/{family}/")
+    parser.add_argument("--data", default="results/prior_data/{family}_log_32.npz",
+                        help="training data of a family: a packed .npz or a folder ({family} is replaced)")
     parser.add_argument("--count", type=int, default=96, help="samples and held-out maps per family")
     parser.add_argument("--steps", type=int, default=50)
     parser.add_argument("--timing-steps", type=int, nargs="*", default=[25, 100, 250])
@@ -143,7 +202,8 @@ def main() -> None:
     torch.manual_seed(0)
     rows = []
     for family in args.families:
-        rows += evaluate_family(family, Path(args.data_root) / family, args.count, args.steps, args.timing_steps)
+        rows += evaluate_family(family, Path(args.data.format(family=family)), args.count, args.steps,
+                                args.timing_steps)
     width = max(len(r[1]) for r in rows)
     print(f"| family  | {'quantity':<{width}} | value    |")
     print(f"|---------|{'-' * (width + 2)}|----------|")

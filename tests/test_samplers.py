@@ -42,7 +42,7 @@ class LinearProblem:
         self.masks = [torch.ones(pixels, 1, dtype=torch.bool) for _ in range(views)]
         self.train_ids = list(range(views))
 
-    def data_loss(self, env, materials, views, seed):
+    def data_loss(self, env, materials, views, seed, spp=None):
         return sum((self.operators[v] @ env.reshape(-1) - self.images[v].reshape(-1)).square().mean() for v in views)
 
     def sample_views(self, count, generator):

@@ -187,7 +187,8 @@ def training_losses(diffusion: Diffusion, model: Model, x0: torch.Tensor, t: tor
 
 def random_roll_shift(width: int, generator: torch.Generator | None) -> int:
     """A column shift drawn uniformly from [0, width)."""
-    return int(torch.randint(0, width, (1,), generator=generator).item())
+    device = generator.device if generator is not None else None
+    return int(torch.randint(0, width, (1,), generator=generator, device=device).item())
 
 
 def model_output_with_random_roll(model: Model, x_t: torch.Tensor, t: torch.Tensor,

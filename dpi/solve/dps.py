@@ -51,6 +51,8 @@ class DPSConfig:
     """reverse-diffusion steps (respaced from the prior's 1000; the paper uses 1000)"""
     views_per_step: int = 1
     """training views rendered per data term"""
+    spp: int | None = None
+    """proximal: samples per pixel of the data term's renders (None: the renderer's)"""
     guidance_bound: float = 0.1
     """paper: max-abs of the rendering-loss gradient after rescaling"""
     rho_start: float = 0.1

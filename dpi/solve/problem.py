@@ -86,9 +86,12 @@ class InverseProblem:
             total = total + (self.masks[v][..., None].to(diff.dtype) * diff.square()).sum()
         return total.sqrt()
 
-    def data_loss(self, env: torch.Tensor, materials: MaterialTextures, views: list[int], seed: int) -> torch.Tensor:
-        """Sum of per-view foreground MSEs over `views` (each rendered with its own seed)."""
-        return sum(self.view_loss(self.render(env, materials, v, seed * 1009 + j), v) for j, v in enumerate(views))
+    def data_loss(self, env: torch.Tensor, materials: MaterialTextures, views: list[int], seed: int,
+                  spp: int | None = None) -> torch.Tensor:
+        """Sum of per-view foreground MSEs over `views` (each rendered with its own seed, at `spp` or the
+        renderer's)."""
+        return sum(self.view_loss(self.render(env, materials, v, seed * 1009 + j, spp), v)
+                   for j, v in enumerate(views))
 
     def sample_views(self, count: int, generator: torch.Generator) -> list[int]:
         """`count` distinct training views drawn at random (all of them if count >= their number)."""

@@ -197,7 +197,7 @@ def paper_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
 def relative_data_loss(run: DPSRun, env: torch.Tensor, materials: MaterialTextures, views: list[int],
                        seed: int) -> torch.Tensor:
     """Mean foreground MSE of `views` over the mean squared foreground radiance: exposure-free, ~1 / SNR."""
-    return run.problem.data_loss(env, materials, views, seed) / (len(views) * run.data_norm)
+    return run.problem.data_loss(env, materials, views, seed, run.cfg.spp) / (len(views) * run.data_norm)
 
 
 def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
