@@ -36,7 +36,6 @@ from dpi.materials import MaterialTextures
 from dpi.prior.diffusion import Diffusion, model_output_with_random_roll, model_timesteps, p_mean_variance
 from dpi.prior.sample import Prior, load_scene_prior
 from dpi.render import Renderer, RenderSettings
-from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import (DPSConfig, estimate_radiance_scale, material_optimizer, prior_to_env, rho_schedule,
                            scale_to_bound)
 from dpi.solve.init import starting_materials
@@ -95,7 +94,7 @@ def make_loop(threads: int, seed: int) -> Loop:
     capture = load_capture(capture_at(base.resolution, threads))
     problem = InverseProblem(capture, ProblemSettings(env_height=base.env_height, texture_size=base.texture_size),
                              RenderSettings(spp=base.spp, threads=threads))
-    init = Decomposition.load(ROOT / "results" / "demo" / "init", base.texture_size)
+    init = problem.load_decomposition(ROOT / "results" / "demo" / "init")
     prior = load_scene_prior(capture.options)
     cfg = DPSConfig(steps=base.steps, views_per_step=base.views_per_step)
     generator = torch.Generator().manual_seed(seed)
