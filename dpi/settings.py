@@ -77,19 +77,20 @@ FIELD_BOUNDS: dict[str, Bound] = {
 def settings_from_dict(cls: type[T], values: dict[str, Any] | None) -> T:
     """A settings dataclass from a (partial) dict; unknown keys, wrong types and out-of-range values are errors."""
     values = dict(values or {})
-    check_keys(values, [f.name for f in fields(cls)], cls.__name__)
+    check_keys(values, [f.name for f in fields(cls)], f"{cls.__name__} setting")
     check_values(cls, values)
     return cls(**values)
 
 
-def check_keys(values: dict[str, Any], known: Iterable[str], owner: str) -> None:
-    """Fail on the first key of `values` that is not in `known`, suggesting the closest valid one."""
+def check_keys(values: Iterable[Any], known: Iterable[str], what: str) -> None:
+    """Fail on the first of `values` (keys, names) not in `known`, suggesting the closest valid one;
+    `what` names one of them in the message ("DPSConfig setting", "method")."""
     known = sorted(known)
     unknown = sorted(str(k) for k in values if k not in known)
     if unknown:
         close = difflib.get_close_matches(unknown[0], known, n=1)
         hint = f"; did you mean {close[0]!r}?" if close else ""
-        raise SettingsError(unknown[0], f"unknown {owner} setting{hint} (valid: {', '.join(known)})")
+        raise SettingsError(unknown[0], f"unknown {what}{hint} (valid: {', '.join(known)})")
 
 
 def check_values(cls: type, values: dict[str, Any]) -> None:

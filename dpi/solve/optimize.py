@@ -66,7 +66,7 @@ def method_config_from_dict(cls: type[MethodConfig], values: dict[str, Any] | No
     types and out-of-range values are errors (dpi.settings)."""
     values = dict(values or {})
     own = {f.name for f in fields(cls)} - {"optimize"}
-    check_keys(values, own | {f.name for f in fields(OptimizeConfig)}, cls.__name__)
+    check_keys(values, own | {f.name for f in fields(OptimizeConfig)}, f"{cls.__name__} setting")
     mine = {k: v for k, v in values.items() if k in own}
     check_values(cls, mine)
     optimize = OptimizeConfig.from_dict({k: v for k, v in values.items() if k not in own})
