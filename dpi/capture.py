@@ -366,17 +366,17 @@ def _check_signal(path: Path, image: np.ndarray) -> None:
 
 
 def _fit_camera(source: Path, camera: Camera, size: tuple[int, int], name: str) -> Camera:
-    """The camera for an image of `size` (rescaled intrinsics when only the resolution differs), checked by
-    `camera_problem`."""
+    """The camera (checked by `camera_problem`) for an image of `size`: rescaled intrinsics when only the
+    resolution differs."""
+    problem = camera_problem(camera)
+    if problem:
+        raise CaptureError(f"{source}: camera of {name}: {problem}")
     if (camera.width, camera.height) != size:
         if abs(camera.width / camera.height - size[0] / size[1]) > ASPECT_TOLERANCE:
             raise CaptureError(f"{source}: camera of {name} is {camera.width}x{camera.height}, "
                                f"image size is {size[0]}x{size[1]} (aspect ratios differ)")
         camera = camera.resized(*size)
     camera.name = name
-    problem = camera_problem(camera)
-    if problem:
-        raise CaptureError(f"{source}: camera of {name}: {problem}")
     return camera
 
 

@@ -60,10 +60,10 @@ def decode_ldr(path: Path) -> np.ndarray:
     """A PNG/JPG's code values in [0, 1] at its bit depth (8 or 16), (H, W, C): grey (C = 1), RGB or RGBA."""
     import cv2
 
-    try:
-        data = cv2.imdecode(np.fromfile(path, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
-    except (OSError, cv2.error) as exc:
-        raise ImageError(f"{path}: not a readable image ({exc})") from exc
+    raw = np.fromfile(path, dtype=np.uint8)
+    if raw.size == 0:
+        raise ImageError(f"{path}: not a readable image (empty file)")
+    data = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED)
     if data is None:
         raise ImageError(f"{path}: not a readable image (truncated, or not a {path.suffix.lstrip('.')} file)")
     if data.dtype not in (np.uint8, np.uint16):
