@@ -25,7 +25,7 @@ from dpi.solve.dip import dip_sample
 from dpi.solve.dps import dps_sample
 from dpi.solve.sds import sds_sample
 from dpi.solve.init import path_traced_init
-from dpi.solve.methods import DIFFUSION_METHODS, METHODS, method_config
+from dpi.solve.methods import DIFFUSION_METHODS, method_config
 from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import InverseProblem, ProblemSettings
 

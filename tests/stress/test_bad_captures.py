@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 import trimesh
-from capture_helpers import NAMES, SIZE, edit_transforms, image, make_capture, raw_exr
+from capture_helpers import NAMES, SIZE, edit_transforms, make_capture, raw_exr
 
 from dpi.capture import CaptureError, CaptureWarning, inspect_capture, load_capture, read_scene_options
 from dpi.exposure import capture_exposure
