@@ -95,9 +95,12 @@ def check_keys(values: Iterable[Any], known: Iterable[str], what: str) -> None:
 
 def check_values(cls: type, values: dict[str, Any]) -> None:
     """Fail on the first value of the wrong type (by `cls`'s annotations), non-finite, or outside FIELD_BOUNDS."""
-    hints = get_type_hints(cls)
+    try:
+        hints = get_type_hints(cls)
+    except NameError:  # an annotation names a type only imported for type checkers: check ranges only
+        hints = {}
     for key, value in values.items():
-        problem = type_problem(value, hints[key]) or bound_problem(key, value)
+        problem = (type_problem(value, hints[key]) if key in hints else None) or bound_problem(key, value)
         if problem:
             raise SettingsError(key, problem)
 

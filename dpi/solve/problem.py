@@ -91,7 +91,8 @@ class InverseProblem:
             decomposition.trace.info["exposure"] = {
                 "scale": self.exposure,
                 "definition": f"median positive foreground luminance of the training views / {MIDDLE_GREY}; "
-                              "the solver saw the images divided by it, the env map is written multiplied by it"}
+                              "the solver saw the images divided by it (radiances in this trace are in those "
+                              "units), the env map is written multiplied by it"}
         self.to_scene_units(decomposition).save(folder, trace_name)
 
     def render(self, env: torch.Tensor, materials: MaterialTextures, view: int, seed: int,
