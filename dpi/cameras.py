@@ -118,7 +118,8 @@ def camera_problem(camera: Camera) -> str | None:
     if camera.fx <= 0 or camera.fy <= 0:
         return f"focal length must be positive (pixels), got fx={camera.fx:g}, fy={camera.fy:g}"
     if abs(camera.fx - camera.fy) > SQUARE_PIXEL_TOLERANCE * camera.fx:
-        return f"pixels must be square (fx == fy, as Mitsuba's perspective sensor), got fx={camera.fx:g}, fy={camera.fy:g}"
+        return (f"pixels must be square (fx == fy, as Mitsuba's perspective sensor), "
+                f"got fx={camera.fx:g}, fy={camera.fy:g}")
     return None
 
 

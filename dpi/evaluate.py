@@ -24,7 +24,8 @@ from dpi.atomic import atomic_path
 from dpi.exposure import MIDDLE_GREY
 from dpi.exr import read_exr
 from dpi.images import linear_to_srgb
-from dpi.metrics import PSNR_CAP, aligned_env, albedo_mse, env_metrics, normalized_env, psnr, resize_area, sample_variance, ssim
+from dpi.metrics import (PSNR_CAP, aligned_env, albedo_mse, env_metrics, normalized_env, psnr, resize_area,
+                         sample_variance, ssim)
 from dpi.naturalness import naturalness
 from dpi.niqe import ENV_HEIGHT, env_niqe
 from dpi.perceptual import (ALEXNET_WEIGHTS, INCEPTION_WEIGHTS, LPIPS_MIN_SIZE, azimuth_rolls, frechet_distance,
@@ -107,8 +108,10 @@ def evaluate_sample(problem: InverseProblem, decomposition: Decomposition, spp: 
                "env_naturalness": naturalness(env, prior or load_scene_prior(problem.capture.options)),
                "sample_seconds": seconds if seconds is not None else missing("no trace")}
     capped = [name for name, value in metrics.items() if name.endswith("_psnr") and value == PSNR_CAP]
-    notes = {**NOTES, "capped": f"{', '.join(capped)}: exact match, reported as the cap {PSNR_CAP:g} dB"} if capped else NOTES
-    return {**metrics, "notes": notes}
+    if capped:
+        return {**metrics, "notes": {**NOTES, "capped": f"{', '.join(capped)}: exact match, reported as the cap "
+                                                        f"{PSNR_CAP:g} dB"}}
+    return {**metrics, "notes": NOTES}
 
 
 SUMMARY_METRICS = ("novel_psnr", "novel_ssim", "novel_lpips", "env_psnr", "env_ssim", "env_lpips", "env_niqe",

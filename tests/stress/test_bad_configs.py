@@ -43,19 +43,23 @@ BAD = {  # case: (patch of config.yaml, the message's start)
     "resources key typo": ({"resources": {"sample": {"mem": 1}}}, "resources.sample.mem: unknown key"),
     "unknown method under method_params": ({"method_params": {"dpz": {}}},
                                            "method_params.dpz: unknown method; did you mean 'dps'?"),
-    "unknown method listed": ({"methods": ["dps", "nonee"]}, "methods.1: 'nonee' is an unknown method; did you mean 'none'?"),
+    "unknown method listed": ({"methods": ["dps", "nonee"]},
+                              "methods.1: 'nonee' is an unknown method; did you mean 'none'?"),
     "dps key typo": ({"method_params": {"dps": {"stepz": 10}}},
                      "method_params.dps.stepz: unknown DPSConfig setting; did you mean 'steps'?"),
     "classic key typo": ({"method_params": {"none": {"iteration": 10}}},
                          "method_params.none.iteration: unknown ClassicConfig setting; did you mean 'iterations'?"),
     "dps key on dip": ({"method_params": {"dip": {"steps": 10}}}, "method_params.dip.steps: unknown DIPConfig setting"),
-    "sds key typo": ({"method_params": {"sds": {"tmax": 0.5}}}, "method_params.sds.tmax: unknown SDSConfig setting"),
+    "sds key typo": ({"method_params": {"sds": {"tmax": 0.5}}},
+                     "method_params.sds.tmax: unknown SDSConfig setting"),
     "steps 0": ({"method_params": {"dps": {"steps": 0}}}, "method_params.dps.steps: must be >= 1, got 0"),
     "steps -5": ({"method_params": {"dps": {"steps": -5}}}, "method_params.dps.steps: must be >= 1, got -5"),
     "steps 2.5": ({"method_params": {"dps": {"steps": 2.5}}}, "method_params.dps.steps: must be an integer, got 2.5"),
-    "steps text": ({"method_params": {"dps": {"steps": "ten"}}}, "method_params.dps.steps: must be an integer, got 'ten'"),
+    "steps text": ({"method_params": {"dps": {"steps": "ten"}}},
+                   "method_params.dps.steps: must be an integer, got 'ten'"),
     "rho_schedule cubic": ({"method_params": {"dps": {"rho_schedule": "cubic"}}},
-                           "method_params.dps: rho_schedule must be one of ('linear', 'step', 'constant'), got 'cubic'"),
+                           "method_params.dps: rho_schedule must be one of ('linear', 'step', 'constant'), "
+                           "got 'cubic'"),
     "negative learning rate": ({"method_params": {"dps": {"lr_albedo": -0.1}}},
                                "method_params.dps.lr_albedo: must be > 0, got -0.1"),
     "nan learning rate": ({"method_params": {"smoothness": {"lr_env": float("nan")}}},
@@ -172,5 +176,6 @@ def test_snakemake_names_a_bad_scene_yaml_before_the_dag(tmp_path):
     (root / "scene.yaml").write_text("prior: martian\n")
     proc = dry_run(tmp_path, {"scenes": ["mine"], "methods": ["dps"]})
     assert proc.returncode != 0
-    assert "\ncaptures/mine/scene.yaml: prior must be one of indoor, outdoor, got 'martian'" in proc.stderr + proc.stdout
+    expected = "\ncaptures/mine/scene.yaml: prior must be one of indoor, outdoor, got 'martian'"
+    assert expected in proc.stderr + proc.stdout
     assert not (tmp_path / "results").exists()
