@@ -35,7 +35,6 @@ from dpi.capture import load_capture
 from dpi.materials import MaterialTextures
 from dpi.prior.sample import load_scene_prior
 from dpi.render import Renderer, RenderSettings
-from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import DPSConfig, posterior_steps, start_run
 from dpi.solve.problem import InverseProblem, ProblemSettings
 from dpi.solve.samplers import SAMPLERS, DPSRun
@@ -63,7 +62,7 @@ def make_run(sampler: str, threads: int, seed: int) -> tuple[DPSRun, Iterator[di
     capture = load_capture(capture_at(base.resolution, threads))
     problem = InverseProblem(capture, ProblemSettings(env_height=base.env_height, texture_size=base.texture_size),
                              RenderSettings(spp=base.spp, threads=threads))
-    init = Decomposition.load(ROOT / "results" / "demo" / "init", base.texture_size)
+    init = problem.load_decomposition(ROOT / "results" / "demo" / "init")
     cfg = DPSConfig(sampler=sampler, steps=base.steps, views_per_step=base.views_per_step)
     run, state = start_run(problem, load_scene_prior(capture.options), init, cfg, seed)
     return run, posterior_steps(run, state)

@@ -25,7 +25,6 @@ from dpi.capture import load_capture
 from dpi.evaluate import evaluate_sample
 from dpi.prior.sample import load_scene_prior
 from dpi.render import RenderSettings
-from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import DPSConfig, dps_sample
 from dpi.solve.init import path_traced_init
 from dpi.solve.optimize import OptimizeConfig
@@ -80,7 +79,7 @@ def run(setting: Setting, init_dir: Path, prior, threads: int, seed: int) -> dic
     capture = load_capture(capture_at(setting.resolution, threads))
     problem = InverseProblem(capture, ProblemSettings(env_height=setting.env_height, texture_size=setting.texture_size),
                              RenderSettings(spp=setting.spp, threads=threads))
-    init = Decomposition.load(init_dir, setting.texture_size)
+    init = problem.load_decomposition(init_dir)
     cfg = DPSConfig(steps=setting.steps, views_per_step=setting.views_per_step,
                     refine_iterations=setting.refine_iterations)
     start = time.perf_counter()
@@ -130,7 +129,8 @@ def main() -> None:
     if not (init_dir / "log.json").exists():
         problem = InverseProblem(demo, ProblemSettings(base.env_height, base.texture_size),
                                  RenderSettings(spp=16, threads=args.threads))
-        path_traced_init(problem, OptimizeConfig(iterations=200), seed=0, progress=False).save(init_dir, "log.json")
+        problem.save_decomposition(path_traced_init(problem, OptimizeConfig(iterations=200), seed=0, progress=False),
+                                   init_dir, "log.json")
     prior = load_scene_prior(demo.options)
 
     sweeps = {**SWEEPS, **{k: [int(v) for v in vs.split(",")] for k, vs in (a.split("=") for a in args.values)}}

@@ -14,6 +14,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 GL_TO_MITSUBA = np.diag([-1.0, 1.0, -1.0, 1.0])
+RIGID_TOLERANCE = 1e-3
+"""max |R^T R - I| of a camera rotation (Mitsuba refuses scale factors from about 1.2e-3 on)"""
+SQUARE_PIXEL_TOLERANCE = 1e-3
+"""max |fx - fy| / fx: Mitsuba's perspective sensor has square pixels"""
 
 
 @dataclass
@@ -91,11 +95,39 @@ def from_fov(c2w: np.ndarray, width: int, height: int, fov_x_deg: float, name: s
     return Camera(np.asarray(c2w, dtype=np.float64), width, height, fx, fx, width / 2, height / 2, name)
 
 
+def camera_problem(camera: Camera) -> str | None:
+    """Why a camera cannot be rendered, or None: its pose must be finite and rigid (an orthonormal
+    rotation without reflection, last row 0 0 0 1), its size and focal lengths positive, its pixels square."""
+    c2w = np.asarray(camera.c2w, dtype=np.float64)
+    if c2w.shape != (4, 4) or not np.isfinite(c2w).all():
+        return "camera-to-world matrix must be a finite 4x4 matrix"
+    if np.abs(c2w[3] - [0, 0, 0, 1]).max() > RIGID_TOLERANCE:
+        return f"camera-to-world matrix's last row must be [0, 0, 0, 1], got {c2w[3].tolist()}"
+    rotation = c2w[:3, :3]
+    error = float(np.abs(rotation.T @ rotation - np.eye(3)).max())
+    if error > RIGID_TOLERANCE:
+        return (f"camera-to-world rotation is not orthonormal (max |R^T R - I| = {error:.3g} > {RIGID_TOLERANCE:g}): "
+                "the pose is scaled, sheared or singular, not rigid")
+    if np.linalg.det(rotation) < 0:
+        return "camera-to-world rotation is a reflection (determinant -1), not rigid"
+    intrinsics = {"fx": camera.fx, "fy": camera.fy, "cx": camera.cx, "cy": camera.cy}
+    if not all(math.isfinite(v) for v in intrinsics.values()):
+        return f"intrinsics must be finite, got {intrinsics}"
+    if camera.width < 1 or camera.height < 1:
+        return f"image size must be positive, got {camera.width}x{camera.height}"
+    if camera.fx <= 0 or camera.fy <= 0:
+        return f"focal length must be positive (pixels), got fx={camera.fx:g}, fy={camera.fy:g}"
+    if abs(camera.fx - camera.fy) > SQUARE_PIXEL_TOLERANCE * camera.fx:
+        return (f"pixels must be square (fx == fy, as Mitsuba's perspective sensor), "
+                f"got fx={camera.fx:g}, fy={camera.fy:g}")
+    return None
+
+
 def to_mitsuba(camera: Camera) -> dict:
-    """Mitsuba `perspective` sensor dict (without film/sampler) for a camera."""
-    if abs(camera.fx - camera.fy) > 1e-3 * camera.fx:
-        raise ValueError(f"camera {camera.name!r}: Mitsuba's perspective sensor needs fx == fy "
-                         f"(got {camera.fx:.3f}, {camera.fy:.3f})")
+    """Mitsuba `perspective` sensor dict (without film/sampler) for a camera; ValueError if `camera_problem`."""
+    problem = camera_problem(camera)
+    if problem:
+        raise ValueError(f"camera {camera.name!r}: {problem}")
     import mitsuba as mi
 
     return {
@@ -146,7 +178,10 @@ def read_transforms(data: dict, default_size: tuple[int, int] | None = None) -> 
             fx = float(info["fl_x"])
             fy = float(info.get("fl_y", fx))
         elif "camera_angle_x" in info:
-            fx = fy = float(width) / (2 * math.tan(float(info["camera_angle_x"]) / 2))
+            angle = float(info["camera_angle_x"])
+            if not 0 < angle < math.pi:
+                raise ValueError(f"frame {i}: camera_angle_x must be in (0, pi) radians, got {angle!r}")
+            fx = fy = float(width) / (2 * math.tan(angle / 2))
         else:
             raise KeyError(f"frame {i}: no focal length (fl_x or camera_angle_x)")
         c2w = np.asarray(frame["transform_matrix"], dtype=np.float64)

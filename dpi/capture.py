@@ -18,6 +18,7 @@ import json
 import math
 import os
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
@@ -25,9 +26,9 @@ import numpy as np
 import yaml
 
 from dpi.atomic import write_json
-from dpi.cameras import Camera, read_transforms
+from dpi.cameras import Camera, camera_problem, read_transforms
 from dpi.exr import EXRError, read_exr
-from dpi.images import HDR_SUFFIXES, IMAGE_SUFFIXES, ImageError, read_image, read_mask
+from dpi.images import HDR_SUFFIXES, IMAGE_SUFFIXES, LDR_SUFFIXES, ImageError, read_image, read_mask
 from dpi.mitsuba_xml import MitsubaXMLError, read_mesh_shapes, read_sensors
 
 SCENE_YAML_KEYS = ("prior", "held_out", "radiance_scale", "object", "notes", "focal_length_px")
@@ -37,10 +38,16 @@ MESH_NAMES = ("mesh.ply", "mesh.obj")
 PLY_UV_PAIRS = (("u", "v"), ("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
 PLY_HEADER_BYTES = 1 << 16
 ASPECT_TOLERANCE = 1e-3
+CLIPPED_WARNING_FRACTION = 0.01
+"""an LDR image with at least this fraction of pixels at white gets a warning"""
 
 
 class CaptureError(ValueError):
     """A capture folder is unusable; the message starts with the offending file, then the problem."""
+
+
+class CaptureWarning(UserWarning):
+    """A capture is usable but part of it is not (clipped pixels); the message starts with the file."""
 
 
 @dataclass
@@ -196,15 +203,24 @@ def _image_files(root: Path) -> dict[str, Path]:
     return {name: images[name] for name in sorted(images, key=natural_key)}
 
 
-def _read_options(root: Path) -> dict:
-    """Validated contents of scene.yaml ({} without one)."""
-    path = root / "scene.yaml"
+def yaml_problem(exc: yaml.YAMLError) -> str:
+    """A YAML parse error on one line: the problem and where."""
+    mark = getattr(exc, "problem_mark", None)
+    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+    return f"{getattr(exc, 'problem', None) or exc}{where}"
+
+
+def read_scene_options(root: str | os.PathLike) -> dict:
+    """Validated contents of a capture's scene.yaml ({} without one); the workflow reads it before building the DAG."""
+    path = Path(root) / "scene.yaml"
     if not path.is_file():
         return {}
     try:
         options = yaml.safe_load(path.read_text())
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise CaptureError(f"{path}: invalid YAML ({exc})") from exc
+    except UnicodeDecodeError as exc:
+        raise CaptureError(f"{path}: invalid YAML (not UTF-8 text: {exc.reason})") from exc
+    except yaml.YAMLError as exc:
+        raise CaptureError(f"{path}: invalid YAML ({yaml_problem(exc)})") from exc
     options = {} if options is None else options
     if not isinstance(options, dict):
         raise CaptureError(f"{path}: not a mapping of options (got {type(options).__name__})")
@@ -304,7 +320,7 @@ def inspect_capture(root: str | os.PathLike) -> dict[str, bool]:
     """Which inputs a capture gives (cameras, masks, mesh, mesh_has_uv), without decoding images."""
     root = Path(root)
     _check_root(root)
-    mesh = _mesh_file(root, _read_options(root))
+    mesh = _mesh_file(root, read_scene_options(root))
     return {
         "cameras": (root / "transforms.json").is_file() or _camera_xml(root) is not None,
         "masks": (root / "masks").is_dir(),
@@ -317,13 +333,15 @@ def inspect_capture(root: str | os.PathLike) -> dict[str, bool]:
 
 
 def _check_images(images: dict[str, Path]) -> tuple[int, int]:
-    """Decode every image (finite, non-negative, all the same size); returns (width, height)."""
+    """Decode every image (finite, non-negative, with signal, all the same size); returns (width, height)."""
     size, first = None, None
     for path in images.values():
         try:
-            height, width = read_image(path).shape[:2]
+            image = read_image(path)
         except ImageError as exc:
             raise CaptureError(str(exc)) from exc
+        _check_signal(path, image)
+        height, width = image.shape[:2]
         if size is None:
             size, first = (width, height), path
         elif (width, height) != size:
@@ -331,8 +349,28 @@ def _check_images(images: dict[str, Path]) -> tuple[int, int]:
     return size
 
 
+def _check_signal(path: Path, image: np.ndarray) -> None:
+    """Fail on an image without signal (all black, or every pixel clipped: at white for PNG/JPG, at one value
+    for EXR); warn with the fraction when at least CLIPPED_WARNING_FRACTION of an LDR image's pixels are white."""
+    peak = float(image.max())
+    if peak == 0:
+        raise CaptureError(f"{path}: image is all black (every pixel 0): nothing to fit")
+    ldr = path.suffix.lower() in LDR_SUFFIXES
+    white = 1.0 if ldr else peak
+    clipped = float((image >= white).any(axis=-1).mean())
+    if clipped == 1.0:
+        raise CaptureError(f"{path}: every pixel is clipped at {white:g} (saturated): no shading to fit")
+    if ldr and clipped >= CLIPPED_WARNING_FRACTION:
+        warnings.warn(f"{path}: {100 * clipped:.1f}% of the pixels are clipped at white; the fit takes them as "
+                      "exact, so shading there is underestimated", CaptureWarning, stacklevel=2)
+
+
 def _fit_camera(source: Path, camera: Camera, size: tuple[int, int], name: str) -> Camera:
-    """The camera for an image of `size`: rescaled intrinsics when only the resolution differs."""
+    """The camera (checked by `camera_problem`) for an image of `size`: rescaled intrinsics when only the
+    resolution differs."""
+    problem = camera_problem(camera)
+    if problem:
+        raise CaptureError(f"{source}: camera of {name}: {problem}")
     if (camera.width, camera.height) != size:
         if abs(camera.width / camera.height - size[0] / size[1]) > ASPECT_TOLERANCE:
             raise CaptureError(f"{source}: camera of {name} is {camera.width}x{camera.height}, "
@@ -417,7 +455,7 @@ def _mask_files(root: Path, images: dict[str, Path], size: tuple[int, int]) -> d
 
 
 def _check_mesh(path: Path) -> None:
-    """Fail unless the mesh file loads with trimesh and has faces."""
+    """Fail unless the mesh file loads with trimesh, has faces indexing its vertices, and finite vertices and UVs."""
     import trimesh
 
     if not path.is_file():
@@ -428,6 +466,14 @@ def _check_mesh(path: Path) -> None:
         raise CaptureError(f"{path}: unreadable mesh ({exc})") from exc
     if len(getattr(mesh, "faces", [])) == 0:
         raise CaptureError(f"{path}: mesh has no faces")
+    bad = int((~np.isfinite(mesh.vertices)).any(axis=1).sum())
+    if bad:
+        raise CaptureError(f"{path}: {bad} of {len(mesh.vertices)} mesh vertices have NaN or Inf coordinates")
+    if mesh.faces.min() < 0 or mesh.faces.max() >= len(mesh.vertices):
+        raise CaptureError(f"{path}: faces index vertices outside 0..{len(mesh.vertices) - 1}")
+    uv = getattr(mesh.visual, "uv", None)
+    if uv is not None and not np.isfinite(uv).all():
+        raise CaptureError(f"{path}: mesh UVs contain NaN or Inf values")
 
 
 def _gt_files(root: Path) -> dict[str, Path]:
@@ -469,7 +515,7 @@ def load_capture(root: str | os.PathLike) -> Capture:
     """Read and validate a whole capture folder; raises one CaptureError naming the first bad file."""
     root = Path(root).resolve()
     _check_root(root)
-    options = _read_options(root)
+    options = read_scene_options(root)
     images = _image_files(root)
     names = list(images)
     size = _check_images(images)

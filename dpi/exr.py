@@ -43,7 +43,7 @@ def read_exr(path: str | os.PathLike) -> np.ndarray:
             data_window = [tuple(int(v) for v in w) for w in header["dataWindow"]]
             display_window = [tuple(int(v) for v in w) for w in header["displayWindow"]]
             channels = {name: np.array(c.pixels) for name, c in exr.channels().items()}
-    except RuntimeError as exc:
+    except (RuntimeError, ValueError, OSError) as exc:  # a truncated file raises ValueError("... has 0 parts")
         raise EXRError(f"{path}: not a readable EXR file ({exc})") from exc
     data = _channel_stack(path, channels).astype(np.float32)
     (dx0, dy0), (dx1, dy1) = data_window

@@ -15,8 +15,9 @@ import numpy as np  # noqa: E402
 
 from dpi.atomic import atomic_path  # noqa: E402
 from dpi.exr import read_exr  # noqa: E402
-from dpi.images import linear_to_srgb  # noqa: E402
-from dpi.metrics import env_scale, resize_area, tonemap  # noqa: E402
+from dpi.images import linear_to_srgb, luminance  # noqa: E402
+from dpi.exposure import middle_grey_gain  # noqa: E402
+from dpi.metrics import aligned_env, tonemap  # noqa: E402
 
 TEXTURE_NAMES = ("albedo", "roughness", "metallic")
 HELD_OUT_COLOR = "#d62728"
@@ -41,10 +42,11 @@ def _panels(rows: int, columns: int, width: float, height: float) -> np.ndarray:
 
 
 def display_env(env: np.ndarray, reference: np.ndarray | None) -> np.ndarray:
-    """Env map aligned to the reference's scale (when given), Reinhard tone-mapped, gamma 2.2, in [0, 1]."""
+    """Env map aligned to the reference's scale (when given) as the metrics do, else at its own median luminance
+    MIDDLE_GREY, Reinhard tone-mapped, gamma 2.2, in [0, 1]: the same picture at any exposure."""
     if reference is not None:
-        env = env * env_scale(env, resize_area(reference, *env.shape[:2]))
-    return tonemap(env) ** (1 / 2.2)
+        return aligned_env(env, reference)[0] ** (1 / 2.2)
+    return tonemap(middle_grey_gain(luminance(env)) * env) ** (1 / 2.2)
 
 
 def envmap_grid(rows: list[tuple[str, list[Path]]], path: str | Path, reference: Path | None = None) -> None:

@@ -1,4 +1,5 @@
-"""LDR/HDR image files as linear float32 arrays: sRGB PNG/JPG decoding, EXR, masks, PNG output."""
+"""LDR/HDR image files as linear float32 arrays: sRGB PNG/JPG decoding (8 or 16 bits, grey or colour),
+EXR, masks, PNG output."""
 
 from __future__ import annotations
 
@@ -22,6 +23,8 @@ class ImageError(ValueError):
 
 
 REC709_LUMA = (0.2126, 0.7152, 0.0722)
+REC601_LUMA = (0.299, 0.587, 0.114)
+"""the grey of an RGB mask image (as PIL's "L" mode)"""
 
 
 def luminance(rgb: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
@@ -59,6 +62,24 @@ def linear_to_srgb(c: np.ndarray) -> np.ndarray:
     return np.where(c <= 0.0031308, c * 12.92, 1.055 * c ** (1 / 2.4) - 0.055).astype(np.float32)
 
 
+def decode_ldr(path: Path) -> np.ndarray:
+    """A PNG/JPG's code values in [0, 1] at its bit depth (8 or 16), (H, W, C): grey (C = 1), RGB or RGBA."""
+    import cv2
+
+    raw = np.fromfile(path, dtype=np.uint8)
+    if raw.size == 0:
+        raise ImageError(f"{path}: not a readable image (empty file)")
+    data = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED)
+    if data is None:
+        raise ImageError(f"{path}: not a readable image (truncated, or not a {path.suffix.lstrip('.')} file)")
+    if data.dtype not in (np.uint8, np.uint16):
+        raise ImageError(f"{path}: unsupported pixel type {data.dtype} (use 8 or 16 bits per channel)")
+    values = data.astype(np.float32) / np.iinfo(data.dtype).max
+    if values.ndim == 2:
+        return values[..., None]
+    return np.concatenate([values[..., 2::-1], values[..., 3:]], axis=-1)  # OpenCV's BGR(A) -> RGB(A)
+
+
 def read_image(path: str | os.PathLike) -> np.ndarray:
     """Linear RGB float32 (H, W, 3) from an sRGB PNG/JPG or a linear EXR; NaN/Inf is an error."""
     path = Path(path)
@@ -71,12 +92,8 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
         except EXRError as exc:
             raise ImageError(str(exc)) from exc
     elif suffix in LDR_SUFFIXES:
-        try:
-            with Image.open(path) as im:
-                rgb = np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
-        except (OSError, ValueError) as exc:
-            raise ImageError(f"{path}: not a readable image ({exc})") from exc
-        image = srgb_to_linear(rgb)
+        values = decode_ldr(path)
+        image = srgb_to_linear(values[..., :3] if values.shape[-1] >= 3 else values[..., :1])
     else:
         raise ImageError(f"{path}: unsupported image format (use {', '.join(IMAGE_SUFFIXES)})")
     if image.shape[-1] == 1:
@@ -89,7 +106,8 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
 
 
 def read_mask(path: str | os.PathLike) -> np.ndarray:
-    """Boolean foreground mask (H, W) from a PNG/JPG (grey > 127, or alpha when present) or EXR (> 0.5)."""
+    """Boolean foreground mask (H, W) from a PNG/JPG (grey or Rec. 601 luma > 0.5, or alpha when present;
+    8 or 16 bits) or EXR (> 0.5)."""
     path = Path(path)
     if not path.is_file():
         raise ImageError(f"{path}: mask file does not exist")
@@ -98,12 +116,10 @@ def read_mask(path: str | os.PathLike) -> np.ndarray:
             return read_exr(path)[..., 0] > 0.5
         except EXRError as exc:
             raise ImageError(str(exc)) from exc
-    try:
-        with Image.open(path) as im:
-            band = im.getchannel("A") if "A" in im.getbands() else im.convert("L")
-            return np.asarray(band) > 127
-    except (OSError, ValueError) as exc:
-        raise ImageError(f"{path}: not a readable mask image ({exc})") from exc
+    values = decode_ldr(path)
+    if values.shape[-1] == 4:
+        return values[..., 3] > 0.5
+    return (values[..., :3] @ np.array(REC601_LUMA, np.float32) if values.shape[-1] == 3 else values[..., 0]) > 0.5
 
 
 def to_uint8(linear: np.ndarray, exposure: float = 1.0) -> np.ndarray:

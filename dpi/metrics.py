@@ -3,8 +3,11 @@
 Illumination and albedo are only known up to a global scale (a brighter map and a darker
 albedo render the same image), so:
 - env maps are aligned by one global factor s = exp(mean(log Y_gt - log Y_est)) over texels
-  (luminance Y, least squares in log space), then tone-mapped with L / (1 + L) before PSNR/SSIM;
+  (luminance Y, least squares in log space), brought to the reference's exposure-free level (its
+  median luminance at MIDDLE_GREY), then tone-mapped with L / (1 + L) before PSNR/SSIM;
 - albedos are aligned per channel by the least-squares factor sum(est * gt) / sum(est^2).
+Every metric is therefore the same for a capture at any absolute scale, and finite: an exact match
+reports PSNR_CAP.
 """
 
 from __future__ import annotations
@@ -13,18 +16,22 @@ import numpy as np
 import torch
 from skimage.metrics import structural_similarity
 
+from dpi.exposure import middle_grey_gain, robust_level
 from dpi.images import luminance, resize
 
 EPS = 1e-6
+"""log-space guard, relative to a map's level"""
+PSNR_CAP = 100.0
+"""PSNR (dB) reported for an exact match (MSE 1e-10 of the data range squared), instead of infinity"""
 
 
 def psnr(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None = None, data_range: float = 1.0) -> float:
-    """Peak signal-to-noise ratio in dB over all pixels, or the pixels where `mask` is true."""
+    """Peak signal-to-noise ratio in dB over all pixels, or the pixels where `mask` is true; at most PSNR_CAP."""
     diff = (np.asarray(a, np.float64) - np.asarray(b, np.float64)) ** 2
     if mask is not None:
         diff = diff[mask]
     mse = float(diff.mean())
-    return float("inf") if mse == 0 else 10.0 * np.log10(data_range**2 / mse)
+    return PSNR_CAP if mse <= data_range**2 * 10 ** (-PSNR_CAP / 10) else float(10.0 * np.log10(data_range**2 / mse))
 
 
 def ssim(a: np.ndarray, b: np.ndarray, data_range: float = 1.0) -> float:
@@ -41,9 +48,11 @@ def resize_area(image: np.ndarray, height: int, width: int) -> np.ndarray:
 
 
 def env_scale(estimate: np.ndarray, reference: np.ndarray) -> float:
-    """Global factor aligning an env map to a reference (log-space least squares on luminance)."""
+    """Global factor aligning an env map to a reference (log-space least squares on luminance; the guard
+    against black texels is relative to each map's level, so the factor scales exactly with either map)."""
     ye, yr = luminance(estimate), luminance(reference)
-    return float(np.exp(np.mean(np.log(yr + EPS) - np.log(ye + EPS))))
+    guard_e, guard_r = (EPS * (robust_level(y) or 1.0) for y in (ye, yr))
+    return float(np.exp(np.mean(np.log(yr + guard_r) - np.log(ye + guard_e))))
 
 
 def tonemap(radiance: np.ndarray) -> np.ndarray:
@@ -53,10 +62,12 @@ def tonemap(radiance: np.ndarray) -> np.ndarray:
 
 
 def aligned_env(estimate: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """Tone-mapped scale-aligned estimate and reference (resized to the estimate), and the scale."""
+    """Tone-mapped scale-aligned estimate and reference (resized to the estimate), both at the reference's
+    median luminance MIDDLE_GREY, and the scale aligning the estimate to the reference."""
     reference = resize_area(reference, *estimate.shape[:2])
     s = env_scale(estimate, reference)
-    return tonemap(s * estimate), tonemap(reference), s
+    gain = middle_grey_gain(luminance(reference))
+    return tonemap(gain * s * estimate), tonemap(gain * reference), s
 
 
 def env_metrics(estimate: np.ndarray, reference: np.ndarray) -> dict[str, float]:
@@ -74,8 +85,8 @@ def albedo_mse(estimate: np.ndarray, reference: np.ndarray) -> tuple[float, np.n
 
 
 def normalized_env(env: np.ndarray) -> np.ndarray:
-    """Env map divided by its median luminance, tone-mapped: scale-free, for spread across samples."""
-    return tonemap(env / max(float(np.median(luminance(env))), EPS))
+    """Env map divided by its median (positive) luminance, tone-mapped: scale-free, for spread across samples."""
+    return tonemap(env / (robust_level(luminance(env)) or 1.0))
 
 
 def sample_variance(samples: list[np.ndarray]) -> float:

@@ -25,7 +25,6 @@ from dpi.images import linear_to_srgb
 from dpi.metric_table import metric_table, missing_reason, number, read_summary
 from dpi.metrics import psnr
 from dpi.seeding import seed_for
-from dpi.solve.decomposition import Decomposition
 from dpi.solve.problem import InverseProblem
 from dpi.stages import SolveSettings, load_problem
 from dpi.synth.capture import read_marker
@@ -173,7 +172,7 @@ def read_textures(files: dict[str, Path]) -> dict[str, np.ndarray]:
 def rerenders(problem: InverseProblem, scene: str, methods: list[tuple[str, Path]],
               spp: int) -> list[tuple[str, np.ndarray, list[Rerender]]]:
     """Each held-out view re-rendered with each (method, sample folder) as in evaluation (same seeds and spp)."""
-    decompositions = [(m, Decomposition.load(folder, problem.settings.texture_size)) for m, folder in methods]
+    decompositions = [(m, problem.load_decomposition(folder)) for m, folder in methods]
     views = []
     for view in problem.held_out_ids:
         captured, mask = problem.images[view].numpy(), problem.masks[view].numpy()

@@ -15,21 +15,18 @@ from dpi import backend
 from dpi.adaptive import AdaptiveConfig, plan_steps
 from dpi.atomic import write_json
 from dpi.capture import load_capture, read_capture_json, write_capture_json
+from dpi.exposure import MIDDLE_GREY
 from dpi.evaluate import evaluate_sample, sample_rows, summarize, write_csv
 from dpi.render import RenderSettings
 from dpi.seeding import seed_for
-from dpi.solve.classic import ClassicConfig, classic_sample
+from dpi.solve.classic import classic_sample
 from dpi.prior.sample import load_scene_prior, write_grid
-from dpi.solve.decomposition import Decomposition
-from dpi.solve.dip import DIPConfig, dip_sample
-from dpi.solve.dps import DPSConfig, dps_sample
-from dpi.solve.sds import SDSConfig, sds_sample
+from dpi.solve.dip import dip_sample
+from dpi.solve.dps import dps_sample
+from dpi.solve.sds import sds_sample
 from dpi.solve.init import path_traced_init
+from dpi.solve.methods import DIFFUSION_METHODS, method_config
 from dpi.solve.optimize import OptimizeConfig
-from dpi.solve.priors import PRIOR_NAMES
-
-METHODS = (*PRIOR_NAMES, "dip", "dps", "sds")
-DIFFUSION_METHODS = ("dps", "sds")
 from dpi.solve.problem import InverseProblem, ProblemSettings
 
 RESUME_FILE = ".resume.pt"
@@ -63,7 +60,9 @@ def load_problem(capture_json: str | Path, settings: SolveSettings, derived: dic
     from dpi.preprocess.stages import complete_capture
 
     capture = complete_capture(read_capture_json(capture_json), Path(capture_json).parent, derived)
-    return InverseProblem(capture, settings.problem, settings.render)
+    problem = InverseProblem(capture, settings.problem, settings.render)
+    print(f"exposure: images divided by {problem.exposure:.6g} (foreground median at {MIDDLE_GREY})", flush=True)
+    return problem
 
 
 def init_stage(capture_json: str | Path, out_dir: str | Path, scene: str, init_cfg: dict[str, Any],
@@ -73,7 +72,7 @@ def init_stage(capture_json: str | Path, out_dir: str | Path, scene: str, init_c
     result = path_traced_init(problem, OptimizeConfig.from_dict(init_cfg), seed_for(scene, "init"), progress,
                               Path(out_dir) / RESUME_FILE)
     result.trace.info["variant"] = backend.mitsuba().variant()
-    result.save(out_dir, trace_name="log.json")
+    problem.save_decomposition(result, out_dir, trace_name="log.json")
 
 
 def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | Path, scene: str, method: str,
@@ -84,17 +83,16 @@ def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | 
     `dps` and `sds` use the diffusion prior in `prior_checkpoint` (default: the shipped model of the scene's
     family, from scene.yaml's `prior`, else outdoor). `dps` runs fewer steps on a diffuse scene (`adaptive`,
     default AdaptiveConfig()); the decision and its reason are in the trace's info."""
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
+    cfg = method_config(method, method_cfg)
     problem = load_problem(capture_json, settings)
-    init = Decomposition.load(init_dir, settings.problem.texture_size)
+    init = problem.load_decomposition(init_dir)
     seed = seed_for(scene, method, k)
     resume = Path(out_dir) / RESUME_FILE
     if method in DIFFUSION_METHODS:
         prior = load_scene_prior(problem.capture.options, prior_checkpoint)
-        values = {"radiance_scale": problem.capture.options.get("radiance_scale"), **method_cfg}
+        scale = cfg.radiance_scale or problem.capture.options.get("radiance_scale")  # in scene radiance
+        cfg.radiance_scale = None if scale is None else scale / problem.exposure
         if method == "dps":
-            cfg = DPSConfig.from_dict(values)
             requested = cfg.steps
             cfg.steps, reason = plan_steps(init.materials, cfg.steps, adaptive or AdaptiveConfig())
             print(f"adaptive: {reason}", flush=True)
@@ -103,13 +101,13 @@ def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | 
             result.trace.info["adaptive"] = {"steps": cfg.steps, "requested_steps": requested, "reason": reason}
             write_grid(Path(out_dir) / "x0_strip.png", torch.stack(dps.snapshots), columns=len(dps.snapshots))
         else:
-            result = sds_sample(problem, prior, init, SDSConfig.from_dict(values), seed, progress)
+            result = sds_sample(problem, prior, init, cfg, seed, progress)
     elif method == "dip":
-        result = dip_sample(problem, init, DIPConfig.from_dict(method_cfg), seed, progress, resume)
+        result = dip_sample(problem, init, cfg, seed, progress, resume)
     else:
-        result = classic_sample(problem, method, init, ClassicConfig.from_dict(method_cfg), seed, progress, resume)
+        result = classic_sample(problem, method, init, cfg, seed, progress, resume)
     result.trace.info.update({"scene": scene, "k": k})
-    result.save(out_dir)
+    problem.save_decomposition(result, out_dir)
 
 
 def evaluate_stage(capture_json: str | Path, sample_dir: str | Path, out_json: str | Path, scene: str,
@@ -119,7 +117,7 @@ def evaluate_stage(capture_json: str | Path, sample_dir: str | Path, out_json: s
     (scene.yaml `object`, else the scene) and ground-truth env map for the summary's set metrics.
     Naturalness uses the prior in `prior_checkpoint` (default: the shipped model of the scene's family)."""
     problem = load_problem(capture_json, settings)
-    sample = Decomposition.load(sample_dir, settings.problem.texture_size)
+    sample = problem.load_decomposition(sample_dir)
     traces = [Path(sample_dir) / name for name in ("trace.json", "log.json") if (Path(sample_dir) / name).is_file()]
     seconds = json.loads(traces[0].read_text())["summary"]["seconds"] if traces else None
     prior = load_scene_prior(problem.capture.options, prior_checkpoint)

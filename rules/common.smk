@@ -5,15 +5,17 @@ from pathlib import Path
 
 from snakemake.utils import validate
 
-import yaml
 
 from dpi.adaptive import AdaptiveConfig, stop_rule_applies
-from dpi.capture import inspect_capture
+from dpi.capture import inspect_capture, read_scene_options
+from dpi.config_validation import check_config
 from dpi.prior.sample import DEFAULT_MODELS
 from dpi.settings import apply_preset
+from dpi.solve.methods import METHODS as KNOWN_METHODS
 
 apply_preset(config)  # the quality preset fills what the config leaves unset
-validate(config, "config.schema.yaml")
+check_config(config, workflow.source_path("config.schema.yaml"))  # one message with the key's path, before any job
+validate(config, "config.schema.yaml")  # fills the schema's defaults
 
 ADAPTIVE = config["adaptive"]
 ADAPTIVE_CONFIG = AdaptiveConfig.from_dict(ADAPTIVE)
@@ -25,7 +27,7 @@ METHODS = config["methods"]
 
 wildcard_constraints:
     scene=r"[^/]+",
-    method="|".join(["none", "global_norm", "smoothness", "chromaticity", "dip", "dps", "sds"]),
+    method="|".join(KNOWN_METHODS),
     k=r"\d+",
 
 
@@ -46,6 +48,10 @@ def given(scene):
         have = not config["synthetic"][scene].get("photos_only", False)
         return {"cameras": have, "masks": have, "mesh": have, "mesh_has_uv": have}
     return inspect_capture(capture_dir(scene))
+
+
+for _scene in SCENES:
+    given(_scene)  # reads each capture's layout and scene.yaml now: a bad one stops before the DAG is built
 
 
 def capture_files(wildcards):
@@ -95,9 +101,7 @@ def scene_family(scene):
     """Prior family of a scene: `prior` of its synthetic entry or scene.yaml, else the configured default."""
     if is_synthetic(scene):
         return config["synthetic"][scene].get("prior", config["illumination_prior"]["family"])
-    options = capture_dir(scene) / "scene.yaml"
-    data = yaml.safe_load(options.read_text()) if options.is_file() else None
-    return (data or {}).get("prior", config["illumination_prior"]["family"])
+    return read_scene_options(capture_dir(scene)).get("prior", config["illumination_prior"]["family"])
 
 
 def scene_prior(wildcards):

@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import pytest
 
-from dpi.settings import apply_preset, settings_from_dict
+from dpi.settings import SettingsError, apply_preset, settings_from_dict
 
 PRESETS = {"draft": {"render": {"spp": 4}, "method_params": {"dps": {"steps": 25, "refine_iterations": 50}}},
            "paper": {"render": {"spp": 64}, "problem": {"env_height": 64}}}
@@ -34,11 +34,41 @@ def test_unknown_preset_names_the_defined_ones():
         apply_preset({"preset": "fast", "presets": PRESETS})
 
 
-def test_settings_from_dict_rejects_unknown_keys():
-    @dataclass
-    class S:
-        a: int = 1
+@dataclass
+class S:
+    a: int = 1
+    steps: int = 10
+    lr_env: float = 0.1
+    scale: float | None = None
+    names: tuple[str, ...] = ()
 
+
+def test_settings_from_dict_rejects_unknown_keys_naming_the_closest():
     assert settings_from_dict(S, {"a": 2}).a == 2
-    with pytest.raises(ValueError, match="unknown S settings \\['b'\\]; valid: a"):
+    with pytest.raises(SettingsError, match=r"^b: unknown S setting \(valid: a, lr_env, names, scale, steps\)$"):
         settings_from_dict(S, {"b": 1})
+    with pytest.raises(SettingsError, match=r"^stepz: unknown S setting; did you mean 'steps'\?") as info:
+        settings_from_dict(S, {"stepz": 1})
+    assert info.value.key == "stepz"
+
+
+@pytest.mark.parametrize("values,message", [
+    ({"steps": 0}, "steps: must be >= 1, got 0"),
+    ({"steps": -5}, "steps: must be >= 1, got -5"),
+    ({"steps": 2.5}, "steps: must be an integer, got 2.5"),
+    ({"steps": True}, "steps: must be an integer, got True"),
+    ({"lr_env": 0}, "lr_env: must be > 0, got 0"),
+    ({"lr_env": float("nan")}, "lr_env: must be a finite number, got nan"),
+    ({"lr_env": "fast"}, "lr_env: must be a number, got 'fast'"),
+    ({"scale": "x"}, "scale: must be a number or null, got 'x'"),
+    ({"names": ["a", 1]}, "names: must be a list of a string, got ['a', 1]"),
+])
+def test_settings_values_are_checked_by_type_and_field_bounds(values, message):
+    with pytest.raises(SettingsError) as info:
+        settings_from_dict(S, values)
+    assert str(info.value) == message
+
+
+def test_valid_values_pass_and_ints_count_as_numbers():
+    s = settings_from_dict(S, {"steps": 1, "lr_env": 1, "scale": None, "names": ["a"]})
+    assert (s.steps, s.lr_env, s.scale, s.names) == (1, 1, None, ["a"])

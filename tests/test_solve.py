@@ -95,14 +95,14 @@ def test_dip_network_is_seamless_seeded_and_shaped():
         assert (DeepImagePrior(8, torch.zeros(3), cfg, seed=2)() - out).abs().max() > 1e-3
     with pytest.raises(ValueError, match="even"):
         DeepImagePrior(5, torch.zeros(3), cfg, seed=1)
-    with pytest.raises(ValueError, match="unknown DIPConfig settings"):
+    with pytest.raises(ValueError, match="chanels: unknown DIPConfig setting; did you mean 'channels'"):
         DIPConfig.from_dict({"iterations": 3, "chanels": 8})
     assert DIPConfig.from_dict({"iterations": 3, "channels": 8}).optimize.iterations == 3
 
 
 def test_dip_lowers_the_data_loss(problem):
     init = path_traced_init(problem, OptimizeConfig(iterations=2), seed=0, progress=False)
-    cfg = DIPConfig(optimize=OptimizeConfig(iterations=10, views_per_step=4, lr_env=3e-2), channels=8,
+    cfg = DIPConfig(optimize=OptimizeConfig(iterations=15, views_per_step=4, lr_env=3e-2), channels=8,
                     code_channels=4, warmup_iterations=20)
     result = dip_sample(problem, init, cfg, seed=5, progress=False)
     losses = [s["data"] for s in result.trace.steps]

@@ -92,10 +92,10 @@ def run_key(*parts: Any) -> str:
 
 
 def problem_identity(problem: InverseProblem) -> dict[str, Any]:
-    """What of the inverse problem a run's result depends on besides its starting tensors: views,
-    unknowns' resolution, loss space and the renderer's sampling (not its thread count)."""
+    """What of the inverse problem a run's result depends on besides its starting tensors: views, their
+    exposure, unknowns' resolution, loss space and the renderer's sampling (not its thread count)."""
     render = problem.renderer.settings
-    return {"views": [v.name for v in problem.views], "settings": vars(problem.settings),
+    return {"views": [v.name for v in problem.views], "exposure": problem.exposure, "settings": vars(problem.settings),
             "spp": render.spp, "max_depth": render.max_depth}
 
 

@@ -20,6 +20,10 @@ class Decomposition:
     materials: MaterialTextures
     trace: Trace | None = field(default=None, repr=False)
 
+    def scaled(self, factor: float) -> "Decomposition":
+        """The same decomposition with the env map's radiance times `factor` (materials are scale-free)."""
+        return Decomposition(self.env * factor, self.materials, self.trace)
+
     def save(self, folder: str | Path, trace_name: str = "trace.json") -> None:
         """Write envmap.exr, albedo/roughness/metallic.exr and the trace into `folder`."""
         folder = Path(folder)

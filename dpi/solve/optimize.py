@@ -20,7 +20,7 @@ import torch
 from tqdm import tqdm
 
 from dpi.materials import MaterialTextures
-from dpi.settings import settings_from_dict
+from dpi.settings import check_keys, check_values, settings_from_dict
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
@@ -52,7 +52,7 @@ class OptimizeConfig:
     def from_dict(cls, values: dict) -> "OptimizeConfig":
         """Config from a config.yaml section (lists become tuples)."""
         values = dict(values)
-        if "optimize_materials" in values:
+        if isinstance(values.get("optimize_materials"), list):
             values["optimize_materials"] = tuple(values["optimize_materials"])
         return settings_from_dict(cls, values)
 
@@ -62,15 +62,15 @@ MethodConfig = TypeVar("MethodConfig")
 
 def method_config_from_dict(cls: type[MethodConfig], values: dict[str, Any] | None) -> MethodConfig:
     """A method's config dataclass, whose `optimize` field is an OptimizeConfig, from one flat dict
-    (a `method_params` entry): its own keys by name, the rest for OptimizeConfig; unknown keys are an error."""
+    (a `method_params` entry): its own keys by name, the rest for OptimizeConfig; unknown keys, wrong
+    types and out-of-range values are errors (dpi.settings)."""
     values = dict(values or {})
     own = {f.name for f in fields(cls)} - {"optimize"}
-    known = own | {f.name for f in fields(OptimizeConfig)}
-    unknown = sorted(set(values) - known)
-    if unknown:
-        raise ValueError(f"unknown {cls.__name__} settings {unknown}; valid: {', '.join(sorted(known))}")
+    check_keys(values, own | {f.name for f in fields(OptimizeConfig)}, f"{cls.__name__} setting")
+    mine = {k: v for k, v in values.items() if k in own}
+    check_values(cls, mine)
     optimize = OptimizeConfig.from_dict({k: v for k, v in values.items() if k not in own})
-    return cls(optimize=optimize, **{k: v for k, v in values.items() if k in own})
+    return cls(optimize=optimize, **mine)
 
 
 def flat_config(cfg: Any) -> dict[str, Any]:

@@ -1,20 +1,26 @@
 """The inverse-rendering problem of one capture: observed views, masks, and the renderer R.
 
 Everything a solver needs to evaluate the data term ||y_i - R(env, materials, c_i)||^2 over
-masked foreground pixels, for any subset of training views.
+masked foreground pixels, for any subset of training views. The images are held in normalised
+units (divided by the capture's `exposure`, see dpi.exposure), so every decomposition a solver
+works on is too; decomposition files hold scene radiance, and `load_decomposition` /
+`save_decomposition` convert at that boundary.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import torch
 
 from dpi.capture import Capture
+from dpi.exposure import MIDDLE_GREY, capture_exposure
 from dpi.images import read_image, read_mask
 from dpi.materials import MaterialTextures
 from dpi.render import Renderer, RenderSettings
+from dpi.solve.decomposition import Decomposition
 
 LOSS_SPACES = ("linear", "log1p")
 
@@ -61,6 +67,33 @@ class InverseProblem:
         self.held_out_ids = [i for i, v in enumerate(self.views) if v.held_out]
         if not self.train_ids:
             raise ValueError(f"{capture.root}: every view is held out; nothing to fit")
+        self.exposure = capture_exposure([self.images[i] for i in self.train_ids],
+                                         [self.masks[i] for i in self.train_ids], str(capture.root))
+        """scene radiance per normalised unit: the images are divided by it"""
+        self.images = [image / self.exposure for image in self.images]
+
+    def to_solver_units(self, decomposition: Decomposition) -> Decomposition:
+        """A decomposition in scene radiance in the problem's normalised units."""
+        return decomposition.scaled(1.0 / self.exposure)
+
+    def to_scene_units(self, decomposition: Decomposition) -> Decomposition:
+        """A decomposition in the problem's normalised units in scene radiance."""
+        return decomposition.scaled(self.exposure)
+
+    def load_decomposition(self, folder: str | Path) -> Decomposition:
+        """A decomposition folder (scene radiance) in normalised units, textures at the problem's size."""
+        return self.to_solver_units(Decomposition.load(folder, self.settings.texture_size))
+
+    def save_decomposition(self, decomposition: Decomposition, folder: str | Path,
+                           trace_name: str = "trace.json") -> None:
+        """Write a decomposition found in normalised units at scene radiance; its trace records the exposure."""
+        if decomposition.trace is not None:
+            decomposition.trace.info["exposure"] = {
+                "scale": self.exposure,
+                "definition": f"median positive foreground luminance of the training views / {MIDDLE_GREY}; "
+                              "the solver saw the images divided by it (radiances in this trace are in those "
+                              "units), the env map is written multiplied by it"}
+        self.to_scene_units(decomposition).save(folder, trace_name)
 
     def render(self, env: torch.Tensor, materials: MaterialTextures, view: int, seed: int,
                spp: int | None = None) -> torch.Tensor:

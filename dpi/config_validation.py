@@ -1,0 +1,128 @@
+"""The workflow config checked before any job runs, with the offending key's path in the one message.
+
+Two passes, both before Snakemake builds the DAG (rules/common.smk):
+1. the JSON schema (rules/config.schema.yaml), closed at every level, so a typo anywhere is an
+   unknown key with the closest valid one suggested;
+2. every section a settings dataclass owns is built by it: `method_params.{method}` by that
+   method's config (dpi.solve.methods, so new dataclass fields are accepted without touching the
+   schema), `synthetic.{scene}` by SynthConfig, `preprocess.{stage}` by the stage's config, `init`
+   and `adaptive` by theirs; each dataclass checks types, ranges (dpi.settings) and its own values.
+The quality presets are checked the same way, whether chosen or not.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import yaml
+from jsonschema import Draft202012Validator
+from jsonschema.exceptions import ValidationError, best_match
+
+from dpi.adaptive import AdaptiveConfig
+from dpi.capture import PRIORS
+from dpi.preprocess.geometry import GeometryConfig
+from dpi.preprocess.masks import MaskConfig
+from dpi.preprocess.sfm import SfMConfig
+from dpi.preprocess.uv import UVConfig
+from dpi.settings import SettingsError, check_keys, settings_from_dict
+from dpi.solve.methods import METHODS, method_config
+from dpi.solve.optimize import OptimizeConfig
+from dpi.synth.capture import SynthConfig
+
+SECTION_SETTINGS: dict[str, Callable[[dict], Any]] = {
+    "init": OptimizeConfig.from_dict,
+    "adaptive": AdaptiveConfig.from_dict,
+    **{f"preprocess.{stage}": partial(settings_from_dict, cls)
+       for stage, cls in (("sfm", SfMConfig), ("masks", MaskConfig), ("geometry", GeometryConfig), ("uv", UVConfig))},
+}
+"""config sections (key paths) built by one settings dataclass each"""
+
+
+class ConfigError(ValueError):
+    """The workflow config is invalid; the message starts with the key's path (`method_params.dps.steps: ...`)."""
+
+
+def check_config(config: dict[str, Any], schema_path: str | Path) -> None:
+    """Raise one ConfigError for the first problem of any quality preset of `config`, then of `config` itself
+    (the chosen preset applied)."""
+    schema = yaml.safe_load(Path(schema_path).read_text())
+    partial = {k: v for k, v in schema.items() if k != "required"}
+    for name, preset in config.get("presets", {}).items():
+        check_against(preset, partial, f"presets.{name}")
+    check_against(config, schema, "")
+
+
+def check_against(config: dict[str, Any], schema: dict[str, Any], prefix: str) -> None:
+    """The schema pass, then the settings dataclasses, on a config (or a preset's part of one at `prefix`)."""
+    error = best_match(Draft202012Validator(schema).iter_errors(config))
+    if error is not None:
+        raise ConfigError(schema_message(error, prefix))
+    check_methods(config, prefix)
+    for scene, entry in config.get("synthetic", {}).items():
+        where = join(prefix, "synthetic", scene)
+        build(SynthConfig.from_dict, entry, where)
+        if "prior" in entry and entry["prior"] not in PRIORS:
+            raise ConfigError(f"{where}.prior: must be one of {', '.join(PRIORS)}, got {entry['prior']!r}")
+    for path, make in SECTION_SETTINGS.items():
+        values = section(config, path)
+        if values is not None:
+            build(make, values, join(prefix, path))
+
+
+def check_methods(config: dict[str, Any], prefix: str) -> None:
+    """Every method listed or under method_params is known, and its entry (less `samples`) builds its settings."""
+    for i, method in enumerate(config.get("methods", [])):
+        try:
+            check_keys([method], METHODS, "method")
+        except SettingsError as exc:
+            raise ConfigError(f"{join(prefix, 'methods', str(i))}: {method!r} is an {exc.problem}") from None
+    params = config.get("method_params", {})
+    wrap(lambda: check_keys(params, METHODS, "method"), join(prefix, "method_params"))
+    for method, values in params.items():
+        build(lambda v, m=method: method_config(m, v), {k: v for k, v in values.items() if k != "samples"},
+              join(prefix, "method_params", method))
+
+
+def build(make: Callable[[dict], Any], values: dict[str, Any], where: str) -> None:
+    """Build a section's settings with `make`; its errors become ConfigErrors at the section's key path."""
+    wrap(lambda: make(values), where)
+
+
+def wrap(check: Callable[[], Any], where: str) -> None:
+    """Run `check`; a SettingsError becomes a ConfigError at `where`.key, another ValueError or TypeError one
+    at `where`."""
+    try:
+        check()
+    except SettingsError as exc:
+        raise ConfigError(f"{join(where, exc.key)}: {exc.problem}") from None
+    except (ValueError, TypeError) as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+
+
+def schema_message(error: ValidationError, prefix: str) -> str:
+    """A schema violation as `key.path: problem`; an unknown key names the closest valid one."""
+    where = join(prefix, *(str(p) for p in error.absolute_path))
+    if error.validator == "additionalProperties":
+        known = error.schema.get("properties", {})
+        try:
+            check_keys(error.instance, known, "key")
+        except SettingsError as exc:
+            return f"{join(where, exc.key)}: {exc.problem}"
+    return f"{where or 'config'}: {error.message}"
+
+
+def section(config: dict[str, Any], path: str) -> dict[str, Any] | None:
+    """The dict at a dotted key path of the config, or None where it is absent."""
+    for key in path.split("."):
+        if not isinstance(config, dict) or key not in config:
+            return None
+        config = config[key]
+    return config
+
+
+def join(*parts: str) -> str:
+    """A dotted key path of the non-empty parts."""
+    return ".".join(p for p in parts if p)

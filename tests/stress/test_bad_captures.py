@@ -1,0 +1,342 @@
+"""Bad and unusual capture inputs with known answers: PNGs of every bit depth and colour type read as
+their 8-bit copy does; truncated files, non-rigid or non-finite cameras, bad intrinsics, broken meshes,
+images without signal and bad scene.yaml each stop with one CaptureError naming the file, and leave
+no capture.json behind."""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+from typing import Callable
+
+import cv2
+import numpy as np
+import pytest
+import trimesh
+from capture_helpers import NAMES, SIZE, edit_transforms, make_capture, raw_exr
+
+from dpi.capture import CaptureError, CaptureWarning, inspect_capture, load_capture, read_scene_options
+from dpi.exposure import capture_exposure
+from dpi.cameras import to_mitsuba
+from dpi.images import read_image, read_mask
+from dpi.stages import capture_stage
+
+RNG = np.random.default_rng(7)
+CODES = RNG.integers(0, 256, (SIZE, SIZE, 3), dtype=np.uint8)
+"""8-bit code values of the reference copy; the 16-bit versions hold code * 257 (the same fraction of white)"""
+
+
+def write_cv2(path: Path, codes: np.ndarray) -> Path:
+    """Write RGB(A) or grey code values (uint8 or uint16) as a PNG through OpenCV (BGR order on disk)."""
+    data = codes[..., [2, 1, 0, *range(3, codes.shape[-1])]] if codes.ndim == 3 else codes
+    assert cv2.imwrite(str(path), data)
+    return path
+
+
+def grey(codes: np.ndarray) -> np.ndarray:
+    """The first channel, as a grey image."""
+    return codes[..., 0]
+
+
+def with_alpha(codes: np.ndarray) -> np.ndarray:
+    """Codes with an opaque alpha channel of the same depth."""
+    return np.concatenate([codes, np.full(codes.shape[:2] + (1,), np.iinfo(codes.dtype).max, codes.dtype)], -1)
+
+
+def pil_save(mode: str) -> Callable[[Path, np.ndarray], Path]:
+    """A writer that saves 8-bit RGB codes through PIL in another mode (exact palette, 1-bit, grey + alpha)."""
+    def save(path: Path, codes: np.ndarray) -> Path:
+        from PIL import Image
+
+        rgb = Image.fromarray(codes)
+        (rgb.convert("P", palette=Image.Palette.ADAPTIVE) if mode == "P" else rgb.convert(mode)).save(path)
+        return path
+    return save
+
+
+WIDE = CODES.astype(np.uint16) * 257
+GREY3 = np.repeat(CODES[..., :1], 3, -1)
+BLACK_WHITE = np.where(GREY3 > 127, 255, 0).astype(np.uint8)
+FOUR_COLOURS = CODES // 64 * 85
+VARIANTS = {  # name: (write the variant, the 8-bit RGB codes it must read as)
+    "16-bit grey": (lambda p: write_cv2(p, grey(WIDE)), GREY3),
+    "16-bit RGB": (lambda p: write_cv2(p, WIDE), CODES),
+    "16-bit RGBA": (lambda p: write_cv2(p, with_alpha(WIDE)), CODES),
+    "8-bit grey": (lambda p: write_cv2(p, grey(CODES)), GREY3),
+    "8-bit RGBA": (lambda p: write_cv2(p, with_alpha(CODES)), CODES),
+    "8-bit grey + alpha": (lambda p: pil_save("LA")(p, GREY3), GREY3),
+    "palette": (lambda p: pil_save("P")(p, FOUR_COLOURS[..., :1].repeat(3, -1)), FOUR_COLOURS[..., :1].repeat(3, -1)),
+    "1-bit": (lambda p: pil_save("1")(p, BLACK_WHITE), BLACK_WHITE),
+}
+
+
+@pytest.mark.parametrize("variant", list(VARIANTS))
+def test_png_variants_read_as_their_8_bit_copy(tmp_path, variant):
+    """Every PNG bit depth and colour type decodes to the linear values of its 8-bit RGB copy."""
+    write, codes = VARIANTS[variant]
+    copy = write_cv2(tmp_path / "copy.png", codes)
+    np.testing.assert_allclose(read_image(write(tmp_path / "variant.png")), read_image(copy), atol=1e-6)
+
+
+def test_16_bit_precision_is_kept(tmp_path):
+    """A 16-bit code between two 8-bit ones reads at its own value (1000 / 65535 is not a multiple of 1/255)."""
+    values = read_image(write_cv2(tmp_path / "g.png", np.full((4, 4), 1000, np.uint16)))
+    assert values[0, 0, 0] == pytest.approx((1000 / 65535) / 12.92, rel=1e-6)
+
+
+def test_16_bit_grey_capture_reads_like_its_8_bit_copy(tmp_path):
+    """The reported bug: a 16-bit grey capture read every pixel as 1.0; it must read as the 8-bit grey copy."""
+    shades = np.full((SIZE, SIZE), 95, np.uint8)  # 0.115 linear
+    shades[:2] = 40
+    for depth, codes in (("8", shades), ("16", shades.astype(np.uint16) * 257)):
+        root = make_capture(tmp_path / depth)
+        for name in NAMES[:2]:
+            write_cv2(root / "images" / f"{name}.png", codes)
+        first = load_capture(root).views[0].image
+        assert float(np.median(read_image(first))) == pytest.approx(0.1144, abs=2e-4)
+    np.testing.assert_array_equal(read_image(tmp_path / "8" / "images" / "r_0.png"),
+                                  read_image(tmp_path / "16" / "images" / "r_0.png"))
+
+
+def test_16_bit_mask_matches_its_8_bit_copy(tmp_path):
+    """A 16-bit mask thresholds at half of white, as the 8-bit one does at 127."""
+    mask = np.where(CODES[..., 0] > 127, 255, 0).astype(np.uint8)
+    np.testing.assert_array_equal(read_mask(write_cv2(tmp_path / "m16.png", mask.astype(np.uint16) * 257)),
+                                  read_mask(write_cv2(tmp_path / "m8.png", mask)))
+
+
+# --- one CaptureError naming the file -------------------------------------------------------------
+
+
+def truncate(path: Path, keep: float) -> None:
+    """Cut a file to a fraction of its bytes."""
+    data = path.read_bytes()
+    path.write_bytes(data[: int(len(data) * keep)])
+
+
+def set_frame(key: str, value, frame: int = 0) -> Callable[[Path], None]:
+    """An edit of transforms.json setting one key of one frame."""
+    def edit(root: Path) -> None:
+        edit_transforms(root, lambda data: data["frames"][frame].__setitem__(key, value))
+    return edit
+
+
+def set_rotation(transform: Callable[[np.ndarray], np.ndarray]) -> Callable[[Path], None]:
+    """An edit of transforms.json replacing frame 0's camera-to-world matrix by transform(matrix)."""
+    def edit(root: Path) -> None:
+        def change(data: dict) -> None:
+            data["frames"][0]["transform_matrix"] = transform(np.array(data["frames"][0]["transform_matrix"])).tolist()
+        edit_transforms(root, change)
+    return edit
+
+
+def with_columns(scales: tuple[float, float, float]) -> Callable[[np.ndarray], np.ndarray]:
+    """The rotation's columns multiplied by scales (0: singular, equal columns: rank-deficient, -1: reflection)."""
+    def change(c2w: np.ndarray) -> np.ndarray:
+        c2w[:3, :3] = c2w[:3, :3] * np.array(scales)
+        return c2w
+    return change
+
+
+def sheared(c2w: np.ndarray) -> np.ndarray:
+    """The first rotation column tilted towards the second."""
+    c2w[:3, 0] += 0.3 * c2w[:3, 1]
+    return c2w
+
+
+def rank_deficient(c2w: np.ndarray) -> np.ndarray:
+    """Two equal rotation columns."""
+    c2w[:3, 2] = c2w[:3, 1]
+    return c2w
+
+
+def entry(row: int, col: int, value: float) -> Callable[[np.ndarray], np.ndarray]:
+    """One matrix entry replaced."""
+    def change(c2w: np.ndarray) -> np.ndarray:
+        c2w[row, col] = value
+        return c2w
+    return change
+
+
+def nerf_synthetic(angle: float) -> Callable[[Path], None]:
+    """transforms.json with only camera_angle_x for the intrinsics (NeRF-synthetic)."""
+    def edit(root: Path) -> None:
+        def change(data: dict) -> None:
+            for frame in data["frames"]:
+                for key in ("fl_x", "fl_y", "cx", "cy"):
+                    frame.pop(key)
+            data["camera_angle_x"] = angle
+        edit_transforms(root, change)
+    return edit
+
+
+def write_mesh(vertices: np.ndarray, encoding: str) -> Callable[[Path], None]:
+    """Replace mesh.ply by a tetrahedron-like mesh with the given vertices (ascii or binary PLY)."""
+    def edit(root: Path) -> None:
+        mesh = trimesh.Trimesh(vertices, [[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]], process=False)
+        (root / "mesh.ply").write_bytes(mesh.export(file_type="ply", encoding=encoding))
+    return edit
+
+
+TETRA = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+NAN_TETRA = np.where(np.arange(12).reshape(4, 3) == 4, np.nan, TETRA)
+
+
+def obj_mesh(text: str) -> Callable[[Path], None]:
+    """Replace mesh.ply by an OBJ file with the given text."""
+    def edit(root: Path) -> None:
+        (root / "mesh.ply").unlink()
+        (root / "mesh.obj").write_text(text)
+    return edit
+
+
+def ascii_ply_with_faces(faces: str) -> Callable[[Path], None]:
+    """An ASCII PLY of three vertices with the given face lines."""
+    def edit(root: Path) -> None:
+        (root / "mesh.ply").write_text(
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+            f"element face {faces.count(chr(10))}\nproperty list uchar int vertex_indices\nend_header\n"
+            "0 0 0\n1 0 0\n0 1 0\n" + faces)
+    return edit
+
+
+def fill_png(name: str, codes: int) -> Callable[[Path], None]:
+    """An 8-bit PNG image of one code value everywhere."""
+    return lambda root: write_cv2(root / "images" / f"{name}.png", np.full((SIZE, SIZE, 3), codes, np.uint8))
+
+
+BROKEN = {  # case: (break the capture, file the message starts with, words it contains)
+    "truncated exr (half)": (lambda r: truncate(r / "images" / "r_2.exr", 0.5), "r_2.exr", "not a readable EXR"),
+    "truncated exr (last byte)": (lambda r: truncate(r / "images" / "r_3.exr", 0.999), "r_3.exr", "not a readable EXR"),
+    "truncated exr (header)": (lambda r: truncate(r / "images" / "r_2.exr", 0.05), "r_2.exr", "not a readable EXR"),
+    "empty exr": (lambda r: truncate(r / "images" / "r_2.exr", 0), "r_2.exr", "not a readable EXR"),
+    "truncated gt exr": (lambda r: truncate(r / "gt" / "envmap.exr", 0.5), "envmap.exr", "not a readable EXR"),
+    "truncated png": (lambda r: truncate(r / "images" / "r_0.png", 0.5), "r_0.png", "not a readable image"),
+    "empty png": (lambda r: truncate(r / "images" / "r_1.png", 0), "r_1.png", "not a readable image"),
+    "truncated mask": (lambda r: truncate(r / "masks" / "r_1.png", 0.5), "r_1.png", "not a readable image"),
+    "singular rotation": (set_rotation(with_columns((0, 0, 0))), "transforms.json", "not orthonormal"),
+    "rank-deficient rotation": (set_rotation(rank_deficient), "transforms.json", "not orthonormal"),
+    "scaled rotation": (set_rotation(with_columns((2, 2, 2))), "transforms.json", "scaled, sheared or singular"),
+    "slightly scaled rotation": (set_rotation(with_columns((1.01, 1, 1))), "transforms.json", "not orthonormal"),
+    "sheared rotation": (set_rotation(sheared), "transforms.json", "not orthonormal"),
+    "reflection": (set_rotation(with_columns((-1, 1, 1))), "transforms.json", "reflection"),
+    "nan in matrix": (set_rotation(entry(1, 1, np.nan)), "transforms.json", "finite"),
+    "inf translation": (set_rotation(entry(2, 3, np.inf)), "transforms.json", "finite"),
+    "bad last row": (set_rotation(entry(3, 0, 0.5)), "transforms.json", "last row"),
+    "focal 0": (set_frame("fl_x", 0.0), "transforms.json", "focal length must be positive"),
+    "negative focal": (set_frame("fl_x", -20.0), "transforms.json", "focal length must be positive"),
+    "negative fl_y": (set_frame("fl_y", -20.0), "transforms.json", "focal length must be positive"),
+    "nan focal": (set_frame("fl_x", np.nan), "transforms.json", "intrinsics must be finite"),
+    "nan principal point": (set_frame("cx", np.nan), "transforms.json", "intrinsics must be finite"),
+    "non-square pixels": (set_frame("fl_y", 30.0), "transforms.json", "pixels must be square"),
+    "focal not a number": (set_frame("fl_x", "wide"), "transforms.json", "invalid camera"),
+    "zero width": (set_frame("w", 0), "transforms.json", "image size must be positive, got 0x8"),
+    "camera_angle_x 0": (nerf_synthetic(0.0), "transforms.json", "camera_angle_x must be in (0, pi)"),
+    "camera_angle_x pi": (nerf_synthetic(np.pi), "transforms.json", "camera_angle_x must be in (0, pi)"),
+    "nan vertex, ascii ply": (write_mesh(NAN_TETRA, "ascii"), "mesh.ply", "NaN or Inf coordinates"),
+    "nan vertex, binary ply": (write_mesh(NAN_TETRA, "binary"), "mesh.ply", "NaN or Inf coordinates"),
+    "inf vertex, obj": (obj_mesh("v 0 0 0\nv inf 0 0\nv 0 1 0\nf 1 2 3\n"), "mesh.obj", "NaN or Inf"),
+    "nan uv, obj": (obj_mesh("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt nan 0\nvt 0 1\nf 1/1 2/2 3/3\n"), "mesh.obj",
+                    "UVs contain NaN"),
+    "face index out of range": (ascii_ply_with_faces("3 0 1 7\n"), "mesh.ply", "outside 0..2"),
+    "all-black png": (fill_png("r_0", 0), "r_0.png", "all black"),
+    "all-black exr": (lambda r: raw_exr(r / "images" / "r_2.exr", np.zeros((SIZE, SIZE, 3))), "r_2.exr", "all black"),
+    "all-saturated png": (fill_png("r_1", 255), "r_1.png", "every pixel is clipped"),
+    "constant exr": (lambda r: raw_exr(r / "images" / "r_3.exr", np.full((SIZE, SIZE, 3), 7.0)), "r_3.exr",
+                     "every pixel is clipped at 7"),
+    "scene.yaml not UTF-8": (lambda r: (r / "scene.yaml").write_bytes(b"prior: \xff\xfe\n"), "scene.yaml", "UTF-8"),
+}
+
+
+@pytest.mark.parametrize("case", list(BROKEN))
+def test_broken_capture_stops_with_one_error_naming_the_file(tmp_path, case):
+    """load_capture raises one single-line CaptureError that starts with the file; capture.json is not written."""
+    break_capture, file_name, words = BROKEN[case]
+    root = make_capture(tmp_path / "scene")
+    break_capture(root)
+    out = tmp_path / "results" / "capture.json"
+    with pytest.raises(CaptureError) as info:
+        capture_stage(root, out)
+    message = str(info.value)
+    assert message.split(":")[0].endswith(file_name) and words in message and "\n" not in message, message
+    assert not out.parent.exists()
+
+
+def test_nearly_orthonormal_cameras_pass(tmp_path, mi):
+    """Rounding noise of 1e-5 in a pose (printed with few digits) is not an error, and Mitsuba accepts it."""
+    root = make_capture(tmp_path / "scene")
+    set_rotation(noisy)(root)
+    assert to_mitsuba(load_capture(root).views[0].camera)["fov"] == pytest.approx(40.0, rel=1e-3)
+
+
+def noisy(c2w: np.ndarray) -> np.ndarray:
+    """The rotation with 1e-5 of seeded noise on every entry."""
+    c2w[:3, :3] += 1e-5 * np.random.default_rng(0).standard_normal((3, 3))
+    return c2w
+
+
+def test_partly_clipped_png_warns_with_the_clipped_fraction(tmp_path):
+    """A quarter of the pixels at white: usable, with a warning that says 25.0%."""
+    root = make_capture(tmp_path / "scene")
+    codes = np.full((SIZE, SIZE, 3), 100, np.uint8)
+    codes[:2, :, 1] = 255  # one channel at white clips the pixel
+    write_cv2(root / "images" / "r_0.png", codes)
+    with pytest.warns(CaptureWarning, match=r"r_0\.png: 25\.0% of the pixels are clipped at white"):
+        load_capture(root)
+
+
+def test_a_few_white_pixels_do_not_warn(tmp_path):
+    """Below 1% of white pixels (a specular glint) passes silently."""
+    (tmp_path / "images").mkdir()
+    codes = np.full((128, 128, 3), 100, np.uint8)
+    codes[0, :100] = 255
+    for name in NAMES:
+        write_cv2(tmp_path / "images" / f"{name}.png", codes)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", CaptureWarning)
+        assert load_capture(tmp_path).image_size == (128, 128)
+
+
+def test_black_foreground_everywhere_names_the_capture():
+    """Images black under every mask leave no exposure to normalise by: an error naming the capture."""
+    import torch
+
+    images = [torch.zeros(4, 4, 3), torch.ones(4, 4, 3)]
+    masks = [torch.ones(4, 4, dtype=torch.bool), torch.zeros(4, 4, dtype=torch.bool)]
+    with pytest.raises(ValueError, match=r"^captures/x: every foreground pixel of the training views is black"):
+        capture_exposure(images, masks, "captures/x")
+
+
+# --- scene.yaml, read before the workflow builds its DAG --------------------------------------
+
+
+SCENE_YAML = {
+    "invalid yaml": ("prior: [indoor\n", "invalid YAML (expected ',' or ']'"),
+    "unknown prior family": ("prior: martian\n", "prior must be one of indoor, outdoor, got 'martian'"),
+    "not a mapping": ("- indoor\n", "not a mapping"),
+    "unknown key": ("prior: indoor\npriors: outdoor\n", "unknown keys ['priors']"),
+    "bad held_out": ("held_out: r_0\n", "held_out must be a list"),
+    "zero focal": ("focal_length_px: 0\n", "focal_length_px must be a positive number"),
+}
+
+
+@pytest.mark.parametrize("case", list(SCENE_YAML))
+def test_bad_scene_yaml_is_named_by_the_parse_time_inspection(tmp_path, case):
+    """What rules/common.smk calls for every scene before the DAG (inspect_capture, read_scene_options) stops
+    on a bad scene.yaml with one line naming it."""
+    text, words = SCENE_YAML[case]
+    root = make_capture(tmp_path / "scene")
+    (root / "scene.yaml").write_text(text)
+    for check in (inspect_capture, read_scene_options):
+        with pytest.raises(CaptureError) as info:
+            check(root)
+        message = str(info.value)
+        assert message.startswith(f"{root / 'scene.yaml'}: ") and words in message and "\n" not in message, message
+
+
+def test_valid_capture_json_is_written_when_nothing_is_wrong(tmp_path):
+    """The control case of the table above: the same builder gives a capture that validates."""
+    root = make_capture(tmp_path / "scene")
+    capture_stage(root, tmp_path / "capture.json")
+    assert len(json.loads((tmp_path / "capture.json").read_text())["views"]) == len(NAMES)

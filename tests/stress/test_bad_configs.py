@@ -1,0 +1,181 @@
+"""Bad workflow configs with known answers: every typo and bad value, at any level, stops before any job
+with one message that starts with the key's path; the shipped configs pass; a real `snakemake -n` on a
+bad config or a bad scene.yaml prints that message and writes nothing."""
+
+from __future__ import annotations
+
+import copy
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+from capture_helpers import make_capture
+from workflow_helpers import REPO, SNAKEMAKE, TINY_CONFIG, write_config
+
+from dpi.config_validation import ConfigError, check_config
+from dpi.settings import apply_preset
+from dpi.stages import SolveSettings, sample_stage
+
+SCHEMA = REPO / "rules" / "config.schema.yaml"
+SHIPPED = yaml.safe_load((REPO / "config.yaml").read_text())
+
+
+def merged(base: dict[str, Any], patch: dict[str, Any]) -> dict[str, Any]:
+    """`base` with `patch` written over it, nested dicts key by key."""
+    out = copy.deepcopy(base)
+    for key, value in patch.items():
+        out[key] = merged(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
+    return out
+
+
+def checked(config: dict[str, Any]) -> None:
+    """What rules/common.smk does with a config before building the DAG."""
+    check_config(apply_preset(config), SCHEMA)
+
+
+BAD = {  # case: (patch of config.yaml, the message's start)
+    "top-level typo": ({"sampels": 3}, "sampels: unknown key; did you mean 'samples'?"),
+    "section typo": ({"method_param": {"dps": {}}}, "method_param: unknown key; did you mean 'method_params'?"),
+    "render key typo": ({"render": {"sp": 4}}, "render.sp: unknown key; did you mean 'spp'?"),
+    "problem key typo": ({"problem": {"env_hieght": 8}}, "problem.env_hieght: unknown key; did you mean 'env_height'?"),
+    "resources key typo": ({"resources": {"sample": {"mem": 1}}}, "resources.sample.mem: unknown key"),
+    "unknown method under method_params": ({"method_params": {"dpz": {}}},
+                                           "method_params.dpz: unknown method; did you mean 'dps'?"),
+    "unknown method listed": ({"methods": ["dps", "nonee"]},
+                              "methods.1: 'nonee' is an unknown method; did you mean 'none'?"),
+    "dps key typo": ({"method_params": {"dps": {"stepz": 10}}},
+                     "method_params.dps.stepz: unknown DPSConfig setting; did you mean 'steps'?"),
+    "classic key typo": ({"method_params": {"none": {"iteration": 10}}},
+                         "method_params.none.iteration: unknown ClassicConfig setting; did you mean 'iterations'?"),
+    "dps key on dip": ({"method_params": {"dip": {"steps": 10}}}, "method_params.dip.steps: unknown DIPConfig setting"),
+    "sds key typo": ({"method_params": {"sds": {"tmax": 0.5}}},
+                     "method_params.sds.tmax: unknown SDSConfig setting"),
+    "steps 0": ({"method_params": {"dps": {"steps": 0}}}, "method_params.dps.steps: must be >= 1, got 0"),
+    "steps -5": ({"method_params": {"dps": {"steps": -5}}}, "method_params.dps.steps: must be >= 1, got -5"),
+    "steps 2.5": ({"method_params": {"dps": {"steps": 2.5}}}, "method_params.dps.steps: must be an integer, got 2.5"),
+    "steps text": ({"method_params": {"dps": {"steps": "ten"}}},
+                   "method_params.dps.steps: must be an integer, got 'ten'"),
+    "rho_schedule cubic": ({"method_params": {"dps": {"rho_schedule": "cubic"}}},
+                           "method_params.dps: rho_schedule must be one of ('linear', 'step', 'constant'), "
+                           "got 'cubic'"),
+    "negative learning rate": ({"method_params": {"dps": {"lr_albedo": -0.1}}},
+                               "method_params.dps.lr_albedo: must be > 0, got -0.1"),
+    "nan learning rate": ({"method_params": {"smoothness": {"lr_env": float("nan")}}},
+                          "method_params.smoothness.lr_env: must be a finite number, got nan"),
+    "rho_switch above 1": ({"method_params": {"dps": {"rho_switch": 1.5}}},
+                           "method_params.dps.rho_switch: must be <= 1, got 1.5"),
+    "sds t_max above 1": ({"method_params": {"sds": {"t_max": 2.0}}}, "method_params.sds.t_max: must be <= 1, got 2.0"),
+    "zero views per step": ({"method_params": {"none": {"views_per_step": 0}}},
+                            "method_params.none.views_per_step: must be >= 1, got 0"),
+    "negative iterations": ({"method_params": {"dip": {"iterations": -1}}},
+                            "method_params.dip.iterations: must be >= 0, got -1"),
+    "dip channels text": ({"method_params": {"dip": {"channels": "many"}}},
+                          "method_params.dip.channels: must be an integer, got 'many'"),
+    "radiance_scale 0": ({"method_params": {"dps": {"radiance_scale": 0}}},
+                         "method_params.dps.radiance_scale: must be > 0, got 0"),
+    "method samples 0": ({"method_params": {"dps": {"samples": 0}}},
+                         "method_params.dps.samples: 0 is less than the minimum of 1"),
+    "samples 0": ({"samples": 0}, "samples: 0 is less than the minimum of 1"),
+    "method entry not a mapping": ({"method_params": {"dps": 3}}, "method_params.dps: 3 is not of type 'object'"),
+    "synthetic key typo": ({"synthetic": {"demo": {"shpe": "blob"}}},
+                           "synthetic.demo.shpe: unknown SynthConfig setting; did you mean 'shape'?"),
+    "synthetic prior martian": ({"synthetic": {"demo": {"prior": "martian"}}},
+                                "synthetic.demo.prior: must be one of indoor, outdoor, got 'martian'"),
+    "synthetic views 0": ({"synthetic": {"demo": {"views": 0}}}, "synthetic.demo.views: must be >= 1, got 0"),
+    "preprocess key typo": ({"preprocess": {"sfm": {"matchr": "auto"}}},
+                            "preprocess.sfm.matchr: unknown SfMConfig setting; did you mean 'matcher'?"),
+    "preprocess fraction above 1": ({"preprocess": {"sfm": {"min_registered_fraction": 1.5}}},
+                                    "preprocess.sfm.min_registered_fraction: must be <= 1, got 1.5"),
+    "preprocess stage typo": ({"preprocess": {"uvs": {}}}, "preprocess.uvs: unknown key; did you mean 'uv'?"),
+    "preset key typo": ({"presets": {"draft": {"rendr": {"spp": 4}}}},
+                        "presets.draft.rendr: unknown key; did you mean 'render'?"),
+    "unused preset bad value": ({"presets": {"paper": {"method_params": {"dps": {"steps": -1}}}}},
+                                "presets.paper.method_params.dps.steps: must be >= 1, got -1"),
+    "unknown prior family": ({"illumination_prior": {"family": "martian"}},
+                             "illumination_prior.family: 'martian' is not one of ['outdoor', 'indoor']"),
+    "checkpoint of unknown family": ({"illumination_prior": {"checkpoints": {"martian": "m.pt"}}},
+                                     "illumination_prior.checkpoints: 'martian' is not one of ['outdoor', 'indoor']"),
+    "min_samples 1": ({"adaptive": {"min_samples": 1}}, "adaptive.min_samples: 1 is less than the minimum of 2"),
+    "zero threads": ({"threads": {"sample": 0}}, "threads.sample: 0 is less than the minimum of 1"),
+    "init views 0": ({"init": {"views_per_step": 0}}, "init.views_per_step: 0 is less than the minimum of 1"),
+    "scene with a slash": ({"scenes": ["a/b"]}, "scenes.0: 'a/b' does not match"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD))
+def test_bad_config_stops_with_the_key_path(case):
+    """check_config raises one single-line ConfigError starting with the offending key's path."""
+    patch, start = BAD[case]
+    with pytest.raises(ConfigError) as info:
+        checked(merged(SHIPPED, patch))
+    message = str(info.value)
+    assert message.startswith(start) and "\n" not in message, message
+
+
+def test_unknown_preset_is_named():
+    """`preset: fast` names the presets config.yaml defines."""
+    with pytest.raises(ValueError, match="unknown preset 'fast'; config.yaml defines: default, draft, paper"):
+        checked(merged(SHIPPED, {"preset": "fast"}))
+
+
+@pytest.mark.parametrize("path", [REPO / "config.yaml", *sorted((REPO / "experiments").glob("*.yaml"))],
+                         ids=lambda p: p.name)
+def test_shipped_configs_pass(path):
+    """The repository's own configs are valid, every preset included."""
+    checked(yaml.safe_load(path.read_text()))
+
+
+def test_new_dataclass_fields_need_no_schema_change(monkeypatch):
+    """method_params keys come from the method's dataclass: a field added to it is accepted at once."""
+    from dataclasses import dataclass, field
+
+    from dpi.solve import methods
+    from dpi.solve.classic import ClassicConfig
+
+    @dataclass
+    class Extended(ClassicConfig):
+        temperature: float = 1.0
+        optimize: object = field(default_factory=lambda: ClassicConfig().optimize)
+
+    monkeypatch.setitem(methods.METHOD_CONFIGS, "none", Extended)
+    checked(merged(SHIPPED, {"method_params": {"none": {"temperature": 0.5}}}))
+    with pytest.raises(ConfigError, match=r"^method_params\.none\.temperature: must be a number, got 'hot'"):
+        checked(merged(SHIPPED, {"method_params": {"none": {"temperature": "hot"}}}))
+
+
+def test_sample_stage_rejects_a_bad_entry_before_reading_anything(tmp_path):
+    """Called outside Snakemake (dpi sample), a bad method entry fails before any input is read or output written."""
+    out = tmp_path / "out"
+    with pytest.raises(ValueError, match=r"^steps: must be >= 1, got -5$"):
+        sample_stage(tmp_path / "missing.json", tmp_path / "init", out, "s", "dps", 0, {"steps": -5}, SolveSettings())
+    assert not out.exists()
+
+
+def dry_run(workdir: Path, config: dict[str, Any]) -> subprocess.CompletedProcess:
+    """`snakemake -n` of the repository's workflow with `config` in `workdir`."""
+    write_config(workdir / "config.yaml", config)
+    cmd = [str(SNAKEMAKE), "-s", str(REPO / "Snakefile"), "--directory", str(workdir), "--configfile",
+           str(workdir / "config.yaml"), "-n", "--cores", "1"]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+
+
+@pytest.mark.parametrize("case", ["steps -5", "unknown method under method_params"])
+def test_snakemake_stops_before_the_dag_on_a_bad_config(tmp_path, case):
+    """The workflow itself prints the one message and creates no results."""
+    patch, start = BAD[case]
+    proc = dry_run(tmp_path, merged(TINY_CONFIG, patch))
+    assert proc.returncode != 0 and f"\n{start}" in proc.stdout + proc.stderr, proc.stderr[-2000:]
+    assert not (tmp_path / "results").exists()
+
+
+def test_snakemake_names_a_bad_scene_yaml_before_the_dag(tmp_path):
+    """prior: martian in a capture's scene.yaml stops the dry run with the file's name (was a KeyError)."""
+    root = make_capture(tmp_path / "captures" / "mine")
+    (root / "scene.yaml").write_text("prior: martian\n")
+    proc = dry_run(tmp_path, {"scenes": ["mine"], "methods": ["dps"]})
+    assert proc.returncode != 0
+    expected = "\ncaptures/mine/scene.yaml: prior must be one of indoor, outdoor, got 'martian'"
+    assert expected in proc.stderr + proc.stdout
+    assert not (tmp_path / "results").exists()
