@@ -26,6 +26,7 @@ from tqdm import tqdm
 
 from dpi.materials import MaterialTextures
 from dpi.prior.data import radiance_scale
+from dpi.prior.diffusion import q_sample
 from dpi.prior.sample import Prior
 from dpi.settings import settings_from_dict
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
@@ -37,6 +38,7 @@ from dpi.solve.samplers import SAMPLERS, DPSRun, DPSState, resample_env, rho_sch
 from dpi.solve.trace import Trace
 
 RHO_SCHEDULES = ("linear", "step", "constant")
+MAP_UPDATES = ("adam", "normalized")
 CHECKPOINT_EVERY = 10
 """reverse steps between two saves of the resume state (a save costs far less than one step)"""
 
@@ -66,9 +68,14 @@ class DPSConfig:
     inner_steps: int = 2
     """proximal: joint data updates of map, materials and exposure per reverse step"""
     lr_map: float = 0.03
-    """proximal: Adam learning rate of the map's log radiance"""
-    lr_exposure: float = 0.02
-    """proximal: Adam learning rate of the global log-exposure"""
+    """proximal: step of the map's log radiance per data update (Adam's rate, or the RMS of a normalized step)"""
+    map_update: str = "adam"
+    """proximal: adam (per-texel Adam) or normalized (gradient scaled to RMS lr_map over the map)"""
+    warm_start: bool = False
+    """proximal: start each step's data updates from the previous step's map instead of from x0_hat"""
+    start_noise: float = 1.0
+    """noise level the reverse diffusion starts from, as a fraction of the schedule: 1 starts from pure
+    noise; less starts from the init map noised to that level (SDEdit) and runs that fraction of the steps"""
     prox_weight: float = 1e-3
     """proximal: weight of ||z - x0_hat||^2 per unit abar_t / (1 - abar_t)"""
     noise_mix: float = 0.5
@@ -96,6 +103,10 @@ class DPSConfig:
             raise ValueError(f"rho_schedule must be one of {RHO_SCHEDULES}, got {cfg.rho_schedule!r}")
         if cfg.inner_steps < 1:
             raise ValueError(f"inner_steps must be >= 1, got {cfg.inner_steps}")
+        if cfg.map_update not in MAP_UPDATES:
+            raise ValueError(f"map_update must be one of {MAP_UPDATES}, got {cfg.map_update!r}")
+        if not 0 < cfg.start_noise <= 1:
+            raise ValueError(f"start_noise must be in (0, 1], got {cfg.start_noise}")
         return cfg
 
 
@@ -107,15 +118,18 @@ class DPSResult:
     snapshots: list[torch.Tensor] = field(default_factory=list)
 
 
-def material_optimizer(materials: MaterialTextures, cfg: DPSConfig, log_exposure: torch.Tensor,
-                       log_map: torch.Tensor) -> torch.optim.Adam:
-    """Adam on albedo / roughness / metallic, the log-exposure and the map's log radiance, each at its
-    own rate (a sampler's step updates those whose gradient it computed)."""
+ADAM_BETAS = (0.9, 0.99)
+"""the data loss falls by orders of magnitude during a sample: a short second-moment memory keeps
+Adam's steps from stalling on the large gradients of the first steps"""
+
+
+def material_optimizer(materials: MaterialTextures, cfg: DPSConfig, log_map: torch.Tensor) -> torch.optim.Adam:
+    """Adam on albedo / roughness / metallic and the map's log radiance, each at its own rate (a
+    sampler's step updates those whose gradient it computed)."""
     return torch.optim.Adam([{"params": [materials.albedo], "lr": cfg.lr_albedo},
                              {"params": [materials.roughness], "lr": cfg.lr_roughness},
                              {"params": [materials.metallic], "lr": cfg.lr_metallic},
-                             {"params": [log_exposure], "lr": cfg.lr_exposure},
-                             {"params": [log_map], "lr": cfg.lr_map}])
+                             {"params": [log_map], "lr": cfg.lr_map}], betas=ADAM_BETAS)
 
 
 def estimate_radiance_scale(init_env: torch.Tensor, prior: Prior) -> float:
@@ -127,6 +141,13 @@ def estimate_radiance_scale(init_env: torch.Tensor, prior: Prior) -> float:
 def prior_to_env(x0: torch.Tensor, prior: Prior, scale: float, height: int) -> torch.Tensor:
     """Prior image (1, 3, h, w) -> scene env map (H, 2H, 3) in radiance, resampled to `height`."""
     return resample_env(scale * prior.encoding.to_radiance(x0), height)
+
+
+def env_to_prior(env: torch.Tensor, prior: Prior, scale: float) -> torch.Tensor:
+    """Scene env map (H, 2H, 3) -> prior image (1, 3, h, 2h): area-resampled, divided by `scale`, encoded."""
+    radiance = torch.nn.functional.interpolate(env.permute(2, 0, 1)[None], size=(prior.height, 2 * prior.height),
+                                               mode="area")
+    return prior.encoding.with_scale(scale).to_prior(radiance)
 
 
 def data_norm(problem: InverseProblem) -> float:
@@ -141,17 +162,18 @@ def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: D
     generator = torch.Generator().manual_seed(seed)
     diffusion = prior.schedule(cfg.steps)
     scale = cfg.radiance_scale or estimate_radiance_scale(init.env, prior)
-    run = DPSRun(problem, prior, cfg, diffusion, seed, scale, rho_schedule(cfg, diffusion.num_timesteps),
-                 data_norm(problem))
+    first = int(round(cfg.start_noise * (diffusion.num_timesteps - 1)))
+    run = DPSRun(problem, prior, cfg, diffusion, seed, scale, rho_schedule(cfg, first + 1), data_norm(problem), first)
     materials = starting_materials(init)
     for _, t in materials.items():
         t.requires_grad_(True)
     shape = (1, 3, prior.height, 2 * prior.height)
-    log_exposure = torch.zeros((), requires_grad=True)
     log_map = torch.zeros(shape, requires_grad=True)
     x = torch.randn(shape, generator=generator)
-    state = DPSState(x, materials, log_exposure, log_map, material_optimizer(materials, cfg, log_exposure, log_map),
-                     generator)
+    if first < diffusion.num_timesteps - 1:
+        start = env_to_prior(init.env, prior, scale)
+        x = q_sample(diffusion, start, torch.tensor([first]), x)
+    state = DPSState(x, materials, torch.zeros(()), log_map, material_optimizer(materials, cfg, log_map), generator)
     return run, state
 
 
@@ -195,9 +217,9 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
             store.save(LoopState.capture(n, state.tensors(), state.optimizer, state.generator, trace,
                                          state.snapshots))
     bar.close()
-    scene_scale = run.scale * float(torch.exp(state.log_exposure.detach()))
+    scene_scale = run.scale * float(torch.exp(state.log_exposure))
     env = prior_to_env(state.x.detach().clamp(-1, 1), prior, scene_scale, problem.settings.env_height).detach()
-    trace.info["log_exposure"] = float(state.log_exposure.detach())
+    trace.info["log_exposure"] = float(state.log_exposure)
     refine = OptimizeConfig(iterations=cfg.refine_iterations, views_per_step=cfg.refine_views_per_step,
                             optimize_env=False, lr_albedo=cfg.lr_albedo, lr_roughness=cfg.lr_roughness,
                             lr_metallic=cfg.lr_metallic)

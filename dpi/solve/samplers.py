@@ -10,11 +10,13 @@ not update; `nan_inner` counts skipped inner updates; `seconds_*` time its parts
   bounded in max-abs, subtracted with weight rho_t from the ancestral step; one Adam step on the
   materials from the same render. Tuned for 1000 steps.
 - `proximal` (the DiffPIR / DDS family: Zhu et al. 2023, Chung et al. 2024): the data term acts on
-  x0, not x_t, and needs no backward pass through the network. From x0_hat, `inner_steps` Adam
-  steps on the map's log radiance l (prior resolution), the materials and a global log-exposure s
-  against  ||y - R(exp(l + s), k)||^2 / ||y||^2  +  prox_weight abar_t / (1 - abar_t) ||z(l) - x0_hat||^2
+  x0, not x_t, and needs no backward pass through the network. `inner_steps` Adam steps on the map's
+  log radiance l (prior resolution) and the materials against
+  ||y - c R(exp(l + s), k)||^2 / ||y||^2  +  prox_weight abar_t / (1 - abar_t) ||z(l) - x0_hat||^2
   with z(l) the map in prior space, over `views_per_step` views per inner step (one render and one
-  backward feed all three). Then re-noise: x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1})
+  backward feed both). The renderer is linear in the map, so the global exposure is solved exactly:
+  c is the least-squares scale of each render, and s += ln c. l starts from x0_hat at the first step
+  and from the previous step's l after that (the data fit accumulates). Then re-noise: x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1})
   (sqrt(1 - zeta) eps_hat + sqrt(zeta) eps) with eps_hat recomputed from z, so samples stay diverse.
   The proximal weight grows as the noise falls (DiffPIR's rho_t ~ 1 / sigma_t^2), so late steps
   keep what the data put into x_t early. The materials move only after `material_start` of the
@@ -23,6 +25,7 @@ not update; `nan_inner` counts skipped inner updates; `seconds_*` time its parts
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Callable
@@ -40,6 +43,8 @@ if TYPE_CHECKING:
     from dpi.solve.dps import DPSConfig
 
 
+MAX_EXPOSURE_STEP = 3.0
+"""proximal: largest change of the log-exposure in one data update"""
 DARK_FLOOR = 1e-6
 """proximal: radiance floor (times the prior's median) before the logarithm (the paper's curve reaches 0)"""
 
@@ -59,15 +64,17 @@ class DPSRun:
     """paper: guidance weight per executed step"""
     data_norm: float
     """proximal: mean squared foreground radiance of the training views (makes the data term relative)"""
+    first_index: int
+    """schedule index of the first executed step (the last index, or lower when starting from the noised init)"""
 
     @property
     def num_steps(self) -> int:
         """Executed reverse steps."""
-        return self.diffusion.num_timesteps
+        return self.first_index + 1
 
     def index(self, n: int) -> int:
         """Schedule index of executed step n (the first executed step is the noisiest)."""
-        return self.num_steps - 1 - n
+        return self.first_index - n
 
     def env(self, radiance: torch.Tensor, log_exposure: torch.Tensor) -> torch.Tensor:
         """Prior-resolution normalised radiance (1, 3, h, 2h) -> scene env map (H, 2H, 3) at the problem's height."""
@@ -90,7 +97,8 @@ class DPSState:
     """x_t (1, 3, h, 2h) in prior space"""
     materials: MaterialTextures
     log_exposure: torch.Tensor
-    """global log-exposure of the map (scalar): absorbs the light/albedo scale ambiguity"""
+    """global log-exposure of the map (scalar): absorbs the light/albedo scale ambiguity; proximal: fitted
+    in closed form at every data update"""
     log_map: torch.Tensor
     """proximal: the map's normalised log radiance (1, 3, h, 2h) during the inner updates"""
     optimizer: torch.optim.Adam
@@ -169,7 +177,7 @@ def paper_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     if not finite(p["mean"], p["log_variance"]):
         return {**record, "skipped": "non-finite network output", **laps.record()}  # keep x_t
     state.snapshots.append(p["x0"].detach()[0])
-    env = run.env(run.prior.encoding.to_radiance(p["x0"]), state.log_exposure.detach())
+    env = run.env(run.prior.encoding.to_radiance(p["x0"]), state.log_exposure)
     env_leaf = env.detach().requires_grad_(True)
     loss = run.problem.residual_norm(env_leaf, state.materials, run.views(gen), seed=run.render_seed(n))
     state.optimizer.zero_grad()
@@ -194,10 +202,37 @@ def paper_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     return {**record, "loss": loss.item() if guided else None, **laps.record()}
 
 
-def relative_data_loss(run: DPSRun, env: torch.Tensor, materials: MaterialTextures, views: list[int],
-                       seed: int) -> torch.Tensor:
-    """Mean foreground MSE of `views` over the mean squared foreground radiance: exposure-free, ~1 / SNR."""
-    return run.problem.data_loss(env, materials, views, seed, run.cfg.spp) / (len(views) * run.data_norm)
+def rendered_views(run: DPSRun, env: torch.Tensor, materials: MaterialTextures, views: list[int],
+                   seed: int) -> list[torch.Tensor]:
+    """The data term's renders of `views` (each with its own seed, at the sampler's spp)."""
+    return [run.problem.render(env, materials, v, seed * 1009 + j, run.cfg.spp) for j, v in enumerate(views)]
+
+
+def exposure_fit(run: DPSRun, renders: list[torch.Tensor], views: list[int]) -> float:
+    """The least-squares global scale c of the renders against the images over their foreground: the
+    renderer is linear in the map, so this is the exposure's exact optimum for the current map."""
+    num = den = 0.0
+    for rendered, v in zip(renders, views):
+        mask = run.problem.masks[v].reshape(*rendered.shape[:-1], 1).to(rendered.dtype)
+        num += float((mask * rendered * run.problem.images[v]).sum())
+        den += float((mask * rendered.square()).sum())
+    c = num / den if den > 0 and math.isfinite(num / den) and num > 0 else 1.0
+    return min(max(c, math.exp(-MAX_EXPOSURE_STEP)), math.exp(MAX_EXPOSURE_STEP))
+
+
+def normalized_step_(log_map: torch.Tensor, lr: float) -> None:
+    """A gradient step on the map scaled to RMS `lr` over the texels (each texel's step clipped to 3 lr),
+    taken in place and the gradient cleared: texels the data barely sees barely move, unlike under Adam."""
+    with torch.no_grad():
+        g = log_map.grad
+        step = lr * g / g.square().mean().sqrt().clamp_min(1e-30)
+        log_map -= step.clamp(-3 * lr, 3 * lr)
+    log_map.grad = None
+
+
+def relative_data_loss(run: DPSRun, renders: list[torch.Tensor], views: list[int], c: float) -> torch.Tensor:
+    """Mean foreground loss of the renders times c over the mean squared foreground radiance: ~1 / SNR."""
+    return sum(run.problem.view_loss(c * r, v) for r, v in zip(renders, views)) / (len(views) * run.data_norm)
 
 
 def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
@@ -216,14 +251,18 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     abar_prev = float(run.diffusion.alphas_cumprod_prev[i])
     prox_weight = cfg.prox_weight * abar / (1.0 - abar)
     materials_move = n >= cfg.material_start * run.num_steps
-    if n == 0:  # later steps start from the previous step's map: the data fit accumulates across steps
+    if n == 0 or not cfg.warm_start:
         floor = DARK_FLOOR * run.prior.median_target
         with torch.no_grad():
             state.log_map.copy_(torch.log(encoding.to_radiance(x0_hat).clamp_min(floor)))
     losses, skipped = [], 0
     for k in range(cfg.inner_steps):
-        env = run.env(torch.exp(state.log_map), state.log_exposure)
-        data = relative_data_loss(run, env, state.materials, run.views(gen), run.render_seed(n, k))
+        views = run.views(gen)
+        renders = rendered_views(run, run.env(torch.exp(state.log_map), state.log_exposure), state.materials, views,
+                                 run.render_seed(n, k))
+        c = exposure_fit(run, [r.detach() for r in renders], views)
+        state.log_exposure += math.log(c)
+        data = relative_data_loss(run, renders, views, c)
         prox = (encoding.to_prior(torch.exp(state.log_map)) - x0_hat).square().mean()
         loss = data + prox_weight * prox
         state.optimizer.zero_grad()
@@ -231,12 +270,14 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
             skipped += 1
             continue
         loss.backward()
-        if not all_finite([state.log_map, state.log_exposure, *dict(state.materials.items()).values()]):
+        if not all_finite([state.log_map, *dict(state.materials.items()).values()]):
             skipped += 1
             continue
         if not materials_move:
             for _, t in state.materials.items():
                 t.grad = None
+        if cfg.map_update == "normalized":
+            normalized_step_(state.log_map, cfg.lr_map)
         state.optimizer.step()
         state.materials.clamp_()
         losses.append(float(data.detach()))
@@ -248,7 +289,7 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
         mixed = (1.0 - cfg.noise_mix) ** 0.5 * eps_hat + cfg.noise_mix ** 0.5 * noise
         state.x = abar_prev ** 0.5 * z + (1.0 - abar_prev) ** 0.5 * mixed
     return {**record, "loss": losses[-1] if losses else None, "prox": float(prox.detach()), "prox_weight": prox_weight,
-            "log_exposure": float(state.log_exposure.detach()), "nan_inner": skipped,
+            "log_exposure": float(state.log_exposure), "nan_inner": skipped,
             **({"skipped": "non-finite loss or gradient"} if not losses else {}), **laps.record()}
 
 
