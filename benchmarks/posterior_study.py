@@ -59,19 +59,34 @@ SCENES: dict[str, tuple[str, dict[str, Any]]] = {
                                "environment_seed": 16, "prior": "outdoor"}),
 }
 METHODS = ("init", "none", "smoothness", "sds", "dip", "dps")
+TEXT_COLUMNS = ("scene", "group", "method", "sampler")
 
 
 @dataclass(frozen=True)
 class Job:
-    """One sample to draw and score."""
+    """One sample to draw and score, in study folder `root`."""
 
+    root: Path
     scene: str
+    group: str
+    synth: dict
     method: str
     sampler: str
     seed: int
     method_cfg: dict
     config: dict
     rerun: bool = False
+
+    @property
+    def label(self) -> str:
+        """The method's folder: the method, with the dps sampler's label."""
+        return self.method if not self.sampler else f"{self.method}_{self.sampler}"
+
+    @property
+    def sample_dir(self) -> Path:
+        """Where the sample is (the init's folder for the init row)."""
+        folder = self.root / self.scene
+        return folder / "init" if self.method == "init" else folder / self.label / str(self.seed)
 
 
 def workflow_config() -> dict[str, Any]:
@@ -83,15 +98,15 @@ def workflow_config() -> dict[str, Any]:
     return config
 
 
-def prepare_scene(scene: str, config: dict, threads: int) -> Path:
+def prepare_scene(root: Path, scene: str, synth: dict, config: dict, threads: int) -> Path:
     """The scene's capture, validated capture.json and initialisation (made once, then reused)."""
     from dpi.stages import SolveSettings, capture_stage, init_stage
     from dpi.synth.capture import SynthConfig, make_synthetic_capture
 
-    folder = WORK / scene
+    folder = root / scene
     capture = folder / "capture"
     if not (capture / ".synth.json").exists():
-        make_synthetic_capture(capture, SynthConfig.from_dict(SCENES[scene][1]), threads=threads, progress=False)
+        make_synthetic_capture(capture, SynthConfig.from_dict(synth), threads=threads, progress=False)
     if not (folder / "capture.json").exists():
         capture_stage(capture, folder / "capture.json")
     if not (folder / "init" / "log.json").exists():
@@ -105,20 +120,18 @@ def run_job(job: Job) -> dict[str, Any]:
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     from dpi.stages import SolveSettings, evaluate_stage, sample_stage
 
-    folder = WORK / job.scene
+    folder, sample_dir = job.root / job.scene, job.sample_dir
     settings = SolveSettings.from_config(job.config, threads=1)
-    label = job.method if not job.sampler else f"{job.method}_{job.sampler}"
-    sample_dir = folder / "init" if job.method == "init" else folder / label / str(job.seed)
     if job.rerun and job.method != "init":
         shutil.rmtree(sample_dir, ignore_errors=True)
     if job.method != "init" and not (sample_dir / "trace.json").exists():
         sample_stage(folder / "capture.json", folder / "init", sample_dir, job.scene, job.method, job.seed,
                      job.method_cfg, settings, progress=False)
-    out = folder / "eval" / label / f"{job.seed}.json"
+    out = folder / "eval" / job.label / f"{job.seed}.json"
     evaluate_stage(folder / "capture.json", sample_dir, out, job.scene, job.method, job.seed,
                    job.config["evaluate"]["spp"], settings)
     metrics = json.loads(out.read_text())["metrics"]
-    return {"scene": job.scene, "group": SCENES[job.scene][0], "method": job.method, "sampler": job.sampler,
+    return {"scene": job.scene, "group": job.group, "method": job.method, "sampler": job.sampler,
             "seed": job.seed, **{k: metrics[k] for k in ("novel_psnr", "env_psnr", "env_ssim", "albedo_mse")},
             "seconds": metrics["sample_seconds"]}
 
@@ -136,7 +149,8 @@ def dps_variants(config: dict, extra: list[str]) -> dict[str, dict]:
     return variants
 
 
-def jobs_for(args: argparse.Namespace, config: dict) -> list[Job]:
+def jobs_for(args: argparse.Namespace, config: dict, root: Path = WORK,
+             scenes: dict[str, tuple[str, dict]] = SCENES) -> list[Job]:
     """Every (scene, method, sampler, seed) asked for."""
     variants = dps_variants(config, args.dps)
     jobs = []
@@ -147,7 +161,8 @@ def jobs_for(args: argparse.Namespace, config: dict) -> list[Job]:
             for sampler, cfg in labels.items():
                 cfg = {k: v for k, v in cfg.items() if k != "samples"}
                 seeds = [0] if method == "init" else args.seeds
-                jobs.extend(Job(scene, method, sampler, s, cfg, config, args.rerun) for s in seeds)
+                group, synth = scenes[scene]
+                jobs.extend(Job(root, scene, group, synth, method, sampler, s, cfg, config, args.rerun) for s in seeds)
     return jobs
 
 
@@ -156,19 +171,18 @@ def read_rows(path: Path) -> list[dict[str, Any]]:
     if not path.exists():
         return []
     with open(path, newline="") as f:
-        return [{k: (v if k in ("scene", "group", "method", "sampler") else float(v)) for k, v in row.items()}
-                for row in csv.DictReader(f)]
+        return [{k: (v if k in TEXT_COLUMNS else float(v)) for k, v in row.items()} for row in csv.DictReader(f)]
 
 
-def append_row(path: Path, row: dict[str, Any]) -> None:
+def append_row(path: Path, row: dict[str, Any], columns: tuple[str, ...] = COLUMNS) -> None:
     """Add one row (with a header when the file is new)."""
     new = not path.exists()
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "a", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=COLUMNS)
+        writer = csv.DictWriter(f, fieldnames=columns)
         if new:
             writer.writeheader()
-        writer.writerow({k: row[k] for k in COLUMNS})
+        writer.writerow({k: row[k] for k in columns})
 
 
 def summary(rows: list[dict[str, Any]]) -> list[str]:
@@ -202,20 +216,26 @@ def main() -> None:
     args = parser.parse_args()
 
     config = workflow_config()
-    for scene in args.scenes:
-        prepare_scene(scene, config, threads=2)
-    done = {(r["scene"], r["method"], r["sampler"], int(r["seed"])) for r in read_rows(args.out)}
-    todo = [j for j in jobs_for(args, config) if args.rerun or (j.scene, j.method, j.sampler, j.seed) not in done]
-    print(f"{len(todo)} samples to draw and score ({len(done)} rows already in {args.out})", flush=True)
-    with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        for row in pool.map(run_job, todo):
-            append_row(args.out, row)
-            print(f"{row['scene']:<12} {row['method']:<10} {row['sampler']:<10} seed {row['seed']}: "
-                  f"view {row['novel_psnr']:.2f} dB, env {row['env_psnr']:.2f} dB / {row['env_ssim']:.3f}, "
-                  f"albedo {row['albedo_mse']:.4f}, {row['seconds']:.1f} s", flush=True)
-    wanted = {(j.scene, j.method, j.sampler) for j in jobs_for(args, config)}
-    rows = [r for r in read_rows(args.out) if (r["scene"], r["method"], r["sampler"]) in wanted]
+    jobs = jobs_for(args, config)
+    rows = run_study(jobs, args.out, COLUMNS, run_job, args.jobs)
     print("\n".join(summary(rows)))
+
+
+def run_study(jobs: list[Job], out: Path, columns: tuple[str, ...], score: Any, workers: int) -> list[dict]:
+    """Prepare every scene, draw and score the jobs whose rows `out` lacks (`score(job)` gives the row,
+    appended as it comes), and return the rows of these jobs' (scene, method, sampler)."""
+    for job in {(j.root, j.scene): j for j in jobs}.values():
+        prepare_scene(job.root, job.scene, job.synth, job.config, threads=2)
+    done = {(r["scene"], r["method"], r["sampler"], int(r["seed"])) for r in read_rows(out)}
+    todo = [j for j in jobs if j.rerun or (j.scene, j.method, j.sampler, j.seed) not in done]
+    print(f"{len(todo)} samples to draw and score ({len(done)} rows already in {out})", flush=True)
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        for row in pool.map(score, todo):
+            append_row(out, row, columns)
+            print("  ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items()),
+                  flush=True)
+    wanted = {(j.scene, j.method, j.sampler) for j in jobs}
+    return [r for r in read_rows(out) if (r["scene"], r["method"], r["sampler"]) in wanted]
 
 
 if __name__ == "__main__":

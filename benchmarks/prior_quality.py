@@ -149,6 +149,31 @@ def pair_grid(samples: torch.Tensor, nearest: torch.Tensor) -> torch.Tensor:
     return torch.stack([samples, nearest], dim=1).reshape(-1, *samples.shape[1:])
 
 
+def loss_curve_plot(log: Path, path: Path, family: str) -> None:
+    """Training loss (eps MSE and MSE + vb), logged every few steps, with a running mean over 20 logs."""
+    import json
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = [json.loads(line) for line in log.read_text().splitlines()]
+    steps = np.array([r["step"] for r in rows])
+    fig, ax = plt.subplots(figsize=(6, 3.2))
+    for key in ("mse", "loss"):
+        values = np.array([r[key] for r in rows])
+        smooth = np.convolve(values, np.ones(20) / 20, mode="valid")
+        ax.plot(steps[19:], smooth, label=f"{key} (running mean of 20 logs)")
+    ax.set_yscale("log")
+    ax.set_xlabel("optimiser step")
+    ax.set_title(f"{family} prior: training loss")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def evaluate_family(family: str, data: Path, count: int, steps: int, timing_steps: list[int]) -> list[tuple]:
     """Rows (family, quantity, value) of the table for one default model."""
     prior = load_prior(DEFAULT_MODELS[family])
@@ -185,6 +210,9 @@ def evaluate_family(family: str, data: Path, count: int, steps: int, timing_step
     pairs = pair_grid(shown, nearest_training_maps(shown, train))
     write_grid(MODELS_DIR / f"{family}_samples.png", radiance_display(pairs, enc), columns=4)
     dynamic_range_plot(MODELS_DIR / f"{family}_dynamic_range.png", family, rolled, held, enc)
+    log = MODELS_DIR / "logs" / f"{DEFAULT_MODELS[family].stem}.log.jsonl"
+    if log.exists():
+        loss_curve_plot(log, MODELS_DIR / f"{family}_loss.png", family)
     return rows
 
 

@@ -1,0 +1,105 @@
+"""Sun recovery: does a method's env map hold the sun where the ground truth has it? (issue 15)
+
+Scenes: the demo object (a bumpy, textured blob, roughness 0.3, seen from all around) under
+Mitsuba's sunsky with the demo's sun (35 deg elevation, azimuth 60 deg) and two more suns at other
+elevations and azimuths, at the posterior study's image sizes. For `dps` (the sampler config.yaml
+picks) and `none`, per seed, through the posterior study's jobs (benchmarks/posterior_study.py):
+- top_energy_share: the share of the map's energy (luminance x solid angle) in its brightest 0.5 %
+  of texels, and the same for the ground truth (a sun carries about half of it);
+- sun_angle_deg: the angle between the direction of the map's brightest texel and the true sun;
+- novel_psnr: held-out view PSNR, as in the posterior study.
+
+    .venv/bin/python benchmarks/sun_study.py [--seeds 0 1 2] [--jobs 2]
+
+Rows go to benchmarks/results/sun_study.csv (rows already there are not rerun), then it prints
+mean +- std per scene and method.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from posterior_study import ROOT, SIZE, Job, jobs_for, run_job, run_study, workflow_config
+
+from dpi.envmap import texel_directions, texel_solid_angles
+from dpi.exr import read_exr
+from dpi.images import luminance
+from dpi.skies import sun_direction
+from dpi.solve.dps import DPSConfig
+
+WORK = ROOT / "results" / "benchmarks" / "sun_study"
+CSV = ROOT / "benchmarks" / "results" / "sun_study.csv"
+COLUMNS = ("scene", "method", "sampler", "seed", "top_energy_share", "gt_top_energy_share", "sun_angle_deg", "novel_psnr")
+DEMO = {**SIZE, "shape": "blob", "seed": 0, "roughness": 0.3, "environment": "sunsky", "prior": "outdoor"}
+SUNS = {"demo_sun": (35.0, 60.0), "low_sun": (8.0, 250.0), "high_sun": (65.0, 150.0)}
+SCENES = {name: ("sun", {**DEMO, "sun_elevation_deg": elevation, "sun_azimuth_deg": azimuth})
+          for name, (elevation, azimuth) in SUNS.items()}
+METHODS = ("dps", "none")
+
+
+def top_energy_share(env: np.ndarray, fraction: float = 0.005) -> float:
+    """Share of the map's energy (luminance x texel solid angle) in its brightest `fraction` of texels."""
+    energy = (luminance(env) * texel_solid_angles(env.shape[0])).ravel()
+    top = max(1, int(round(fraction * energy.size)))
+    return float(np.sort(energy)[::-1][:top].sum() / energy.sum())
+
+
+def brightest_direction(env: np.ndarray) -> np.ndarray:
+    """World direction of the map's brightest texel (by luminance)."""
+    row, col = np.unravel_index(np.argmax(luminance(env)), env.shape[:2])
+    return texel_directions(env.shape[0])[row, col]
+
+
+def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+    """Angle between two unit vectors in degrees."""
+    return math.degrees(math.acos(float(np.clip(np.dot(a, b), -1.0, 1.0))))
+
+
+def score(job: Job) -> dict[str, Any]:
+    """Draw and evaluate one sample (the posterior study's job), then measure its sun."""
+    row = run_job(job)
+    env = read_exr(job.sample_dir / "envmap.exr")
+    gt = read_exr(job.root / job.scene / "capture" / "gt" / "envmap.exr")
+    sun = sun_direction(*SUNS[job.scene])
+    return {"scene": job.scene, "method": job.method, "sampler": job.sampler, "seed": job.seed,
+            "top_energy_share": top_energy_share(env), "gt_top_energy_share": top_energy_share(gt),
+            "sun_angle_deg": angle_deg(brightest_direction(env), sun), "novel_psnr": row["novel_psnr"]}
+
+
+def summary(rows: list[dict[str, Any]]) -> list[str]:
+    """Mean +- std per scene and method."""
+    lines = [f"{'scene':<10} {'method':<6} {'n':>2} {'top 0.5 % share':>16} {'gt share':>9} {'sun angle':>15} "
+             f"{'view PSNR':>14}"]
+    for scene in SCENES:
+        for method in METHODS:
+            sel = [r for r in rows if r["scene"] == scene and r["method"] == method]
+            if not sel:
+                continue
+            cells = [f"{np.mean([r[k] for r in sel]):{f}} +- {np.std([r[k] for r in sel]):{f}}"
+                     for k, f in (("top_energy_share", ".3f"), ("sun_angle_deg", ".1f"), ("novel_psnr", ".2f"))]
+            lines.append(f"{scene:<10} {method:<6} {len(sel):>2} {cells[0]:>16} {sel[0]['gt_top_energy_share']:>9.3f} "
+                         f"{cells[1]:>15} {cells[2]:>14}")
+    return lines
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--scenes", nargs="*", default=list(SCENES), choices=list(SCENES))
+    parser.add_argument("--seeds", nargs="*", type=int, default=[0, 1, 2])
+    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--out", type=Path, default=CSV)
+    args = parser.parse_args()
+    config = workflow_config()
+    dps = {k: v for k, v in config["method_params"].get("dps", {}).items() if k != "samples"}
+    study = argparse.Namespace(scenes=args.scenes, methods=list(METHODS), samplers=[DPSConfig.from_dict(dps).sampler],
+                               seeds=args.seeds, dps=[], rerun=False)
+    jobs = jobs_for(study, config, WORK, SCENES)
+    print("\n".join(summary(run_study(jobs, args.out, COLUMNS, score, args.jobs))))
+
+
+if __name__ == "__main__":
+    main()
