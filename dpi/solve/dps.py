@@ -88,6 +88,9 @@ class DPSConfig:
     refine_iterations: int = 200
     """Adam iterations on the materials with the final map fixed"""
     refine_views_per_step: int = 2
+    refine_lr_env: float = 0.0
+    """Adam rate of the map's log radiance during the refinement (0: the sampled map stays fixed; a small
+    rate polishes its fit to the views, the few iterations keeping it near the sample)"""
     radiance_scale: float | None = None
     """scene radiance per unit of the prior's normalised radiance (None: estimated from init)"""
     strip_frames: int = 8
@@ -221,11 +224,12 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
     env = prior_to_env(state.x.detach().clamp(-1, 1), prior, scene_scale, problem.settings.env_height).detach()
     trace.info["log_exposure"] = float(state.log_exposure)
     refine = OptimizeConfig(iterations=cfg.refine_iterations, views_per_step=cfg.refine_views_per_step,
-                            optimize_env=False, lr_albedo=cfg.lr_albedo, lr_roughness=cfg.lr_roughness,
-                            lr_metallic=cfg.lr_metallic)
+                            optimize_env=cfg.refine_lr_env > 0, lr_env=cfg.refine_lr_env, lr_albedo=cfg.lr_albedo,
+                            lr_roughness=cfg.lr_roughness, lr_metallic=cfg.lr_metallic)
     refine_trace = Trace()
-    _, materials = fit(problem, env.clamp_min(1e-8).log(), state.materials.detached(), refine, seed + 1,
-                       refine_trace, progress=progress)
+    log_env, materials = fit(problem, env.clamp_min(1e-8).log(), state.materials.detached(), refine, seed + 1,
+                             refine_trace, progress=progress)
+    env = log_env.exp()
     trace.info["refine"] = refine_trace.summary()
     trace.nan_skips += refine_trace.nan_skips
     if store:

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 import torch
 
+from dpi.images import luminance
 from dpi.materials import MaterialTextures
 from dpi.prior.diffusion import Diffusion, model_output_with_random_roll, model_timesteps, p_mean_variance
 from dpi.prior.sample import Prior
@@ -220,6 +221,16 @@ def exposure_fit(run: DPSRun, renders: list[torch.Tensor], views: list[int]) -> 
     return min(max(c, math.exp(-MAX_EXPOSURE_STEP)), math.exp(MAX_EXPOSURE_STEP))
 
 
+def recentre_(log_map: torch.Tensor, median_target: float) -> float:
+    """Shift the map's log radiance so its median luminance is the prior's (in place); returns the shift
+    for the exposure to take over. Map level and exposure are one degree of freedom: without this the
+    level drifts and the encoded map saturates."""
+    with torch.no_grad():
+        shift = float(torch.log(luminance(torch.exp(log_map[0]).permute(1, 2, 0)).median() / median_target))
+        log_map -= shift
+    return shift
+
+
 def normalized_step_(log_map: torch.Tensor, lr: float) -> None:
     """A gradient step on the map scaled to RMS `lr` over the texels (each texel's step clipped to 3 lr),
     taken in place and the gradient cleared: texels the data barely sees barely move, unlike under Adam."""
@@ -280,6 +291,7 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
             normalized_step_(state.log_map, cfg.lr_map)
         state.optimizer.step()
         state.materials.clamp_()
+        state.log_exposure += recentre_(state.log_map, run.prior.median_target)
         losses.append(float(data.detach()))
     laps.lap("render")
     with torch.no_grad():
