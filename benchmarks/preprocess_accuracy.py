@@ -27,7 +27,8 @@ from dpi.preprocess.accuracy import align_mesh, chamfer, mask_iou, pose_errors
 from dpi.preprocess.geometry import read_mesh
 from dpi.preprocess.sfm import SfMError
 from dpi.preprocess.stages import geometry_stage, masks_stage, poses_stage, read_cameras, uv_stage
-from dpi.synth.capture import MARKER, SynthConfig, make_synthetic_capture
+from dpi.layout import SYNTH_MARKER
+from dpi.synth.capture import SynthConfig, make_synthetic_capture
 
 
 def run_capture(root: Path, work: Path, threads: int) -> dict:
@@ -89,7 +90,7 @@ def main() -> None:
                                   spp=args.spp, texture_size=256, camera_distance=6.0, elevations_deg=(15.0, 30.0),
                                   albedo_detail=0.6, background=background, image_format="png", photos_only=True)
                 start = time.perf_counter()
-                if not (root / MARKER).is_file():
+                if not (root / SYNTH_MARKER).is_file():
                     make_synthetic_capture(root, cfg, threads=args.threads, progress=False)
                 render_s = time.perf_counter() - start
                 try:

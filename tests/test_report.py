@@ -14,9 +14,9 @@ import pytest
 
 from dpi.capture import read_capture_json
 from dpi.exr import read_exr, write_exr
-from dpi.metric_table import direction, metric_table
+from dpi.evaluation.metric_table import direction, metric_table
 from dpi.render import RenderSettings
-from dpi.report import Page, build_report, quality_section, roughness_section
+from dpi.evaluation.report import Page, build_report, quality_section, roughness_section
 from dpi.solve.problem import ProblemSettings
 from dpi.stages import SolveSettings, capture_stage
 

