@@ -37,13 +37,18 @@ from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import ProblemSettings
 from dpi.synth.capture import SynthConfig
 
+def preprocess_settings() -> dict[str, Callable[[dict], Any]]:
+    """preprocess stage -> the builder of its settings dataclass from its config section."""
+    return {stage: partial(settings_from_dict, cls)
+            for stage, cls in (("sfm", SfMConfig), ("masks", MaskConfig), ("geometry", GeometryConfig), ("uv", UVConfig))}
+
+
 SECTION_SETTINGS: dict[str, Callable[[dict], Any]] = {
     "render": partial(settings_from_dict, RenderSettings),
     "problem": partial(settings_from_dict, ProblemSettings),
     "init": OptimizeConfig.from_dict,
     "adaptive": AdaptiveConfig.from_dict,
-    **{f"preprocess.{stage}": partial(settings_from_dict, cls)
-       for stage, cls in (("sfm", SfMConfig), ("masks", MaskConfig), ("geometry", GeometryConfig), ("uv", UVConfig))},
+    **{f"preprocess.{stage}": make for stage, make in preprocess_settings().items()},
 }
 """config sections (key paths) built by one settings dataclass each"""
 
@@ -93,12 +98,11 @@ def check_prior_section(values: dict[str, Any], where: str) -> None:
     """The `prior` section: shared keys, and per-family overrides under a family's name; each family's merged
     settings build its PriorJobConfig."""
     shared = {k: v for k, v in values.items() if not isinstance(v, dict)}
-    for key, value in values.items():
-        if isinstance(value, dict):
-            check_family(key, join(where, key))
-    for family in PRIORS:
-        own = values.get(family, {})
-        build(PriorJobConfig.from_dict, {**shared, **own}, join(where, family) if own else where)
+    build(PriorJobConfig.from_dict, shared, where)
+    for family, own in values.items():
+        if isinstance(own, dict):
+            check_family(family, join(where, family))
+            build(PriorJobConfig.from_dict, {**shared, **own}, join(where, family))
 
 
 def check_methods(config: dict[str, Any], prefix: str) -> None:

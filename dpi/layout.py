@@ -124,6 +124,10 @@ class SceneLayout:
         """Folder of the held-out views the evaluation rendered with sample k, one {view}.exr each."""
         return self.root / "eval" / method / str(k)
 
+    def evaluation_log(self, method: str, k: int | str = 0) -> Path:
+        """Log of the evaluation job of sample k of a method (of the initialisation for method `init`)."""
+        return self.log("eval", method) if method == INIT else self.log("eval", method, str(k))
+
     @property
     def envmap_figure(self) -> Path:
         return self.root / "eval" / "envmaps.png"

@@ -29,8 +29,8 @@ from typing import Any
 import yaml
 
 from dpi.adaptive import AdaptiveConfig
-from dpi.capture import inspect_capture, read_scene_options
-from dpi.config_validation import check_config
+from dpi.capture import PRIORS, inspect_capture, read_scene_options
+from dpi.config_validation import check_config, preprocess_settings
 from dpi.layout import Layout, package_data
 from dpi.prior.sample import DEFAULT_FAMILY, DEFAULT_MODELS
 from dpi.prior.train import PriorJobConfig
@@ -181,6 +181,9 @@ class Pipeline:
         out["synthetic"] = {scene: plain(self.synth_settings(scene)) for scene in self.config["synthetic"]}
         out["method_params"] = {m: {**({"samples": self.samples(m)} if m in self.methods else {}),
                                     **plain(self.method_settings(m))} for m in self.config["method_params"]}
+        out["preprocess"] = {stage: plain(make(self.config["preprocess"][stage]))
+                             for stage, make in preprocess_settings().items()}
+        out["prior"] = {family: plain(self.prior_job(family)) for family in PRIORS}
         return out
 
 

@@ -70,6 +70,11 @@ FIELD_BOUNDS: dict[str, Bound] = {
     "depth": Bound(1),
     "strip_frames": Bound(1),
     "start_noise": Bound(0),
+    "count": Bound(1),
+    "data_height": Bound(1),
+    "batch_size": Bound(1),
+    "threads": Bound(1),
+    "lr": Bound(0, strict=True),
 }
 """valid ranges of numeric settings by field-name pattern (fnmatch); the first matching pattern applies"""
 

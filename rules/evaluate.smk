@@ -17,7 +17,7 @@ rule evaluate:
     resources:
         **config["resources"]["evaluate"],
     log:
-        SCENE.log("eval", "{method}", "{k}"),
+        SCENE.evaluation_log("{method}", "{k}"),
     script:
         "../workflow_scripts/evaluate.py"
 
@@ -31,7 +31,7 @@ use rule evaluate as evaluate_init with:
         metrics=SCENE.evaluation(INIT),
         views=directory(SCENE.evaluation_views(INIT)),
     log:
-        SCENE.log("eval", INIT),
+        SCENE.evaluation_log(INIT),
 
 
 rule summary:

@@ -20,7 +20,7 @@ from dpi.evaluation.perceptual import (INCEPTION_WEIGHTS, azimuth_rolls, frechet
                                        missing_weights, pretrained_inception)
 from dpi.exr import read_exr
 from dpi.images import linear_to_srgb
-from dpi.layout import ENV_FILE, texture_file
+from dpi.layout import ENV_FILE, INIT, texture_file
 
 SUMMARY_METRICS = ("novel_psnr", "novel_ssim", "novel_lpips", "env_psnr", "env_ssim", "env_lpips", "env_niqe",
                    "env_naturalness", "albedo_mse", "sample_seconds")
@@ -47,7 +47,7 @@ def summarize(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
     for r in records:
         groups[(r["scene"], r["method"])].append(r)
-    init_seconds = {r["scene"]: r["metrics"].get("sample_seconds") for r in records if r["method"] == "init"}
+    init_seconds = {r["scene"]: r["metrics"].get("sample_seconds") for r in records if r["method"] == INIT}
     fid = env_fid(records)
     rows, mean_albedos = [], {}
     for (scene, method), recs in sorted(groups.items()):

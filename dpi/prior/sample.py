@@ -61,7 +61,7 @@ def load_scene_prior(options: dict, checkpoint: str | Path | None = None) -> Pri
 
 
 def load_default_prior(family: str, device: str | torch.device = "cpu") -> Prior:
-    """The shipped default prior of a family ('outdoor' or 'indoor') from models/."""
+    """The shipped default prior of a family (a name in dpi.capture.PRIORS) from dpi/data/models/."""
     if family not in DEFAULT_MODELS:
         raise ValueError(f"no default prior for family {family!r}; use one of {sorted(DEFAULT_MODELS)}")
     return load_prior(DEFAULT_MODELS[family], device)

@@ -99,6 +99,6 @@ DIFFUSION_METHODS = tuple(name for name, method in REGISTRY.items() if method.ne
 
 def method_config(method: str, values: dict[str, Any] | None) -> Any:
     """The settings of `method` from its `method_params` entry (without `samples`); errors name the bad key."""
-    if method not in REGISTRY:
+    if method not in METHOD_CONFIGS:
         raise ValueError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
-    return REGISTRY[method].settings.from_dict(values or {})
+    return METHOD_CONFIGS[method].from_dict(values or {})
