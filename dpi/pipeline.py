@@ -34,7 +34,7 @@ from dpi.config_validation import check_config, preprocess_settings
 from dpi.layout import Layout, package_data
 from dpi.prior.sample import DEFAULT_FAMILY, DEFAULT_MODELS
 from dpi.prior.train import PriorJobConfig
-from dpi.settings import apply_preset, settings_from_dict
+from dpi.settings import apply_preset
 from dpi.solve.methods import REGISTRY, method_config
 from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import SolveSettings
@@ -165,7 +165,7 @@ class Pipeline:
         """Dataset and training settings of a family's prior (config `prior`, then `prior.<family>`)."""
         section = self.config.get("prior", {})
         shared = {k: v for k, v in section.items() if not isinstance(v, dict)}
-        return settings_from_dict(PriorJobConfig, {**shared, **section.get(family, {})})
+        return PriorJobConfig.from_dict({**shared, **section.get(family, {})})
 
     def describe(self) -> dict[str, Any]:
         """The config with each section a settings dataclass owns written out in full (what a left-out key

@@ -124,8 +124,8 @@ def test_dpi_commands_give_the_workflow_files(workdir, tmp_path, monkeypatch):
     my = write_config(wd / "my.yaml", {"init": {"lr_env": 0.05}, "method_params": {"none": {"iterations": 3}},
                                        "evaluate": {"spp": 8}})
     workflow, ours = SceneLayout(wd / "results" / "tiny"), SceneLayout(wd / "results_cli" / "tiny")
-    snakemake(wd, "--configfile", str(my), str(workflow.evaluation(INIT).relative_to(wd)),
-              str(workflow.evaluation("none", 0).relative_to(wd)))
+    snakemake(wd, str(workflow.evaluation(INIT).relative_to(wd)), str(workflow.evaluation("none", 0).relative_to(wd)),
+              "--configfile", str(my))
     write_config(wd / "cli.yaml", {"results_dir": "results_cli"})
     monkeypatch.chdir(wd)
     for command in (["capture", "tiny"], ["init", "tiny"], ["sample", "tiny", "none", "0"], ["evaluate", "tiny", INIT],
