@@ -1,9 +1,8 @@
 # dpi: Diffusion Posterior Illumination as a Snakemake workflow.
-#   snakemake --cores 2                         # the demo (config.yaml)
-#   snakemake --cores 2 --configfile my.yaml    # your own scenes
-# Every intermediate is a file under results/; unchanged stages are not rerun.
-
-configfile: "config.yaml"
+#   snakemake --cores 2                         # the demo (dpi's defaults, dpi/data/config.yaml)
+#   snakemake --cores 2 --configfile my.yaml    # your own scenes, merged over the defaults
+# A config.yaml in the working directory is merged over the defaults too (dpi.pipeline).
+# Every intermediate is a file under results/ (dpi.layout); unchanged stages are not rerun.
 
 
 include: "rules/common.smk"
@@ -15,8 +14,8 @@ include: "rules/prior.smk"
 
 rule all:
     input:
-        f"{RESULTS}/eval/summary.csv",
+        LAYOUT.summary,
         all_figures(),
-        f"{RESULTS}/report.html",
+        LAYOUT.report_html,
         sample_plans(),  # a missing plan (more samples requested) is noticed even when the summary exists
     default_target: True

@@ -28,10 +28,11 @@ from typing import Any, Iterator
 
 import numpy as np
 import torch
-from tradeoff import ROOT, Setting, capture_at
+from tradeoff import DEMO, PIPELINE, capture_at, preset_setting
 
 from dpi import backend
 from dpi.capture import load_capture
+from dpi.layout import INIT
 from dpi.materials import MaterialTextures
 from dpi.prior.sample import load_scene_prior
 from dpi.render import Renderer, RenderSettings
@@ -58,13 +59,13 @@ def kernel_counts() -> dict[str, float]:
 
 def make_run(sampler: str, threads: int, seed: int) -> tuple[DPSRun, Iterator[dict[str, Any]]]:
     """The demo's problem at the default setting, the init, the prior, and the sampler's step loop."""
-    base = Setting()
+    base = preset_setting()
     capture = load_capture(capture_at(base.resolution, threads))
     problem = InverseProblem(capture, ProblemSettings(env_height=base.env_height, texture_size=base.texture_size),
                              RenderSettings(spp=base.spp, threads=threads))
-    init = problem.load_decomposition(ROOT / "results" / "demo" / "init")
+    init = problem.load_decomposition(PIPELINE.layout.scene(DEMO).sample_dir(INIT))
     cfg = DPSConfig(sampler=sampler, steps=base.steps, views_per_step=base.views_per_step)
-    run, state = start_run(problem, load_scene_prior(capture.options), init, cfg, seed)
+    run, state = start_run(problem, load_scene_prior(capture.options, PIPELINE.prior_checkpoint(DEMO)), init, cfg, seed)
     return run, posterior_steps(run, state)
 
 
@@ -141,7 +142,7 @@ def main() -> None:
 
     dr.set_flag(dr.JitFlag.KernelHistory, True)
     policy = os.environ.get("OMP_WAIT_POLICY", "unset")
-    base = Setting()
+    base = preset_setting()
     print(f"dps step on the demo: {base.resolution}x{base.resolution} images, {base.spp} spp, env {base.env_height}x"
           f"{2 * base.env_height}, textures {base.texture_size}, {base.views_per_step} view(s) per data term, "
           f"{args.threads} threads, OMP_WAIT_POLICY={policy}")

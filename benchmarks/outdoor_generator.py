@@ -20,7 +20,7 @@ import numpy as np
 from dpi import backend
 from dpi.envmap import texel_solid_angles
 from dpi.images import luminance, write_png
-from dpi.metrics import tonemap
+from dpi.evaluation.metrics import tonemap
 from dpi.prior.outdoor import SCENE_KINDS, outdoor_envmap
 
 TOP_FRACTION = 0.005

@@ -21,25 +21,26 @@ from pathlib import Path
 import numpy as np
 from tabulate import tabulate
 
-from dpi.capture import load_capture, write_capture_json
 from dpi.images import read_mask
 from dpi.preprocess.accuracy import align_mesh, chamfer, mask_iou, pose_errors
 from dpi.preprocess.geometry import read_mesh
 from dpi.preprocess.sfm import SfMError
-from dpi.preprocess.stages import geometry_stage, masks_stage, poses_stage, read_cameras, uv_stage
-from dpi.synth.capture import MARKER, SynthConfig, make_synthetic_capture
+from dpi.cameras import read_cameras
+from dpi.preprocess.stages import capture_stage, geometry_stage, masks_stage, poses_stage, uv_stage
+from dpi.layout import SYNTH_MARKER, SceneLayout
+from dpi.synth.capture import SynthConfig, make_synthetic_capture
 
 
 def run_capture(root: Path, work: Path, threads: int) -> dict:
     """Run the four stages on one photo capture; accuracy and seconds per stage."""
-    work.mkdir(parents=True, exist_ok=True)
-    write_capture_json(load_capture(root), work / "capture.json")
-    row, capture_json = {}, work / "capture.json"
+    scene = SceneLayout(work)
+    capture_stage(root, scene.capture_json)
+    row, capture_json = {}, scene.capture_json
     truth = read_cameras(root / "gt" / "transforms.json")
     start = time.perf_counter()
     try:
-        poses_stage(capture_json, work / "poses", {"max_features": 2048}, threads=threads)
-        cameras_json, points = work / "poses" / "transforms.json", work / "poses" / "points.ply"
+        poses_stage(capture_json, scene.poses_dir, {"max_features": 2048}, threads=threads)
+        cameras_json, points = scene.poses["cameras"], scene.poses["points"]
         cameras = read_cameras(cameras_json)
         errors = pose_errors(cameras, truth)
         row.update(registered=f"{errors['views']}/{len(truth)}", rot_deg_mean=errors["rotation_error_deg_mean"],
@@ -49,21 +50,21 @@ def run_capture(root: Path, work: Path, threads: int) -> dict:
         cameras_json, points, cameras = root / "gt" / "transforms.json", None, truth
     row["poses_s"] = time.perf_counter() - start
     start = time.perf_counter()
-    summary = masks_stage(capture_json, work / "masks", {}, cameras_json, points)
+    summary = masks_stage(capture_json, scene.masks, {}, cameras_json, points)
     row["masks_s"] = time.perf_counter() - start
-    ious = [mask_iou(read_mask(work / "masks" / f"{n}.png"), read_mask(root / "gt" / "masks" / f"{n}.png"))
+    ious = [mask_iou(read_mask(scene.masks / f"{n}.png"), read_mask(root / "gt" / "masks" / f"{n}.png"))
             for n in truth if n in cameras]
     methods = {v["method"] for v in summary["views"].values()}
     row.update(mask_prior=summary["prior"] if "grabcut" in methods else "key", iou_mean=np.mean(ious),
                iou_min=np.min(ious))
     start = time.perf_counter()
-    geometry_stage(capture_json, work / "geometry" / "mesh.ply", {}, cameras_json, work / "masks")
+    geometry_stage(capture_json, scene.geometry_dir, {}, cameras_json, scene.masks)
     row["geometry_s"] = time.perf_counter() - start
-    vertices, faces = read_mesh(work / "geometry" / "mesh.ply")
+    vertices, faces = read_mesh(scene.geometry["mesh"])
     error = chamfer(align_mesh(vertices, cameras, truth), faces, *read_mesh(root / "gt" / "mesh.ply"))
     row["chamfer_pct"] = 100 * error["chamfer_rel"]
     start = time.perf_counter()
-    uv_stage(capture_json, work / "geometry" / "mesh_uv.ply", {}, work / "geometry" / "mesh.ply")
+    uv_stage(capture_json, scene.geometry_dir, {}, scene.geometry["mesh"])
     row["uv_s"] = time.perf_counter() - start
     return row
 
@@ -89,7 +90,7 @@ def main() -> None:
                                   spp=args.spp, texture_size=256, camera_distance=6.0, elevations_deg=(15.0, 30.0),
                                   albedo_detail=0.6, background=background, image_format="png", photos_only=True)
                 start = time.perf_counter()
-                if not (root / MARKER).is_file():
+                if not (root / SYNTH_MARKER).is_file():
                     make_synthetic_capture(root, cfg, threads=args.threads, progress=False)
                 render_s = time.perf_counter() - start
                 try:

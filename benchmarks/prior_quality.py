@@ -12,9 +12,9 @@ The wrap seam is the mean |x[..., 0] - x[..., W-1]| divided by the mean differen
 neighbouring interior columns (1 = as smooth as the rest; paper Fig. 12 ablation).
 Dynamic range: per map, the energy share of its brightest 0.5 % texels (solid-angle weighted: a
 sun carries about half) and max / median luminance, for samples against held-out maps.
-Also writes models/{family}_samples.png: samples (left) next to their nearest training map
+Also writes dpi/data/models/{family}_samples.png: samples (left) next to their nearest training map
 (right, nearest over all azimuth rolls and flips), shown as radiance (median-normalised, Reinhard,
-sRGB), and models/{family}_dynamic_range.png: histograms of log10(texel luminance / median) of
+sRGB), and dpi/data/models/{family}_dynamic_range.png: histograms of log10(texel luminance / median) of
 samples and held-out maps.
 """
 

@@ -4,7 +4,7 @@ On the demo object (the demo's synthetic capture; other image resolutions are re
 results/benchmarks/captures), starting from one path-traced initialisation (resampled to each
 env-map and texture size), one knob at a time is varied around the base setting: diffusion steps,
 render spp, image resolution, views per step, env-map height, texture size and material refinement
-iterations; then the quality presets of config.yaml. Prints seconds per sample and the errors,
+iterations; then the quality presets of dpi's config. Prints seconds per sample and the errors,
 marks the Pareto front (time vs env PSNR, albedo MSE and view PSNR), and writes the table (CSV)
 and a plot.
 
@@ -19,34 +19,35 @@ import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
-import yaml
-
 from dpi.capture import load_capture
-from dpi.evaluate import evaluate_sample
+from dpi.evaluation.sample_metrics import evaluate_sample
+from dpi.layout import INIT, INIT_TRACE, SYNTH_MARKER
+from dpi.pipeline import Pipeline, resolve_config
 from dpi.prior.sample import load_scene_prior
 from dpi.render import RenderSettings
-from dpi.solve.dps import DPSConfig, dps_sample
+from dpi.solve.dps import dps_sample
 from dpi.solve.init import path_traced_init
-from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import InverseProblem, ProblemSettings
 from dpi.studies import pareto_front
-from dpi.synth.capture import SynthConfig, make_synthetic_capture
+from dpi.synth.capture import make_synthetic_capture
 
-ROOT = Path(__file__).resolve().parent.parent
-OUT = ROOT / "results" / "benchmarks"
+DEMO = "demo"
+PIPELINE = Pipeline(resolve_config())
+"""dpi's default config (the demo), as the workflow resolves it"""
+OUT = PIPELINE.layout.results / "benchmarks"
 
 
 @dataclass(frozen=True)
 class Setting:
     """The cost knobs of one dps run."""
 
-    steps: int = 100
-    spp: int = 16
-    resolution: int = 64
-    views_per_step: int = 1
-    env_height: int = 16
-    texture_size: int = 64
-    refine_iterations: int = 100
+    steps: int
+    spp: int
+    resolution: int
+    views_per_step: int
+    env_height: int
+    texture_size: int
+    refine_iterations: int
 
 
 SWEEPS = {"steps": [25, 50, 100, 250, 1000], "spp": [4, 16, 64], "resolution": [32, 64],
@@ -54,23 +55,23 @@ SWEEPS = {"steps": [25, 50, 100, 250, 1000], "spp": [4, 16, 64], "resolution": [
           "refine_iterations": [50, 100, 200]}
 
 
-def preset_setting(preset: dict) -> Setting:
-    """The knobs a config.yaml preset sets (others at the base values)."""
-    dps = preset.get("method_params", {}).get("dps", {})
-    keys = {"steps", "views_per_step", "refine_iterations"}
-    return Setting(spp=preset.get("render", {}).get("spp", Setting.spp),
-                   env_height=preset.get("problem", {}).get("env_height", Setting.env_height),
-                   texture_size=preset.get("problem", {}).get("texture_size", Setting.texture_size),
-                   **{k: v for k, v in dps.items() if k in keys})
+def preset_setting(name: str | None = None) -> Setting:
+    """The knobs of the demo under a quality preset (None: the config's own), as the workflow resolves them."""
+    pipeline = PIPELINE if name is None else Pipeline(resolve_config({"preset": name}))
+    dps, solve = pipeline.method_settings("dps"), pipeline.solve_settings()
+    return Setting(steps=dps.steps, spp=solve.render.spp, resolution=pipeline.synth_settings(DEMO).width,
+                   views_per_step=dps.views_per_step, env_height=solve.problem.env_height,
+                   texture_size=solve.problem.texture_size, refine_iterations=dps.refine_iterations)
 
 
 def capture_at(resolution: int, threads: int) -> Path:
     """The demo capture at an image resolution (the demo's own folder at its configured size)."""
-    demo = yaml.safe_load((ROOT / "config.yaml").read_text())["synthetic"]["demo"]
-    folder = ROOT / "captures" / "demo" if demo.get("width") == resolution else OUT / "captures" / f"demo_{resolution}"
-    if not (folder / ".synth.json").exists():
-        make_synthetic_capture(folder, SynthConfig.from_dict({**demo, "width": resolution, "height": resolution}),
-                               threads=threads, progress=False)
+    demo = PIPELINE.synth_settings(DEMO)
+    own = demo.width == resolution
+    folder = PIPELINE.layout.capture_dir(DEMO) if own else OUT / "captures" / f"{DEMO}_{resolution}"
+    if not (folder / SYNTH_MARKER).exists():
+        make_synthetic_capture(folder, replace(demo, width=resolution, height=resolution), threads=threads,
+                               progress=False)
     return folder
 
 
@@ -80,12 +81,12 @@ def run(setting: Setting, init_dir: Path, prior, threads: int, seed: int) -> dic
     problem = InverseProblem(capture, ProblemSettings(env_height=setting.env_height, texture_size=setting.texture_size),
                              RenderSettings(spp=setting.spp, threads=threads))
     init = problem.load_decomposition(init_dir)
-    cfg = DPSConfig(steps=setting.steps, views_per_step=setting.views_per_step,
-                    refine_iterations=setting.refine_iterations)
+    cfg = replace(PIPELINE.method_settings("dps"), steps=setting.steps, views_per_step=setting.views_per_step,
+                  refine_iterations=setting.refine_iterations)
     start = time.perf_counter()
     result = dps_sample(problem, prior, init, cfg, seed=seed, progress=False).decomposition
     seconds = time.perf_counter() - start
-    m = evaluate_sample(problem, result, spp=64, seed=1, seconds=seconds)
+    m = evaluate_sample(problem, result, spp=PIPELINE.evaluate_spp, seed=1, seconds=seconds)
     return {"seconds": seconds, "env_psnr": m["env_psnr"], "albedo_mse": m["albedo_mse"], "view_psnr": m["novel_psnr"]}
 
 
@@ -118,29 +119,28 @@ def main() -> None:
     parser.add_argument("--values", nargs="*", default=[], metavar="KNOB=V1,V2",
                         help="replace a knob's swept values, e.g. steps=25,100")
     parser.add_argument("--presets", nargs="*", default=["draft", "default"],
-                        help="config.yaml presets to measure too (paper: 1000 steps, meant for a GPU)")
+                        help="quality presets of dpi's config to measure too (paper: 1000 steps, meant for a GPU)")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
 
-    base = Setting()
+    base = preset_setting()
     demo = load_capture(capture_at(base.resolution, args.threads))
-    init_dir = OUT / "tradeoff_init"
-    if not (init_dir / "log.json").exists():
+    init_dir = OUT / f"tradeoff_{INIT}"
+    if not (init_dir / INIT_TRACE).exists():
         problem = InverseProblem(demo, ProblemSettings(base.env_height, base.texture_size),
-                                 RenderSettings(spp=16, threads=args.threads))
-        problem.save_decomposition(path_traced_init(problem, OptimizeConfig(iterations=200), seed=0, progress=False),
-                                   init_dir, "log.json")
-    prior = load_scene_prior(demo.options)
+                                 RenderSettings(spp=base.spp, threads=args.threads))
+        problem.save_decomposition(path_traced_init(problem, PIPELINE.init_settings, seed=0, progress=False),
+                                   init_dir, INIT_TRACE)
+    prior = load_scene_prior(demo.options, PIPELINE.prior_checkpoint(DEMO))
 
     sweeps = {**SWEEPS, **{k: [int(v) for v in vs.split(",")] for k, vs in (a.split("=") for a in args.values)}}
-    presets = yaml.safe_load((ROOT / "config.yaml").read_text()).get("presets", {})
     todo: dict[Setting, str] = {base: "base"}
     for knob in args.knobs:
         for value in sweeps[knob]:
             todo.setdefault(replace(base, **{knob: value}), f"{knob}={value}")
     for name in args.presets:
-        setting = preset_setting(presets[name])
+        setting = preset_setting(name)
         todo[setting] = f"{todo[setting]} = {name}" if setting in todo else name
 
     print(f"dps on the demo, {args.threads} threads, base {asdict(base)}")

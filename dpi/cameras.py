@@ -8,8 +8,10 @@ sensors look along +z with x pointing left, so `to_mitsuba` flips the x and z ax
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -193,6 +195,15 @@ def read_transforms(data: dict, default_size: tuple[int, int] | None = None) -> 
         out.append((str(frame["file_path"]), Camera(c2w, int(width), int(height), fx, fy, cx, cy,
                                                     str(frame["file_path"]), extras)))
     return out
+
+
+def read_cameras(path: str | Path) -> dict[str, Camera]:
+    """view name -> Camera from a transforms.json file (file paths "images/{view}.png" or "{view}")."""
+    cameras = {}
+    for file_path, camera in read_transforms(json.loads(Path(path).read_text())):
+        camera.name = Path(file_path).stem
+        cameras[camera.name] = camera
+    return cameras
 
 
 def write_transforms(frames: list[tuple[str, Camera]]) -> dict:

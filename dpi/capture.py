@@ -26,9 +26,10 @@ import numpy as np
 import yaml
 
 from dpi.atomic import write_json
-from dpi.cameras import Camera, camera_problem, read_transforms
+from dpi.cameras import Camera, camera_problem, read_cameras, read_transforms
 from dpi.exr import EXRError, read_exr
 from dpi.images import HDR_SUFFIXES, IMAGE_SUFFIXES, LDR_SUFFIXES, ImageError, read_image, read_mask
+from dpi.layout import SceneLayout
 from dpi.mitsuba_xml import MitsubaXMLError, read_mesh_shapes, read_sensors
 
 SCENE_YAML_KEYS = ("prior", "held_out", "radiance_scale", "object", "notes", "focal_length_px")
@@ -87,6 +88,12 @@ class Capture:
     def held_out_views(self) -> list[View]:
         """Views kept aside for novel-view evaluation."""
         return [v for v in self.views if v.held_out]
+
+    @property
+    def given(self) -> dict[str, bool]:
+        """What the capture folder gave, as `inspect_capture` reports it (cameras, masks, mesh, mesh_has_uv)."""
+        return {key: self.provenance[name] == "given"
+                for key, name in (("cameras", "cameras"), ("masks", "masks"), ("mesh", "mesh"), ("mesh_has_uv", "uv"))}
 
     def with_derived(self, cameras: dict[str, Camera] | None = None, masks: dict[str, Path] | None = None,
                      mesh: Path | None = None) -> "Capture":
@@ -327,6 +334,37 @@ def inspect_capture(root: str | os.PathLike) -> dict[str, bool]:
         "mesh": mesh is not None,
         "mesh_has_uv": mesh is not None and mesh.is_file() and mesh_has_uv(mesh),
     }
+
+
+def derived_inputs(given: dict[str, bool], scene: SceneLayout) -> dict[str, Path]:
+    """What the preprocessing stages derive for a capture that lacks it (keys cameras, masks, mesh), from
+    what it gives (`inspect_capture`, `Capture.given`): the files that complete it for init, the methods
+    and evaluation (dpi.preprocess.stages schedules the stages that make them)."""
+    inputs = {}
+    if not given["cameras"]:
+        inputs["cameras"] = scene.poses["cameras"]
+    if not given["masks"]:
+        inputs["masks"] = scene.masks
+    if not given["mesh_has_uv"]:
+        inputs["mesh"] = scene.geometry["mesh_uv"]
+    return inputs
+
+
+def complete_capture(capture: Capture, scene: SceneLayout) -> Capture:
+    """The capture with the cameras, masks and UV mesh that preprocessing derived (in the scene's results
+    folder) filled in where the capture folder lacks them."""
+    derived: dict = {}
+    for key, path in derived_inputs(capture.given, scene).items():
+        if not path.exists():
+            raise FileNotFoundError(f"{path}: the capture has no {key}; run the preprocessing stages first "
+                                    "(`dpi preprocess`, or the workflow)")
+        if key == "cameras":
+            derived["cameras"] = read_cameras(path)
+        elif key == "masks":
+            derived["masks"] = {p.stem: p for p in path.glob("*.png")}
+        else:
+            derived["mesh"] = path
+    return capture.with_derived(**derived) if derived else capture
 
 
 # --- full validation ------------------------------------------------------------------------

@@ -1,13 +1,22 @@
-"""The `dpi` command: every pipeline stage runnable without Snakemake.
+"""The `dpi` command: every stage of the workflow on a scene, without Snakemake.
 
-    dpi synth captures/demo --shape blob --views 16
-    dpi validate captures/demo --out results/demo/capture.json
-    dpi init results/demo/capture.json results/demo/init
-    dpi sample results/demo/capture.json results/demo/init results/demo/none/0 --method none --k 0
-    dpi evaluate results/demo/capture.json results/demo/none/0 results/demo/eval/none/0.json
-    dpi summary results/demo/eval/*/*.json --out results/eval/summary.csv
+    dpi config                          # the resolved settings, every default filled in
+    dpi capture demo                    # (render the synthetic scene, then) validate: results/demo/capture.json
+    dpi preprocess myobject             # the cameras, masks, mesh and UVs a photo capture lacks
+    dpi init demo
+    dpi sample demo dps 0
+    dpi evaluate demo dps 0             # (`dpi evaluate demo init` scores the initialisation)
+    dpi summary                         # results/eval/summary.csv over the config's scenes and methods
+    dpi report                          # the env-map figures and results/report.html
+
+A stage command reads and writes what its Snakemake rule does (dpi.layout) with the settings the
+workflow resolves (dpi.pipeline): dpi's defaults, ./config.yaml when present, then each `--config`
+file, so `snakemake --configfile my.yaml` and `dpi ... --config my.yaml` give the same files. The
+tools work on paths:
+
+    dpi synth captures/torus --shape bumpy_torus --views 24
+    dpi validate captures/torus --out results/torus/capture.json
     dpi relight results/demo/capture.json results/demo/dps/0 results/demo/relit --envmap sky.exr --orbit 8
-    dpi preprocess captures/myobject results/myobject --threads 2
 """
 
 from __future__ import annotations
@@ -20,23 +29,27 @@ from pathlib import Path
 
 import yaml
 
-from dpi.capture import CaptureError
+from dpi.capture import PRIORS, CaptureError
+from dpi.config_validation import ConfigError
 from dpi.preprocess.sfm import SfMError
 from dpi.prior.cli import register as register_prior_commands
 
-DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "config.yaml"
+
+def _pipeline(args: argparse.Namespace):
+    """The resolved config of the command's --config files."""
+    from dpi.pipeline import load_pipeline
+
+    return load_pipeline(args.config)
 
 
-def _config(path: str | None) -> dict:
-    """Parsed config.yaml (the workflow's) or {} when none is found."""
-    candidate = Path(path) if path else DEFAULT_CONFIG
-    return yaml.safe_load(candidate.read_text()) if candidate.is_file() else {}
+def _threads(args: argparse.Namespace, pipeline, kind: str) -> int:
+    """--threads, else the config's threads of the job kind (as the workflow's job has)."""
+    return args.threads or pipeline.threads(kind)
 
 
-def _settings(args: argparse.Namespace):
-    from dpi.stages import SolveSettings
-
-    return SolveSettings.from_config(_config(args.config), args.threads)
+def cmd_config(args: argparse.Namespace) -> None:
+    """Print the resolved config."""
+    print(yaml.safe_dump(_pipeline(args).describe(), sort_keys=False), end="")
 
 
 def cmd_synth(args: argparse.Namespace) -> None:
@@ -59,36 +72,113 @@ def cmd_validate(args: argparse.Namespace) -> None:
           f"provenance {json.dumps(capture.provenance)}")
 
 
+def cmd_capture(args: argparse.Namespace) -> None:
+    """Rules synth_capture (a synthetic scene whose folder is missing) and capture."""
+    from dpi.preprocess.stages import capture_stage
+    from dpi.synth.capture import make_synthetic_capture
+
+    pipeline = _pipeline(args)
+    layout = pipeline.layout
+    if pipeline.is_synthetic(args.scene) and not layout.synth_marker(args.scene).is_file():
+        make_synthetic_capture(layout.capture_dir(args.scene), pipeline.synth_settings(args.scene),
+                               threads=_threads(args, pipeline, "synth"), overwrite=True)
+    capture_stage(layout.capture_dir(args.scene), layout.scene(args.scene).capture_json)
+    print(f"wrote {layout.scene(args.scene).capture_json}")
+
+
+def cmd_preprocess(args: argparse.Namespace) -> None:
+    """The rules capture, poses, masks, geometry and uv for what a capture lacks."""
+    from dpi.preprocess.stages import STAGES, needed_stages, preprocess_scene
+
+    pipeline = _pipeline(args)
+    capture_dir = pipeline.layout.capture_dir(args.scene)
+    stages = needed_stages(pipeline.given(args.scene))
+    if args.dry_run:
+        for stage in STAGES:
+            print(f"{stage:9s} {'run' if stage in stages else 'skipped: given by the capture'}")
+        return
+    report = preprocess_scene(capture_dir, pipeline.layout.scene(args.scene), pipeline.config["preprocess"],
+                              _threads(args, pipeline, "preprocess"))
+    for stage, summary in report.items():
+        print(f"{stage:9s} " + ("given" if summary == "given" else f"derived in {summary.get('seconds', 0):.1f} s"))
+    print(f"wrote {pipeline.layout.scene(args.scene).root}")
+
+
 def cmd_init(args: argparse.Namespace) -> None:
-    """Path-traced initialisation."""
+    """Rule init."""
+    from dpi.layout import INIT
     from dpi.stages import init_stage
 
-    init_stage(args.capture_json, args.out, args.scene, _config(args.config).get("init", {}), _settings(args))
+    pipeline = _pipeline(args)
+    scene = pipeline.layout.scene(args.scene)
+    init_stage(scene.capture_json, scene.sample_dir(INIT), args.scene, pipeline.config["init"],
+               pipeline.solve_settings(_threads(args, pipeline, "init")))
 
 
 def cmd_sample(args: argparse.Namespace) -> None:
-    """One posterior sample of a method."""
+    """Rule sample."""
+    from dpi.layout import INIT
     from dpi.stages import sample_stage
 
-    method_cfg = dict(_config(args.config).get("method_params", {}).get(args.method, {}))
-    method_cfg.pop("samples", None)
-    sample_stage(args.capture_json, args.init, args.out, args.scene, args.method, args.k, method_cfg,
-                 _settings(args))
+    pipeline = _pipeline(args)
+    scene = pipeline.layout.scene(args.scene)
+    sample_stage(scene.capture_json, scene.sample_dir(INIT), scene.sample_dir(args.method, args.k), args.scene,
+                 args.method, args.k, pipeline.method_params(args.method),
+                 pipeline.solve_settings(_threads(args, pipeline, "sample")),
+                 prior_checkpoint=pipeline.method_prior(args.scene, args.method),
+                 adaptive=pipeline.adaptive)
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
-    """Metrics of one sample."""
+    """Rules evaluate and evaluate_init."""
     from dpi.stages import evaluate_stage
 
-    spp = _config(args.config).get("evaluate", {}).get("spp", 64)
-    evaluate_stage(args.capture_json, args.sample, args.out, args.scene, args.method, args.k, spp, _settings(args))
+    pipeline = _pipeline(args)
+    scene = pipeline.layout.scene(args.scene)
+    evaluate_stage(scene.capture_json, scene.sample_dir(args.method, args.k), scene.evaluation(args.method, args.k),
+                   args.scene, args.method, args.k, pipeline.evaluate_spp,
+                   pipeline.solve_settings(_threads(args, pipeline, "evaluate")),
+                   pipeline.prior_checkpoint(args.scene), views_dir=scene.evaluation_views(args.method, args.k))
+
+
+def existing_evaluations(pipeline) -> list[Path]:
+    """The metric files present of the config's scenes: the initialisation and each method's samples."""
+    from dpi.layout import INIT
+
+    paths = []
+    for name in pipeline.scenes:
+        scene = pipeline.layout.scene(name)
+        paths += [scene.evaluation(INIT)] + [scene.evaluation(m, k) for m in pipeline.methods
+                                             for k in range(pipeline.samples(m))]
+    return [p for p in paths if p.is_file()]
 
 
 def cmd_summary(args: argparse.Namespace) -> None:
-    """Aggregate metric files into a CSV table."""
+    """Rule summary, over the metric files present."""
     from dpi.stages import summary_stage
 
-    summary_stage(args.evals, args.out, args.samples_out)
+    pipeline = _pipeline(args)
+    evaluations = existing_evaluations(pipeline)
+    if not evaluations:
+        raise ValueError(f"no metric files of scenes {', '.join(pipeline.scenes)} under {pipeline.layout.results}")
+    summary_stage(evaluations, pipeline.layout.summary, pipeline.layout.samples_table)
+    print(f"wrote {pipeline.layout.summary} ({len(evaluations)} samples)")
+
+
+def cmd_report(args: argparse.Namespace) -> None:
+    """Rules envmap_figure (each scene, over the samples present) and report."""
+    from dpi.evaluation.report import build_report
+    from dpi.stages import envmap_figure_stage
+
+    pipeline = _pipeline(args)
+    layout = pipeline.layout
+    for name in pipeline.scenes:
+        scene = layout.scene(name)
+        rows = [(m, [files["env"] for k in range(pipeline.samples(m))
+                     if (files := scene.sample_files(m, k))["env"].is_file()]) for m in pipeline.methods]
+        envmap_figure_stage(scene.capture_json, [(m, files) for m, files in rows if files], scene.envmap_figure)
+    build_report(layout, layout.report_html, layout.report_figures)
+    print(f"wrote {layout.report_html}")
 
 
 def cmd_relight(args: argparse.Namespace) -> None:
@@ -100,27 +190,9 @@ def cmd_relight(args: argparse.Namespace) -> None:
     edit = MaterialEdit(args.albedo_scale, args.roughness, args.metallic)
     cfg = RelightConfig(args.envmap, args.rotate_deg, args.env_height, args.orbit, args.orbit_elevation_deg,
                         args.exposure, args.seed, edit)
-    render = replace(_settings(args).render, spp=args.spp)
+    render = replace(_pipeline(args).solve_settings(args.threads).render, spp=args.spp)
     names = relight_sample(args.capture_json, args.sample, args.out, cfg, render)
     print(f"wrote {len(names)} views to {args.out}")
-
-
-def cmd_preprocess(args: argparse.Namespace) -> None:
-    """Derive the cameras, masks, mesh and UV atlas a capture lacks (the workflow's preprocessing)."""
-    from dpi.capture import inspect_capture
-    from dpi.preprocess.stages import STAGES, needed_stages, preprocess_capture
-
-    stages = needed_stages(inspect_capture(args.capture))
-    if args.dry_run:
-        for stage in STAGES:
-            print(f"{stage:9s} {'run' if stage in stages else 'skipped: given by the capture'}")
-        return
-    config = _config(args.config)
-    threads = args.threads or config.get("threads", {}).get("preprocess", 1)
-    report = preprocess_capture(args.capture, args.out, config.get("preprocess", {}), threads)
-    for stage, summary in report.items():
-        print(f"{stage:9s} " + ("given" if summary == "given" else f"derived in {summary.get('seconds', 0):.1f} s"))
-    print(f"wrote {args.out}")
 
 
 def _rgb(text: str) -> tuple[float, float, float]:
@@ -136,19 +208,26 @@ def _rgb(text: str) -> tuple[float, float, float]:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the `dpi` command."""
+    from dpi.layout import INIT
+    from dpi.solve.methods import METHODS
+
     parser = argparse.ArgumentParser(prog="dpi", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
 
-    def add(name: str, fn, help_text: str, capture_json: bool = False) -> argparse.ArgumentParser:
+    def add(name: str, fn, help_text: str, scene: bool = False) -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=help_text, description=help_text)
         p.set_defaults(fn=fn)
-        p.add_argument("--threads", type=int, default=None, help="CPU threads (Dr.Jit and torch; COLMAP and OpenCV)")
-        p.add_argument("--config", default=None, help="config.yaml with render/problem/stage settings")
-        if capture_json:
-            p.add_argument("capture_json", help="capture.json written by `dpi validate --out`")
+        p.add_argument("--threads", type=int, default=None,
+                       help="CPU threads (Dr.Jit and torch; COLMAP and OpenCV); default: the config's for the job")
+        p.add_argument("--config", action="append", default=[], metavar="FILE",
+                       help="settings merged over dpi's defaults and ./config.yaml, in order (repeatable)")
+        if scene:
+            p.add_argument("scene", help="scene name: its capture is captures_dir/SCENE, its results results_dir/SCENE")
         return p
 
-    p = add("synth", cmd_synth, "render a synthetic capture with ground truth")
+    add("config", cmd_config, "print the resolved config (defaults, ./config.yaml, --config files, preset)")
+
+    p = add("synth", cmd_synth, "render a synthetic capture with ground truth into a folder")
     p.add_argument("out", help="capture folder to create")
     p.add_argument("--shape", choices=("blob", "bumpy_torus"))
     for name, typ in (("views", int), ("width", int), ("height", int), ("spp", int), ("env_height", int),
@@ -158,37 +237,50 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument(f"--{name.replace('_', '-')}", dest=name, type=typ)
     p.add_argument("--envmap", help="EXR to use as ground-truth illumination instead of a procedural sky")
     p.add_argument("--image-format", dest="image_format", choices=("exr", "png"))
-    p.add_argument("--prior", choices=("outdoor", "indoor"))
+    p.add_argument("--prior", choices=PRIORS)
 
     p = add("validate", cmd_validate, "validate a capture folder")
     p.add_argument("capture", help="capture folder")
     p.add_argument("--out", help="write the normalised capture.json here")
 
-    p = add("init", cmd_init, "path-traced initialisation", capture_json=True)
-    p.add_argument("out", help="output folder (envmap.exr, albedo/roughness/metallic.exr, log.json)")
-    p.add_argument("--scene", default="scene", help="scene name (seeds the run)")
+    add("capture", cmd_capture, "validate a scene's capture into its capture.json (rendering a synthetic scene "
+        "of the config first when its folder is missing)", scene=True)
 
-    p = add("sample", cmd_sample, "one posterior sample of a method", capture_json=True)
-    p.add_argument("init", help="init folder")
-    p.add_argument("out", help="output folder")
-    p.add_argument("--method", required=True)
-    p.add_argument("--k", type=int, default=0, help="sample index (seeds the run)")
-    p.add_argument("--scene", default="scene")
+    p = add("preprocess", cmd_preprocess, "derive what a photo capture lacks (cameras, masks, mesh, UV atlas)",
+            scene=True)
+    p.formatter_class = argparse.RawDescriptionHelpFormatter
+    p.description = """Derive what a scene's capture lacks, as the workflow's rules poses -> masks -> geometry ->
+uv do, skipping every stage whose output the capture gives:
 
-    p = add("evaluate", cmd_evaluate, "metrics of one sample", capture_json=True)
-    p.add_argument("sample", help="sample folder")
-    p.add_argument("out", help="metrics JSON to write")
-    p.add_argument("--method", default="method")
-    p.add_argument("--k", type=int, default=0)
-    p.add_argument("--scene", default="scene")
+  poses     COLMAP structure from motion     runs without transforms.json / camera.xml
+  masks     colour keying or GrabCut         runs without masks/
+  geometry  voxel carving + mesh clean-up    runs without mesh.ply / mesh.obj
+  uv        xatlas UV atlas                  runs without a mesh that has UVs
 
-    p = add("summary", cmd_summary, "aggregate metric JSONs into summary.csv")
-    p.add_argument("evals", nargs="+", help="per-sample metric JSON files")
-    p.add_argument("--out", required=True)
-    p.add_argument("--samples-out", dest="samples_out", default=None, help="also write per-sample rows here")
+Writes capture.json, poses/, masks/, geometry/mesh.ply and mesh_uv.ply, with each stage's summary, into
+the scene's results folder, so `dpi init SCENE` reads the derived inputs. Settings come from the config's
+`preprocess:` section, --threads (COLMAP and OpenCV threads) from its threads.preprocess. A known focal
+length in pixels belongs in the capture's scene.yaml (focal_length_px). Every needed stage runs again on
+each call; the workflow caches them."""
+    p.add_argument("-n", "--dry-run", dest="dry_run", action="store_true",
+                   help="only list which stages would run and which the capture makes unnecessary")
+
+    add("init", cmd_init, "path-traced initialisation of a scene", scene=True)
+
+    p = add("sample", cmd_sample, "posterior sample K of a method", scene=True)
+    p.add_argument("method", choices=METHODS)
+    p.add_argument("k", type=int, nargs="?", default=0, help="sample index (seeds the run; default 0)")
+
+    p = add("evaluate", cmd_evaluate, f"metrics of sample K of a method ({INIT}: of the initialisation)", scene=True)
+    p.add_argument("method", choices=(INIT, *METHODS))
+    p.add_argument("k", type=int, nargs="?", default=0, help="sample index (default 0)")
+
+    add("summary", cmd_summary, "aggregate the config's metric files into summary.csv and samples.csv")
+    add("report", cmd_report, "the env-map figure of each scene and the HTML report")
 
     p = add("relight", cmd_relight, "re-render a decomposition under a new environment map and/or from new "
-            "views, optionally with edited materials (relighting, material editing)", capture_json=True)
+            "views, optionally with edited materials (relighting, material editing)")
+    p.add_argument("capture_json", help="capture.json of the scene (results/SCENE/capture.json)")
     p.add_argument("sample", help="decomposition folder (envmap.exr, albedo/roughness/metallic.exr), e.g. "
                    "results/demo/dps/0 or results/demo/init")
     p.add_argument("out", help="output folder: {view}.exr (linear) and {view}.png (sRGB) per view, relight.json")
@@ -211,28 +303,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--exposure", type=float, default=1.0, help="exposure of the PNGs (the EXRs stay linear)")
     p.add_argument("--seed", type=int, default=0, help="sampler seed")
 
-    p = add("preprocess", cmd_preprocess, "derive what a photo capture lacks (cameras, masks, mesh, UV atlas) "
-            "without Snakemake")
-    p.formatter_class = argparse.RawDescriptionHelpFormatter
-    p.description = """Derive what a capture lacks, as the workflow's rules poses -> masks -> geometry -> uv do,
-skipping every stage whose output the capture gives:
-
-  poses     COLMAP structure from motion     runs without transforms.json / camera.xml
-  masks     colour keying or GrabCut         runs without masks/
-  geometry  voxel carving + mesh clean-up    runs without mesh.ply / mesh.obj
-  uv        xatlas UV atlas                  runs without a mesh that has UVs
-
-Writes OUT/capture.json, OUT/poses/, OUT/masks/, OUT/geometry/mesh.ply and mesh_uv.ply, with each
-stage's summary (JSON): the layout of the workflow's results/{scene}/, so `dpi init OUT/capture.json ...`
-reads the derived inputs. Settings come from the `preprocess:` section of --config (default: the
-repository's config.yaml), --threads (COLMAP and OpenCV threads) from its threads.preprocess. A
-known focal length in pixels belongs in the capture's scene.yaml (focal_length_px). Every needed
-stage runs again on each call; the workflow caches them."""
-    p.add_argument("capture", metavar="CAPTURE", help="capture folder: images/ and whatever else it gives")
-    p.add_argument("out", metavar="OUT", help="results folder to write (e.g. results/myobject)")
-    p.add_argument("-n", "--dry-run", dest="dry_run", action="store_true",
-                   help="only list which stages would run and which the capture makes unnecessary")
-
     register_prior_commands(sub)
     return parser
 
@@ -242,7 +312,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         args.fn(args)
-    except (CaptureError, FileExistsError, ValueError, SfMError) as exc:
+    except (CaptureError, ConfigError, FileExistsError, FileNotFoundError, ValueError, SfMError) as exc:
         print(f"dpi {args.command}: error: {exc}", file=sys.stderr)
         return 2
     return 0

@@ -5,9 +5,11 @@ Two passes, both before Snakemake builds the DAG (rules/common.smk):
    unknown key with the closest valid one suggested;
 2. every section a settings dataclass owns is built by it: `method_params.{method}` by that
    method's config (dpi.solve.methods, so new dataclass fields are accepted without touching the
-   schema), `synthetic.{scene}` by SynthConfig, `preprocess.{stage}` by the stage's config, `init`
-   and `adaptive` by theirs; each dataclass checks types, ranges (dpi.settings) and its own values.
-The quality presets are checked the same way, whether chosen or not.
+   schema), `synthetic.{scene}` by SynthConfig, `preprocess.{stage}` by the stage's config, `render`,
+   `problem`, `init`, `adaptive` and each family's `prior` by theirs; each dataclass checks types,
+   ranges (dpi.settings) and its own values, and its defaults say what a left-out key means.
+Prior families are checked against dpi.capture.PRIORS. The quality presets are checked the same way,
+whether chosen or not.
 """
 
 from __future__ import annotations
@@ -27,16 +29,26 @@ from dpi.preprocess.geometry import GeometryConfig
 from dpi.preprocess.masks import MaskConfig
 from dpi.preprocess.sfm import SfMConfig
 from dpi.preprocess.uv import UVConfig
+from dpi.prior.train import PriorJobConfig
+from dpi.render import RenderSettings
 from dpi.settings import SettingsError, check_keys, settings_from_dict
 from dpi.solve.methods import METHODS, method_config
 from dpi.solve.optimize import OptimizeConfig
+from dpi.solve.problem import ProblemSettings
 from dpi.synth.capture import SynthConfig
 
+def preprocess_settings() -> dict[str, Callable[[dict], Any]]:
+    """preprocess stage -> the builder of its settings dataclass from its config section."""
+    return {stage: partial(settings_from_dict, cls)
+            for stage, cls in (("sfm", SfMConfig), ("masks", MaskConfig), ("geometry", GeometryConfig), ("uv", UVConfig))}
+
+
 SECTION_SETTINGS: dict[str, Callable[[dict], Any]] = {
+    "render": partial(settings_from_dict, RenderSettings),
+    "problem": partial(settings_from_dict, ProblemSettings),
     "init": OptimizeConfig.from_dict,
     "adaptive": AdaptiveConfig.from_dict,
-    **{f"preprocess.{stage}": partial(settings_from_dict, cls)
-       for stage, cls in (("sfm", SfMConfig), ("masks", MaskConfig), ("geometry", GeometryConfig), ("uv", UVConfig))},
+    **{f"preprocess.{stage}": make for stage, make in preprocess_settings().items()},
 }
 """config sections (key paths) built by one settings dataclass each"""
 
@@ -64,12 +76,33 @@ def check_against(config: dict[str, Any], schema: dict[str, Any], prefix: str) -
     for scene, entry in config.get("synthetic", {}).items():
         where = join(prefix, "synthetic", scene)
         build(SynthConfig.from_dict, entry, where)
-        if "prior" in entry and entry["prior"] not in PRIORS:
-            raise ConfigError(f"{where}.prior: must be one of {', '.join(PRIORS)}, got {entry['prior']!r}")
+        check_family(entry.get("prior"), f"{where}.prior")
     for path, make in SECTION_SETTINGS.items():
         values = section(config, path)
         if values is not None:
             build(make, values, join(prefix, path))
+    illumination = config.get("illumination_prior", {})
+    check_family(illumination.get("family"), join(prefix, "illumination_prior.family"))
+    for family in illumination.get("checkpoints", {}):
+        check_family(family, join(prefix, "illumination_prior.checkpoints", family))
+    check_prior_section(config.get("prior", {}), join(prefix, "prior"))
+
+
+def check_family(family: str | None, where: str) -> None:
+    """A prior family name (None: not given) is one of dpi.capture.PRIORS."""
+    if family is not None and family not in PRIORS:
+        raise ConfigError(f"{where}: must be one of {', '.join(PRIORS)}, got {family!r}")
+
+
+def check_prior_section(values: dict[str, Any], where: str) -> None:
+    """The `prior` section: shared keys, and per-family overrides under a family's name; each family's merged
+    settings build its PriorJobConfig."""
+    shared = {k: v for k, v in values.items() if not isinstance(v, dict)}
+    build(PriorJobConfig.from_dict, shared, where)
+    for family, own in values.items():
+        if isinstance(own, dict):
+            check_family(family, join(where, family))
+            build(PriorJobConfig.from_dict, {**shared, **own}, join(where, family))
 
 
 def check_methods(config: dict[str, Any], prefix: str) -> None:

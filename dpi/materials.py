@@ -13,8 +13,9 @@ import torch
 
 from dpi.exr import read_exr, write_exr
 from dpi.images import resize
+from dpi.layout import TEXTURE_NAMES, texture_file
 
-CHANNELS = {"albedo": 3, "roughness": 1, "metallic": 1}
+CHANNELS = dict(zip(TEXTURE_NAMES, (3, 1, 1)))
 RANGES = {"albedo": (0.0, 1.0), "roughness": (0.02, 1.0), "metallic": (0.0, 1.0)}
 
 
@@ -50,14 +51,14 @@ class MaterialTextures:
     def save(self, folder: str | Path) -> None:
         """Write albedo.exr, roughness.exr and metallic.exr into `folder`."""
         for name, t in self.items():
-            write_exr(Path(folder) / f"{name}.exr", t.detach().cpu().numpy())
+            write_exr(Path(folder) / texture_file(name), t.detach().cpu().numpy())
 
     @classmethod
     def load(cls, folder: str | Path, size: int | None = None) -> "MaterialTextures":
         """Read the three EXRs of `folder`, optionally resampled to size x size."""
         tensors = []
         for name, ch in CHANNELS.items():
-            data = read_exr(Path(folder) / f"{name}.exr")[..., :ch]
+            data = read_exr(Path(folder) / texture_file(name))[..., :ch]
             tensors.append(resize_texture(torch.from_numpy(np.ascontiguousarray(data)), size))
         return cls(*tensors)
 

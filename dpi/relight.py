@@ -20,10 +20,11 @@ import torch
 
 from dpi.atomic import write_json
 from dpi.cameras import Camera, from_fov, orbit
-from dpi.capture import read_capture_json
+from dpi.capture import complete_capture, read_capture_json
 from dpi.envmap import rotate_azimuth
 from dpi.exr import EXRError, read_exr, write_exr
 from dpi.images import resize, write_png
+from dpi.layout import ENV_FILE, SceneLayout
 from dpi.materials import RANGES, MaterialTextures
 from dpi.render import Renderer, RenderSettings
 from dpi.solve.decomposition import Decomposition
@@ -130,9 +131,7 @@ def write_views(out_dir: str | os.PathLike, names: list[str], images: list[np.nd
 def relight_sample(capture_json: str | os.PathLike, sample_dir: str | os.PathLike, out_dir: str | os.PathLike,
                    cfg: RelightConfig, render: RenderSettings) -> list[str]:
     """Re-render the decomposition in `sample_dir` as `cfg` says into `out_dir`; returns the view names."""
-    from dpi.preprocess.stages import complete_capture
-
-    capture = complete_capture(read_capture_json(capture_json), Path(capture_json).parent)
+    capture = complete_capture(read_capture_json(capture_json), SceneLayout(Path(capture_json).parent))
     if capture.mesh is None or not capture.mesh_has_uv:
         raise ValueError(f"{capture.root}: relighting needs the capture's mesh with UVs")
     decomposition = Decomposition.load(sample_dir)
@@ -151,6 +150,6 @@ def relight_sample(capture_json: str | os.PathLike, sample_dir: str | os.PathLik
     images = relight(capture.mesh, cameras, env, materials, render, cfg.seed)
     write_views(out_dir, names, images, cfg.exposure)
     write_json(Path(out_dir) / "relight.json", {
-        "sample": str(sample_dir), "envmap": cfg.envmap or str(Path(sample_dir) / "envmap.exr"),
+        "sample": str(sample_dir), "envmap": cfg.envmap or str(Path(sample_dir) / ENV_FILE),
         "config": asdict(cfg), "env_shape": list(env.shape), "spp": render.spp, "views": names})
     return names

@@ -15,7 +15,7 @@ import difflib
 import math
 import types
 from collections.abc import Iterable
-from dataclasses import dataclass, fields
+from dataclasses import MISSING, dataclass, fields
 from fnmatch import fnmatchcase
 from typing import Any, TypeVar, Union, get_args, get_origin, get_type_hints
 
@@ -70,6 +70,11 @@ FIELD_BOUNDS: dict[str, Bound] = {
     "depth": Bound(1),
     "strip_frames": Bound(1),
     "start_noise": Bound(0),
+    "count": Bound(1),
+    "data_height": Bound(1),
+    "batch_size": Bound(1),
+    "threads": Bound(1),
+    "lr": Bound(0, strict=True),
 }
 """valid ranges of numeric settings by field-name pattern (fnmatch); the first matching pattern applies"""
 
@@ -80,6 +85,12 @@ def settings_from_dict(cls: type[T], values: dict[str, Any] | None) -> T:
     check_keys(values, [f.name for f in fields(cls)], f"{cls.__name__} setting")
     check_values(cls, values)
     return cls(**values)
+
+
+def field_default(cls: type, name: str) -> Any:
+    """The default of a dataclass field (a factory's value), e.g. for a command-line option's default."""
+    field = next(f for f in fields(cls) if f.name == name)
+    return field.default_factory() if field.default is MISSING else field.default
 
 
 def check_keys(values: Iterable[Any], known: Iterable[str], what: str) -> None:

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from dpi.capture import load_capture
-from dpi.metrics import normalized_env, sample_variance
+from dpi.evaluation.metrics import normalized_env, sample_variance
 from dpi.prior.sample import Prior
 from dpi.render import RenderSettings
 from dpi.solve.dps import DPSConfig, dps_sample

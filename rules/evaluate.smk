@@ -1,44 +1,37 @@
-# Evaluation: metrics per sample, then one summary table over samples, methods and scenes.
+# Evaluation: metrics per sample (and its held-out re-renders), then one summary table over samples,
+# methods and scenes, the env-map grid of each scene, and the report drawn from them.
 
 
 rule evaluate:
     input:
-        capture=f"{RESULTS}/{{scene}}/capture.json",
-        sample=rules.sample.output.trace,
+        capture=SCENE.capture_json,
+        sample=SAMPLE["trace"],
         prior=scene_prior,
     output:
-        f"{RESULTS}/{{scene}}/eval/{{method}}/{{k}}.json",
+        metrics=SCENE.evaluation("{method}", "{k}"),
+        views=directory(SCENE.evaluation_views("{method}", "{k}")),
     params:
         spp=config["evaluate"]["spp"],
         solve=solve_params(),
-    threads: config["threads"]["evaluate"]
+    threads: PIPELINE.threads("evaluate")
     resources:
-        mem_mb=config["resources"]["evaluate"]["mem_mb"],
-        runtime=config["resources"]["evaluate"]["runtime"],
+        **config["resources"]["evaluate"],
     log:
-        f"{RESULTS}/{{scene}}/logs/eval/{{method}}/{{k}}.log",
+        SCENE.evaluation_log("{method}", "{k}"),
     script:
         "../workflow_scripts/evaluate.py"
 
 
-rule evaluate_init:
+use rule evaluate as evaluate_init with:
     input:
-        capture=f"{RESULTS}/{{scene}}/capture.json",
-        sample=rules.init.output.log,
+        capture=SCENE.capture_json,
+        sample=INIT_FILES["trace"],
         prior=scene_prior,
     output:
-        f"{RESULTS}/{{scene}}/eval/init/0.json",
-    params:
-        spp=config["evaluate"]["spp"],
-        solve=solve_params(),
-    threads: config["threads"]["evaluate"]
-    resources:
-        mem_mb=config["resources"]["evaluate"]["mem_mb"],
-        runtime=config["resources"]["evaluate"]["runtime"],
+        metrics=SCENE.evaluation(INIT),
+        views=directory(SCENE.evaluation_views(INIT)),
     log:
-        f"{RESULTS}/{{scene}}/logs/eval/init.log",
-    script:
-        "../workflow_scripts/evaluate.py"
+        SCENE.evaluation_log(INIT),
 
 
 rule summary:
@@ -47,10 +40,10 @@ rule summary:
         planned=planned_evaluations,
         plans=sample_plans(),
     output:
-        summary=report(f"{RESULTS}/eval/summary.csv", caption="../report/summary.rst", category="Metrics"),
-        samples=f"{RESULTS}/eval/samples.csv",
+        summary=report(LAYOUT.summary, caption="../report/summary.rst", category="Metrics"),
+        samples=LAYOUT.samples_table,
     log:
-        f"{RESULTS}/logs/summary.log",
+        LAYOUT.log("summary"),
     script:
         "../workflow_scripts/summary.py"
 
@@ -59,13 +52,13 @@ rule envmap_figure:
     input:
         lambda w: [path for _, paths in sample_envmaps(w.scene) for path in paths],
         lambda w: sample_plans([w.scene]),
+        capture=SCENE.capture_json,
     output:
-        report(f"{RESULTS}/{{scene}}/eval/envmaps.png", caption="../report/envmaps.rst", category="Env maps"),
+        report(SCENE.envmap_figure, caption="../report/envmaps.rst", category="Env maps"),
     params:
         rows=lambda w: sample_envmaps(w.scene),
-        reference=lambda w: ground_truth_envmap(w.scene),
     log:
-        f"{RESULTS}/{{scene}}/logs/envmap_figure.log",
+        SCENE.log("envmap_figure"),
     script:
         "../workflow_scripts/envmap_figure.py"
 
@@ -76,15 +69,13 @@ rule report:
         evaluations=fixed_evaluations(),
         planned=planned_evaluations,
         plans=sample_plans(),
+        figures=all_figures(),
     output:
-        html=report(f"{RESULTS}/report.html", caption="../report/report.rst", category="Report"),
-        figures=directory(f"{RESULTS}/report"),
+        html=report(LAYOUT.report_html, caption="../report/report.rst", category="Report"),
+        figures=directory(LAYOUT.report_figures),
     params:
-        results=RESULTS,
-        spp=config["evaluate"]["spp"],
-        solve=solve_params(),
-    threads: config["threads"]["evaluate"]
+        layout={"results": str(LAYOUT.results), "captures": str(LAYOUT.captures)},
     log:
-        f"{RESULTS}/logs/report.log",
+        LAYOUT.log("report"),
     script:
         "../workflow_scripts/report.py"

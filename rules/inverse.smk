@@ -5,23 +5,17 @@ rule init:
     input:
         unpack(scene_inputs),
     output:
-        env=f"{RESULTS}/{{scene}}/init/envmap.exr",
-        albedo=f"{RESULTS}/{{scene}}/init/albedo.exr",
-        roughness=f"{RESULTS}/{{scene}}/init/roughness.exr",
-        metallic=f"{RESULTS}/{{scene}}/init/metallic.exr",
-        log=f"{RESULTS}/{{scene}}/init/log.json",
+        **INIT_FILES,
     params:
         init=config["init"],
         solve=solve_params(),
-    threads: config["threads"]["init"]
+    threads: PIPELINE.threads("init")
     resources:
-        mem_mb=config["resources"]["init"]["mem_mb"],
-        runtime=config["resources"]["init"]["runtime"],
-        gpu=config["resources"]["init"]["gpu"],
+        **config["resources"]["init"],
     log:
-        f"{RESULTS}/{{scene}}/logs/init.log",
+        SCENE.log(INIT),
     benchmark:
-        f"{RESULTS}/{{scene}}/benchmarks/init.tsv"
+        SCENE.benchmark(INIT)
     script:
         "../workflow_scripts/init.py"
 
@@ -29,27 +23,21 @@ rule init:
 rule sample:
     input:
         unpack(scene_inputs),
-        init=rules.init.output.log,
-        prior=prior_checkpoint,
+        init=INIT_FILES["trace"],
+        prior=method_prior,
     output:
-        env=f"{RESULTS}/{{scene}}/{{method}}/{{k}}/envmap.exr",
-        albedo=f"{RESULTS}/{{scene}}/{{method}}/{{k}}/albedo.exr",
-        roughness=f"{RESULTS}/{{scene}}/{{method}}/{{k}}/roughness.exr",
-        metallic=f"{RESULTS}/{{scene}}/{{method}}/{{k}}/metallic.exr",
-        trace=f"{RESULTS}/{{scene}}/{{method}}/{{k}}/trace.json",
+        **SAMPLE,
     params:
-        method=lambda w: method_params(w.method),
+        method=lambda w: PIPELINE.method_params(w.method),
         solve=solve_params(),
-        adaptive=lambda w: adaptive_params("diffuse_") if w.method == "dps" else {},
-    threads: config["threads"]["sample"]
+        adaptive=lambda w: adaptive_params("diffuse_") if REGISTRY[w.method].adaptive_steps else {},
+    threads: PIPELINE.threads("sample")
     resources:
-        mem_mb=config["resources"]["sample"]["mem_mb"],
-        runtime=config["resources"]["sample"]["runtime"],
-        gpu=config["resources"]["sample"]["gpu"],
+        **config["resources"]["sample"],
     log:
-        f"{RESULTS}/{{scene}}/logs/{{method}}/{{k}}.log",
+        SCENE.log("{method}", "{k}"),
     benchmark:
-        f"{RESULTS}/{{scene}}/benchmarks/{{method}}/{{k}}.tsv"
+        SCENE.benchmark("{method}", "{k}")
     script:
         "../workflow_scripts/sample.py"
 
@@ -58,13 +46,13 @@ rule sample:
 # draws in all. Only methods with more than adaptive.min_samples samples wait for it.
 checkpoint sample_plan:
     input:
-        lambda w: [f"{RESULTS}/{w.scene}/{w.method}/{k}/envmap.exr" for k in range(ADAPTIVE_CONFIG.min_samples)],
+        lambda w: [LAYOUT.scene(w.scene).sample_files(w.method, k)["env"] for k in range(ADAPTIVE.min_samples)],
     output:
-        f"{RESULTS}/{{scene}}/{{method}}/plan.json",
+        SCENE.plan("{method}"),
     params:
-        samples=lambda w: method_samples(w.method),
+        samples=lambda w: PIPELINE.samples(w.method),
         adaptive=adaptive_params("sample_stop", "min_samples", "agree_tolerance"),
     log:
-        f"{RESULTS}/{{scene}}/logs/{{method}}/plan.log",
+        SCENE.log("{method}", "plan"),
     script:
         "../workflow_scripts/sample_plan.py"

@@ -3,12 +3,12 @@
 
 rule synth_capture:
     output:
-        f"{CAPTURES}/{{scene}}/.synth.json",
+        LAYOUT.synth_marker("{scene}"),
     params:
-        synth=lambda w: config["synthetic"][w.scene],
-    threads: config["threads"]["synth"]
+        synth=lambda w: plain(PIPELINE.synth_settings(w.scene)),
+    threads: PIPELINE.threads("synth")
     log:
-        f"{RESULTS}/{{scene}}/logs/synth.log",
+        SCENE.log("synth"),
     script:
         "../workflow_scripts/synth.py"
 
@@ -17,116 +17,98 @@ rule capture:
     input:
         capture_files,
     output:
-        f"{RESULTS}/{{scene}}/capture.json",
+        SCENE.capture_json,
     params:
-        capture=lambda w: str(capture_dir(w.scene)),
+        capture=lambda w: str(LAYOUT.capture_dir(w.scene)),
     log:
-        f"{RESULTS}/{{scene}}/logs/capture.log",
+        SCENE.log("capture"),
     script:
         "../workflow_scripts/capture.py"
 
 
 # Stages that derive what a photo capture lacks (dpi.preprocess). Each is scheduled only when the
-# capture does not give its output (see `given` and `scene_inputs` in common.smk):
-# poses (COLMAP) -> masks (GrabCut / keying) -> geometry (carved SDF + cleanup) -> uv (xatlas).
+# capture does not give its output, and reads only what the stages before it derived
+# (dpi.preprocess.stages: needed_stages, stage_inputs; dpi.capture.derived_inputs for init and the
+# methods): poses (COLMAP) -> masks (GrabCut / keying) -> geometry (carved SDF + cleanup) -> uv (xatlas).
 
 
-def derived_cameras(wildcards):
-    """The poses stage's outputs a later stage reads, when the capture has no cameras."""
-    if given(wildcards.scene)["cameras"]:
-        return {}
-    return {"cameras": f"{RESULTS}/{wildcards.scene}/poses/transforms.json",
-            "points": f"{RESULTS}/{wildcards.scene}/poses/points.ply"}
-
-
-def derived_masks(wildcards):
-    """The masks folder the geometry stage reads, when the capture has no masks."""
-    return {} if given(wildcards.scene)["masks"] else {"masks": f"{RESULTS}/{wildcards.scene}/masks"}
-
-
-def uv_source(wildcards):
-    """The mesh the uv stage parametrises: the reconstructed one, or the capture's own (in capture.json)."""
-    return {} if given(wildcards.scene)["mesh"] else {"mesh": f"{RESULTS}/{wildcards.scene}/geometry/mesh.ply"}
+def stage_inputs_of(stage):
+    """Input function: the derived files a preprocessing stage reads, as its stage function names them."""
+    return lambda w: stage_inputs(stage, given(w.scene), scene_layout(w))
 
 
 rule poses:
     input:
-        capture=f"{RESULTS}/{{scene}}/capture.json",
+        capture=SCENE.capture_json,
     output:
-        cameras=f"{RESULTS}/{{scene}}/poses/transforms.json",
-        points=f"{RESULTS}/{{scene}}/poses/points.ply",
-        summary=f"{RESULTS}/{{scene}}/poses/summary.json",
+        **SCENE.poses,
     params:
         settings=config["preprocess"]["sfm"],
-    threads: config["threads"]["preprocess"]
+    threads: PIPELINE.threads("preprocess")
     resources:
-        mem_mb=config["resources"]["poses"]["mem_mb"],
-        runtime=config["resources"]["poses"]["runtime"],
+        **config["resources"]["poses"],
     log:
-        f"{RESULTS}/{{scene}}/logs/poses.log",
+        SCENE.log("poses"),
     benchmark:
-        f"{RESULTS}/{{scene}}/benchmarks/poses.tsv"
+        SCENE.benchmark("poses")
     script:
         "../workflow_scripts/poses.py"
 
 
 rule masks:
     input:
-        unpack(derived_cameras),
-        capture=f"{RESULTS}/{{scene}}/capture.json",
+        unpack(stage_inputs_of("masks")),
+        capture=SCENE.capture_json,
     output:
-        directory(f"{RESULTS}/{{scene}}/masks"),
+        directory(SCENE.masks),
     params:
         settings=config["preprocess"]["masks"],
     threads: 1
     resources:
-        mem_mb=config["resources"]["masks"]["mem_mb"],
-        runtime=config["resources"]["masks"]["runtime"],
+        **config["resources"]["masks"],
     log:
-        f"{RESULTS}/{{scene}}/logs/masks.log",
+        SCENE.log("masks"),
     benchmark:
-        f"{RESULTS}/{{scene}}/benchmarks/masks.tsv"
+        SCENE.benchmark("masks")
     script:
         "../workflow_scripts/masks.py"
 
 
 rule geometry:
     input:
-        unpack(derived_cameras),
-        unpack(derived_masks),
-        capture=f"{RESULTS}/{{scene}}/capture.json",
+        unpack(stage_inputs_of("geometry")),
+        capture=SCENE.capture_json,
     output:
-        mesh=f"{RESULTS}/{{scene}}/geometry/mesh.ply",
-        summary=f"{RESULTS}/{{scene}}/geometry/summary.json",
+        mesh=SCENE.geometry["mesh"],
+        summary=SCENE.geometry["summary"],
     params:
         settings=config["preprocess"]["geometry"],
     threads: 1
     resources:
-        mem_mb=config["resources"]["geometry"]["mem_mb"],
-        runtime=config["resources"]["geometry"]["runtime"],
+        **config["resources"]["geometry"],
     log:
-        f"{RESULTS}/{{scene}}/logs/geometry.log",
+        SCENE.log("geometry"),
     benchmark:
-        f"{RESULTS}/{{scene}}/benchmarks/geometry.tsv"
+        SCENE.benchmark("geometry")
     script:
         "../workflow_scripts/geometry.py"
 
 
 rule uv:
     input:
-        unpack(uv_source),
-        capture=f"{RESULTS}/{{scene}}/capture.json",
+        unpack(stage_inputs_of("uv")),
+        capture=SCENE.capture_json,
     output:
-        f"{RESULTS}/{{scene}}/geometry/mesh_uv.ply",
+        mesh_uv=SCENE.geometry["mesh_uv"],
+        summary=SCENE.geometry["uv_summary"],
     params:
         settings=config["preprocess"]["uv"],
     threads: 1
     resources:
-        mem_mb=config["resources"]["uv"]["mem_mb"],
-        runtime=config["resources"]["uv"]["runtime"],
+        **config["resources"]["uv"],
     log:
-        f"{RESULTS}/{{scene}}/logs/uv.log",
+        SCENE.log("uv"),
     benchmark:
-        f"{RESULTS}/{{scene}}/benchmarks/uv.tsv"
+        SCENE.benchmark("uv")
     script:
         "../workflow_scripts/uv.py"

@@ -1,12 +1,10 @@
 """The shipped experiment configs are valid and plan the studies they describe (dry runs)."""
 
-import shutil
-
 from workflow_helpers import REPO, planned_jobs, snakemake
 
 
 def dry_run(tmp_path, name: str) -> dict[str, int]:
-    shutil.copy(REPO / "config.yaml", tmp_path / "config.yaml")
+    """The experiment merged over dpi's defaults, planned in an empty directory."""
     return planned_jobs(snakemake(tmp_path, "-n", "--configfile", str(REPO / "experiments" / name)))
 
 

@@ -4,7 +4,7 @@ import numpy as np
 from PIL import Image
 
 from dpi.exr import write_exr
-from dpi.figures import display_env, envmap_grid
+from dpi.evaluation.figures import display_env, envmap_grid
 
 
 def test_display_aligns_scale_to_the_reference():

@@ -4,10 +4,10 @@ set metrics (sigma2_invar across the illuminations of an object, init seconds, F
 import numpy as np
 import pytest
 
-from dpi.evaluate import sample_rows, summarize
+from dpi.evaluation.summary import sample_rows, summarize
 from dpi.exr import write_exr
-from dpi.metrics import PSNR_CAP, albedo_mse, env_metrics, psnr, sample_variance, ssim
-from dpi.perceptual import INCEPTION_WEIGHTS, WEIGHTS_ENV
+from dpi.evaluation.metrics import PSNR_CAP, albedo_mse, env_metrics, psnr, sample_variance, ssim
+from dpi.evaluation.perceptual import INCEPTION_WEIGHTS, WEIGHTS_ENV
 
 
 def test_psnr_known_answers():

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dpi.naturalness import NaturalnessConfig, naturalness
+from dpi.evaluation.naturalness import NaturalnessConfig, naturalness
 from dpi.prior.outdoor import outdoor_envmap
 from dpi.prior.sample import load_default_prior
 

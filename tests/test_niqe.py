@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from skimage import data
 
-from dpi.niqe import env_niqe, niqe, pristine_model
+from dpi.evaluation.niqe import env_niqe, niqe, pristine_model
 from dpi.prior.outdoor import outdoor_envmap
 
 

@@ -43,33 +43,38 @@ def capture_with_cameras(tmp_path):
     return root, truths
 
 
+def folders(tmp_path, settings: dict | None = None) -> str:
+    """A config file that reads captures from tmp_path and writes results under tmp_path/results."""
+    config = tmp_path / "dirs.yaml"
+    config.write_text(yaml.safe_dump({"captures_dir": str(tmp_path), "results_dir": str(tmp_path / "results"),
+                                      **(settings or {})}))
+    return str(config)
+
+
 def test_dry_run_lists_the_needed_stages(capture_with_cameras, tmp_path, capsys):
-    root, _ = capture_with_cameras
-    assert main(["preprocess", str(root), str(tmp_path / "out"), "--dry-run"]) == 0
+    assert main(["preprocess", "capture", "--config", folders(tmp_path), "--dry-run"]) == 0
     lines = dict(line.split(None, 1) for line in capsys.readouterr().out.splitlines())
     assert lines["poses"].startswith("skipped") and lines["masks"] == "run" and lines["uv"] == "run"
-    assert not (tmp_path / "out").exists()
+    assert not (tmp_path / "results").exists()
 
 
 def test_preprocess_derives_masks_mesh_and_uvs_and_skips_given_cameras(capture_with_cameras, tmp_path, capsys):
-    from dpi.capture import read_capture_json
-    from dpi.preprocess.stages import complete_capture
+    from dpi.capture import complete_capture, read_capture_json
+    from dpi.layout import SceneLayout
 
-    root, truths = capture_with_cameras
-    config = tmp_path / "config.yaml"
-    config.write_text(yaml.safe_dump(FAST))
-    out = tmp_path / "out"
-    assert main(["preprocess", str(root), str(out), "--config", str(config), "--threads", "1"]) == 0
+    _, truths = capture_with_cameras
+    assert main(["preprocess", "capture", "--config", folders(tmp_path, FAST), "--threads", "1"]) == 0
     printed = capsys.readouterr().out
     assert "poses     given" in printed and "uv        derived" in printed
-    assert not (out / "poses").exists()
-    ious = [mask_iou(read_mask(out / "masks" / f"{name}.png"), truth) for name, truth in truths.items()]
+    scene = SceneLayout(tmp_path / "results" / "capture")
+    assert not scene.poses_dir.exists()
+    ious = [mask_iou(read_mask(scene.masks / f"{name}.png"), truth) for name, truth in truths.items()]
     assert np.mean(ious) > 0.95, ious
-    capture = complete_capture(read_capture_json(out / "capture.json"), out)
+    capture = complete_capture(read_capture_json(scene.capture_json), scene)
     assert capture.provenance == {"cameras": "given", "masks": "derived", "mesh": "derived", "uv": "derived"}
-    assert capture.mesh == out / "geometry" / "mesh_uv.ply" and capture.mesh.is_file()
+    assert capture.mesh == scene.geometry["mesh_uv"] and capture.mesh.is_file()
 
 
 def test_capture_errors_are_one_message(tmp_path, capsys):
-    assert main(["preprocess", str(tmp_path / "missing"), str(tmp_path / "out")]) == 2
+    assert main(["preprocess", "missing", "--config", folders(tmp_path)]) == 2
     assert "dpi preprocess: error:" in capsys.readouterr().err

@@ -7,7 +7,8 @@ import pytest
 
 from dpi.cameras import from_fov, orbit, pixel_rays
 from dpi.preprocess.accuracy import chamfer
-from dpi.preprocess.geometry import GeometryConfig, reconstruct_surface, signed_distance_2d, signed_volume
+from dpi.preprocess.geometry import GeometryConfig, reconstruct_surface, signed_volume
+from dpi.preprocess.hull import signed_distance_2d
 
 SIZE = 64
 

@@ -1,4 +1,4 @@
-"""Cluster resources of the preprocessing rules: config.yaml `resources:` (schema defaults filled in),
+"""Cluster resources of the preprocessing rules: config.yaml `resources:` (dpi's defaults for the rest),
 as a dry run on a photos-only capture plans them."""
 
 from __future__ import annotations
@@ -28,6 +28,6 @@ def test_preprocess_rules_request_configured_resources(tmp_path):
     write_config(tmp_path / "config.yaml", {"scenes": ["photos"], "resources": {"masks": {"mem_mb": 1234}}})
     plans = planned_resources(snakemake(tmp_path, "-n", "results/photos/geometry/mesh_uv.ply"))
     assert set(plans) >= {"poses", "masks", "geometry", "uv"}
-    assert plans["masks"]["mem_mb"] == "1234" and plans["masks"]["runtime"] == "60"  # the schema's default
+    assert plans["masks"]["mem_mb"] == "1234" and plans["masks"]["runtime"] == "60"  # dpi's default
     for rule in ("poses", "geometry", "uv"):
         assert int(plans[rule]["mem_mb"]) >= 1000 and int(plans[rule]["runtime"]) >= 10, plans[rule]

@@ -59,7 +59,7 @@ def test_photo_capture_is_derived_and_fitted(photo_run):
     from dpi.images import read_mask
     from dpi.preprocess.accuracy import align_mesh, chamfer, mask_iou, pose_errors
     from dpi.preprocess.geometry import read_mesh
-    from dpi.preprocess.stages import read_cameras
+    from dpi.cameras import read_cameras
 
     capture_dir, results = photo_run / "captures" / "photo", photo_run / "results" / "photo"
     assert not (capture_dir / "transforms.json").exists() and not (capture_dir / "masks").exists()

@@ -13,16 +13,15 @@ import numpy as np
 import pytest
 
 from dpi.capture import read_capture_json
+from dpi.evaluation.figures import envmap_grid
+from dpi.evaluation.metric_table import direction, metric_table
+from dpi.evaluation.report import Page, build_report, quality_section, roughness_section
 from dpi.exr import read_exr, write_exr
-from dpi.metric_table import direction, metric_table
-from dpi.render import RenderSettings
-from dpi.report import Page, build_report, quality_section, roughness_section
-from dpi.solve.problem import ProblemSettings
-from dpi.stages import SolveSettings, capture_stage
+from dpi.layout import INIT, Layout, view_file
+from dpi.stages import capture_stage
 
-METHODS = {"init": 1, "none": 2, "dps": 2}
+METHODS = {INIT: 1, "none": 2, "dps": 2}
 ROUGHNESS = {"glossy": 0.1, "rough": 0.6}
-SETTINGS = SolveSettings(RenderSettings(spp=4, threads=2), ProblemSettings(env_height=4, texture_size=8))
 PROBE = """<script>
 window.addEventListener("load", () => {
   for (const img of document.images) img.setAttribute("data-natural-width", img.naturalWidth);
@@ -55,28 +54,38 @@ def write_summary(path: Path, rows: list[dict[str, str]]) -> None:
 
 
 @pytest.fixture(scope="module")
-def results(tmp_path_factory, tiny_capture) -> Path:
-    """Two scenes of one object (copies of the tiny capture, roughness 0.1 and 0.6) with random samples."""
+def results(tmp_path_factory, tiny_capture) -> Layout:
+    """Two scenes of one object (copies of the tiny capture, roughness 0.1 and 0.6) with random samples, their
+    evaluation files (metrics and held-out renders) and env-map figures, as the workflow lays them out."""
     root = tmp_path_factory.mktemp("report")
+    layout = Layout(root / "results", root / "captures")
     rng = np.random.default_rng(0)
     gt_env = read_exr(tiny_capture / "gt" / "envmap.exr")
-    for scene, roughness in ROUGHNESS.items():
-        capture = shutil.copytree(tiny_capture, root / "captures" / scene)
-        marker = json.loads((capture / ".synth.json").read_text())
-        (capture / ".synth.json").write_text(json.dumps({**marker, "roughness": roughness}))
-        capture_stage(capture, root / "results" / scene / "capture.json")
+    for name, roughness in ROUGHNESS.items():
+        capture = shutil.copytree(tiny_capture, layout.capture_dir(name))
+        marker = json.loads(layout.synth_marker(name).read_text())
+        layout.synth_marker(name).write_text(json.dumps({**marker, "roughness": roughness}))
+        scene = layout.scene(name)
+        capture_stage(capture, scene.capture_json)
+        held_out = [v for v in read_capture_json(scene.capture_json).views if v.held_out]
         for method, samples in METHODS.items():
             for k in range(samples):
-                folder = root / "results" / scene / ("init" if method == "init" else f"{method}/{k}")
-                write_exr(folder / "envmap.exr", gt_env[::2, ::2] * rng.uniform(0.5, 2, (4, 8, 3)).astype(np.float32))
-                write_exr(folder / "albedo.exr", rng.uniform(0.1, 0.9, (8, 8, 3)).astype(np.float32))
-                write_exr(folder / "roughness.exr", np.full((8, 8, 1), roughness, np.float32))
-                write_exr(folder / "metallic.exr", np.zeros((8, 8, 1), np.float32))
-            note = {"metrics": {"notes": {"env": "global log-luminance scale alignment"}}}
-            (root / "results" / scene / "eval" / method).mkdir(parents=True)
-            (root / "results" / scene / "eval" / method / "0.json").write_text(json.dumps(note))
-    write_summary(root / "results" / "eval" / "summary.csv", summary_rows())
-    return root / "results"
+                files = scene.sample_files(method, k)
+                write_exr(files["env"], gt_env[::2, ::2] * rng.uniform(0.5, 2, (4, 8, 3)).astype(np.float32))
+                write_exr(files["albedo"], rng.uniform(0.1, 0.9, (8, 8, 3)).astype(np.float32))
+                write_exr(files["roughness"], np.full((8, 8, 1), roughness, np.float32))
+                write_exr(files["metallic"], np.zeros((8, 8, 1), np.float32))
+            for view in held_out:
+                write_exr(view_file(scene.evaluation_views(method, 0), view.name),
+                          rng.uniform(0, 0.5, (24, 24, 3)).astype(np.float32))
+            record = {"exposure": 2.0, "metrics": {"notes": {"env": "global log-luminance scale alignment"},
+                                                   "novel_psnr_views": {v.name: 20.0 for v in held_out}}}
+            scene.evaluation(method, 0).parent.mkdir(parents=True, exist_ok=True)
+            scene.evaluation(method, 0).write_text(json.dumps(record))
+        envmap_grid([(m, [scene.sample_files(m, k)["env"] for k in range(n)]) for m, n in METHODS.items()],
+                    scene.envmap_figure)
+    write_summary(layout.summary, summary_rows())
+    return layout
 
 
 class Images(HTMLParser):
@@ -108,8 +117,8 @@ def chromium_dom(page: Path, tmp_path: Path) -> str:
 @pytest.mark.skipif(shutil.which("chromium") is None,
                     reason="headless Chromium is not installed (Debian `chromium`; scripts/setup.sh installs it)")
 def test_every_image_of_the_report_loads_in_chromium(results, tmp_path):
-    page = results / "report.html"
-    build_report(results, page, results / "report", spp=4, settings=SETTINGS)
+    page = results.report_html
+    build_report(results, page, results.report_figures)
     written = Images(page.read_text())
     assert written.table
     alts = {img["alt"] for img in written.images}
@@ -148,5 +157,5 @@ def test_without_naturalness_or_sweep_the_page_says_so(results, tmp_path):
     quality = quality_section(summary_rows(naturalness=False), page)
     assert "Marker size is constant: summary.csv has no env_naturalness column" in quality
     one_scene = [r for r in summary_rows() if r["scene"] == "glossy"]
-    capture = read_capture_json(results / "glossy" / "capture.json")
+    capture = read_capture_json(results.scene("glossy").capture_json)
     assert "no roughness sweep" in roughness_section(one_scene, {"glossy": capture}, page)

@@ -8,7 +8,8 @@ import pytest
 from dpi.capture import load_capture
 from dpi.exr import read_exr
 from dpi.images import read_mask
-from dpi.synth.capture import MARKER, SynthConfig, ground_truth_envmap, make_synthetic_capture
+from dpi.layout import SYNTH_MARKER
+from dpi.synth.capture import SynthConfig, ground_truth_envmap, make_synthetic_capture
 from dpi.synth.shapes import SHAPES, make_shape
 from dpi.synth.textures import procedural_materials
 
@@ -39,7 +40,7 @@ def test_capture_is_complete_and_valid(tiny_capture):
     assert env.shape == (8, 16, 3) and np.isfinite(env).all()
     masks = [read_mask(v.mask) for v in capture.views]
     assert all(0.1 < m.mean() < 0.9 for m in masks)
-    assert json.loads((tiny_capture / MARKER).read_text())["views"] == 5
+    assert json.loads((tiny_capture / SYNTH_MARKER).read_text())["views"] == 5
 
 
 def test_refuses_to_overwrite_a_foreign_folder(tmp_path):

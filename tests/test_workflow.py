@@ -105,3 +105,46 @@ def test_stop_rule_draws_the_remaining_samples_only_when_the_first_ones_differ(w
     assert json.loads((wd / "results" / "tiny" / "none" / "plan.json").read_text())["samples"] == 3
     assert (wd / "results" / "tiny" / "none" / "2" / "envmap.exr").is_file()
     assert summary_samples(wd) == {"init": "1", "none": "3", "smoothness": "3"}
+
+
+def test_dpi_commands_give_the_workflow_files(workdir, tmp_path, monkeypatch):
+    """`dpi capture/init/sample/evaluate --config my.yaml` in a run directory writes what `snakemake --configfile
+    my.yaml` writes there: the same settings (defaults, ./config.yaml, my.yaml, preset), paths and seeds."""
+    import numpy as np
+
+    from dpi.cli import main
+    from dpi.exr import read_exr
+    from dpi.layout import INIT, SceneLayout
+
+    wd = tmp_path / "wd"
+    wd.mkdir()
+    shutil.copy(workdir / "config.yaml", wd / "config.yaml")
+    shutil.copytree(workdir / "captures", wd / "captures")
+    # my.yaml changes keys that config.yaml sets and keys it leaves to the defaults and the preset
+    my = write_config(wd / "my.yaml", {"init": {"lr_env": 0.05}, "method_params": {"none": {"iterations": 3}},
+                                       "evaluate": {"spp": 8}})
+    workflow, ours = SceneLayout(wd / "results" / "tiny"), SceneLayout(wd / "results_cli" / "tiny")
+    snakemake(wd, str(workflow.evaluation(INIT).relative_to(wd)), str(workflow.evaluation("none", 0).relative_to(wd)),
+              "--configfile", str(my))
+    write_config(wd / "cli.yaml", {"results_dir": "results_cli"})
+    monkeypatch.chdir(wd)
+    for command in (["capture", "tiny"], ["init", "tiny"], ["sample", "tiny", "none", "0"], ["evaluate", "tiny", INIT],
+                    ["evaluate", "tiny", "none", "0"]):
+        assert main([*command, "--config", "my.yaml", "--config", "cli.yaml"]) == 0, command
+
+    assert json.loads(ours.capture_json.read_text()) == json.loads(workflow.capture_json.read_text())
+    for method in (INIT, "none"):
+        for name, path in workflow.sample_files(method, 0).items():
+            if name != "trace":
+                np.testing.assert_allclose(read_exr(ours.sample_files(method, 0)[name]), read_exr(path), rtol=1e-5,
+                                           atol=1e-6, err_msg=f"{method} {name}")
+        theirs, mine = (json.loads(layout.evaluation(method, 0).read_text())["metrics"] for layout in (workflow, ours))
+        for key, value in theirs.items():
+            if key not in ("sample_seconds", "notes"):
+                numeric = isinstance(value, (float, list, dict))
+                assert mine[key] == (pytest.approx(value, rel=1e-4) if numeric else value), key
+        views = sorted(workflow.evaluation_views(method, 0).glob("*.exr"))  # (Snakemake adds a timestamp file)
+        assert views
+        for view in views:
+            np.testing.assert_allclose(read_exr(ours.evaluation_views(method, 0) / view.name), read_exr(view),
+                                       rtol=1e-5, atol=1e-6)

@@ -1,13 +1,16 @@
-"""Rules evaluate and evaluate_init: metrics of one posterior sample (or of the initialisation)."""
+"""Rules evaluate and evaluate_init: metrics of one posterior sample (or of the initialisation) and its
+held-out re-renders."""
 
 from pathlib import Path
 
+from dpi.layout import INIT
 from dpi.logs import log_to
 from dpi.stages import SolveSettings, evaluate_stage
 
 w = snakemake.wildcards
-method, k = getattr(w, "method", "init"), int(getattr(w, "k", 0))
+method, k = getattr(w, "method", INIT), int(getattr(w, "k", 0))
 with log_to(snakemake.log[0]):
-    evaluate_stage(snakemake.input.capture, Path(snakemake.input.sample).parent, snakemake.output[0], w.scene,
+    evaluate_stage(snakemake.input.capture, Path(snakemake.input.sample).parent, snakemake.output.metrics, w.scene,
                    method, k, snakemake.params.spp,
-                   SolveSettings.from_config(snakemake.params.solve, snakemake.threads), snakemake.input.prior)
+                   SolveSettings.from_config(snakemake.params.solve, snakemake.threads), snakemake.input.prior,
+                   views_dir=snakemake.output.views)

@@ -6,4 +6,4 @@ from dpi.preprocess.stages import masks_stage
 inputs = snakemake.input
 with log_to(snakemake.log[0]):
     masks_stage(inputs.capture, snakemake.output[0], snakemake.params.settings,
-                cameras_json=inputs.get("cameras"), points_ply=inputs.get("points"), threads=snakemake.threads)
+                cameras_json=inputs.get("cameras_json"), points_ply=inputs.get("points_ply"), threads=snakemake.threads)

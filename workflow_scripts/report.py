@@ -1,9 +1,11 @@
 """Rule report: the HTML report over every scene and method (report.html and its PNGs)."""
 
+from pathlib import Path
+
+from dpi.evaluation.report import build_report
+from dpi.layout import Layout
 from dpi.logs import log_to
-from dpi.report import build_report
-from dpi.stages import SolveSettings
 
 with log_to(snakemake.log[0]):
-    build_report(snakemake.params.results, snakemake.output.html, snakemake.output.figures, snakemake.params.spp,
-                 SolveSettings.from_config(snakemake.params.solve, snakemake.threads))
+    layout = Layout(**{k: Path(v) for k, v in snakemake.params.layout.items()})
+    build_report(layout, snakemake.output.html, snakemake.output.figures)

@@ -1,4 +1,4 @@
-"""Rule synth_capture: render the synthetic capture declared in config.yaml."""
+"""Rule synth_capture: render a synthetic capture declared under the config's `synthetic:`."""
 
 from pathlib import Path
 

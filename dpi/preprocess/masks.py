@@ -32,6 +32,7 @@ import numpy as np
 
 from dpi.cameras import Camera
 from dpi.images import read_image, to_uint8, write_mask
+from dpi.preprocess.hull import marching_cubes, visible_sphere, visual_hull
 
 log = logging.getLogger(__name__)
 
@@ -240,8 +241,6 @@ def mesh_silhouette(camera: Camera, vertices: np.ndarray, faces: np.ndarray, sup
 def consensus_outlines(cameras: list[Camera], masks: list[np.ndarray], votes: int,
                        resolution: int) -> list[np.ndarray]:
     """Each view's projection of the visual hull carved from `masks` where `votes` views see a voxel outside."""
-    from dpi.preprocess.geometry import marching_cubes, visual_hull
-
     field, origin, size, _ = visual_hull(cameras, masks, resolution, outside_votes=votes)
     vertices, faces = marching_cubes(field, origin, size)
     return [mesh_silhouette(camera, vertices, faces) for camera in cameras]
@@ -318,15 +317,3 @@ def mask_overlap(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.logical_and(a, b).sum() / union) if union else 1.0
 
 
-def visible_sphere(cameras: list[Camera]) -> tuple[np.ndarray, float]:
-    """(centre, radius): the point the cameras look at and 90% of the largest sphere around it that
-    lies inside every camera's field of view."""
-    from dpi.preprocess.sfm import axes_centre
-
-    centre = axes_centre(cameras)
-    radius = np.inf
-    for cam in cameras:
-        distance = np.linalg.norm(cam.center - centre)
-        half = np.arctan(min(cam.width / (2 * cam.fx), cam.height / (2 * cam.fy)))
-        radius = min(radius, distance * np.sin(half))
-    return centre, 0.9 * float(radius)

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from dpi.cameras import Camera
+from dpi.preprocess.hull import axes_centre, visible_sphere
 
 log = logging.getLogger(__name__)
 
@@ -242,8 +243,6 @@ def object_points(points: np.ndarray, cameras: list[Camera], fraction: float) ->
     """Which sparse points are on the object: those most cameras have in view (a walk-around keeps the
     object in frame; the surroundings leave it) within the largest sphere around the point the
     cameras look at that every camera sees whole."""
-    from dpi.preprocess.masks import visible_sphere
-
     centre, radius = visible_sphere(cameras)
     near = np.linalg.norm(points - centre, axis=1) <= radius / 0.9
     return near & (in_view_fraction(points, cameras) >= fraction)
@@ -263,17 +262,6 @@ def off_centre_views(cameras: dict[str, Camera], rounds: int = 3) -> list[str]:
             inside[name] = bool(depth[0] > 0 and 0 <= xy[0, 0] < cam.width and 0 <= xy[0, 1] < cam.height)
         keep = {n: c for n, c in cameras.items() if inside[n]}
     return sorted(n for n in cameras if n not in keep)
-
-
-def axes_centre(cameras: list[Camera]) -> np.ndarray:
-    """Least-squares point nearest to every camera's optical axis (what a walk-around looks at)."""
-    a, b = np.zeros((3, 3)), np.zeros(3)
-    for cam in cameras:
-        d = -cam.c2w[:3, 2] / np.linalg.norm(cam.c2w[:3, 2])
-        p = np.eye(3) - np.outer(d, d)
-        a += p
-        b += p @ cam.center
-    return np.linalg.lstsq(a, b, rcond=None)[0]
 
 
 def up_direction(cameras: list[Camera]) -> np.ndarray:

@@ -5,6 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 
+from dpi.capture import PRIORS
+from dpi.prior.train import DEFAULT_MODEL, PriorJobConfig, TrainConfig
+from dpi.settings import field_default
 from dpi.tonecurve import ENCODINGS
 
 
@@ -73,43 +76,38 @@ def cmd_sample_prior(args: argparse.Namespace) -> None:
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the prior's subcommands to the main `dpi` parser."""
     p = subparsers.add_parser("make-envmaps", help="generate a procedural env-map dataset (EXR)")
-    p.add_argument("--family", choices=["outdoor", "indoor"], required=True)
-    p.add_argument("--count", type=int, default=3000)
-    p.add_argument("--height", type=int, default=64, help="map height H (width 2H)")
+    p.add_argument("--family", choices=PRIORS, required=True)
+    p.add_argument("--count", type=int, default=field_default(PriorJobConfig, "count"))
+    p.add_argument("--height", type=int, default=field_default(PriorJobConfig, "data_height"), help="map height H (width 2H)")
     p.add_argument("--out", required=True, help="output folder (EXR files), or .npz file with --packed")
     p.add_argument("--packed", action="store_true", help="write one packed .npz in prior space (to train elsewhere)")
-    p.add_argument("--encoding", choices=ENCODINGS, default="log", help="encoding of a packed dataset")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--encoding", choices=ENCODINGS, default=field_default(TrainConfig, "encoding"), help="encoding of a packed dataset")
+    p.add_argument("--seed", type=int, default=field_default(PriorJobConfig, "seed"))
     p.add_argument("--threads", type=int, default=1)
     p.set_defaults(fn=cmd_make_envmaps)
 
     p = subparsers.add_parser("pack-envmaps", help="pack a folder of env maps into one .npz in prior space")
-    p.add_argument("--family", choices=["outdoor", "indoor"], required=True)
+    p.add_argument("--family", choices=PRIORS, required=True)
     p.add_argument("--data", required=True, help="folder of .exr/.hdr/.png/.jpg panoramas")
     p.add_argument("--height", type=int, default=32, help="map height H of the prior (width 2H)")
-    p.add_argument("--encoding", choices=ENCODINGS, default="log")
+    p.add_argument("--encoding", choices=ENCODINGS, default=field_default(TrainConfig, "encoding"))
     p.add_argument("--out", required=True, help="output .npz")
     p.set_defaults(fn=cmd_pack_envmaps)
 
     p = subparsers.add_parser("train-prior", help="train a diffusion prior on a folder of env maps")
-    p.add_argument("--family", choices=["outdoor", "indoor"], required=True)
+    p.add_argument("--family", choices=PRIORS, required=True)
     p.add_argument("--data", required=True, help="folder of .exr/.hdr/.png/.jpg panoramas, or a packed .npz")
-    p.add_argument("--encoding", choices=ENCODINGS, default="log",
+    p.add_argument("--encoding", choices=ENCODINGS, default=field_default(TrainConfig, "encoding"),
                    help="log: log radiance around the median (holds a sun); paper: the family's tone curve")
     p.add_argument("--out", required=True, help="checkpoint path (resumed when it exists)")
     p.add_argument("--export", default=None, help="then write the shippable model (EMA weights, fp16) here")
-    p.add_argument("--model", default="small_32x64", help="name in dpi.prior.unet.SMALL_CONFIGS")
-    p.add_argument("--steps", type=int, default=20000)
-    p.add_argument("--batch-size", type=int, default=8)
-    p.add_argument("--lr", type=float, default=3e-4)
-    p.add_argument("--warmup-steps", type=int, default=0, help="linear learning-rate warm-up")
-    p.add_argument("--ema-decay", type=float, default=0.995)
-    p.add_argument("--max-minutes", type=float, default=None, help="stop (with a checkpoint) after this wall time")
-    p.add_argument("--sample-every", type=int, default=1000)
-    p.add_argument("--sample-steps", type=int, default=50, help="respaced steps of those sample grids")
-    p.add_argument("--checkpoint-every", type=int, default=100)
-    p.add_argument("--device", default="cpu")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--model", default=DEFAULT_MODEL, help="name in dpi.prior.unet.SMALL_CONFIGS")
+    for name, kind, text in (("steps", int, None), ("batch_size", int, None), ("lr", float, None),
+                             ("warmup_steps", int, "linear learning-rate warm-up"), ("ema_decay", float, None),
+                             ("max_minutes", float, "stop (with a checkpoint) after this wall time"),
+                             ("sample_every", int, None), ("sample_steps", int, "respaced steps of those sample grids"),
+                             ("checkpoint_every", int, None), ("device", str, None), ("seed", int, None)):
+        p.add_argument(f"--{name.replace('_', '-')}", type=kind, default=field_default(TrainConfig, name), help=text)
     p.add_argument("--threads", type=int, default=1)
     p.set_defaults(fn=cmd_train_prior)
 

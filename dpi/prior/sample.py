@@ -10,13 +10,20 @@ import torch
 from PIL import Image
 
 from dpi.atomic import atomic_path, write_json
+from dpi.capture import PRIORS
 from dpi.exr import write_exr
+from dpi.layout import package_data
 from dpi.prior.diffusion import Diffusion, base_diffusion, evenly_spaced_timesteps, respaced, sample
 from dpi.prior.unet import UNetModel, load_checkpoint
 from dpi.tonecurve import Encoding, encoding_from_dict
 
-MODELS_DIR = Path(__file__).resolve().parents[2] / "models"
-DEFAULT_MODELS = {"outdoor": MODELS_DIR / "outdoor_32x64.pt", "indoor": MODELS_DIR / "indoor_32x64.pt"}
+MODELS_DIR = package_data("models")
+"""the shipped priors (and their training logs), inside the package"""
+DEFAULT_MODELS = {family: MODELS_DIR / f"{family}_32x64.pt" for family in PRIORS}
+"""the shipped prior of each family"""
+DEFAULT_FAMILY = "outdoor"
+"""the family of a scene whose scene.yaml (or synthetic entry) names none, unless config.yaml's
+illumination_prior.family says otherwise"""
 
 
 @dataclass
@@ -48,12 +55,13 @@ def load_prior(checkpoint: str | Path, device: str | torch.device = "cpu") -> Pr
 
 
 def load_scene_prior(options: dict, checkpoint: str | Path | None = None) -> Prior:
-    """The prior in `checkpoint`, else the shipped model of a scene's family (scene.yaml `prior`, else outdoor)."""
-    return load_prior(checkpoint or DEFAULT_MODELS[options.get("prior", "outdoor")])
+    """The prior in `checkpoint`, else the shipped model of a scene's family (scene.yaml `prior`, else
+    DEFAULT_FAMILY; the workflow and `dpi` pass the checkpoint of the configured family)."""
+    return load_prior(checkpoint or DEFAULT_MODELS[options.get("prior", DEFAULT_FAMILY)])
 
 
 def load_default_prior(family: str, device: str | torch.device = "cpu") -> Prior:
-    """The shipped default prior of a family ('outdoor' or 'indoor') from models/."""
+    """The shipped default prior of a family (a name in dpi.capture.PRIORS) from dpi/data/models/."""
     if family not in DEFAULT_MODELS:
         raise ValueError(f"no default prior for family {family!r}; use one of {sorted(DEFAULT_MODELS)}")
     return load_prior(DEFAULT_MODELS[family], device)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import copy
 import json
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import torch
@@ -24,9 +24,12 @@ from dpi.prior.data import EnvmapDataset, median_target, read_dataset
 from dpi.prior.diffusion import base_diffusion, evenly_spaced_timesteps, respaced, sample, training_losses
 from dpi.prior.sample import write_grid
 from dpi.prior.unet import SMALL_CONFIGS, UNetConfig, UNetModel, count_parameters
+from dpi.settings import SettingsError, settings_from_dict
 from dpi.tonecurve import family_encoding
 
 CHECKPOINT_FORMAT = "dpi-prior-v1"
+DEFAULT_MODEL = "small_32x64"
+"""the network (a name in dpi.prior.unet.SMALL_CONFIGS) a prior is trained with unless told otherwise"""
 
 
 @dataclass
@@ -36,7 +39,7 @@ class TrainConfig:
     family: str  # 'outdoor' or 'indoor'
     data_dir: str  # folder of panoramas, or a packed .npz (EnvmapDataset.save)
     out: str  # checkpoint path; resumed when it exists
-    model: UNetConfig = field(default_factory=lambda: SMALL_CONFIGS["small_32x64"])
+    model: UNetConfig = field(default_factory=lambda: SMALL_CONFIGS[DEFAULT_MODEL])
     steps: int = 20000  # total optimiser steps (including resumed ones)
     batch_size: int = 8
     lr: float = 3e-4
@@ -52,6 +55,47 @@ class TrainConfig:
     seed: int = 0
     encoding: str = "log"  # 'log' (log radiance around the median) or 'paper' (the family's tone curve)
     amp: bool = True  # bfloat16 autocast of the forward pass on CUDA (ignored on the CPU)
+
+
+@dataclass
+class PriorJobConfig:
+    """How the workflow makes one family's prior (config `prior:`, then `prior.<family>`): a procedural
+    dataset (rule envmap_dataset), then a training run (rule train_prior). Keys other than these fields are
+    TrainConfig fields (steps, batch_size, lr, ema_decay, max_minutes, sample_every, device, ...)."""
+
+    count: int = 3000
+    """maps in the procedural dataset"""
+    data_height: int = 64
+    """their height H (maps are H x 2H; indoor ray casting costs ~H^2)"""
+    seed: int = 0
+    """seed of the dataset and of training"""
+    model: str = DEFAULT_MODEL
+    """network, a name in dpi.prior.unet.SMALL_CONFIGS"""
+    threads: int = 1
+    """CPU threads of the training job"""
+    train: dict = field(default_factory=dict)
+    """the TrainConfig fields set"""
+
+    @classmethod
+    def from_dict(cls, values: dict) -> "PriorJobConfig":
+        """Settings from a family's merged `prior` section; unknown keys and bad values are errors."""
+        own = {f.name for f in fields(cls)} - {"train"}
+        job = settings_from_dict(cls, {k: v for k, v in values.items() if k in own})
+        job.train = {k: v for k, v in values.items() if k not in own}
+        job.train_config("outdoor", "", "")  # checks the training keys
+        if job.model not in SMALL_CONFIGS:
+            raise SettingsError("model", f"unknown network; choose from {', '.join(sorted(SMALL_CONFIGS))}")
+        return job
+
+    def train_config(self, family: str, data_dir: str | Path, out: str | Path) -> "TrainConfig":
+        """The training run on a dataset (folder or packed .npz), checkpointing to `out`."""
+        fixed = {"family", "data_dir", "out"} & set(self.train)
+        if fixed:
+            raise SettingsError(sorted(fixed)[0], "is set by the workflow, not by the `prior` section")
+        cfg = settings_from_dict(TrainConfig, {"family": family, "data_dir": str(data_dir), "out": str(out),
+                                               "seed": self.seed, **self.train})
+        cfg.model = SMALL_CONFIGS[self.model]
+        return cfg
 
 
 def ema_update(ema: torch.nn.Module, model: torch.nn.Module, decay: float) -> None:

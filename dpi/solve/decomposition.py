@@ -8,6 +8,7 @@ from pathlib import Path
 import torch
 
 from dpi.exr import read_exr, write_exr
+from dpi.layout import ENV_FILE, SAMPLE_TRACE
 from dpi.materials import MaterialTextures
 from dpi.solve.trace import Trace
 
@@ -24,12 +25,12 @@ class Decomposition:
         """The same decomposition with the env map's radiance times `factor` (materials are scale-free)."""
         return Decomposition(self.env * factor, self.materials, self.trace)
 
-    def save(self, folder: str | Path, trace_name: str = "trace.json") -> None:
+    def save(self, folder: str | Path, trace_name: str = SAMPLE_TRACE) -> None:
         """Write envmap.exr, albedo/roughness/metallic.exr and the trace into `folder`."""
         folder = Path(folder)
         if not torch.isfinite(self.env).all():
             raise ValueError(f"{folder}: refusing to save a non-finite environment map")
-        write_exr(folder / "envmap.exr", self.env.detach().numpy())
+        write_exr(folder / ENV_FILE, self.env.detach().numpy())
         self.materials.save(folder)
         if self.trace is not None:
             self.trace.save(folder / trace_name)
@@ -37,5 +38,5 @@ class Decomposition:
     @classmethod
     def load(cls, folder: str | Path, texture_size: int | None = None) -> "Decomposition":
         """Read a decomposition folder (the trace is not read back)."""
-        env = torch.from_numpy(read_exr(Path(folder) / "envmap.exr"))
+        env = torch.from_numpy(read_exr(Path(folder) / ENV_FILE))
         return cls(env, MaterialTextures.load(folder, texture_size))

@@ -1,20 +1,99 @@
-"""The posterior methods and the settings dataclass of each: one list for the stages and the config check."""
+"""The posterior methods: name -> settings dataclass, the function that draws one sample, and whether
+it uses the diffusion prior. The one list the config check, the sample stage, the rules' wildcard
+and the `dpi` command read.
+"""
 
 from __future__ import annotations
 
-from typing import Any
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
 
-from dpi.solve.classic import ClassicConfig
-from dpi.solve.dip import DIPConfig
-from dpi.solve.dps import DPSConfig
+import torch
+
+from dpi.adaptive import AdaptiveConfig, plan_steps
+from dpi.prior.sample import Prior, write_grid
+from dpi.solve.classic import ClassicConfig, classic_sample
+from dpi.solve.decomposition import Decomposition
+from dpi.solve.dip import DIPConfig, dip_sample
+from dpi.solve.dps import DPSConfig, dps_sample
 from dpi.solve.priors import PRIOR_NAMES
-from dpi.solve.sds import SDSConfig
+from dpi.solve.problem import InverseProblem
+from dpi.solve.sds import SDSConfig, sds_sample
 
-METHOD_CONFIGS: dict[str, type] = {**dict.fromkeys(PRIOR_NAMES, ClassicConfig), "dip": DIPConfig, "dps": DPSConfig,
-                                   "sds": SDSConfig}
+X0_STRIP = "x0_strip.png"
+"""dps: x0_hat during sampling, next to the sample's files"""
+
+
+@dataclass
+class SampleJob:
+    """What drawing one posterior sample needs: the problem, the initialisation (both in normalised units),
+    the method's settings, the seed, the prior (methods that use it), and where the sample goes."""
+
+    problem: InverseProblem
+    init: Decomposition
+    settings: Any
+    seed: int
+    out_dir: Path
+    resume: Path
+    """the loop's resume state (methods that save one)"""
+    prior: Prior | None = None
+    adaptive: AdaptiveConfig | None = None
+    progress: bool = True
+
+
+@dataclass(frozen=True)
+class Method:
+    """One posterior method."""
+
+    settings: type
+    """its settings dataclass: a `method_params` entry (less `samples`) is its `from_dict` input"""
+    sample: Callable[[SampleJob], Decomposition]
+    """draws one sample (its trace included) in the problem's normalised units"""
+    needs_prior: bool = False
+    """uses the diffusion prior (checkpoint of the scene's family)"""
+    adaptive_steps: bool = False
+    """runs fewer diffusion steps on a diffuse scene (adaptive.diffuse_*)"""
+
+
+def classic(name: str) -> Callable[[SampleJob], Decomposition]:
+    """The joint fit with the hand-crafted prior `name` (none, global_norm, smoothness, chromaticity)."""
+    return lambda job: classic_sample(job.problem, name, job.init, job.settings, job.seed, job.progress, job.resume)
+
+
+def dip(job: SampleJob) -> Decomposition:
+    """Deep image prior: a seeded CNN generates the map."""
+    return dip_sample(job.problem, job.init, job.settings, job.seed, job.progress, job.resume)
+
+
+def sds(job: SampleJob) -> Decomposition:
+    """Score distillation with the diffusion prior."""
+    return sds_sample(job.problem, job.prior, job.init, job.settings, job.seed, job.progress)
+
+
+def dps(job: SampleJob) -> Decomposition:
+    """The paper's diffusion posterior sampling; fewer steps on a diffuse scene (dpi.adaptive, recorded in the
+    trace's info) and the x0_hat strip next to the sample."""
+    cfg = job.settings
+    requested = cfg.steps
+    cfg.steps, reason = plan_steps(job.init.materials, cfg.steps, job.adaptive or AdaptiveConfig())
+    print(f"adaptive: {reason}", flush=True)
+    result = dps_sample(job.problem, job.prior, job.init, cfg, job.seed, job.progress, job.resume)
+    result.decomposition.trace.info["adaptive"] = {"steps": cfg.steps, "requested_steps": requested, "reason": reason}
+    write_grid(job.out_dir / X0_STRIP, torch.stack(result.snapshots), columns=len(result.snapshots))
+    return result.decomposition
+
+
+REGISTRY: dict[str, Method] = {
+    **{name: Method(ClassicConfig, classic(name)) for name in PRIOR_NAMES},
+    "dip": Method(DIPConfig, dip),
+    "dps": Method(DPSConfig, dps, needs_prior=True, adaptive_steps=True),
+    "sds": Method(SDSConfig, sds, needs_prior=True),
+}
+METHODS = tuple(REGISTRY)
+METHOD_CONFIGS: dict[str, type] = {name: method.settings for name, method in REGISTRY.items()}
 """method name -> settings dataclass; a `method_params` entry is that class's `from_dict` input"""
-METHODS = tuple(METHOD_CONFIGS)
-DIFFUSION_METHODS = ("dps", "sds")
+DIFFUSION_METHODS = tuple(name for name, method in REGISTRY.items() if method.needs_prior)
 """methods that use the diffusion prior"""
 
 

@@ -9,8 +9,9 @@ works on is too; decomposition files hold scene radiance, and `load_decompositio
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -18,8 +19,10 @@ import torch
 from dpi.capture import Capture
 from dpi.exposure import MIDDLE_GREY, capture_exposure
 from dpi.images import read_image, read_mask
+from dpi.layout import SAMPLE_TRACE
 from dpi.materials import MaterialTextures
 from dpi.render import Renderer, RenderSettings
+from dpi.settings import settings_from_dict
 from dpi.solve.decomposition import Decomposition
 
 LOSS_SPACES = ("linear", "log1p")
@@ -35,6 +38,20 @@ class ProblemSettings:
     """material texture resolution R (R x R texels)"""
     loss_space: str = "linear"
     """compare images as linear HDR or as log(1 + x)"""
+
+
+@dataclass
+class SolveSettings:
+    """Renderer and unknowns' resolution shared by init, methods and evaluation."""
+
+    render: RenderSettings = field(default_factory=RenderSettings)
+    problem: ProblemSettings = field(default_factory=ProblemSettings)
+
+    @classmethod
+    def from_config(cls, config: dict[str, Any], threads: int | None = None) -> "SolveSettings":
+        """Settings from the `render` and `problem` sections of a workflow config, on `threads` threads."""
+        render = settings_from_dict(RenderSettings, {**config.get("render", {}), "threads": threads})
+        return cls(render, settings_from_dict(ProblemSettings, config.get("problem", {})))
 
 
 def to_loss_space(image: torch.Tensor, space: str) -> torch.Tensor:
@@ -85,7 +102,7 @@ class InverseProblem:
         return self.to_solver_units(Decomposition.load(folder, self.settings.texture_size))
 
     def save_decomposition(self, decomposition: Decomposition, folder: str | Path,
-                           trace_name: str = "trace.json") -> None:
+                           trace_name: str = SAMPLE_TRACE) -> None:
         """Write a decomposition found in normalised units at scene radiance; its trace records the exposure."""
         if decomposition.trace is not None:
             decomposition.trace.info["exposure"] = {

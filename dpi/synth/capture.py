@@ -23,6 +23,7 @@ from dpi.atomic import write_json, write_text
 from dpi.cameras import from_fov, orbit, write_transforms
 from dpi.exr import read_exr, write_exr
 from dpi.images import luminance, write_mask, write_png
+from dpi.layout import SYNTH_MARKER
 from dpi.prior.procedural import generator
 from dpi.render import Renderer, RenderSettings
 from dpi.settings import settings_from_dict
@@ -31,7 +32,6 @@ from dpi.synth.backdrop import BACKGROUNDS, add_detail, composite_backdrop
 from dpi.synth.shapes import make_shape, write_ply
 from dpi.synth.textures import procedural_materials
 
-MARKER = ".synth.json"
 EVALUATION_SEED_STREAM = 7_919  # ground-truth maps draw from default_rng([this, seed]); datasets from [seed, chunk], seed 0
 
 
@@ -85,7 +85,8 @@ class SynthConfig:
     photos_only: bool = False
     """write only images/ and scene.yaml (with the held-out names), like a folder of photos; the
     cameras, masks and mesh go to gt/ (transforms.json, masks/, mesh.ply) to measure derived ones"""
-    prior: str = "outdoor"
+    prior: str | None = None
+    """scene.yaml `prior` (outdoor | indoor); None writes none, so the scene takes the configured default family"""
     object: str = ""
     """name of the object (scene.yaml `object`; default the shape): scenes of one object under
     different illuminations form the groups of albedo sigma2_invar"""
@@ -134,7 +135,7 @@ def make_synthetic_capture(out_dir: str | Path, cfg: SynthConfig, threads: int |
                            progress: bool = True, overwrite: bool = False) -> Path:
     """Render a synthetic capture into `out_dir`; replaces only a folder dpi made, or with `overwrite`."""
     out_dir = Path(out_dir)
-    ours = (out_dir / MARKER).exists() or overwrite
+    ours = (out_dir / SYNTH_MARKER).exists() or overwrite
     if out_dir.exists() and any(out_dir.iterdir()) and not ours:
         raise FileExistsError(f"{out_dir}: exists and is not a synthetic capture made by dpi; not overwriting")
     if cfg.image_format not in ("exr", "png"):
@@ -192,15 +193,15 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
 
     frames = [(f"images/{cam.name}.{cfg.image_format}", cam) for cam in cameras]
     write_json(given / "transforms.json", write_transforms(frames))
-    scene = {"prior": cfg.prior, "object": cfg.object or cfg.shape}
+    scene = {**({"prior": cfg.prior} if cfg.prior else {}), "object": cfg.object or cfg.shape}
     if cfg.photos_only:
         scene["held_out"] = [cam.name for cam in cameras if cam.extras["held_out"]]
         scene["focal_length_px"] = float(cameras[0].fx)  # what a photo's EXIF would tell
     write_text(root / "scene.yaml", yaml.safe_dump(scene, sort_keys=False))
-    write_json(root / MARKER, asdict(cfg))
+    write_json(root / SYNTH_MARKER, asdict(cfg))
 
 
 def read_marker(capture_dir: str | Path) -> dict | None:
     """The parameters a synthetic capture was made with, or None for other captures."""
-    path = Path(capture_dir) / MARKER
+    path = Path(capture_dir) / SYNTH_MARKER
     return json.loads(path.read_text()) if path.is_file() else None

@@ -15,11 +15,11 @@ from capture_helpers import make_capture
 from workflow_helpers import REPO, SNAKEMAKE, TINY_CONFIG, write_config
 
 from dpi.config_validation import ConfigError, check_config
+from dpi.pipeline import CONFIG_SCHEMA, DEFAULT_CONFIG, read_yaml
 from dpi.settings import apply_preset
 from dpi.stages import SolveSettings, sample_stage
 
-SCHEMA = REPO / "rules" / "config.schema.yaml"
-SHIPPED = yaml.safe_load((REPO / "config.yaml").read_text())
+SHIPPED = read_yaml(DEFAULT_CONFIG)
 
 
 def merged(base: dict[str, Any], patch: dict[str, Any]) -> dict[str, Any]:
@@ -31,8 +31,8 @@ def merged(base: dict[str, Any], patch: dict[str, Any]) -> dict[str, Any]:
 
 
 def checked(config: dict[str, Any]) -> None:
-    """What rules/common.smk does with a config before building the DAG."""
-    check_config(apply_preset(config), SCHEMA)
+    """What dpi.pipeline.resolve_config does with a merged config before the DAG is built."""
+    check_config(apply_preset(config), CONFIG_SCHEMA)
 
 
 BAD = {  # case: (patch of config.yaml, the message's start)
@@ -94,9 +94,12 @@ BAD = {  # case: (patch of config.yaml, the message's start)
     "unused preset bad value": ({"presets": {"paper": {"method_params": {"dps": {"steps": -1}}}}},
                                 "presets.paper.method_params.dps.steps: must be >= 1, got -1"),
     "unknown prior family": ({"illumination_prior": {"family": "martian"}},
-                             "illumination_prior.family: 'martian' is not one of ['outdoor', 'indoor']"),
+                             "illumination_prior.family: must be one of indoor, outdoor, got 'martian'"),
     "checkpoint of unknown family": ({"illumination_prior": {"checkpoints": {"martian": "m.pt"}}},
-                                     "illumination_prior.checkpoints: 'martian' is not one of ['outdoor', 'indoor']"),
+                                     "illumination_prior.checkpoints.martian: must be one of indoor, outdoor"),
+    "prior training typo": ({"prior": {"stpes": 10}}, "prior.stpes: unknown TrainConfig setting; did you mean 'steps'?"),
+    "prior family typo": ({"prior": {"indor": {"count": 10}}}, "prior.indor: must be one of indoor, outdoor"),
+    "prior family's bad value": ({"prior": {"indoor": {"count": 0}}}, "prior.indoor.count: must be >= 1, got 0"),
     "min_samples 1": ({"adaptive": {"min_samples": 1}}, "adaptive.min_samples: 1 is less than the minimum of 2"),
     "zero threads": ({"threads": {"sample": 0}}, "threads.sample: 0 is less than the minimum of 1"),
     "init views 0": ({"init": {"views_per_step": 0}}, "init.views_per_step: 0 is less than the minimum of 1"),
@@ -120,11 +123,11 @@ def test_unknown_preset_is_named():
         checked(merged(SHIPPED, {"preset": "fast"}))
 
 
-@pytest.mark.parametrize("path", [REPO / "config.yaml", *sorted((REPO / "experiments").glob("*.yaml"))],
+@pytest.mark.parametrize("path", [DEFAULT_CONFIG, *sorted((REPO / "experiments").glob("*.yaml"))],
                          ids=lambda p: p.name)
 def test_shipped_configs_pass(path):
-    """The repository's own configs are valid, every preset included."""
-    checked(yaml.safe_load(path.read_text()))
+    """dpi's defaults and the experiments merged over them are valid, every preset included."""
+    checked(merged(SHIPPED, read_yaml(path)))
 
 
 def test_new_dataclass_fields_need_no_schema_change(monkeypatch):

@@ -91,13 +91,13 @@ def test_nan_render_is_skipped_and_never_written(problem, tmp_path, monkeypatch)
 
 
 def test_single_view_capture_has_no_novel_views_but_fits(tiny_capture, mi):
-    from dpi.evaluate import novel_view_metrics
+    from dpi.evaluation.sample_metrics import novel_view_metrics, render_held_out
 
     capture = load_capture(tiny_capture)
     capture.views = capture.views[:1]
     p = InverseProblem(capture, ProblemSettings(env_height=4, texture_size=8), RenderSettings(spp=4, threads=2))
     d = Decomposition(torch.ones(4, 8, 3), MaterialTextures.constant(8))
-    assert novel_view_metrics(p, d, spp=4, seed=0)["novel_psnr"].startswith("missing")
+    assert novel_view_metrics(p, render_held_out(p, d, spp=4, seed=0))["novel_psnr"].startswith("missing")
     log_env, _ = fit(p, torch.zeros(4, 8, 3), MaterialTextures.constant(8), OptimizeConfig(iterations=2), seed=0,
                      trace=Trace(), progress=False)
     assert torch.isfinite(log_env).all()

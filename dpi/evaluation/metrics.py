@@ -25,6 +25,11 @@ PSNR_CAP = 100.0
 """PSNR (dB) reported for an exact match (MSE 1e-10 of the data range squared), instead of infinity"""
 
 
+def missing(reason: str) -> str:
+    """The value recorded for a metric that could not be computed: never a number."""
+    return f"missing: {reason}"
+
+
 def psnr(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None = None, data_range: float = 1.0) -> float:
     """Peak signal-to-noise ratio in dB over all pixels, or the pixels where `mask` is true; at most PSNR_CAP."""
     diff = (np.asarray(a, np.float64) - np.asarray(b, np.float64)) ** 2

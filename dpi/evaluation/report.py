@@ -2,37 +2,36 @@
 input views, env-map samples, textures and re-rendered held-out views of every method.
 
 Static files only: PNGs in a folder next to the page, relative links, no scripts; it reads offline.
-Everything is read from the results tree (layout in DESIGN.md), starting at eval/summary.csv.
+It draws from what the workflow wrote (dpi.layout), starting at eval/summary.csv: the evaluation's
+metric files and held-out renders, the env-map figure of each scene, the samples' textures. It
+renders nothing itself.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import shutil
 from html import escape
 from pathlib import Path
 from urllib.parse import quote
 
 import numpy as np
-import torch
 
 from dpi.atomic import write_text
-from dpi.capture import Capture, read_capture_json
+from dpi.capture import Capture, complete_capture, read_capture_json
+from dpi.evaluation.figures import (MethodPoint, Rerender, quality_diversity_plot, rerender_grid,
+                                    roughness_diversity_plot, texture_grid, view_strip)
+from dpi.evaluation.metric_table import metric_table, missing_reason, number, read_summary
+from dpi.evaluation.sample_metrics import masked_srgb
 from dpi.exr import read_exr
-from dpi.figures import (MethodPoint, Rerender, TEXTURE_NAMES, envmap_grid, quality_diversity_plot, rerender_grid,
-                         roughness_diversity_plot, texture_grid, view_strip)
-from dpi.images import linear_to_srgb
-from dpi.metric_table import metric_table, missing_reason, number, read_summary
-from dpi.metrics import psnr
-from dpi.seeding import seed_for
-from dpi.solve.problem import InverseProblem
-from dpi.stages import SolveSettings, load_problem
+from dpi.images import read_image, read_mask
+from dpi.layout import TEXTURE_NAMES, Layout, SceneLayout, texture_file, view_file
 from dpi.synth.capture import read_marker
 
-SUMMARY = Path("eval") / "summary.csv"
 SCALE_ALIGNMENT = (
     "Illumination and albedo are recovered only up to a global scale, so they are compared after scale "
-    "alignment (dpi.metrics): each env map is multiplied by the one factor exp(mean(log Y_gt - log Y_est)) "
+    "alignment (dpi.evaluation.metrics): each env map is multiplied by the one factor exp(mean(log Y_gt - log Y_est)) "
     "over texels (Y: luminance) and Reinhard tone-mapped before PSNR/SSIM; each albedo is scaled per channel "
     "by its least-squares factor before the MSE; sigma2_sample is taken after dividing each env map by its "
     "median luminance and each albedo by its mean.")
@@ -49,11 +48,6 @@ p.note { color: #555; font-size: 13px; }
 """
 
 
-def sample_dir(results: Path, scene: str, method: str, k: int) -> Path:
-    """Folder of posterior sample k of a method (the initialisation for method `init`)."""
-    return results / scene / "init" if method == "init" else results / scene / method / str(k)
-
-
 def scene_roughness(capture: Capture) -> float | None:
     """Ground-truth roughness of a scene: its synthetic entry's, else the mean of gt/roughness.exr, else None."""
     marker = read_marker(capture.root)
@@ -62,11 +56,11 @@ def scene_roughness(capture: Capture) -> float | None:
     return float(read_exr(capture.gt["roughness"]).mean()) if "roughness" in capture.gt else None
 
 
-def recorded_notes(results: Path, rows: list[dict[str, str]]) -> dict[str, list[str]]:
+def recorded_notes(layout: Layout, rows: list[dict[str, str]]) -> dict[str, list[str]]:
     """The `notes` (alignment, pixels compared) recorded in each method's eval/{method}/0.json."""
     notes: dict[str, list[str]] = {}
     for row in rows:
-        path = results / row["scene"] / "eval" / row["method"] / "0.json"
+        path = layout.scene(row["scene"]).evaluation(row["method"], 0)
         if not path.is_file():
             continue
         for key, text in json.loads(path.read_text())["metrics"].get("notes", {}).items():
@@ -169,80 +163,80 @@ def read_textures(files: dict[str, Path]) -> dict[str, np.ndarray]:
     return {n: read_exr(p) for n, p in files.items() if n in TEXTURE_NAMES and Path(p).is_file()}
 
 
-def rerenders(problem: InverseProblem, scene: str, methods: list[tuple[str, Path]],
-              spp: int) -> list[tuple[str, np.ndarray, list[Rerender]]]:
-    """Each held-out view re-rendered with each (method, sample folder) as in evaluation (same seeds and spp)."""
-    decompositions = [(m, problem.load_decomposition(folder)) for m, folder in methods]
+def held_out_rerenders(scene: SceneLayout, capture: Capture, methods: list[str],
+                       exposure: float) -> list[tuple[str, np.ndarray, list[Rerender]]]:
+    """Per held-out view: the captured image and each method's sample-0 re-render as the evaluation rendered
+    and scored it (its eval/{method}/0/ views and PSNRs), with the per-pixel error of the comparison."""
+    records = {m: json.loads(scene.evaluation(m, 0).read_text()) for m in methods}
     views = []
-    for view in problem.held_out_ids:
-        captured, mask = problem.images[view].numpy(), problem.masks[view].numpy()
-        target = linear_to_srgb(captured) * mask[..., None]
+    for view in capture.held_out_views:
+        captured = read_image(view.image) / exposure
+        mask = read_mask(view.mask) if view.mask else np.ones(captured.shape[:2], bool)
+        target = masked_srgb(captured, mask)
         row = []
-        for method, d in decompositions:
-            with torch.no_grad():
-                image = problem.render(d.env, d.materials, view, seed_for(scene, method, 0, "eval") + view, spp)
-            image = image.numpy()
-            ours = linear_to_srgb(image) * mask[..., None]
-            row.append(Rerender(method, image, np.abs(ours - target).mean(-1), psnr(ours, target, mask)))
-        views.append((problem.views[view].name, captured, row))
+        for method in methods:
+            image = read_exr(view_file(scene.evaluation_views(method, 0), view.name))
+            error = np.abs(masked_srgb(image, mask) - target).mean(-1)
+            row.append(Rerender(method, image, error, records[method]["metrics"]["novel_psnr_views"][view.name]))
+        views.append((view.name, captured, row))
     return views
 
 
-def scene_section(results: Path, scene: str, rows: list[dict[str, str]], page: Page, spp: int,
-                  settings: SolveSettings) -> str:
+def scene_section(scene_name: str, scene: SceneLayout, rows: list[dict[str, str]], page: Page) -> str:
     """Input views, env-map samples, sample-0 textures and re-rendered held-out views of one scene."""
-    problem = load_problem(results / scene / "capture.json", settings)
-    capture = problem.capture
-    samples = [(r["method"], [sample_dir(results, scene, r["method"], k) for k in range(int(r["samples"]))])
-               for r in rows]
-    parts = [f"<h2 id='scene-{escape(scene)}'>Scene {escape(scene)}</h2>"]
+    capture = complete_capture(read_capture_json(scene.capture_json), scene)
+    methods = [r["method"] for r in rows]
+    record = json.loads(scene.evaluation(methods[0], 0).read_text())
+    exposure = record["exposure"]
+    parts = [f"<h2 id='scene-{escape(scene_name)}'>Scene {escape(scene_name)}</h2>"]
 
-    path = page.png(scene, "views")
-    view_strip([im.numpy() for im in problem.images], [v.name for v in problem.views],
-               [v.held_out for v in problem.views], path)
-    parts.append(_figure(page.link(path), f"{scene} input views",
-                         f"The {len(problem.views)} input views (sRGB); held-out views, used only for evaluation, "
-                         "are framed and titled in red."))
+    path = page.png(scene_name, "views")
+    view_strip([read_image(v.image) / exposure for v in capture.views], [v.name for v in capture.views],
+               [v.held_out for v in capture.views], path)
+    parts.append(_figure(page.link(path), f"{scene_name} input views",
+                         f"The {len(capture.views)} input views (sRGB, at the capture's normalised exposure); "
+                         "held-out views, used only for evaluation, are framed and titled in red."))
 
-    path = page.png(scene, "envmaps")
+    path = page.png(scene_name, "envmaps")
+    shutil.copyfile(scene.envmap_figure, path)
     reference = capture.gt.get("envmap")
-    envmap_grid([(m, [d / "envmap.exr" for d in dirs]) for m, dirs in samples], path, reference)
-    parts.append(_figure(page.link(path), f"{scene} env maps",
+    parts.append(_figure(page.link(path), f"{scene_name} env maps",
                          "Env-map samples of each method (one row per method, one column per sample), Reinhard "
                          "tone-mapped with gamma 2.2"
                          + (", each aligned to the ground truth's (top row) global scale." if reference else
                             "; the capture has no ground truth.")))
 
-    path = page.png(scene, "textures")
+    path = page.png(scene_name, "textures")
     gt = read_textures(capture.gt)
     texture_grid(([("ground truth", gt)] if gt else [])
-                 + [(m, read_textures({n: dirs[0] / f"{n}.exr" for n in TEXTURE_NAMES})) for m, dirs in samples], path)
-    parts.append(_figure(page.link(path), f"{scene} textures",
+                 + [(m, read_textures({n: scene.sample_dir(m, 0) / texture_file(n) for n in TEXTURE_NAMES}))
+                    for m in methods], path)
+    parts.append(_figure(page.link(path), f"{scene_name} textures",
                          "Albedo (sRGB, as estimated: no scale alignment), roughness and metallic (black 0, white 1) "
                          "of each method's sample 0" + (", ground truth on top." if gt else "; no ground truth.")))
 
-    if problem.held_out_ids:
-        path = page.png(scene, "held_out")
-        rerender_grid(rerenders(problem, scene, [(m, dirs[0]) for m, dirs in samples], spp), path)
-        parts.append(_figure(page.link(path), f"{scene} held-out views",
-                             f"Held-out views re-rendered with each method's sample 0 ({spp} spp, the evaluation's "
-                             "seeds), PSNR of the view in the title, and the per-pixel error: mean absolute sRGB "
-                             "difference over the foreground (background 0), one colour scale for the figure."))
+    if capture.held_out_views:
+        path = page.png(scene_name, "held_out")
+        rerender_grid(held_out_rerenders(scene, capture, methods, exposure), path)
+        parts.append(_figure(page.link(path), f"{scene_name} held-out views",
+                             "Held-out views as the evaluation re-rendered them with each method's sample 0, the "
+                             "view's PSNR in the title, and the per-pixel error: mean absolute sRGB difference over "
+                             "the foreground (background 0), one colour scale for the figure."))
     else:
         parts.append("<p class='note'>No held-out views: nothing to re-render.</p>")
     return "\n".join(parts)
 
 
-def build_report(results_dir: str | Path, out_html: str | Path, figures_dir: str | Path, spp: int,
-                 settings: SolveSettings) -> None:
-    """Write the report page for the results tree `results_dir` and its PNGs into `figures_dir`."""
-    results, page = Path(results_dir), Page(Path(out_html), Path(figures_dir))
-    rows = read_summary(results / SUMMARY)
+def build_report(layout: Layout, out_html: str | Path, figures_dir: str | Path) -> None:
+    """Write the report page for the results tree of `layout` and its PNGs into `figures_dir`."""
+    page = Page(Path(out_html), Path(figures_dir))
+    rows = read_summary(layout.summary)
     scenes = list(dict.fromkeys(r["scene"] for r in rows))
-    captures = {s: read_capture_json(results / s / "capture.json") for s in scenes}
-    sections = [metrics_section(rows, recorded_notes(results, rows), SUMMARY),
+    captures = {s: read_capture_json(layout.scene(s).capture_json) for s in scenes}
+    summary = Path(os.path.relpath(layout.summary, layout.results))
+    sections = [metrics_section(rows, recorded_notes(layout, rows), summary),
                 quality_section(rows, page), roughness_section(rows, captures, page)]
-    sections += [scene_section(results, s, [r for r in rows if r["scene"] == s], page, spp, settings) for s in scenes]
+    sections += [scene_section(s, layout.scene(s), [r for r in rows if r["scene"] == s], page) for s in scenes]
     nav = " &middot; ".join(f"<a href='#scene-{escape(s)}'>{escape(s)}</a>" for s in scenes)
     write_text(out_html, "\n".join([
         "<!DOCTYPE html>", "<html lang='en'>", "<head>", "<meta charset='utf-8'>", "<title>dpi report</title>",

@@ -17,9 +17,9 @@ from dpi.atomic import atomic_path  # noqa: E402
 from dpi.exr import read_exr  # noqa: E402
 from dpi.images import linear_to_srgb, luminance  # noqa: E402
 from dpi.exposure import middle_grey_gain  # noqa: E402
-from dpi.metrics import aligned_env, tonemap  # noqa: E402
+from dpi.layout import TEXTURE_NAMES  # noqa: E402
+from dpi.evaluation.metrics import aligned_env, tonemap  # noqa: E402
 
-TEXTURE_NAMES = ("albedo", "roughness", "metallic")
 HELD_OUT_COLOR = "#d62728"
 SCENE_MARKERS = "osD^vPX*"
 

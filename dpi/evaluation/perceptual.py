@@ -27,7 +27,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from dpi.metrics import resize_area
+from dpi.evaluation.metrics import resize_area
 
 WEIGHTS_ENV = "DPI_WEIGHTS"
 ALEXNET_WEIGHTS = "alexnet-owt-7be5be79.pth"

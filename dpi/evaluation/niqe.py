@@ -21,7 +21,6 @@ model applies, and were checked against it.
 from __future__ import annotations
 
 from functools import cache
-from pathlib import Path
 
 import numpy as np
 from PIL import Image
@@ -29,9 +28,10 @@ from scipy.ndimage import correlate1d
 from scipy.special import gamma
 
 from dpi.images import linear_to_srgb, luminance
-from dpi.metrics import normalized_env, resize_area
+from dpi.layout import package_data
+from dpi.evaluation.metrics import normalized_env, resize_area
 
-PRISTINE_MODEL = Path(__file__).resolve().parent / "data" / "niqe_pristine.npz"
+PRISTINE_MODEL = package_data("niqe_pristine.npz")
 PATCH_SIZE = 96
 ENV_HEIGHT = 192
 """env maps (16-64 texels high) are upsampled to this height so that 96x96 patches fit: 2 x 4 patches"""
