@@ -32,6 +32,8 @@ from typing import Any
 import numpy as np
 import yaml
 
+from dpi.layout import Layout
+
 ROOT = Path(__file__).resolve().parent.parent
 WORK = ROOT / "results" / "benchmarks" / "posterior_study"
 CSV = ROOT / "benchmarks" / "results" / "posterior_study.csv"
@@ -83,36 +85,43 @@ class Job:
         return self.method if not self.sampler else f"{self.method}_{self.sampler}"
 
     @property
+    def layout(self) -> Layout:
+        """The study's results and captures, in the workflow's layout."""
+        return study_layout(self.root)
+
+    @property
     def sample_dir(self) -> Path:
         """Where the sample is (the init's folder for the init row)."""
-        folder = self.root / self.scene
-        return folder / "init" if self.method == "init" else folder / self.label / str(self.seed)
+        return self.layout.scene(self.scene).sample_dir(self.label, self.seed)
+
+
+def study_layout(root: Path) -> Layout:
+    """A study folder holds captures/ and results/ like a workflow run."""
+    return Layout(root / "results", root / "captures")
 
 
 def workflow_config() -> dict[str, Any]:
-    """config.yaml with its preset applied, at the study's sizes."""
-    from dpi.settings import apply_preset
+    """The workflow's resolved config (defaults and preset), at the study's map and texture sizes."""
+    from dpi.pipeline import resolve_config
 
-    config = apply_preset(yaml.safe_load((ROOT / "config.yaml").read_text()))
-    config["problem"] = {**config.get("problem", {}), "env_height": 16, "texture_size": 32}
-    return config
+    return resolve_config({"problem": {"env_height": 16, "texture_size": 32}})
 
 
-def prepare_scene(root: Path, scene: str, synth: dict, config: dict, threads: int) -> Path:
+def prepare_scene(root: Path, scene: str, synth: dict, config: dict, threads: int) -> None:
     """The scene's capture, validated capture.json and initialisation (made once, then reused)."""
     from dpi.stages import SolveSettings, capture_stage, init_stage
     from dpi.synth.capture import SynthConfig, make_synthetic_capture
 
-    folder = root / scene
-    capture = folder / "capture"
-    if not (capture / ".synth.json").exists():
-        make_synthetic_capture(capture, SynthConfig.from_dict(synth), threads=threads, progress=False)
-    if not (folder / "capture.json").exists():
-        capture_stage(capture, folder / "capture.json")
-    if not (folder / "init" / "log.json").exists():
-        init_stage(folder / "capture.json", folder / "init", scene, config["init"],
+    layout = study_layout(root)
+    files = layout.scene(scene)
+    if not layout.synth_marker(scene).exists():
+        make_synthetic_capture(layout.capture_dir(scene), SynthConfig.from_dict(synth), threads=threads,
+                               progress=False)
+    if not files.capture_json.exists():
+        capture_stage(layout.capture_dir(scene), files.capture_json)
+    if not files.sample_files("init")["trace"].exists():
+        init_stage(files.capture_json, files.sample_dir("init"), scene, config["init"],
                    SolveSettings.from_config(config, threads), progress=False)
-    return folder
 
 
 def run_job(job: Job) -> dict[str, Any]:
@@ -120,15 +129,15 @@ def run_job(job: Job) -> dict[str, Any]:
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     from dpi.stages import SolveSettings, evaluate_stage, sample_stage
 
-    folder, sample_dir = job.root / job.scene, job.sample_dir
+    files, sample_dir = job.layout.scene(job.scene), job.sample_dir
     settings = SolveSettings.from_config(job.config, threads=1)
     if job.rerun and job.method != "init":
         shutil.rmtree(sample_dir, ignore_errors=True)
-    if job.method != "init" and not (sample_dir / "trace.json").exists():
-        sample_stage(folder / "capture.json", folder / "init", sample_dir, job.scene, job.method, job.seed,
+    if job.method != "init" and not files.sample_files(job.label, job.seed)["trace"].exists():
+        sample_stage(files.capture_json, files.sample_dir("init"), sample_dir, job.scene, job.method, job.seed,
                      job.method_cfg, settings, progress=False)
-    out = folder / "eval" / job.label / f"{job.seed}.json"
-    evaluate_stage(folder / "capture.json", sample_dir, out, job.scene, job.method, job.seed,
+    out = files.evaluation(job.label, job.seed)
+    evaluate_stage(files.capture_json, sample_dir, out, job.scene, job.method, job.seed,
                    job.config["evaluate"]["spp"], settings)
     metrics = json.loads(out.read_text())["metrics"]
     return {"scene": job.scene, "group": job.group, "method": job.method, "sampler": job.sampler,

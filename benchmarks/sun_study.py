@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 from posterior_study import ROOT, SIZE, Job, jobs_for, run_job, run_study, workflow_config
 
+from dpi.capture import load_capture
 from dpi.envmap import texel_directions, texel_solid_angles
 from dpi.exr import read_exr
 from dpi.images import luminance
@@ -62,8 +63,8 @@ def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
 def score(job: Job) -> dict[str, Any]:
     """Draw and evaluate one sample (the posterior study's job), then measure its sun."""
     row = run_job(job)
-    env = read_exr(job.sample_dir / "envmap.exr")
-    gt = read_exr(job.root / job.scene / "capture" / "gt" / "envmap.exr")
+    env = read_exr(job.layout.scene(job.scene).sample_files(job.label, job.seed)["env"])
+    gt = read_exr(load_capture(job.layout.capture_dir(job.scene)).gt["envmap"])
     sun = sun_direction(*SUNS[job.scene])
     return {"scene": job.scene, "method": job.method, "sampler": job.sampler, "seed": job.seed,
             "top_energy_share": top_energy_share(env), "gt_top_energy_share": top_energy_share(gt),

@@ -85,10 +85,13 @@ def test_cut_fit_continues_to_the_uninterrupted_result(problem_and_init, tmp_pat
     assert_same_fit(resumed, run_fit(problem, init, env_model, seed=4))
 
 
-def test_cut_dps_sample_continues_to_the_uninterrupted_result(problem_and_init, tmp_path, monkeypatch):
+@pytest.mark.parametrize("sampler,call,per_step", [("paper", "residual_norm", 1), ("proximal", "render", 2)])
+def test_cut_dps_sample_continues_to_the_uninterrupted_result(problem_and_init, tmp_path, monkeypatch, sampler, call,
+                                                              per_step):
     problem, init = problem_and_init
-    cfg, resume = DPSConfig(steps=4, refine_iterations=1, strip_frames=3), tmp_path / ".resume.pt"
-    with cut_after(monkeypatch, problem, "residual_norm", steps=3):
+    cfg = DPSConfig(sampler=sampler, steps=4, inner_steps=2, refine_iterations=1, strip_frames=3)
+    resume = tmp_path / ".resume.pt"
+    with cut_after(monkeypatch, problem, call, steps=3 * per_step):
         dps_sample(problem, tiny_prior(), init, cfg, seed=1, progress=False, checkpoint=resume, checkpoint_every=2)
     assert resume.is_file()
 
