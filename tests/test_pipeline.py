@@ -114,3 +114,10 @@ def test_no_import_cycles_among_dpi_modules():
         return any(n == goal or (n not in seen and not seen.add(n) and reaches(n, goal, seen)) for n in graph[start])
 
     assert [m for m in graph if reaches(m, m, set())] == []
+
+
+def test_a_method_left_out_of_method_params_keeps_its_own_defaults():
+    from dpi.solve.methods import method_config
+
+    assert method_config("none", {}).optimize.iterations == 150  # ClassicConfig's, not OptimizeConfig's 400
+    assert method_config("dip", {"iterations": 20}).optimize.lr_env == 0.01  # the rest stays dip's own

@@ -69,7 +69,8 @@ def method_config_from_dict(cls: type[MethodConfig], values: dict[str, Any] | No
     check_keys(values, own | {f.name for f in fields(OptimizeConfig)}, f"{cls.__name__} setting")
     mine = {k: v for k, v in values.items() if k in own}
     check_values(cls, mine)
-    optimize = OptimizeConfig.from_dict({k: v for k, v in values.items() if k not in own})
+    defaults = vars(cls().optimize)  # the method's own defaults (e.g. 150 iterations), not OptimizeConfig's
+    optimize = OptimizeConfig.from_dict({**defaults, **{k: v for k, v in values.items() if k not in own}})
     return cls(optimize=optimize, **mine)
 
 
