@@ -22,6 +22,7 @@ import argparse
 import copy
 import csv
 import json
+import multiprocessing
 import os
 import shutil
 from concurrent.futures import ProcessPoolExecutor
@@ -122,6 +123,11 @@ def prepare_scene(root: Path, scene: str, synth: dict, config: dict, threads: in
     if not files.sample_files("init")["trace"].exists():
         init_stage(files.capture_json, files.sample_dir("init"), scene, config["init"],
                    SolveSettings.from_config(config, threads), progress=False)
+
+
+def prepare_job(job: Job) -> None:
+    """prepare_scene for a job's scene (a pool task)."""
+    prepare_scene(job.root, job.scene, job.synth, job.config, threads=2)
 
 
 def run_job(job: Job) -> dict[str, Any]:
@@ -233,12 +239,15 @@ def main() -> None:
 def run_study(jobs: list[Job], out: Path, columns: tuple[str, ...], score: Any, workers: int) -> list[dict]:
     """Prepare every scene, draw and score the jobs whose rows `out` lacks (`score(job)` gives the row,
     appended as it comes), and return the rows of these jobs' (scene, method, sampler)."""
-    for job in {(j.root, j.scene): j for j in jobs}.values():
-        prepare_scene(job.root, job.scene, job.synth, job.config, threads=2)
+    scenes = list({(j.root, j.scene): j for j in jobs}.values())
+    # spawn, not fork: a forked child cannot use a GPU (cuda_ad_rgb) its parent already opened
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=max(1, min(workers, len(scenes))), mp_context=context) as pool:
+        list(pool.map(prepare_job, scenes))
     done = {(r["scene"], r["method"], r["sampler"], int(r["seed"])) for r in read_rows(out)}
     todo = [j for j in jobs if j.rerun or (j.scene, j.method, j.sampler, j.seed) not in done]
     print(f"{len(todo)} samples to draw and score ({len(done)} rows already in {out})", flush=True)
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
         for row in pool.map(score, todo):
             append_row(out, row, columns)
             print("  ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items()),

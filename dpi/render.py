@@ -118,8 +118,11 @@ class Renderer:
             self._check(tex, (self.texture_size, self.texture_size, ch), name)
         env_data = pad_for_mitsuba(env, self.env_data_width)
         seed = int(seed) % SEED_MODULUS  # Mitsuba seeds are 32-bit; seed_grad = seed + 7919 must fit too
-        return self._render(env_data.contiguous(), albedo.contiguous(), roughness.contiguous(),
-                            metallic.contiguous(), int(view), seed, int(spp or self.settings.spp))
+        # dr.wrap picks the Dr.Jit backend from the tensors' device: cuda_ad_rgb needs them on the GPU
+        device = torch.device("cuda") if self.mi.variant().startswith("cuda") else env.device
+        image = self._render(*(t.to(device).contiguous() for t in (env_data, albedo, roughness, metallic)),
+                             int(view), seed, int(spp or self.settings.spp))
+        return image.to(env.device)
 
     def object_hits(self, view: int, supersample: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Sub-pixel rays of `view` ((h, w, s*s, 3) origins and directions) and whether each hits the object."""

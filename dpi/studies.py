@@ -1,6 +1,6 @@
 """Small studies of the method's behaviour, shared by benchmarks and tests.
 
-`roughness_sweep` reproduces the shape of the paper's Fig. 9: one object rendered with materials
+`roughness_point` reproduces the shape of the paper's Fig. 9: one object rendered with materials
 from mirror-like to diffuse under the same sky; `dps` samples of a mirror-like object agree on the
 illumination (it is seen in reflections), while a diffuse object leaves it ambiguous, so the
 env-map spread across samples (sigma2_sample) grows with roughness.
@@ -40,22 +40,20 @@ def material_for(roughness: float) -> dict[str, float]:
     return {"roughness": roughness, "metallic": 1.0 if roughness <= 0.1 else 0.0, "roughness_variation": 0.0}
 
 
-def roughness_sweep(roughnesses: list[float], prior: Prior, folder: str | Path, settings: SweepSettings,
-                    threads: int | None = None) -> list[dict[str, float]]:
-    """env sigma2_sample (and timings) of `samples` dps samples per roughness."""
-    rows = []
+def roughness_point(roughness: float, repeat: int, prior: Prior, folder: str | Path, settings: SweepSettings,
+                    threads: int | None = None) -> dict[str, float]:
+    """env sigma2_sample of `samples` dps samples at one roughness; each repeat has its own capture noise,
+    init seed and sample seed stream, so repeats are independent."""
     render = replace(settings.render, threads=threads)
-    for roughness in roughnesses:
-        root = Path(folder) / f"rough_{roughness:.3f}"
-        make_synthetic_capture(root, replace(settings.synth, **material_for(roughness)), threads=threads,
-                               progress=False, overwrite=True)
-        problem = InverseProblem(load_capture(root), settings.problem, render)
-        init = path_traced_init(problem, settings.init, seed=0, progress=False)
-        envs = [dps_sample(problem, prior, init, settings.dps, seed=100 + k, progress=False).decomposition.env
-                for k in range(settings.samples)]
-        rows.append({"roughness": roughness, "metallic": material_for(roughness)["metallic"],
-                     "env_sigma2_sample": sample_variance([normalized_env(e.numpy()) for e in envs])})
-    return rows
+    root = Path(folder) / f"rough_{roughness:.3f}_{repeat}"
+    make_synthetic_capture(root, replace(settings.synth, **material_for(roughness), seed=settings.synth.seed + repeat),
+                           threads=threads, progress=False, overwrite=True)
+    problem = InverseProblem(load_capture(root), settings.problem, render)
+    init = path_traced_init(problem, settings.init, seed=repeat, progress=False)
+    envs = [dps_sample(problem, prior, init, settings.dps, seed=100 + 1000 * repeat + k, progress=False).decomposition.env
+            for k in range(settings.samples)]
+    return {"roughness": roughness, "metallic": material_for(roughness)["metallic"], "repeat": repeat,
+            "env_sigma2_sample": sample_variance([normalized_env(e.numpy()) for e in envs])}
 
 
 def pareto_front(rows: list[dict[str, float]], minimize: tuple[str, ...], maximize: tuple[str, ...]) -> list[bool]:

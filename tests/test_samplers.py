@@ -86,7 +86,7 @@ def test_proximal_step_with_an_exact_operator_converges_to_the_data():
     truth = torch.exp(torch.randn(height, 2 * height, 3, generator=torch.Generator().manual_seed(1)))
     problem = LinearProblem(truth)
     init = Decomposition(torch.ones(height, 2 * height, 3), MaterialTextures.constant(4))
-    cfg = DPSConfig(steps=40, inner_steps=8, prox_weight=0.0, noise_mix=0.0, lr_map=0.05, warm_start=True,
+    cfg = DPSConfig(steps=40, inner_steps=8, prox_weight=0.0, noise_mix=0.0, lr_map=0.05, warm_start=True, start_noise=1.0,
                     radiance_scale=1.0)
     run, state = start_run(problem, gaussian_prior(height), init, cfg, seed=0)
     start = relative_residual(problem, run.env(torch.exp(state.log_map), state.log_exposure).detach())
@@ -123,7 +123,7 @@ def test_guided_sample_fits_the_views_far_better_than_the_prior_alone(problem_an
 @pytest.mark.parametrize("sampler", list(SAMPLERS))
 def test_every_sampler_runs_in_the_one_loop_and_is_seeded(problem_and_init, sampler):
     problem, init = problem_and_init
-    cfg = DPSConfig(sampler=sampler, steps=3, refine_iterations=1, strip_frames=2)
+    cfg = DPSConfig(sampler=sampler, steps=3, start_noise=1.0, refine_iterations=1, strip_frames=2)
     first = dps_sample(problem, log_prior(), init, cfg, seed=4, progress=False)
     again = dps_sample(problem, log_prior(), init, cfg, seed=4, progress=False)
     d = first.decomposition

@@ -43,6 +43,13 @@ CHECKPOINT_EVERY = 10
 """reverse steps between two saves of the resume state (a save costs far less than one step)"""
 
 
+SAMPLER_DEFAULTS: dict[str, dict[str, Any]] = {"proximal": {"start_noise": 0.4, "views_per_step": 4},
+                                               "paper": {"start_noise": 1.0, "views_per_step": 1}}
+"""Settings a sampler brings where the config leaves them unset: proximal's won the posterior study
+(benchmarks/posterior_study.py); the paper's loop starts from pure noise with one view per step, as in
+the reference"""
+
+
 @dataclass
 class DPSConfig:
     """Settings of the `dps` method (defaults: the CPU preset)."""
@@ -51,8 +58,8 @@ class DPSConfig:
     """how a reverse step uses the data: proximal (x0-space data steps, no network backward) or paper"""
     steps: int = 100
     """reverse-diffusion steps (respaced from the prior's 1000; the paper uses 1000)"""
-    views_per_step: int = 1
-    """training views rendered per data term"""
+    views_per_step: int | None = None
+    """training views rendered per data term (None: the sampler's, SAMPLER_DEFAULTS)"""
     spp: int | None = None
     """proximal: samples per pixel of the data term's renders (None: the renderer's)"""
     guidance_bound: float = 0.1
@@ -67,16 +74,17 @@ class DPSConfig:
     """paper: fraction of steps run at rho_start"""
     inner_steps: int = 2
     """proximal: joint data updates of map, materials and exposure per reverse step"""
-    lr_map: float = 0.03
+    lr_map: float = 0.05
     """proximal: step of the map's log radiance per data update (Adam's rate, or the RMS of a normalized step)"""
     map_update: str = "adam"
     """proximal: adam (per-texel Adam) or normalized (gradient scaled to RMS lr_map over the map)"""
-    warm_start: bool = False
+    warm_start: bool = True
     """proximal: start each step's data updates from the previous step's map instead of from x0_hat"""
-    start_noise: float = 1.0
+    start_noise: float | None = None
     """noise level the reverse diffusion starts from, as a fraction of the schedule: 1 starts from pure
-    noise; less starts from the init map noised to that level (SDEdit) and runs that fraction of the steps"""
-    prox_weight: float = 1e-3
+    noise; less starts from the init map noised to that level (SDEdit) and runs that fraction of the steps
+    (None: the sampler's, SAMPLER_DEFAULTS)"""
+    prox_weight: float = 0.5
     """proximal: weight of ||z - x0_hat||^2 per unit abar_t / (1 - abar_t)"""
     noise_mix: float = 0.5
     """proximal: share zeta of fresh noise in the re-noising (0: deterministic DDIM, 1: all fresh)"""
@@ -95,6 +103,11 @@ class DPSConfig:
     """scene radiance per unit of the prior's normalised radiance (None: estimated from init)"""
     strip_frames: int = 8
     """x0_hat snapshots kept for the progress strip"""
+
+    def __post_init__(self) -> None:
+        for key, value in SAMPLER_DEFAULTS.get(self.sampler, {}).items():
+            if getattr(self, key) is None:
+                setattr(self, key, value)
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> "DPSConfig":
