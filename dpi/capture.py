@@ -27,6 +27,7 @@ import yaml
 
 from dpi.atomic import write_json
 from dpi.cameras import Camera, camera_problem, read_cameras, read_transforms
+from dpi.envmap import EnvmapLayoutError, equirect
 from dpi.exr import EXRError, read_exr
 from dpi.images import HDR_SUFFIXES, IMAGE_SUFFIXES, LDR_SUFFIXES, ImageError, read_image, read_mask
 from dpi.layout import SceneLayout
@@ -515,7 +516,7 @@ def _check_mesh(path: Path) -> None:
 
 
 def _gt_files(root: Path) -> dict[str, Path]:
-    """name -> ground-truth EXR, each finite and the envmap of shape (H, 2H)."""
+    """name -> ground-truth EXR, each finite and the envmap an equirect in a layout `dpi.envmap.equirect` reads."""
     gt = {}
     for name in GT_NAMES:
         path = root / "gt" / f"{name}.exr"
@@ -527,8 +528,11 @@ def _gt_files(root: Path) -> dict[str, Path]:
             raise CaptureError(str(exc)) from exc
         if not np.isfinite(data).all():
             raise CaptureError(f"{path}: ground truth contains NaN or Inf values")
-        if name == "envmap" and data.shape[1] != 2 * data.shape[0]:
-            raise CaptureError(f"{path}: envmap shape {data.shape[0]}x{data.shape[1]} is not (H, 2H)")
+        if name == "envmap":
+            try:
+                equirect(data, str(path))
+            except EnvmapLayoutError as exc:
+                raise CaptureError(str(exc)) from exc
         gt[name] = path
     return gt
 

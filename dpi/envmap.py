@@ -10,9 +10,13 @@ its `envmap.data` parameter (one after the map in older versions; one on each si
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import torch
+
+from dpi.exr import EXRError, read_exr
+from dpi.images import resize
 
 
 def texel_angles(height: int) -> tuple[np.ndarray, np.ndarray]:
@@ -98,3 +102,43 @@ def pad_equirect(x: torch.Tensor, pad: int) -> torch.Tensor:
     bottom = torch.roll(x[..., -pad:, :].flip(-2), half, dims=-1)
     x = torch.cat([top, x, bottom], dim=-2)
     return torch.cat([x[..., -pad:], x, x[..., :pad]], dim=-1)
+
+
+class EnvmapLayoutError(ValueError):
+    """An image that is not an equirectangular environment map in any layout dpi reads."""
+
+
+def equirect(env: np.ndarray, source: str = "envmap") -> tuple[np.ndarray, list[str]]:
+    """The (H, 2H, C) map of an equirect in the layouts authors ship, and a line per change made:
+    a wrap column (the last column repeating the first, e.g. 128 x 257 or 256 x 257) is dropped, and
+    a map between 1:1 and 2:1 (e.g. 256 x 256) is resampled to H x 2H. Anything else is an error."""
+    notes = []
+    height, width = shape = env.shape[:2]
+    if width % 2 == 1 and width > 1:
+        first, last = env[:, 0], env[:, -1]
+        if np.abs(first - last).max() <= 1e-3 * max(float(np.abs(env).mean()), 1e-12):
+            env = env[:, :-1]
+            width -= 1
+            notes.append(f"{source}: dropped the wrap column (the last column repeats the first): "
+                         f"{height}x{width + 1} -> {height}x{width}")
+    if width != 2 * height:
+        if not height <= width < 2 * height:
+            raise EnvmapLayoutError(f"{source}: {shape[0]}x{shape[1]} is not an equirectangular map: need H x 2H "
+                                    "(or H x 2H+1 with a wrap column, or between H x H and H x 2H to resample)")
+        env = resize(torch.from_numpy(np.ascontiguousarray(env, dtype=np.float32)), height, 2 * height).numpy()
+        notes.append(f"{source}: resampled a {height}x{width} equirect to {height}x{2 * height}")
+    return env, notes
+
+
+def read_envmap(path: str | Path, log: bool = True) -> np.ndarray:
+    """An environment map (H, 2H, 3) from an EXR in any layout `equirect` reads (its changes printed
+    as log lines); an unreadable file or NaN/Inf/negative radiance is an error naming the file."""
+    env = read_exr(path)
+    if env.shape[-1] == 1:
+        env = np.repeat(env, 3, axis=-1)
+    if not np.isfinite(env).all() or (env < 0).any():
+        raise EXRError(f"{path}: environment map has NaN, Inf or negative values")
+    env, notes = equirect(env[..., :3], str(path))
+    for note in notes if log else []:
+        print(note, flush=True)
+    return env

@@ -21,8 +21,8 @@ import torch
 from dpi.atomic import write_json
 from dpi.cameras import Camera, from_fov, orbit
 from dpi.capture import complete_capture, read_capture_json
-from dpi.envmap import rotate_azimuth
-from dpi.exr import EXRError, read_exr, write_exr
+from dpi.envmap import read_envmap, rotate_azimuth
+from dpi.exr import write_exr
 from dpi.images import resize, write_png
 from dpi.layout import ENV_FILE, SceneLayout
 from dpi.materials import RANGES, MaterialTextures
@@ -80,17 +80,6 @@ class RelightConfig:
     seed: int = 0
     """sampler seed of the first view (view i uses seed + i)"""
     edit: MaterialEdit = field(default_factory=MaterialEdit)
-
-
-def read_envmap(path: str | os.PathLike) -> np.ndarray:
-    """An environment map (H, W, 3) from an EXR; an unreadable file or NaN/Inf/negative radiance
-    is an error naming the file."""
-    env = read_exr(path)
-    if env.shape[-1] == 1:
-        env = np.repeat(env, 3, axis=-1)
-    if not np.isfinite(env).all() or (env < 0).any():
-        raise EXRError(f"{path}: environment map has NaN, Inf or negative values")
-    return env
 
 
 def prepare_envmap(env: np.ndarray, height: int, rotate_deg: float = 0.0) -> np.ndarray:

@@ -14,6 +14,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from dpi.atomic import atomic_path  # noqa: E402
+from dpi.envmap import read_envmap  # noqa: E402
 from dpi.exr import read_exr  # noqa: E402
 from dpi.images import linear_to_srgb, luminance  # noqa: E402
 from dpi.exposure import middle_grey_gain  # noqa: E402
@@ -51,7 +52,7 @@ def display_env(env: np.ndarray, reference: np.ndarray | None) -> np.ndarray:
 
 def envmap_grid(rows: list[tuple[str, list[Path]]], path: str | Path, reference: Path | None = None) -> None:
     """PNG grid: one row per (label, env EXRs), ground truth on top when given; maps scale-aligned to it."""
-    ref = read_exr(reference) if reference else None
+    ref = read_envmap(reference, log=False) if reference else None
     table = ([("ground truth", [reference])] if reference else []) + rows
     axes = _panels(len(table), max(len(files) for _, files in table), 2.4, 1.4)
     for r, (label, files) in enumerate(table):

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from dpi.envmap import read_envmap
 from dpi.evaluation.metrics import PSNR_CAP, aligned_env, albedo_mse, env_metrics, missing, psnr, ssim
 from dpi.evaluation.naturalness import naturalness
 from dpi.evaluation.niqe import ENV_HEIGHT, env_niqe
@@ -81,7 +82,7 @@ def ground_truth_metrics(decomposition: Decomposition, gt: dict[str, Path]) -> d
     """Env-map PSNR/SSIM/LPIPS and albedo MSE against ground-truth files, when present."""
     out: dict[str, Any] = {}
     if "envmap" in gt:
-        env, reference = decomposition.env.numpy(), read_exr(gt["envmap"])
+        env, reference = decomposition.env.numpy(), read_envmap(gt["envmap"])
         out.update(env_metrics(env, reference))
         net = lpips_network()
         a, b, _ = aligned_env(env, reference)

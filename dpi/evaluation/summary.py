@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from dpi.envmap import read_envmap
 from dpi.atomic import atomic_path
 from dpi.evaluation.metrics import aligned_env, missing, normalized_env, resize_area, sample_variance
 from dpi.evaluation.perceptual import (INCEPTION_WEIGHTS, azimuth_rolls, frechet_distance, inception_features,
@@ -97,7 +98,7 @@ def env_fid(records: list[dict[str, Any]]) -> dict[str, Any]:
         estimates, references = [], {}
         for r in records:
             if r["method"] == method and r.get("gt_envmap"):
-                a, b, _ = aligned_env(read_exr(Path(r["sample_dir"]) / ENV_FILE), read_exr(r["gt_envmap"]))
+                a, b, _ = aligned_env(read_exr(Path(r["sample_dir"]) / ENV_FILE), read_envmap(r["gt_envmap"], log=False))
                 estimates += azimuth_rolls(linear_to_srgb(a))
                 references.setdefault(r["scene"], azimuth_rolls(linear_to_srgb(b)))
         out[method] = (frechet_distance(inception_features(estimates, net),

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import torch
 
-from dpi.exr import read_exr, write_exr
+from dpi.envmap import read_envmap
+from dpi.exr import write_exr
 from dpi.layout import ENV_FILE, SAMPLE_TRACE
 from dpi.materials import MaterialTextures
 from dpi.solve.trace import Trace
@@ -38,5 +39,5 @@ class Decomposition:
     @classmethod
     def load(cls, folder: str | Path, texture_size: int | None = None) -> "Decomposition":
         """Read a decomposition folder (the trace is not read back)."""
-        env = torch.from_numpy(read_exr(Path(folder) / ENV_FILE))
+        env = torch.from_numpy(read_envmap(Path(folder) / ENV_FILE))
         return cls(env, MaterialTextures.load(folder, texture_size))
