@@ -101,6 +101,11 @@ class SceneLayout:
         return self.root / "geometry"
 
     @property
+    def working_dir(self) -> Path:
+        """Images and masks at the working resolution (dpi.working), a folder per size."""
+        return self.root / "working"
+
+    @property
     def geometry(self) -> dict[str, Path]:
         return geometry_files(self.geometry_dir)
 

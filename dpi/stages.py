@@ -27,6 +27,7 @@ from dpi.solve.init import path_traced_init
 from dpi.solve.methods import REGISTRY, SampleJob, method_config
 from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import InverseProblem, SolveSettings
+from dpi.working import working_capture
 
 RESUME_FILE = ".resume.pt"
 """a long job's resume state in its output folder: no Snakemake output, so it outlives the deletion of a
@@ -35,8 +36,14 @@ killed job's outputs and the rerun continues from it (dpi.solve.checkpoint)"""
 
 def load_problem(capture_json: str | Path, settings: SolveSettings) -> InverseProblem:
     """The inverse problem of a validated capture, completed by the cameras, masks and UV mesh that
-    preprocessing derived where the capture lacks them (in the scene's results folder, next to capture.json)."""
-    capture = complete_capture(read_capture_json(capture_json), SceneLayout(Path(capture_json).parent))
+    preprocessing derived where the capture lacks them (in the scene's results folder, next to capture.json),
+    at the working resolution (`problem.resolution`)."""
+    scene = SceneLayout(Path(capture_json).parent)
+    full = complete_capture(read_capture_json(capture_json), scene)
+    capture = working_capture(full, settings.problem.resolution, scene.working_dir)
+    if capture is not full:
+        print(f"working resolution: {full.image_size[0]}x{full.image_size[1]} images fitted at "
+              f"{capture.image_size[0]}x{capture.image_size[1]} ({scene.working_dir})", flush=True)
     problem = InverseProblem(capture, settings.problem, settings.render)
     print(f"exposure: images divided by {problem.exposure:.6g} (foreground median at {MIDDLE_GREY})", flush=True)
     return problem

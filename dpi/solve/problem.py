@@ -38,6 +38,9 @@ class ProblemSettings:
     """material texture resolution R (R x R texels)"""
     loss_space: str = "linear"
     """compare images as linear HDR or as log(1 + x)"""
+    resolution: int | None = None
+    """longer image side (px) the views are fitted and evaluated at: larger captures are area-downsampled
+    once (dpi.working); None: the capture's own size"""
 
 
 @dataclass

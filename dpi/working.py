@@ -1,0 +1,65 @@
+"""The working resolution of the inverse stages: a capture's images and masks area-downsampled once.
+
+Photos are 1600-4000 px; init, methods and evaluation render every view at the size they fit, so
+they work on copies whose longer side is `ProblemSettings.resolution` px (None: the capture's own).
+The copies (linear EXR images and masks) and the cameras, scaled to them, live in the scene's
+results folder (`SceneLayout.working_dir`), written once per size and source, atomically, and
+reused by every later job; a changed source image is resampled again.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from dpi.atomic import write_json
+from dpi.capture import Capture, View
+from dpi.exr import write_exr
+from dpi.images import read_image, read_mask, resize
+
+MANIFEST = "working.json"
+
+
+def working_size(image_size: tuple[int, int], resolution: int | None) -> tuple[int, int]:
+    """(width, height) with the longer side at most `resolution` px, the aspect kept (None: unchanged)."""
+    width, height = image_size
+    longer = max(width, height)
+    if resolution is None or resolution >= longer:
+        return width, height
+    return max(1, round(width * resolution / longer)), max(1, round(height * resolution / longer))
+
+
+def source_stamp(view: View) -> list:
+    """What identifies a view's sources: paths, sizes and modification times of image and mask."""
+    return [[str(p), p.stat().st_size, p.stat().st_mtime_ns] for p in (view.image, view.mask) if p is not None]
+
+
+def working_capture(capture: Capture, resolution: int | None, folder: str | Path) -> Capture:
+    """The capture at the working resolution: itself when it is no larger, else views whose images and
+    masks are area-downsampled copies in folder/{w}x{h}/ and whose cameras are scaled to them."""
+    size = working_size(capture.image_size, resolution)
+    if size == tuple(capture.image_size):
+        return capture
+    root = Path(folder) / f"{size[0]}x{size[1]}"
+    manifest_path = root / MANIFEST
+    manifest = json.loads(manifest_path.read_text()) if manifest_path.is_file() else {}
+    views, changed = [], False
+    for view in capture.views:
+        image, mask = root / "images" / f"{view.name}.exr", root / "masks" / f"{view.name}.exr"
+        stamp = source_stamp(view)
+        if manifest.get(view.name) != stamp or not image.is_file() or (view.mask and not mask.is_file()):
+            pixels = torch.from_numpy(read_image(view.image))
+            write_exr(image, resize(pixels, size[1], size[0]).numpy())
+            if view.mask is not None:
+                coverage = torch.from_numpy(read_mask(view.mask).astype(np.float32))[..., None]
+                write_exr(mask, (resize(coverage, size[1], size[0]).numpy()[..., 0] > 0.5).astype(np.float32))
+            manifest[view.name], changed = stamp, True
+        camera = None if view.camera is None else view.camera.resized(*size)
+        views.append(View(view.name, image, mask if view.mask is not None else None, camera, view.held_out))
+    if changed:
+        write_json(manifest_path, manifest)
+    return replace(capture, views=views, image_size=size)
