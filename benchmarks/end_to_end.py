@@ -1,0 +1,73 @@
+"""Wall time of the whole default workflow on a real-size synthetic capture, per quality preset.
+
+The capture: the demo object rendered at 60 views of 512 x 512 px (every 10th held out), made
+once (not timed) into results/benchmarks/end_to_end/captures/. Each preset then runs the whole
+workflow on it from scratch: init, the configured methods' samples, evaluation, figures and
+report, `snakemake --cores N`; the working resolution of the preset decides the images' size.
+Rows (capture, views, size, preset, seconds) go to benchmarks/results/end_to_end.csv.
+
+    .venv/bin/python benchmarks/end_to_end.py [--presets draft default] [--cores 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import yaml
+
+from dpi.layout import SYNTH_MARKER
+
+ROOT = Path(__file__).resolve().parent.parent
+WORK = ROOT / "results" / "benchmarks" / "end_to_end"
+CSV = ROOT / "benchmarks" / "results" / "end_to_end.csv"
+COLUMNS = ("capture", "views", "size", "preset", "seconds")
+CAPTURES = {"synthetic_60x512": {"views": 60, "held_out_every": 10, "width": 512, "height": 512, "spp": 64}}
+
+
+def run_preset(capture: str, synth: dict, preset: str, cores: int) -> float:
+    """Seconds of one workflow run of `preset` on the capture (its results folder emptied first)."""
+    results = WORK / preset / "results"
+    shutil.rmtree(results, ignore_errors=True)
+    config = {"captures_dir": str(WORK / "captures"), "results_dir": str(results), "scenes": [capture],
+              "synthetic": {capture: synth}, "preset": preset}
+    path = WORK / preset / "config.yaml"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(yaml.safe_dump(config))
+    # the capture is rendered once, untimed: only the workflow after it counts
+    marker = WORK / "captures" / capture / SYNTH_MARKER
+    subprocess.run([sys.executable, "-m", "snakemake", "--cores", str(cores), "--configfile", str(path), "--quiet",
+                    str(marker)], cwd=ROOT, check=True)
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "snakemake", "--cores", str(cores), "--configfile", str(path), "--quiet"],
+                   cwd=ROOT, check=True)
+    return time.perf_counter() - start
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--presets", nargs="+", default=["draft", "default"])
+    parser.add_argument("--cores", type=int, default=2)
+    args = parser.parse_args()
+    new = not CSV.exists()
+    for capture, synth in CAPTURES.items():
+        for preset in args.presets:
+            seconds = run_preset(capture, synth, preset, args.cores)
+            row = {"capture": capture, "views": synth["views"], "size": f"{synth['width']}x{synth['height']}",
+                   "preset": preset, "seconds": round(seconds, 1)}
+            with open(CSV, "a", newline="") as f:
+                writer = csv.DictWriter(f, fieldnames=COLUMNS)
+                if new:
+                    writer.writeheader()
+                    new = False
+                writer.writerow(row)
+            print("  ".join(f"{k} {v}" for k, v in row.items()), flush=True)
+
+
+if __name__ == "__main__":
+    main()
