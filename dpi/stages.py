@@ -93,7 +93,9 @@ def evaluate_stage(capture_json: str | Path, sample_dir: str | Path, out_json: s
     problem = load_problem(capture_json, settings)
     sample = problem.load_decomposition(sample_dir)
     traces = [Path(sample_dir) / name for name in (SAMPLE_TRACE, INIT_TRACE) if (Path(sample_dir) / name).is_file()]
-    seconds = json.loads(traces[0].read_text())["summary"]["seconds"] if traces else None
+    trace = json.loads(traces[0].read_text()) if traces else {}
+    seconds = trace["summary"]["seconds"] if traces else None
+    sampler = trace.get("info", {}).get("sampler", "")  # which dps sampler made the sample ("" for other methods)
     prior = load_scene_prior(problem.capture.options, prior_checkpoint)
     seed = seed_for(scene, method, k, "eval")
     renders = render_held_out(problem, sample, spp, seed)
@@ -103,7 +105,7 @@ def evaluate_stage(capture_json: str | Path, sample_dir: str | Path, out_json: s
         for name, image in renders.items():
             write_exr(view_file(views_dir, name), image)
     gt_envmap = problem.capture.gt.get("envmap")
-    write_json(out_json, {"scene": scene, "method": method, "sample": k, "sample_dir": str(sample_dir),
+    write_json(out_json, {"scene": scene, "method": method, "sampler": sampler, "sample": k, "sample_dir": str(sample_dir),
                           "object": problem.capture.options.get("object", scene),
                           "gt_envmap": str(gt_envmap) if gt_envmap else None, "exposure": problem.exposure,
                           "metrics": metrics})

@@ -80,3 +80,14 @@ def test_summary_set_metrics(tmp_path, monkeypatch):
     assert fid.startswith("missing: ") and INCEPTION_WEIGHTS in fid
     per_sample = sample_rows(records, list(rows.values()))
     assert per_sample[1]["albedo_sigma2_invar"] == pytest.approx(0.125) and per_sample[1]["env_fid"] == fid
+
+
+def test_summary_says_which_sampler_made_a_row(tmp_path, monkeypatch):
+    monkeypatch.setenv(WEIGHTS_ENV, str(tmp_path / "no_weights"))
+    flat = np.ones((2, 2, 3))
+    records = [{**toy_record(tmp_path, "s", "dps", flat), "sampler": "proximal"},
+               {**toy_record(tmp_path, "s", "dps", flat), "sample": 1, "sampler": "proximal"},
+               toy_record(tmp_path, "s", "none", flat)]  # older evaluations have no sampler key
+    rows = {r["method"]: r for r in summarize(records)}
+    assert rows["dps"]["sampler"] == "proximal" and rows["none"]["sampler"] == ""
+    assert [r["sampler"] for r in sample_rows(records, list(rows.values()))] == ["proximal", "proximal", ""]

@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from dpi.envmap import read_envmap
 from dpi.atomic import atomic_path
+from dpi.envmap import read_envmap
 from dpi.evaluation.metrics import aligned_env, missing, normalized_env, resize_area, sample_variance
 from dpi.evaluation.perceptual import (INCEPTION_WEIGHTS, azimuth_rolls, frechet_distance, inception_features,
                                        missing_weights, pretrained_inception)
@@ -52,8 +52,8 @@ def summarize(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     fid = env_fid(records)
     rows, mean_albedos = [], {}
     for (scene, method), recs in sorted(groups.items()):
-        row: dict[str, Any] = {"scene": scene, "method": method, "object": recs[0].get("object", scene),
-                               "samples": len(recs)}
+        row: dict[str, Any] = {"scene": scene, "method": method, "sampler": samplers(recs),
+                               "object": recs[0].get("object", scene), "samples": len(recs)}
         for name in SUMMARY_METRICS:
             row[name], row[f"{name}_std"] = _mean_std([r["metrics"].get(name) for r in recs])
         envs = [normalized_env(read_exr(Path(r["sample_dir"]) / ENV_FILE)) for r in recs]
@@ -68,6 +68,11 @@ def summarize(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     for row in rows:
         row["albedo_sigma2_invar"] = invar[(row["object"], row["method"])]
     return rows
+
+
+def samplers(records: list[dict[str, Any]]) -> str:
+    """The dps sampler(s) that made a group's samples ("" for other methods; "a+b" if they differ)."""
+    return "+".join(sorted({r.get("sampler", "") for r in records} - {""}))
 
 
 def albedo_invariance(mean_albedos: dict[tuple[str, str, str], np.ndarray]) -> dict[tuple[str, str], Any]:
@@ -110,7 +115,7 @@ def env_fid(records: list[dict[str, Any]]) -> dict[str, Any]:
 def sample_rows(records: list[dict[str, Any]], summary: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """One row per sample: its metrics, then the set metrics of its (scene, method) row of the summary."""
     sets = {(row["scene"], row["method"]): {k: row[k] for k in SET_METRICS} for row in summary}
-    return [{"scene": r["scene"], "method": r["method"], "sample": r["sample"],
+    return [{"scene": r["scene"], "method": r["method"], "sampler": r.get("sampler", ""), "sample": r["sample"],
              **{k: v for k, v in r["metrics"].items() if k != "notes"}, **sets[(r["scene"], r["method"])]}
             for r in records]
 
