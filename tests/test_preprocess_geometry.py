@@ -96,3 +96,33 @@ def winding_number(vertices: np.ndarray, faces: np.ndarray, point: np.ndarray) -
     det = np.einsum("ij,ij->i", a, np.cross(b, c))
     div = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la + np.einsum("ij,ij->i", c, a) * lb
     return float(2 * np.arctan2(det, div).sum() / (4 * np.pi))
+
+
+def sphere_on_ground_masks(cameras, radius=0.5):
+    """Exact silhouettes of a sphere standing on the plane y = 0 (centre at y = radius)."""
+    centre = np.array([0.0, radius, 0.0])
+    masks = []
+    for cam in cameras:
+        ys, xs = np.mgrid[0:cam.height, 0:cam.width]
+        d = np.stack([(xs + 0.5 - cam.cx) / cam.fx, -(ys + 0.5 - cam.cy) / cam.fy, -np.ones(xs.shape)], -1)
+        d = d @ cam.c2w[:3, :3].T
+        d /= np.linalg.norm(d, axis=-1, keepdims=True)
+        oc = cam.center - centre
+        b = d @ oc
+        masks.append(b * b - (oc @ oc - radius**2) > 0)
+    return masks, centre
+
+
+@pytest.mark.parametrize("elevations,cut", [((35.0, 60.0), True), ((-30.0, 30.0), False)])
+def test_support_plane_closes_the_unseen_underside(elevations, cut):
+    cameras = [from_fov(c2w, 96, 96, 40.0) for c2w in orbit(24, 3.0, elevations, target=(0.0, 0.5, 0.0))]
+    masks, centre = sphere_on_ground_masks(cameras)
+    hull, _, _ = reconstruct_surface(cameras, masks, GeometryConfig(support_plane=False))
+    planed, _, summary = reconstruct_surface(cameras, masks, GeometryConfig(support_plane=True))
+    error = {name: np.abs(np.linalg.norm(v - centre, axis=1) - 0.5) for name, v in (("hull", hull), ("planed", planed))}
+    if cut:  # seen only from above: the hull hangs a cone under the sphere (to y = -0.18); the plane cuts it
+        assert hull[:, 1].min() < -0.1 and -0.02 < planed[:, 1].min() < 0.06
+        assert summary["support_plane"]["up"] == pytest.approx([0, 1, 0], abs=1e-6)
+        assert error["planed"].max() < 0.5 * error["hull"].max() and error["planed"].mean() < 0.6 * error["hull"].mean()
+    else:  # seen from below too: no plane
+        assert "support_plane" not in summary and np.allclose(planed, hull)

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from dpi.cameras import Camera
-from dpi.preprocess.hull import marching_cubes, visual_hull
+from dpi.preprocess.hull import cut_below, marching_cubes, support_plane, visual_hull
 
 
 
@@ -47,6 +47,9 @@ class GeometryConfig:
     whose equilateral triangles keep the face budget)"""
     min_component: float = 20.0
     """components with a diagonal below this percent of the whole are removed"""
+    support_plane: bool = True
+    """when every camera looks from above, cut the hull at the plane of the object's lowest rim point, so
+    the underside no camera sees does not stay a cone (dpi.preprocess.hull.support_plane)"""
 
 
 def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
@@ -95,6 +98,10 @@ def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray],
     start = time.perf_counter()
     field, origin, size, box = visual_hull(cameras, masks, cfg.resolution, cfg.coarse_resolution, cfg.outside_votes,
                                            cfg.min_view_fraction, cfg.object_in_frame, cfg.margin)
+    plane = support_plane(cameras, masks, field, origin, size) if cfg.support_plane else None
+    if plane is not None:
+        field = cut_below(field, origin, size, *plane)
+        box["support_plane"] = {"up": plane[0].tolist(), "height": plane[1]}
     times["carve_s"] = time.perf_counter() - start
     start = time.perf_counter()
     vertices, faces = marching_cubes(field, origin, size)

@@ -183,3 +183,66 @@ def marching_cubes(field: np.ndarray, origin: np.ndarray, size: float) -> tuple[
         raise ValueError("carving left no voxel inside every silhouette (masks and cameras disagree)")
     verts, faces, _, _ = mc(padded, 0.0, spacing=(size, size, size))
     return verts + origin - size, faces.astype(np.int64)
+
+
+def up_direction(cameras: list[Camera]) -> np.ndarray:
+    """World up as the cameras hold it: the mean of their image-up axes (photos are taken level)."""
+    up = np.mean([cam.c2w[:3, 1] for cam in cameras], axis=0)
+    return up / np.linalg.norm(up)
+
+
+def lowest_rim_height(cameras: list[Camera], masks: list[np.ndarray], field: np.ndarray, origin: np.ndarray,
+                      size: float, up: np.ndarray, samples: int = 2000) -> float:
+    """Height along `up` of the lowest point where a view's lowest silhouette ray grazes the carved hull.
+
+    The ray through a silhouette's lowest pixel touches the object at its rim; where cameras look only
+    from above, the lowest such rim point over the views is the object's footing (exact for a flat
+    base; for a round bottom seen from elevation e it is r (1 - cos e) above the contact)."""
+    from scipy.ndimage import map_coordinates
+
+    centre = origin + (np.array(field.shape) - 1) * size / 2
+    span = float(np.linalg.norm(np.array(field.shape) * size))
+    heights = []
+    for cam, mask in zip(cameras, masks):
+        ys, xs = np.nonzero(mask)
+        if not len(xs):
+            continue
+        w2c = np.linalg.inv(cam.c2w)
+
+        def project(p: np.ndarray) -> np.ndarray:
+            q = w2c[:3, :3] @ p + w2c[:3, 3]
+            return np.array([cam.fx * q[0], -cam.fy * q[1]]) / -q[2] + np.array([cam.cx, cam.cy])
+
+        image_up = project(centre + 0.01 * span * up) - project(centre)
+        k = int(np.argmin((xs + 0.5) * image_up[0] + (ys + 0.5) * image_up[1]))
+        ray = cam.c2w[:3, :3] @ np.array([(xs[k] + 0.5 - cam.cx) / cam.fx, -(ys[k] + 0.5 - cam.cy) / cam.fy, -1.0])
+        ray /= np.linalg.norm(ray)
+        reach = float(np.linalg.norm(cam.center - centre))
+        points = cam.center + np.linspace(reach - span, reach + span, samples)[:, None] * ray
+        values = map_coordinates(field, ((points - origin) / size).T, order=1, mode="nearest")
+        grazing = values <= values.min() + 0.5 * size
+        heights.append(float((points[grazing] @ up).min()))
+    return min(heights)
+
+
+def support_plane(cameras: list[Camera], masks: list[np.ndarray], field: np.ndarray, origin: np.ndarray, size: float,
+                  min_elevation_deg: float = 5.0) -> tuple[np.ndarray, float] | None:
+    """(up, height) of the plane the object stands on when every camera looks at it from above (at least
+    `min_elevation_deg` over its centre), so no view sees its underside; None otherwise."""
+    up = up_direction(cameras)
+    inside = np.argwhere(field < 0)
+    if not len(inside):
+        return None
+    centre = origin + inside.mean(0) * size
+    offsets = np.array([cam.center - centre for cam in cameras])
+    elevations = np.degrees(np.arcsin(np.clip(offsets @ up / np.linalg.norm(offsets, axis=1), -1, 1)))
+    if elevations.min() < min_elevation_deg:
+        return None
+    return up, lowest_rim_height(cameras, masks, field, origin, size, up)
+
+
+def cut_below(field: np.ndarray, origin: np.ndarray, size: float, up: np.ndarray, height: float) -> np.ndarray:
+    """The field with everything below the plane {x . up = height} outside (a signed-distance union)."""
+    axes = [origin[i] + np.arange(field.shape[i]) * size for i in range(3)]
+    heights = sum(np.asarray(axes[i])[tuple(slice(None) if j == i else None for j in range(3))] * up[i] for i in range(3))
+    return np.maximum(field, (height - heights).astype(field.dtype))
