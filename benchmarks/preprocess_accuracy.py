@@ -1,10 +1,13 @@
 """Accuracy and run time of the preprocessing stages on synthetic photo captures.
 
 Renders photo-only captures (PNG images, no cameras, masks or mesh; ground truth hidden in gt/)
-of a convex blob and a bumpy torus (a hole, self-occlusion) in front of a textured or a plain
-backdrop, runs poses -> masks -> geometry -> uv as the workflow does, and prints one row per
-capture: pose errors after Umeyama alignment, mask IoU, Chamfer distance (% of the bounding-box
-diagonal) and the seconds of every stage. Not a timed test: numbers depend on the machine.
+of a convex blob, a bumpy torus (a hole, self-occlusion) and a bowl (a cavity, a flat foot) in front
+of a textured or a plain backdrop, seen from the upper hemisphere only (`--elevations`, like a
+table-top capture), runs poses -> masks -> geometry -> uv as the workflow does, and prints one row
+per capture: pose errors after Umeyama alignment, mask IoU, Chamfer distance (% of the bounding-box
+diagonal) and the seconds of every stage; rows (shape, views, size, rotation_deg, mask_iou,
+chamfer_pct, seconds, ...) are appended to benchmarks/results/preprocess_accuracy.csv. Not a timed
+test: numbers depend on the machine.
 
     .venv/bin/python benchmarks/preprocess_accuracy.py                     # defaults below
     .venv/bin/python benchmarks/preprocess_accuracy.py --views 40 --size 400 --backgrounds textured
@@ -14,6 +17,7 @@ diagonal) and the seconds of every stage. Not a timed test: numbers depend on th
 from __future__ import annotations
 
 import argparse
+import csv
 import tempfile
 import time
 from pathlib import Path
@@ -29,9 +33,12 @@ from dpi.cameras import read_cameras
 from dpi.preprocess.stages import capture_stage, geometry_stage, masks_stage, poses_stage, uv_stage
 from dpi.layout import SYNTH_MARKER, SceneLayout
 from dpi.synth.capture import SynthConfig, make_synthetic_capture
+from dpi.synth.shapes import SHAPES
+
+CSV = Path(__file__).resolve().parent / "results" / "preprocess_accuracy.csv"
 
 
-def run_capture(root: Path, work: Path, threads: int) -> dict:
+def run_capture(root: Path, work: Path, threads: int, geometry: dict) -> dict:
     """Run the four stages on one photo capture; accuracy and seconds per stage."""
     scene = SceneLayout(work)
     capture_stage(root, scene.capture_json)
@@ -58,7 +65,7 @@ def run_capture(root: Path, work: Path, threads: int) -> dict:
     row.update(mask_prior=summary["prior"] if "grabcut" in methods else "key", iou_mean=np.mean(ious),
                iou_min=np.min(ious))
     start = time.perf_counter()
-    geometry_stage(capture_json, scene.geometry_dir, {}, cameras_json, scene.masks)
+    geometry_stage(capture_json, scene.geometry_dir, geometry, cameras_json, scene.masks)
     row["geometry_s"] = time.perf_counter() - start
     vertices, faces = read_mesh(scene.geometry["mesh"])
     error = chamfer(align_mesh(vertices, cameras, truth), faces, *read_mesh(root / "gt" / "mesh.ply"))
@@ -69,9 +76,31 @@ def run_capture(root: Path, work: Path, threads: int) -> dict:
     return row
 
 
+def append_csv(path: Path, row: dict, views: int, size: int, elevations: list[float]) -> None:
+    """One capture's row in the study CSV (a header when the file is new)."""
+    record = {"shape": row["shape"], "background": row["background"], "views": views, "size": size,
+              "elevations_deg": " ".join(f"{e:g}" for e in elevations), "support_plane": row["support_plane"],
+              "rotation_deg": row.get("rot_deg_mean", ""),
+              "mask_iou": row.get("iou_mean", ""), "chamfer_pct": row.get("chamfer_pct", ""),
+              "seconds": sum(v for k, v in row.items() if k.endswith("_s") and k != "render_s"),
+              "error": row.get("error", "")}
+    new = not path.exists()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(record))
+        if new:
+            writer.writeheader()
+        writer.writerow({k: f"{v:.4g}" if isinstance(v, float) else v for k, v in record.items()})
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--shapes", nargs="+", default=["blob", "bumpy_torus"])
+    parser.add_argument("--shapes", nargs="+", default=list(SHAPES))
+    parser.add_argument("--elevations", nargs="+", type=float, default=[15.0, 30.0],
+                        help="camera ring elevations in degrees (all positive: nothing sees the underside)")
+    parser.add_argument("--out", type=Path, default=CSV, help="CSV the rows are appended to")
+    parser.add_argument("--support-plane", action=argparse.BooleanOptionalAction, default=True,
+                        help="cut the hull at the plane under the object (GeometryConfig.support_plane)")
     parser.add_argument("--backgrounds", nargs="+", default=["textured", "plain"])
     parser.add_argument("--views", type=int, default=32)
     parser.add_argument("--size", type=int, default=240)
@@ -87,17 +116,20 @@ def main() -> None:
                 name = f"{shape}_{background}_{args.views}x{args.size}_{args.spp}spp"
                 root = Path(args.captures or tmp) / name
                 cfg = SynthConfig(shape=shape, views=args.views, held_out_every=8, width=args.size, height=args.size,
-                                  spp=args.spp, texture_size=256, camera_distance=6.0, elevations_deg=(15.0, 30.0),
+                                  spp=args.spp, texture_size=256, camera_distance=6.0, elevations_deg=tuple(args.elevations),
                                   albedo_detail=0.6, background=background, image_format="png", photos_only=True)
                 start = time.perf_counter()
                 if not (root / SYNTH_MARKER).is_file():
                     make_synthetic_capture(root, cfg, threads=args.threads, progress=False)
                 render_s = time.perf_counter() - start
                 try:
-                    row = run_capture(root, Path(tmp) / f"work_{name}", args.threads)
+                    row = run_capture(root, Path(tmp) / f"work_{name}", args.threads,
+                                      {"support_plane": args.support_plane})
                 except Exception as exc:  # a failing stage is a result too
                     row = {"error": f"{type(exc).__name__}: {str(exc)[:80]}"}
                 rows.append({"shape": shape, "background": background, "render_s": render_s, **row})
+                append_csv(args.out, {**rows[-1], "support_plane": args.support_plane}, args.views, args.size,
+                           args.elevations)
                 print(tabulate([rows[-1]], headers="keys", floatfmt=".3g"), flush=True)
     print(f"\n{args.views} views of {args.size}x{args.size}, {args.spp} spp, {args.threads} threads")
     print(tabulate(rows, headers="keys", floatfmt=".3g"))

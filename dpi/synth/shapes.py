@@ -1,9 +1,10 @@
 """Procedural meshes with UV atlases for synthetic captures.
 
-Both shapes are parametric surfaces sampled on a (rows+1) x (cols+1) grid whose seam vertices are
+The shapes are parametric surfaces sampled on a (rows+1) x (cols+1) grid whose seam vertices are
 duplicated, so their UVs are the surface parameters themselves:
 - `blob`: a sphere with smooth radial bumps (convex-ish, no self-occlusion to speak of);
-- `bumpy_torus`: a torus with bumps (concave, self-occluding, a hole).
+- `bumpy_torus`: a torus with bumps (concave, self-occluding, a hole);
+- `bowl`: a thick-walled bowl on a flat foot (a cavity silhouettes cannot see into, a flat base).
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-SHAPES = ("blob", "bumpy_torus")
+SHAPES = ("blob", "bumpy_torus", "bowl")
 
 
 @dataclass
@@ -80,12 +81,35 @@ def bumpy_torus(resolution: int = 48, major: float = 0.75, minor: float = 0.35, 
     return TriangleMesh(pos.reshape(-1, 3), _grid_faces(rows, cols)[:, ::-1].copy(), uvs.reshape(-1, 2))
 
 
+BOWL_PROFILE = np.array([[0.0, -0.5], [0.5, -0.5], [0.55, -0.38], [1.0, 0.42], [0.98, 0.5], [0.88, 0.5],
+                         [0.48, -0.28], [0.0, -0.3]])
+"""(radius, height) of the bowl's cross-section, from the foot's centre out, up the outer wall, over the
+rim and down the inner wall to the cavity's centre"""
+
+
+def bowl(resolution: int = 48) -> TriangleMesh:
+    """A bowl revolved about +Y from BOWL_PROFILE (resampled evenly by arc length); u = azimuth, v = profile."""
+    rows, cols = 2 * resolution, 2 * resolution
+    steps = np.linalg.norm(np.diff(BOWL_PROFILE, axis=0), axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(steps)]) / steps.sum()
+    t = np.linspace(0, 1, rows + 1)
+    radius, height = np.interp(t, arc, BOWL_PROFILE[:, 0]), np.interp(t, arc, BOWL_PROFILE[:, 1])
+    v, u = np.meshgrid(t, np.linspace(0, 1, cols + 1), indexing="ij")
+    phi = 2 * np.pi * u
+    pos = np.stack([radius[:, None] * np.sin(phi), np.broadcast_to(height[:, None], phi.shape),
+                    radius[:, None] * np.cos(phi)], -1)
+    uvs = np.stack([u, 1.0 - v], -1)
+    return _drop_degenerate(TriangleMesh(pos.reshape(-1, 3), _grid_faces(rows, cols)[:, ::-1].copy(), uvs.reshape(-1, 2)))
+
+
 def make_shape(name: str, resolution: int = 48, seed: int = 0) -> TriangleMesh:
     """Build one of SHAPES by name."""
     if name == "blob":
         return blob(resolution, seed=seed)
     if name == "bumpy_torus":
         return bumpy_torus(resolution, seed=seed)
+    if name == "bowl":
+        return bowl(resolution)
     raise ValueError(f"unknown shape {name!r}; choose from {', '.join(SHAPES)}")
 
 
