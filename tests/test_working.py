@@ -59,3 +59,27 @@ def test_a_changed_source_image_is_resampled_again(tiny_capture, tmp_path):
     write_exr(view.image.with_suffix(".exr"), 2 * image) if view.image.suffix == ".exr" else pytest.skip("LDR views")
     after = read_exr(working_capture(load_capture(root), w // 2, tmp_path / "working").views[0].image)
     np.testing.assert_allclose(after, 2 * before, rtol=1e-5, atol=1e-6)
+
+
+def test_evaluation_and_report_work_at_the_working_resolution(tiny_capture, tmp_path):
+    from dataclasses import replace
+
+    from dpi.capture import complete_capture, read_capture_json
+    from dpi.evaluation.report import evaluated_capture, held_out_rerenders
+    from dpi.layout import SceneLayout
+    from dpi.render import RenderSettings
+    from dpi.solve.problem import ProblemSettings, SolveSettings
+    from dpi.stages import capture_stage, evaluate_stage
+
+    scene = SceneLayout(tmp_path / "results" / "tiny")
+    capture_stage(tiny_capture, scene.capture_json)
+    size = load_capture(tiny_capture).image_size[0] // 2
+    settings = SolveSettings(RenderSettings(spp=4, threads=2), replace(ProblemSettings(env_height=8, texture_size=8),
+                                                                          resolution=size))
+    evaluate_stage(scene.capture_json, tiny_capture / "gt", scene.evaluation("gt", 0), "tiny", "gt", 0, 8, settings,
+                   views_dir=scene.evaluation_views("gt", 0))
+    capture = evaluated_capture(scene, complete_capture(read_capture_json(scene.capture_json), scene), "gt")
+    assert capture.image_size == (size, size) and (scene.working_dir / f"{size}x{size}").is_dir()
+    (name, captured, (rerender,)), *_ = held_out_rerenders(scene, capture, ["gt"], 1.0)
+    assert captured.shape[:2] == rerender.image.shape[:2] == (size, size)
+    assert rerender.psnr > 20  # the ground truth (its map at 8 x 16) re-rendered at the working size matches

@@ -28,6 +28,7 @@ from dpi.exr import read_exr
 from dpi.images import read_image, read_mask
 from dpi.layout import TEXTURE_NAMES, Layout, SceneLayout, texture_file, view_file
 from dpi.synth.capture import read_marker
+from dpi.working import working_capture
 
 SCALE_ALIGNMENT = (
     "Illumination and albedo are recovered only up to a global scale, so they are compared after scale "
@@ -182,10 +183,19 @@ def held_out_rerenders(scene: SceneLayout, capture: Capture, methods: list[str],
     return views
 
 
+def evaluated_capture(scene: SceneLayout, capture: Capture, method: str) -> Capture:
+    """The capture at the size its held-out views were rendered and scored (the working resolution,
+    dpi.working): the same downsampled images the evaluation compared against."""
+    if not capture.held_out_views:
+        return capture
+    height, width = read_exr(view_file(scene.evaluation_views(method, 0), capture.held_out_views[0].name)).shape[:2]
+    return working_capture(capture, max(width, height), scene.working_dir)
+
+
 def scene_section(scene_name: str, scene: SceneLayout, rows: list[dict[str, str]], page: Page) -> str:
     """Input views, env-map samples, sample-0 textures and re-rendered held-out views of one scene."""
-    capture = complete_capture(read_capture_json(scene.capture_json), scene)
     methods = [r["method"] for r in rows]
+    capture = evaluated_capture(scene, complete_capture(read_capture_json(scene.capture_json), scene), methods[0])
     record = json.loads(scene.evaluation(methods[0], 0).read_text())
     exposure = record["exposure"]
     parts = [f"<h2 id='scene-{escape(scene_name)}'>Scene {escape(scene_name)}</h2>"]
