@@ -41,11 +41,11 @@ def run_preset(capture: str, synth: dict, preset: str, cores: int) -> float:
     path.write_text(yaml.safe_dump(config))
     # the capture is rendered once, untimed: only the workflow after it counts
     marker = WORK / "captures" / capture / SYNTH_MARKER
-    snakemake = [sys.executable, "-m", "snakemake", "--cores", str(cores), "--configfile", str(path)]
+    snakemake, options = [sys.executable, "-m", "snakemake"], ["--cores", str(cores), "--configfile", str(path)]
     with open(WORK / preset / "snakemake.log", "w") as log:  # Snakemake's own log; each job's is under results/
-        subprocess.run([*snakemake, str(marker)], cwd=ROOT, check=True, stdout=log, stderr=subprocess.STDOUT)
+        subprocess.run([*snakemake, str(marker), *options], cwd=ROOT, check=True, stdout=log, stderr=subprocess.STDOUT)
         start = time.perf_counter()
-        subprocess.run(snakemake, cwd=ROOT, check=True, stdout=log, stderr=subprocess.STDOUT)
+        subprocess.run([*snakemake, *options], cwd=ROOT, check=True, stdout=log, stderr=subprocess.STDOUT)
     return time.perf_counter() - start
 
 
