@@ -1,9 +1,12 @@
 """Wall time of the whole default workflow on a real-size synthetic capture, per quality preset.
 
-The capture: the demo object rendered at 60 views of 512 x 512 px (every 10th held out), made
-once (not timed) into results/benchmarks/end_to_end/captures/. Each preset then runs the whole
-workflow on it from scratch: init, the configured methods' samples, evaluation, figures and
-report, `snakemake --cores N`; the working resolution of the preset decides the images' size.
+Captures, made once (not timed) into results/benchmarks/end_to_end/captures/: the demo object
+rendered at 60 views of 512 x 512 px with cameras, masks and mesh (every 10th view held out), and 40
+JPEG photos of 1600 x 1200 px of a textured blob in front of a textured backdrop with nothing else
+(preprocessing derives poses, masks, surface and UVs). Each preset then runs the whole workflow on
+a capture from scratch: preprocessing where needed, init, the configured methods' samples,
+evaluation, figures and report (`snakemake --cores N`); the preset's working resolution decides the
+size the inverse stages work at.
 Rows (capture, views, size, preset, seconds) go to benchmarks/results/end_to_end.csv.
 
     .venv/bin/python benchmarks/end_to_end.py [--presets draft default] [--cores 2]
@@ -27,7 +30,13 @@ ROOT = Path(__file__).resolve().parent.parent
 WORK = ROOT / "results" / "benchmarks" / "end_to_end"
 CSV = ROOT / "benchmarks" / "results" / "end_to_end.csv"
 COLUMNS = ("capture", "views", "size", "preset", "seconds")
-CAPTURES = {"synthetic_60x512": {"views": 60, "held_out_every": 10, "width": 512, "height": 512, "spp": 64}}
+CAPTURES = {
+    "synthetic_60x512": {"views": 60, "held_out_every": 10, "width": 512, "height": 512, "spp": 64},
+    "photos_40x1600_jpg": {"views": 40, "held_out_every": 8, "width": 1600, "height": 1200, "spp": 8,
+                           "texture_size": 256, "camera_distance": 6.0, "elevations_deg": [15.0, 30.0],
+                           "albedo_detail": 0.6, "background": "textured", "image_format": "jpg",
+                           "photos_only": True},
+}
 
 
 def run_preset(capture: str, synth: dict, preset: str, cores: int) -> float:
@@ -52,10 +61,12 @@ def run_preset(capture: str, synth: dict, preset: str, cores: int) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--presets", nargs="+", default=["draft", "default"])
+    parser.add_argument("--captures", nargs="+", default=list(CAPTURES), choices=list(CAPTURES))
     parser.add_argument("--cores", type=int, default=2)
     args = parser.parse_args()
     new = not CSV.exists()
-    for capture, synth in CAPTURES.items():
+    for capture in args.captures:
+        synth = CAPTURES[capture]
         for preset in args.presets:
             seconds = run_preset(capture, synth, preset, args.cores)
             row = {"capture": capture, "views": synth["views"], "size": f"{synth['width']}x{synth['height']}",

@@ -19,7 +19,7 @@ import numpy as np
 
 from dpi import backend
 from dpi.envmap import texel_solid_angles
-from dpi.images import luminance, write_png
+from dpi.images import luminance, write_srgb
 from dpi.evaluation.metrics import tonemap
 from dpi.prior.outdoor import SCENE_KINDS, outdoor_envmap
 
@@ -38,7 +38,7 @@ def top_energy_share(env: np.ndarray) -> float:
 
 
 def display(env: np.ndarray) -> np.ndarray:
-    """A map median-normalised, Reinhard tone-mapped and enlarged, with a 2-texel white border, linear for write_png."""
+    """A map median-normalised, Reinhard tone-mapped and enlarged, with a 2-texel white border, linear for write_srgb."""
     shown = tonemap(env * SHEET_MEDIAN / np.median(luminance(env)))
     big = np.repeat(np.repeat(shown, SHEET_SCALE, 0), SHEET_SCALE, 1)
     return np.pad(big, ((2, 2), (2, 2), (0, 0)), constant_values=1.0)
@@ -73,7 +73,7 @@ def main() -> None:
         print(f"{kind:10s} {seconds:7.3f} {np.median(ranges):10.1f} {np.max(ranges):10.1f} {np.median(shares):14.3f}")
         sheet += maps[:8]
     if args.sheet:
-        write_png(args.sheet, contact_sheet(sheet))
+        write_srgb(args.sheet, contact_sheet(sheet))
 
 
 if __name__ == "__main__":

@@ -127,10 +127,12 @@ def to_uint8(linear: np.ndarray, exposure: float = 1.0) -> np.ndarray:
     return np.round(linear_to_srgb(np.asarray(linear) * exposure) * 255).astype(np.uint8)
 
 
-def write_png(path: str | os.PathLike, linear: np.ndarray, exposure: float = 1.0) -> None:
-    """Write a linear RGB image as an sRGB PNG, atomically."""
+def write_srgb(path: str | os.PathLike, linear: np.ndarray, exposure: float = 1.0) -> None:
+    """Write a linear RGB image as 8-bit sRGB, atomically: a JPEG (quality 92) for .jpg/.jpeg, else a PNG."""
+    jpeg = Path(path).suffix.lower() in (".jpg", ".jpeg")
     with atomic_path(path) as tmp:
-        Image.fromarray(to_uint8(linear, exposure)).save(tmp, format="PNG")
+        Image.fromarray(to_uint8(linear, exposure)).save(tmp, format="JPEG" if jpeg else "PNG",
+                                                         **({"quality": 92} if jpeg else {}))
 
 
 def write_mask(path: str | os.PathLike, mask: np.ndarray) -> None:

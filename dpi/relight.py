@@ -23,7 +23,7 @@ from dpi.cameras import Camera, from_fov, orbit
 from dpi.capture import complete_capture, read_capture_json
 from dpi.envmap import read_envmap, rotate_azimuth
 from dpi.exr import write_exr
-from dpi.images import resize, write_png
+from dpi.images import resize, write_srgb
 from dpi.layout import ENV_FILE, SceneLayout
 from dpi.materials import RANGES, MaterialTextures
 from dpi.render import Renderer, RenderSettings
@@ -114,7 +114,7 @@ def write_views(out_dir: str | os.PathLike, names: list[str], images: list[np.nd
     """{name}.exr (linear) and {name}.png (sRGB) per view, each written atomically."""
     for name, image in zip(names, images):
         write_exr(Path(out_dir) / f"{name}.exr", image)
-        write_png(Path(out_dir) / f"{name}.png", image, exposure)
+        write_srgb(Path(out_dir) / f"{name}.png", image, exposure)
 
 
 def relight_sample(capture_json: str | os.PathLike, sample_dir: str | os.PathLike, out_dir: str | os.PathLike,

@@ -12,7 +12,7 @@ import trimesh
 
 from dpi.cameras import Camera, from_fov, orbit, write_transforms
 from dpi.exr import write_exr
-from dpi.images import write_mask, write_png
+from dpi.images import write_mask, write_srgb
 
 NAMES = ("r_0", "r_1", "r_2", "r_3")
 FRAME_PATHS = ("images/r_0.png", "./images/r_1", "r_2", "images/r_3.exr")
@@ -43,7 +43,7 @@ def make_capture(root: Path, transforms: bool = True, masks: bool = True, mesh: 
     (root / "images").mkdir(parents=True)
     for i, name in enumerate(NAMES):
         if i < 2:
-            write_png(root / "images" / f"{name}.png", image(0.2 + 0.1 * i))
+            write_srgb(root / "images" / f"{name}.png", image(0.2 + 0.1 * i))
         else:
             write_exr(root / "images" / f"{name}.exr", image(2.0 + i))
     if transforms:

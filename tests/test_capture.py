@@ -14,7 +14,7 @@ from dpi.capture import (Capture, CaptureError, inspect_capture, load_capture, r
                          write_capture_json)
 from dpi.cameras import look_at
 from dpi.exr import write_exr
-from dpi.images import write_mask, write_png
+from dpi.images import write_mask, write_srgb
 
 @pytest.fixture
 def capture_root(tmp_path: Path) -> Path:
@@ -87,7 +87,7 @@ def test_nerf_synthetic_intrinsics_use_the_image_size(capture_root):
 
 def test_exr_wins_over_ldr_copy_of_the_same_view(capture_root):
     """The reference data ships 0.exr and 0.png; the linear EXR is the input."""
-    write_png(capture_root / "images" / "r_2.png", image())
+    write_srgb(capture_root / "images" / "r_2.png", image())
     assert load_capture(capture_root).views[2].image.name == "r_2.exr"
 
 
@@ -222,12 +222,12 @@ ERRORS = {
     "nan in image": (lambda r: raw_exr(r / "images" / "r_2.exr", image() * np.nan), "r_2.exr", "NaN"),
     "inf in image": (lambda r: raw_exr(r / "images" / "r_3.exr", image() + np.inf), "r_3.exr", "Inf"),
     "negative image": (lambda r: raw_exr(r / "images" / "r_3.exr", image() - 1), "r_3.exr", "negative"),
-    "image sizes differ": (lambda r: write_png(r / "images" / "r_1.png", image(height=6)), "r_1.png", "size"),
+    "image sizes differ": (lambda r: write_srgb(r / "images" / "r_1.png", image(height=6)), "r_1.png", "size"),
     "unreadable transforms": (lambda r: (r / "transforms.json").write_text("{frames: "), "transforms.json", "JSON"),
     "no frames": (lambda r: edit_transforms(r, _no_frames), "transforms.json", "frames"),
     "camera count": (lambda r: edit_transforms(r, _drop_frame), "transforms.json", "count"),
     "frame without image": (lambda r: edit_transforms(r, _rename_frame), "transforms.json", "r_9.png"),
-    "image without frame": (lambda r: write_png(r / "images" / "r_4.png", image()), "transforms.json",
+    "image without frame": (lambda r: write_srgb(r / "images" / "r_4.png", image()), "transforms.json",
                             "images without frame: ['r_4']"),
     "non-finite matrix": (lambda r: edit_transforms(r, _nan_matrix), "transforms.json", "finite"),
     "missing intrinsics": (lambda r: edit_transforms(r, _no_focal), "transforms.json", "intrinsics"),

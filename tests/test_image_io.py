@@ -11,7 +11,7 @@ from PIL import Image
 
 from dpi.exr import EXRError, read_exr, write_exr
 from dpi.images import (ImageError, linear_to_srgb, read_image, read_mask, srgb_to_linear, to_uint8, write_mask,
-                        write_png)
+                        write_srgb)
 
 
 def ramp(height: int = 4, width: int = 6) -> np.ndarray:
@@ -76,9 +76,9 @@ def test_srgb_curve_known_values_and_inverse():
 
 
 def test_png_round_trip_within_quantisation(tmp_path):
-    """write_png stores sRGB 8-bit; read_image decodes back to linear within one code value."""
+    """write_srgb stores sRGB 8-bit; read_image decodes back to linear within one code value."""
     linear = np.clip(ramp() / 8.0, 0, 1)
-    write_png(tmp_path / "a.png", linear)
+    write_srgb(tmp_path / "a.png", linear)
     back = read_image(tmp_path / "a.png")
     assert back.shape == linear.shape and back.dtype == np.float32
     np.testing.assert_allclose(linear_to_srgb(back), linear_to_srgb(linear), atol=0.5 / 255 + 1e-6)
@@ -126,3 +126,13 @@ def test_missing_mask_names_the_file(tmp_path: Path):
     """A missing mask raises ImageError naming it."""
     with pytest.raises(ImageError, match=r"nomask\.png: mask file does not exist"):
         read_mask(tmp_path / "nomask.png")
+
+
+def test_jpeg_written_as_srgb_reads_back_close_to_the_png(tmp_path):
+    rng = np.random.default_rng(0)
+    smooth = np.repeat(np.repeat(rng.uniform(0.05, 0.8, (8, 8, 3)), 8, 0), 8, 1).astype(np.float32)
+    write_srgb(tmp_path / "a.png", smooth)
+    write_srgb(tmp_path / "a.jpg", smooth)
+    assert Image.open(tmp_path / "a.jpg").format == "JPEG"
+    png, jpg = read_image(tmp_path / "a.png"), read_image(tmp_path / "a.jpg")
+    assert np.abs(linear_to_srgb(jpg) - linear_to_srgb(png)).mean() < 0.04  # quality 92, 4:2:0 chroma at block edges

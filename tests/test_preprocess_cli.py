@@ -10,7 +10,7 @@ import yaml
 
 from dpi.cameras import from_fov, orbit, write_transforms
 from dpi.cli import main
-from dpi.images import read_mask, write_png
+from dpi.images import read_mask, write_srgb
 from dpi.preprocess.accuracy import mask_iou
 from dpi.preprocess.stages import needed_stages
 from test_preprocess_masks import sphere_view
@@ -38,7 +38,7 @@ def capture_with_cameras(tmp_path):
     truths = {}
     for cam in cameras:
         image, truths[cam.name] = sphere_view(cam, "plain")
-        write_png(root / "images" / f"{cam.name}.png", image)
+        write_srgb(root / "images" / f"{cam.name}.png", image)
     (root / "transforms.json").write_text(json.dumps(write_transforms([(f"images/{c.name}.png", c) for c in cameras])))
     return root, truths
 

@@ -110,13 +110,13 @@ def test_consensus_round_removes_one_views_background_patch(cameras):
 
 
 def test_consensus_prior_without_points(cameras, tmp_path):
-    from dpi.images import read_mask, write_png
+    from dpi.images import read_mask, write_srgb
 
     images, truths = {}, {}
     for i, cam in enumerate(cameras):
         image, truths[cam.name] = sphere_view(cam, "textured", seed=i)
         images[cam.name] = tmp_path / f"{cam.name}.png"
-        write_png(images[cam.name], image)
+        write_srgb(images[cam.name], image)
     summary = derive_masks(images, {c.name: c for c in cameras}, tmp_path / "masks", MaskConfig(method="grabcut"))
     assert summary["prior"] == "sphere" and summary["consensus_rounds"] == 2
     ious = [mask_iou(read_mask(tmp_path / "masks" / f"{n}.png"), truths[n]) for n in truths]

@@ -21,10 +21,10 @@ def planned_resources(output: str) -> dict[str, dict[str, str]]:
 
 
 def test_preprocess_rules_request_configured_resources(tmp_path):
-    from dpi.images import write_png
+    from dpi.images import write_srgb
 
     for i in range(3):
-        write_png(tmp_path / "captures" / "photos" / "images" / f"{i}.png", np.full((8, 8, 3), 0.3, np.float32))
+        write_srgb(tmp_path / "captures" / "photos" / "images" / f"{i}.png", np.full((8, 8, 3), 0.3, np.float32))
     write_config(tmp_path / "config.yaml", {"scenes": ["photos"], "resources": {"masks": {"mem_mb": 1234}}})
     plans = planned_resources(snakemake(tmp_path, "-n", "results/photos/geometry/mesh_uv.ply"))
     assert set(plans) >= {"poses", "masks", "geometry", "uv"}

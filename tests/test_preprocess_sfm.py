@@ -58,10 +58,10 @@ def test_normalise_recovers_the_object_frame():
 
 
 def test_featureless_images_fail_with_a_clear_error(tmp_path):
-    from dpi.images import write_png
+    from dpi.images import write_srgb
 
     for i in range(3):
-        write_png(tmp_path / "images" / f"{i}.png", np.full((32, 32, 3), 0.2 + 0.1 * i, np.float32))
+        write_srgb(tmp_path / "images" / f"{i}.png", np.full((32, 32, 3), 0.2 + 0.1 * i, np.float32))
     with pytest.raises(SfMError, match="no model") as info:
         run_sfm(sorted((tmp_path / "images").glob("*.png")), tmp_path / "colmap", SfMConfig())
     assert info.value.summary["images"] == 3

@@ -22,7 +22,7 @@ from tqdm import tqdm
 from dpi.atomic import write_json, write_text
 from dpi.cameras import from_fov, orbit, write_transforms
 from dpi.exr import read_exr, write_exr
-from dpi.images import luminance, write_mask, write_png
+from dpi.images import luminance, write_mask, write_srgb
 from dpi.layout import SYNTH_MARKER
 from dpi.prior.procedural import generator
 from dpi.render import Renderer, RenderSettings
@@ -75,7 +75,7 @@ class SynthConfig:
     roughness_variation: float = 0.1
     metallic: float = 0.0
     image_format: str = "exr"
-    """format of images/: exr (linear HDR) or png (sRGB LDR, like photos)"""
+    """format of images/: exr (linear HDR), or png or jpg (sRGB LDR, like photos)"""
     background: str = "env"
     """what the cameras see behind the object: env (the sky), textured (a ground plane and a wall,
     seen but not lighting the object, like a room) or plain (uniform grey, like a studio)"""
@@ -138,8 +138,8 @@ def make_synthetic_capture(out_dir: str | Path, cfg: SynthConfig, threads: int |
     ours = (out_dir / SYNTH_MARKER).exists() or overwrite
     if out_dir.exists() and any(out_dir.iterdir()) and not ours:
         raise FileExistsError(f"{out_dir}: exists and is not a synthetic capture made by dpi; not overwriting")
-    if cfg.image_format not in ("exr", "png"):
-        raise ValueError(f"image_format must be exr or png, got {cfg.image_format!r}")
+    if cfg.image_format not in ("exr", "png", "jpg"):
+        raise ValueError(f"image_format must be exr, png or jpg, got {cfg.image_format!r}")
     if cfg.background not in BACKGROUNDS:
         raise ValueError(f"background must be one of {', '.join(BACKGROUNDS)}, got {cfg.background!r}")
     out_dir.parent.mkdir(parents=True, exist_ok=True)
@@ -188,7 +188,7 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
                                        ground=-2.5, wall_radius=2.5 * cfg.camera_distance, seed=cfg.seed)
         for fmt, folder in ((cfg.image_format, "images"), (other, "preview")):
             path = root / folder / f"{cam.name}.{fmt}"
-            write_exr(path, image) if fmt == "exr" else write_png(path, image)
+            write_exr(path, image) if fmt == "exr" else write_srgb(path, image)  # png or jpg
         write_mask(given / "masks" / f"{cam.name}.png", renderer.coverage(i) >= 0.5)
 
     frames = [(f"images/{cam.name}.{cfg.image_format}", cam) for cam in cameras]
