@@ -41,6 +41,15 @@ def with_luminance(rgb: np.ndarray, level: np.ndarray | float) -> np.ndarray:
     return rgb * (np.asarray(level, dtype=np.float64) / luminance(rgb))[..., None]
 
 
+def working_size(image_size: tuple[int, int], resolution: int | None) -> tuple[int, int]:
+    """(width, height) with the longer side at most `resolution` px, the aspect kept (None: unchanged)."""
+    width, height = image_size
+    longer = max(width, height)
+    if resolution is None or resolution >= longer:
+        return width, height
+    return max(1, round(width * resolution / longer)), max(1, round(height * resolution / longer))
+
+
 def resize(image: torch.Tensor, height: int, width: int) -> torch.Tensor:
     """(H, W, C) image resampled to height x width: area average down, bilinear up (no-op when equal)."""
     if tuple(image.shape[:2]) == (height, width):

@@ -19,18 +19,9 @@ import torch
 from dpi.atomic import write_json
 from dpi.capture import Capture, View
 from dpi.exr import write_exr
-from dpi.images import read_image, read_mask, resize
+from dpi.images import read_image, read_mask, resize, working_size
 
 MANIFEST = "working.json"
-
-
-def working_size(image_size: tuple[int, int], resolution: int | None) -> tuple[int, int]:
-    """(width, height) with the longer side at most `resolution` px, the aspect kept (None: unchanged)."""
-    width, height = image_size
-    longer = max(width, height)
-    if resolution is None or resolution >= longer:
-        return width, height
-    return max(1, round(width * resolution / longer)), max(1, round(height * resolution / longer))
 
 
 def source_stamp(view: View) -> list:

@@ -109,7 +109,10 @@ def test_consensus_round_removes_one_views_background_patch(cameras):
     assert np.mean([mask_iou(m, t) for m, t in zip(refined, truths)]) > 0.93
 
 
-def test_consensus_prior_without_points(cameras, tmp_path):
+@pytest.mark.parametrize("max_size", [None, 60])
+def test_consensus_prior_without_points(cameras, tmp_path, max_size):
+    """Masks from the sphere prior and two consensus rounds; computed on smaller images (max_size) they
+    come back at the photos' size and as accurate."""
     from dpi.images import read_mask, write_srgb
 
     images, truths = {}, {}
@@ -117,9 +120,12 @@ def test_consensus_prior_without_points(cameras, tmp_path):
         image, truths[cam.name] = sphere_view(cam, "textured", seed=i)
         images[cam.name] = tmp_path / f"{cam.name}.png"
         write_srgb(images[cam.name], image)
-    summary = derive_masks(images, {c.name: c for c in cameras}, tmp_path / "masks", MaskConfig(method="grabcut"))
+    summary = derive_masks(images, {c.name: c for c in cameras}, tmp_path / "masks",
+                           MaskConfig(method="grabcut", max_size=max_size))
     assert summary["prior"] == "sphere" and summary["consensus_rounds"] == 2
-    ious = [mask_iou(read_mask(tmp_path / "masks" / f"{n}.png"), truths[n]) for n in truths]
+    masks = {n: read_mask(tmp_path / "masks" / f"{n}.png") for n in truths}
+    assert all(masks[n].shape == truths[n].shape for n in truths)
+    ious = [mask_iou(masks[n], truths[n]) for n in truths]
     assert np.mean(ious) > 0.9, ious
 
 

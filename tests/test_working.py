@@ -6,7 +6,8 @@ import pytest
 from dpi.capture import load_capture
 from dpi.exr import read_exr
 from dpi.images import read_image, read_mask
-from dpi.working import working_capture, working_size
+from dpi.images import working_size
+from dpi.working import working_capture
 
 
 def test_working_size_keeps_the_aspect_and_never_upsamples():

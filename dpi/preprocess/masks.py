@@ -29,9 +29,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import torch
 
 from dpi.cameras import Camera
-from dpi.images import read_image, to_uint8, write_mask
+from dpi.images import read_image, resize, to_uint8, working_size, write_mask
 from dpi.preprocess.hull import marching_cubes, visible_sphere, visual_hull
 
 log = logging.getLogger(__name__)
@@ -71,6 +72,10 @@ class MaskConfig:
     decides, as a fraction of the object's size in the image"""
     consensus_resolution: int = 96
     """voxels along the longest side of the consensus hull's box"""
+    max_size: int | None = 480
+    """longer image side (px) the masks are computed at: larger photos are area-downsampled (with their
+    cameras) and the masks upsampled to the photos' size (GrabCut's fixed smoothness is tuned to small
+    images and costs seconds per view at photo size); None: the photos' own size"""
 
 
 def border_colour(image8: np.ndarray, width: float = 0.04) -> tuple[np.ndarray, float]:
@@ -287,8 +292,11 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     names = [n for n in images if n in cameras]
-    views = [cameras[n] for n in names]
     pictures = [read_image(images[n]) for n in names]
+    full = pictures[0].shape[1], pictures[0].shape[0]
+    width, height = working_size(full, cfg.max_size)
+    views = [cameras[n].resized(width, height) for n in names]
+    pictures = [resize(torch.from_numpy(p), height, width).numpy() for p in pictures]
     centre, radius = visible_sphere(views)
     sphere = (centre, cfg.sphere_fraction * radius)
     if points is not None:
@@ -303,12 +311,20 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
         masks = refined
         methods = [old if new == "kept" else new for old, new in zip(methods, new_methods)]
         summary["consensus_rounds"] = len(cfg.consensus_votes)
+    if (width, height) != full:
+        masks = [upsample_mask(mask, *full) for mask in masks]
     for name, mask, method in zip(names, masks, methods):
         if not mask.any():
             raise ValueError(f"{images[name]}: empty foreground mask ({method}); check the capture or the mask settings")
         write_mask(out_dir / f"{name}.png", mask)
         summary["views"][name] = {"method": method, "foreground_fraction": round(float(mask.mean()), 4)}
     return summary
+
+
+def upsample_mask(mask: np.ndarray, width: int, height: int) -> np.ndarray:
+    """A boolean mask resampled (bilinear coverage, threshold 0.5) to width x height."""
+    coverage = torch.from_numpy(mask.astype(np.float32))[..., None]
+    return resize(coverage, height, width).numpy()[..., 0] >= 0.5
 
 
 def mask_overlap(a: np.ndarray, b: np.ndarray) -> float:
