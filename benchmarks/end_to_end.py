@@ -15,7 +15,6 @@ Rows (capture, views, size, preset, seconds) go to benchmarks/results/end_to_end
 from __future__ import annotations
 
 import argparse
-import csv
 import shutil
 import subprocess
 import sys
@@ -23,6 +22,7 @@ import time
 from pathlib import Path
 
 import yaml
+from posterior_study import append_row
 
 from dpi.layout import SYNTH_MARKER
 
@@ -64,19 +64,13 @@ def main() -> None:
     parser.add_argument("--captures", nargs="+", default=list(CAPTURES), choices=list(CAPTURES))
     parser.add_argument("--cores", type=int, default=2)
     args = parser.parse_args()
-    new = not CSV.exists()
     for capture in args.captures:
         synth = CAPTURES[capture]
         for preset in args.presets:
             seconds = run_preset(capture, synth, preset, args.cores)
             row = {"capture": capture, "views": synth["views"], "size": f"{synth['width']}x{synth['height']}",
                    "preset": preset, "seconds": round(seconds, 1)}
-            with open(CSV, "a", newline="") as f:
-                writer = csv.DictWriter(f, fieldnames=COLUMNS)
-                if new:
-                    writer.writeheader()
-                    new = False
-                writer.writerow(row)
+            append_row(CSV, row, COLUMNS)
             print("  ".join(f"{k} {v}" for k, v in row.items()), flush=True)
 
 

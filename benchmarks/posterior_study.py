@@ -200,6 +200,12 @@ def append_row(path: Path, row: dict[str, Any], columns: tuple[str, ...] = COLUM
         writer.writerow({k: row[k] for k in columns})
 
 
+def mean_std(values: list[float], fmt: str) -> str:
+    """`mean +- std` of values, each in format `fmt`."""
+    values = np.asarray(values, dtype=float)
+    return f"{values.mean():{fmt}} +- {values.std():{fmt}}"
+
+
 def summary(rows: list[dict[str, Any]]) -> list[str]:
     """Mean +- std per group, method and sampler over scenes and seeds."""
     lines = [f"{'group':<10} {'method':<12} {'sampler':<12} {'n':>3} {'view PSNR':>13} {'env PSNR':>13} "
@@ -211,8 +217,7 @@ def summary(rows: list[dict[str, Any]]) -> list[str]:
         cells = []
         for key, fmt in (("novel_psnr", ".2f"), ("env_psnr", ".2f"), ("env_ssim", ".3f"), ("albedo_mse", ".4f"),
                          ("seconds", ".1f")):
-            values = np.array([r[key] for r in sel], dtype=float)
-            cells.append(f"{values.mean():{fmt}} +- {values.std():{fmt}}")
+            cells.append(mean_std([r[key] for r in sel], fmt))
         lines.append(f"{group:<10} {method:<12} {sampler:<12} {len(sel):>3} {cells[0]:>13} {cells[1]:>13} "
                      f"{cells[2]:>13} {cells[3]:>17} {cells[4]:>11}")
     return lines

@@ -17,12 +17,12 @@ test: numbers depend on the machine.
 from __future__ import annotations
 
 import argparse
-import csv
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from posterior_study import append_row
 from tabulate import tabulate
 
 from dpi.images import read_mask
@@ -84,13 +84,7 @@ def append_csv(path: Path, row: dict, views: int, size: int, elevations: list[fl
               "mask_iou": row.get("iou_mean", ""), "chamfer_pct": row.get("chamfer_pct", ""),
               "seconds": sum(v for k, v in row.items() if k.endswith("_s") and k != "render_s"),
               "error": row.get("error", "")}
-    new = not path.exists()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "a", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(record))
-        if new:
-            writer.writeheader()
-        writer.writerow({k: f"{v:.4g}" if isinstance(v, float) else v for k, v in record.items()})
+    append_row(path, {k: f"{v:.4g}" if isinstance(v, float) else v for k, v in record.items()}, tuple(record))
 
 
 def main() -> None:

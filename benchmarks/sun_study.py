@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from posterior_study import ROOT, SIZE, Job, jobs_for, run_job, run_study, workflow_config
+from posterior_study import ROOT, SIZE, Job, jobs_for, mean_std, run_job, run_study, workflow_config
 
 from dpi.capture import load_capture
 from dpi.envmap import texel_directions, texel_solid_angles
@@ -80,7 +80,7 @@ def summary(rows: list[dict[str, Any]]) -> list[str]:
             sel = [r for r in rows if r["scene"] == scene and r["method"] == method]
             if not sel:
                 continue
-            cells = [f"{np.mean([r[k] for r in sel]):{f}} +- {np.std([r[k] for r in sel]):{f}}"
+            cells = [mean_std([r[k] for r in sel], f)
                      for k, f in (("top_energy_share", ".3f"), ("sun_angle_deg", ".1f"), ("novel_psnr", ".2f"))]
             lines.append(f"{scene:<10} {method:<6} {len(sel):>2} {cells[0]:>16} {sel[0]['gt_top_energy_share']:>9.3f} "
                          f"{cells[1]:>15} {cells[2]:>14}")

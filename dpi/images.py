@@ -50,6 +50,12 @@ def working_size(image_size: tuple[int, int], resolution: int | None) -> tuple[i
     return max(1, round(width * resolution / longer)), max(1, round(height * resolution / longer))
 
 
+def resize_mask(mask: np.ndarray, width: int, height: int) -> np.ndarray:
+    """A boolean mask resampled to width x height: its coverage `resize`d, foreground above one half."""
+    coverage = torch.from_numpy(np.asarray(mask, dtype=np.float32))[..., None]
+    return resize(coverage, height, width).numpy()[..., 0] > 0.5
+
+
 def resize(image: torch.Tensor, height: int, width: int) -> torch.Tensor:
     """(H, W, C) image resampled to height x width: area average down, bilinear up (no-op when equal)."""
     if tuple(image.shape[:2]) == (height, width):

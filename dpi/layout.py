@@ -101,13 +101,13 @@ class SceneLayout:
         return self.root / "geometry"
 
     @property
+    def geometry(self) -> dict[str, Path]:
+        return geometry_files(self.geometry_dir)
+
+    @property
     def working_dir(self) -> Path:
         """Images and masks at the working resolution (dpi.working), a folder per size."""
         return self.root / "working"
-
-    @property
-    def geometry(self) -> dict[str, Path]:
-        return geometry_files(self.geometry_dir)
 
     def sample_dir(self, method: str, k: int | str = 0) -> Path:
         """Folder of posterior sample k of a method; the initialisation's for method `init`."""

@@ -69,6 +69,8 @@ class Renderer:
                  settings: RenderSettings | None = None):
         self.settings = settings or RenderSettings()
         self.mi = backend.mitsuba(self.settings.variant, self.settings.threads)
+        # dr.wrap picks the Dr.Jit backend from the tensors' device: cuda_ad_rgb needs them on the GPU
+        self.device = torch.device("cuda") if self.mi.variant().startswith("cuda") else None
         import drjit as dr
         mi = self.mi
         self.cameras = list(cameras)
@@ -118,8 +120,7 @@ class Renderer:
             self._check(tex, (self.texture_size, self.texture_size, ch), name)
         env_data = pad_for_mitsuba(env, self.env_data_width)
         seed = int(seed) % SEED_MODULUS  # Mitsuba seeds are 32-bit; seed_grad = seed + 7919 must fit too
-        # dr.wrap picks the Dr.Jit backend from the tensors' device: cuda_ad_rgb needs them on the GPU
-        device = torch.device("cuda") if self.mi.variant().startswith("cuda") else env.device
+        device = self.device or env.device
         image = self._render(*(t.to(device).contiguous() for t in (env_data, albedo, roughness, metallic)),
                              int(view), seed, int(spp or self.settings.spp))
         return image.to(env.device)

@@ -19,7 +19,7 @@ import torch
 from dpi.atomic import write_json
 from dpi.capture import Capture, View
 from dpi.exr import write_exr
-from dpi.images import read_image, read_mask, resize, working_size
+from dpi.images import read_image, read_mask, resize, resize_mask, working_size
 
 MANIFEST = "working.json"
 
@@ -46,8 +46,7 @@ def working_capture(capture: Capture, resolution: int | None, folder: str | Path
             pixels = torch.from_numpy(read_image(view.image))
             write_exr(image, resize(pixels, size[1], size[0]).numpy())
             if view.mask is not None:
-                coverage = torch.from_numpy(read_mask(view.mask).astype(np.float32))[..., None]
-                write_exr(mask, (resize(coverage, size[1], size[0]).numpy()[..., 0] > 0.5).astype(np.float32))
+                write_exr(mask, resize_mask(read_mask(view.mask), *size).astype(np.float32))
             manifest[view.name], changed = stamp, True
         camera = None if view.camera is None else view.camera.resized(*size)
         views.append(View(view.name, image, mask if view.mask is not None else None, camera, view.held_out))

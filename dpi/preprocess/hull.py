@@ -243,6 +243,6 @@ def support_plane(cameras: list[Camera], masks: list[np.ndarray], field: np.ndar
 
 def cut_below(field: np.ndarray, origin: np.ndarray, size: float, up: np.ndarray, height: float) -> np.ndarray:
     """The field with everything below the plane {x . up = height} outside (a signed-distance union)."""
-    axes = [origin[i] + np.arange(field.shape[i]) * size for i in range(3)]
-    heights = sum(np.asarray(axes[i])[tuple(slice(None) if j == i else None for j in range(3))] * up[i] for i in range(3))
+    x, y, z = (origin[i] + np.arange(n) * size for i, n in enumerate(field.shape))
+    heights = x[:, None, None] * up[0] + y[None, :, None] * up[1] + z[None, None, :] * up[2]
     return np.maximum(field, (height - heights).astype(field.dtype))

@@ -32,7 +32,7 @@ import numpy as np
 import torch
 
 from dpi.cameras import Camera
-from dpi.images import read_image, resize, to_uint8, working_size, write_mask
+from dpi.images import read_image, resize, resize_mask, to_uint8, working_size, write_mask
 from dpi.preprocess.hull import marching_cubes, visible_sphere, visual_hull
 
 log = logging.getLogger(__name__)
@@ -312,19 +312,13 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
         methods = [old if new == "kept" else new for old, new in zip(methods, new_methods)]
         summary["consensus_rounds"] = len(cfg.consensus_votes)
     if (width, height) != full:
-        masks = [upsample_mask(mask, *full) for mask in masks]
+        masks = [resize_mask(mask, *full) for mask in masks]
     for name, mask, method in zip(names, masks, methods):
         if not mask.any():
             raise ValueError(f"{images[name]}: empty foreground mask ({method}); check the capture or the mask settings")
         write_mask(out_dir / f"{name}.png", mask)
         summary["views"][name] = {"method": method, "foreground_fraction": round(float(mask.mean()), 4)}
     return summary
-
-
-def upsample_mask(mask: np.ndarray, width: int, height: int) -> np.ndarray:
-    """A boolean mask resampled (bilinear coverage, threshold 0.5) to width x height."""
-    coverage = torch.from_numpy(mask.astype(np.float32))[..., None]
-    return resize(coverage, height, width).numpy()[..., 0] >= 0.5
 
 
 def mask_overlap(a: np.ndarray, b: np.ndarray) -> float:
