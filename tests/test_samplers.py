@@ -21,6 +21,7 @@ from dpi.solve.init import path_traced_init
 from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import InverseProblem, ProblemSettings
 from dpi.solve.samplers import SAMPLERS
+from dpi.solve.sun import map_energy, sun_env
 from dpi.tonecurve import LogEncoding
 
 
@@ -89,7 +90,7 @@ def test_proximal_step_with_an_exact_operator_converges_to_the_data():
     cfg = DPSConfig(steps=40, inner_steps=8, prox_weight=0.0, noise_mix=0.0, lr_map=0.05, warm_start=True, start_noise=1.0,
                     radiance_scale=1.0)
     run, state = start_run(problem, gaussian_prior(height), init, cfg, seed=0)
-    start = relative_residual(problem, run.env(torch.exp(state.log_map), state.log_exposure).detach())
+    start = relative_residual(problem, run.env(torch.exp(state.log_map), state).detach())
     records = list(posterior_steps(run, state))
     final = prior_to_env(state.x, run.prior, run.scale * float(torch.exp(state.log_exposure)), height)
     assert len(records) == 40 and all("skipped" not in r for r in records)
@@ -158,3 +159,19 @@ def test_sample_stage_draws_a_dps_sample(tiny_capture, tmp_path):
     assert trace["info"]["sampler"] == "proximal" and len(trace["steps"]) >= 2
     assert (tmp_path / "dps" / "x0_strip.png").is_file()
     assert np.isfinite(Decomposition.load(tmp_path / "dps").env.numpy()).all()
+
+
+def test_a_parametric_sun_is_fitted_and_lands_in_the_map(problem_and_init):
+    problem, init = problem_and_init
+    cfg = DPSConfig(steps=4, start_noise=1.0, refine_iterations=1, sun="on")
+    sunny = dps_sample(problem, log_prior(), init, cfg, seed=2, progress=False).decomposition
+    sun = sunny.trace.info["sun"]
+    assert 0 < sun["energy_share"] < 1 and len(sun["direction"]) == 3
+    footprint = sun_env(torch.tensor(sun["uv"]), torch.ones(3), problem.settings.env_height)[..., :1] > 0
+    held = map_energy(sunny.env * footprint)  # the sun's texels hold its irradiance on top of the sky's
+    assert bool((held >= 0.999 * torch.tensor(sun["irradiance"])).all())
+    plain = dps_sample(problem, log_prior(), init, DPSConfig(steps=4, start_noise=1.0, refine_iterations=1, sun="off"),
+                       seed=2, progress=False).decomposition
+    assert "sun" not in plain.trace.info
+    with pytest.raises(ValueError, match="sun"):
+        DPSConfig.from_dict({"sun": "sometimes"})

@@ -35,16 +35,20 @@ from dpi.solve.init import starting_materials
 from dpi.solve.optimize import OptimizeConfig, fit
 from dpi.solve.problem import InverseProblem
 from dpi.solve.samplers import SAMPLERS, DPSRun, DPSState, resample_env, rho_schedule
+from dpi.solve.sun import extract_sun, sun_summary
 from dpi.solve.trace import Trace
 
 RHO_SCHEDULES = ("linear", "step", "constant")
 MAP_UPDATES = ("adam", "normalized")
+SUN_MODES = ("auto", "on", "off")
+SUN_FAMILIES = ("outdoor",)
+"""prior families whose maps get a parametric sun under sun: auto"""
 CHECKPOINT_EVERY = 10
 """reverse steps between two saves of the resume state (a save costs far less than one step)"""
 
 
-SAMPLER_DEFAULTS: dict[str, dict[str, Any]] = {"proximal": {"start_noise": 0.4, "views_per_step": 4},
-                                               "paper": {"start_noise": 1.0, "views_per_step": 1}}
+SAMPLER_DEFAULTS: dict[str, dict[str, Any]] = {"proximal": {"start_noise": 0.4, "views_per_step": 4, "sun": "auto"},
+                                               "paper": {"start_noise": 1.0, "views_per_step": 1, "sun": "off"}}
 """Settings a sampler brings where the config leaves them unset: proximal's won the posterior study
 (benchmarks/posterior_study.py); the paper's loop starts from pure noise with one view per step, as in
 the reference"""
@@ -99,6 +103,22 @@ class DPSConfig:
     refine_lr_env: float = 0.0
     """Adam rate of the map's log radiance during the refinement (0: the sampled map stays fixed; a small
     rate polishes its fit to the views, the few iterations keeping it near the sample)"""
+    sun: str | None = None
+    """a parametric sun next to the prior's sky (dpi.solve.sun): on, off, or auto (on with the outdoor
+    prior); it starts from the init's brightest region (None: the sampler's, SAMPLER_DEFAULTS)"""
+    sun_radius_deg: float = 25.0
+    """radius around the init's brightest texel whose excess energy becomes the sun"""
+    sun_min_share: float = 0.05
+    """the sun is kept only when that excess carries at least this share of the init map's energy"""
+    sun_share: float = 0.55
+    """the share of the map's energy the sun's prior expects: the median over the outdoor generator's
+    clear skies with the sun above 10 deg (0.5-0.6 per elevation band; lower under clouds)"""
+    sun_prior_weight: float = 0.01
+    """weight of (logit share - logit sun_share)^2 next to the relative data term (0: the data alone)"""
+    lr_sun: float = 0.05
+    """Adam rate of the sun's log irradiance"""
+    lr_sun_uv: float = 0.003
+    """Adam rate of the sun's map coordinates (u spans 360 deg, v 180 deg)"""
     radiance_scale: float | None = None
     """scene radiance per unit of the prior's normalised radiance (None: estimated from init)"""
     strip_frames: int = 8
@@ -121,6 +141,8 @@ class DPSConfig:
             raise ValueError(f"inner_steps must be >= 1, got {cfg.inner_steps}")
         if cfg.map_update not in MAP_UPDATES:
             raise ValueError(f"map_update must be one of {MAP_UPDATES}, got {cfg.map_update!r}")
+        if cfg.sun not in SUN_MODES:
+            raise ValueError(f"sun must be one of {SUN_MODES}, got {cfg.sun!r}")
         if not 0 < cfg.start_noise <= 1:
             raise ValueError(f"start_noise must be in (0, 1], got {cfg.start_noise}")
         return cfg
@@ -139,13 +161,16 @@ ADAM_BETAS = (0.9, 0.99)
 Adam's steps from stalling on the large gradients of the first steps"""
 
 
-def material_optimizer(materials: MaterialTextures, cfg: DPSConfig, log_map: torch.Tensor) -> torch.optim.Adam:
-    """Adam on albedo / roughness / metallic and the map's log radiance, each at its own rate (a
-    sampler's step updates those whose gradient it computed)."""
+def material_optimizer(materials: MaterialTextures, cfg: DPSConfig, log_map: torch.Tensor, sun_uv: torch.Tensor,
+                       sun_log: torch.Tensor) -> torch.optim.Adam:
+    """Adam on albedo / roughness / metallic, the map's log radiance and the sun, each at its own rate
+    (a sampler's step updates those whose gradient it computed)."""
     return torch.optim.Adam([{"params": [materials.albedo], "lr": cfg.lr_albedo},
                              {"params": [materials.roughness], "lr": cfg.lr_roughness},
                              {"params": [materials.metallic], "lr": cfg.lr_metallic},
-                             {"params": [log_map], "lr": cfg.lr_map}], betas=ADAM_BETAS)
+                             {"params": [log_map], "lr": cfg.lr_map},
+                             {"params": [sun_uv], "lr": cfg.lr_sun_uv},
+                             {"params": [sun_log], "lr": cfg.lr_sun}], betas=ADAM_BETAS)
 
 
 def estimate_radiance_scale(init_env: torch.Tensor, prior: Prior) -> float:
@@ -179,17 +204,23 @@ def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: D
     diffusion = prior.schedule(cfg.steps)
     scale = cfg.radiance_scale or estimate_radiance_scale(init.env, prior)
     first = int(round(cfg.start_noise * (diffusion.num_timesteps - 1)))
-    run = DPSRun(problem, prior, cfg, diffusion, seed, scale, rho_schedule(cfg, first + 1), data_norm(problem), first)
+    sun = extract_sun(init.env, cfg.sun_radius_deg)
+    has_sun = cfg.sun == "on" or (cfg.sun == "auto" and prior.family in SUN_FAMILIES and sun.share >= cfg.sun_min_share)
+    run = DPSRun(problem, prior, cfg, diffusion, seed, scale, rho_schedule(cfg, first + 1), data_norm(problem), first,
+                 has_sun)
     materials = starting_materials(init)
     for _, t in materials.items():
         t.requires_grad_(True)
     shape = (1, 3, prior.height, 2 * prior.height)
     log_map = torch.zeros(shape, requires_grad=True)
+    sun_uv = sun.uv.clone().requires_grad_(True)
+    sun_log = torch.log(sun.irradiance.clamp_min(1e-12 * scale) / scale).requires_grad_(True)
     x = torch.randn(shape, generator=generator)
     if first < diffusion.num_timesteps - 1:
-        start = env_to_prior(init.env, prior, scale)
+        start = env_to_prior(sun.sky if has_sun else init.env, prior, scale)
         x = q_sample(diffusion, start, torch.tensor([first]), x)
-    state = DPSState(x, materials, torch.zeros(()), log_map, material_optimizer(materials, cfg, log_map), generator)
+    state = DPSState(x, materials, torch.zeros(()), log_map, sun_uv, sun_log,
+                     material_optimizer(materials, cfg, log_map, sun_uv, sun_log), generator)
     return run, state
 
 
@@ -233,9 +264,12 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
             store.save(LoopState.capture(n, state.tensors(), state.optimizer, state.generator, trace,
                                          state.snapshots))
     bar.close()
-    scene_scale = run.scale * float(torch.exp(state.log_exposure))
-    env = prior_to_env(state.x.detach().clamp(-1, 1), prior, scene_scale, problem.settings.env_height).detach()
+    with torch.no_grad():
+        env = run.env(prior.encoding.to_radiance(state.x.clamp(-1, 1)), state)
     trace.info["log_exposure"] = float(state.log_exposure)
+    if run.sun:
+        irradiance = run.scale * torch.exp(state.log_exposure + state.sun_log).detach()
+        trace.info["sun"] = sun_summary(state.sun_uv.detach(), irradiance, env)
     refine = OptimizeConfig(iterations=cfg.refine_iterations, views_per_step=cfg.refine_views_per_step,
                             optimize_env=cfg.refine_lr_env > 0, lr_env=cfg.refine_lr_env, lr_albedo=cfg.lr_albedo,
                             lr_roughness=cfg.lr_roughness, lr_metallic=cfg.lr_metallic)

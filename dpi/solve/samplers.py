@@ -21,6 +21,10 @@ not update; `nan_inner` counts skipped inner updates; `seconds_*` time its parts
   The proximal weight grows as the noise falls (DiffPIR's rho_t ~ 1 / sigma_t^2), so late steps
   keep what the data put into x_t early. The materials move only after `material_start` of the
   steps: while x0_hat is still a blur, free albedo steps would absorb the map's errors.
+  With a sun (`sun`, dpi.solve.sun) the map is the prior's sky plus a parametric sun splatted at the
+  problem's resolution; its position and irradiance are fitted with the rest, and a prior on its
+  share of the map's energy settles what the views cannot (a diffuse object barely tells a sun from
+  a bright patch of sky around it).
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ from dpi.prior.diffusion import Diffusion, model_output_with_random_roll, model_
 from dpi.prior.sample import Prior
 from dpi.solve.optimize import all_finite
 from dpi.solve.problem import InverseProblem
+from dpi.solve.sun import share_penalty, sun_env, wrap_uv_
 
 if TYPE_CHECKING:
     from dpi.solve.dps import DPSConfig
@@ -77,9 +82,18 @@ class DPSRun:
         """Schedule index of executed step n (the first executed step is the noisiest)."""
         return self.first_index - n
 
-    def env(self, radiance: torch.Tensor, log_exposure: torch.Tensor) -> torch.Tensor:
-        """Prior-resolution normalised radiance (1, 3, h, 2h) -> scene env map (H, 2H, 3) at the problem's height."""
-        return resample_env(self.scale * torch.exp(log_exposure) * radiance, self.problem.settings.env_height)
+    sun: bool = False
+    """the map has a parametric sun (dpi.solve.sun) next to the prior's sky"""
+
+    def env(self, radiance: torch.Tensor, state: "DPSState") -> torch.Tensor:
+        """Prior-resolution normalised radiance (1, 3, h, 2h) -> scene env map (H, 2H, 3) at the problem's
+        height, times the state's exposure, plus its sun (splatted at the problem's height, so it stays a
+        point of light where the prior's resolution would blur it)."""
+        height = self.problem.settings.env_height
+        sky = resample_env(radiance, height)
+        if self.sun:
+            sky = sky + sun_env(state.sun_uv, torch.exp(state.sun_log), height)
+        return self.scale * torch.exp(state.log_exposure) * sky
 
     def views(self, generator: torch.Generator) -> list[int]:
         """Training views of one data term."""
@@ -102,6 +116,10 @@ class DPSState:
     in closed form at every data update"""
     log_map: torch.Tensor
     """proximal: the map's normalised log radiance (1, 3, h, 2h) during the inner updates"""
+    sun_uv: torch.Tensor
+    """(2,) map coordinates of the sun (used when the run has one)"""
+    sun_log: torch.Tensor
+    """(3,) log irradiance of the sun per channel, in the prior's normalised units (times the exposure)"""
     optimizer: torch.optim.Adam
     generator: torch.Generator
     snapshots: list[torch.Tensor] = field(default_factory=list)
@@ -110,7 +128,7 @@ class DPSState:
     def tensors(self) -> dict[str, torch.Tensor]:
         """The loop's variables by name (for resume files)."""
         return {"x": self.x, **dict(self.materials.items()), "log_exposure": self.log_exposure,
-                "log_map": self.log_map}
+                "log_map": self.log_map, "sun_uv": self.sun_uv, "sun_log": self.sun_log}
 
 
 def resample_env(radiance: torch.Tensor, height: int) -> torch.Tensor:
@@ -178,7 +196,7 @@ def paper_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     if not finite(p["mean"], p["log_variance"]):
         return {**record, "skipped": "non-finite network output", **laps.record()}  # keep x_t
     state.snapshots.append(p["x0"].detach()[0])
-    env = run.env(run.prior.encoding.to_radiance(p["x0"]), state.log_exposure)
+    env = run.env(run.prior.encoding.to_radiance(p["x0"]), state)
     env_leaf = env.detach().requires_grad_(True)
     loss = run.problem.residual_norm(env_leaf, state.materials, run.views(gen), seed=run.render_seed(n))
     state.optimizer.zero_grad()
@@ -269,19 +287,22 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     losses, skipped = [], 0
     for k in range(cfg.inner_steps):
         views = run.views(gen)
-        renders = rendered_views(run, run.env(torch.exp(state.log_map), state.log_exposure), state.materials, views,
-                                 run.render_seed(n, k))
+        env = run.env(torch.exp(state.log_map), state)
+        renders = rendered_views(run, env, state.materials, views, run.render_seed(n, k))
         c = exposure_fit(run, [r.detach() for r in renders], views)
         state.log_exposure += math.log(c)
         data = relative_data_loss(run, renders, views, c)
         prox = (encoding.to_prior(torch.exp(state.log_map)) - x0_hat).square().mean()
         loss = data + prox_weight * prox
+        if run.sun:
+            irradiance = run.scale * torch.exp(state.log_exposure + state.sun_log)
+            loss = loss + cfg.sun_prior_weight * share_penalty(irradiance, env, cfg.sun_share)
         state.optimizer.zero_grad()
         if not finite(loss):
             skipped += 1
             continue
         loss.backward()
-        if not all_finite([state.log_map, *dict(state.materials.items()).values()]):
+        if not all_finite([state.log_map, state.sun_uv, state.sun_log, *dict(state.materials.items()).values()]):
             skipped += 1
             continue
         if not materials_move:
@@ -291,7 +312,11 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
             normalized_step_(state.log_map, cfg.lr_map)
         state.optimizer.step()
         state.materials.clamp_()
-        state.log_exposure += recentre_(state.log_map, run.prior.median_target)
+        wrap_uv_(state.sun_uv)
+        shift = recentre_(state.log_map, run.prior.median_target)
+        state.log_exposure += shift
+        with torch.no_grad():
+            state.sun_log -= shift
         losses.append(float(data.detach()))
     laps.lap("render")
     with torch.no_grad():
