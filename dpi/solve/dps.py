@@ -105,9 +105,14 @@ class DPSConfig:
     rate polishes its fit to the views, the few iterations keeping it near the sample)"""
     sun: str | None = None
     """a parametric sun next to the prior's sky (dpi.solve.sun): on, off, or auto (on with the outdoor
-    prior); it starts from the init's brightest region (None: the sampler's, SAMPLER_DEFAULTS)"""
+    prior for objects that are not glossy); it starts from the init's brightest region (None: the
+    sampler's, SAMPLER_DEFAULTS)"""
     sun_radius_deg: float = 25.0
     """radius around the init's brightest texel whose excess energy becomes the sun"""
+    sun_min_roughness: float = 0.3
+    """sun: auto leaves it off when the init's roughness 25th percentile is below this (untouched texels
+    keep the start's 0.5, so the median misses a shiny object): a glossy object mirrors
+    the light, the views resolve its sun, and the sun's share prior only costs accuracy there"""
     sun_min_share: float = 0.05
     """the sun is kept only when that excess carries at least this share of the init map's energy"""
     sun_share: float = 0.55
@@ -205,7 +210,9 @@ def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: D
     scale = cfg.radiance_scale or estimate_radiance_scale(init.env, prior)
     first = int(round(cfg.start_noise * (diffusion.num_timesteps - 1)))
     sun = extract_sun(init.env, cfg.sun_radius_deg)
-    has_sun = cfg.sun == "on" or (cfg.sun == "auto" and prior.family in SUN_FAMILIES and sun.share >= cfg.sun_min_share)
+    glossy = float(torch.quantile(init.materials.roughness.detach().flatten(), 0.25)) < cfg.sun_min_roughness
+    has_sun = cfg.sun == "on" or (cfg.sun == "auto" and prior.family in SUN_FAMILIES and not glossy
+                                  and sun.share >= cfg.sun_min_share)
     run = DPSRun(problem, prior, cfg, diffusion, seed, scale, rho_schedule(cfg, first + 1), data_norm(problem), first,
                  has_sun)
     materials = starting_materials(init)
