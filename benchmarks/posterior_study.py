@@ -200,10 +200,13 @@ def append_row(path: Path, row: dict[str, Any], columns: tuple[str, ...] = COLUM
         writer.writerow({k: row[k] for k in columns})
 
 
-def mean_std(values: list[float], fmt: str) -> str:
-    """`mean +- std` of values, each in format `fmt`."""
-    values = np.asarray(values, dtype=float)
-    return f"{values.mean():{fmt}} +- {values.std():{fmt}}"
+def mean_std_cells(rows: list[dict[str, Any]], metrics: tuple[tuple[str, str], ...]) -> list[str]:
+    """`mean +- std` over the rows of each (column, format) in `metrics`, for a summary table."""
+    cells = []
+    for key, fmt in metrics:
+        values = np.asarray([r[key] for r in rows], dtype=float)
+        cells.append(f"{values.mean():{fmt}} +- {values.std():{fmt}}")
+    return cells
 
 
 def summary(rows: list[dict[str, Any]]) -> list[str]:
@@ -214,10 +217,8 @@ def summary(rows: list[dict[str, Any]]) -> list[str]:
                   key=lambda k: (k[0], METHODS.index(k[1]) if k[1] in METHODS else 99, k[2]))
     for group, method, sampler in keys:
         sel = [r for r in rows if (r["group"], r["method"], r["sampler"]) == (group, method, sampler)]
-        cells = []
-        for key, fmt in (("novel_psnr", ".2f"), ("env_psnr", ".2f"), ("env_ssim", ".3f"), ("albedo_mse", ".4f"),
-                         ("seconds", ".1f")):
-            cells.append(mean_std([r[key] for r in sel], fmt))
+        cells = mean_std_cells(sel, (("novel_psnr", ".2f"), ("env_psnr", ".2f"), ("env_ssim", ".3f"),
+                                     ("albedo_mse", ".4f"), ("seconds", ".1f")))
         lines.append(f"{group:<10} {method:<12} {sampler:<12} {len(sel):>3} {cells[0]:>13} {cells[1]:>13} "
                      f"{cells[2]:>13} {cells[3]:>17} {cells[4]:>11}")
     return lines

@@ -30,7 +30,7 @@ from scipy import linalg
 from torch.nn import functional as F
 
 from dpi import backend
-from dpi.envmap import texel_solid_angles
+from dpi.envmap import top_energy_share
 from dpi.images import linear_to_srgb, luminance
 from dpi.prior.data import median_target, read_dataset, to_prior_space
 from dpi.prior.procedural import checked_envmaps
@@ -105,12 +105,10 @@ def luminance_over_median(x: torch.Tensor, encoding: Encoding) -> torch.Tensor:
     return lum / lum.flatten(1).median(dim=1).values.clamp_min(1e-30)[:, None, None]
 
 
-def top_energy_share(x: torch.Tensor, encoding: Encoding, fraction: float = 0.005) -> np.ndarray:
-    """Per map, the share of its energy (luminance x solid angle) in its brightest `fraction` of texels."""
-    energy = luminance_over_median(x, encoding) * torch.from_numpy(texel_solid_angles(x.shape[-2])).float()
-    flat = energy.flatten(1).sort(dim=1, descending=True).values
-    top = max(1, int(round(fraction * flat.shape[1])))
-    return (flat[:, :top].sum(1) / flat.sum(1)).numpy()
+def top_energy_shares(x: torch.Tensor, encoding: Encoding) -> np.ndarray:
+    """dpi.envmap.top_energy_share of each prior-space map (B, 3, H, W)."""
+    radiance = encoding.to_radiance(x).permute(0, 2, 3, 1).numpy()
+    return np.array([top_energy_share(env) for env in radiance])
 
 
 def radiance_display(x: torch.Tensor, encoding: Encoding) -> torch.Tensor:
@@ -194,8 +192,8 @@ def evaluate_family(family: str, data: Path, count: int, steps: int, timing_step
         (family, "seam ratio, samples with random roll", seam_ratio(rolled)),
         (family, "seam ratio, samples without roll", seam_ratio(plain)),
         (family, "seam ratio, held-out maps", seam_ratio(held)),
-        (family, "brightest 0.5 % energy share, samples (median)", float(np.median(top_energy_share(rolled, enc)))),
-        (family, "brightest 0.5 % energy share, held-out (median)", float(np.median(top_energy_share(held, enc)))),
+        (family, "brightest 0.5 % energy share, samples (median)", float(np.median(top_energy_shares(rolled, enc)))),
+        (family, "brightest 0.5 % energy share, held-out (median)", float(np.median(top_energy_shares(held, enc)))),
         (family, "max / median luminance, samples (median)", float(luminance_over_median(rolled, enc).flatten(1)
                                                                      .max(1).values.median())),
         (family, "max / median luminance, held-out (median)", float(luminance_over_median(held, enc).flatten(1)

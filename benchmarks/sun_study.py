@@ -23,10 +23,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from posterior_study import ROOT, SIZE, Job, jobs_for, mean_std, run_job, run_study, workflow_config
+from posterior_study import ROOT, SIZE, Job, jobs_for, mean_std_cells, run_job, run_study, workflow_config
 
 from dpi.capture import load_capture
-from dpi.envmap import texel_directions, texel_solid_angles
+from dpi.envmap import texel_directions, top_energy_share
 from dpi.exr import read_exr
 from dpi.images import luminance
 from dpi.skies import sun_direction
@@ -40,13 +40,6 @@ SUNS = {"demo_sun": (35.0, 60.0), "low_sun": (8.0, 250.0), "high_sun": (65.0, 15
 SCENES = {name: ("sun", {**DEMO, "sun_elevation_deg": elevation, "sun_azimuth_deg": azimuth})
           for name, (elevation, azimuth) in SUNS.items()}
 METHODS = ("dps", "none")
-
-
-def top_energy_share(env: np.ndarray, fraction: float = 0.005) -> float:
-    """Share of the map's energy (luminance x texel solid angle) in its brightest `fraction` of texels."""
-    energy = (luminance(env) * texel_solid_angles(env.shape[0])).ravel()
-    top = max(1, int(round(fraction * energy.size)))
-    return float(np.sort(energy)[::-1][:top].sum() / energy.sum())
 
 
 def brightest_direction(env: np.ndarray) -> np.ndarray:
@@ -80,8 +73,7 @@ def summary(rows: list[dict[str, Any]]) -> list[str]:
             sel = [r for r in rows if r["scene"] == scene and r["method"] == method]
             if not sel:
                 continue
-            cells = [mean_std([r[k] for r in sel], f)
-                     for k, f in (("top_energy_share", ".3f"), ("sun_angle_deg", ".1f"), ("novel_psnr", ".2f"))]
+            cells = mean_std_cells(sel, (("top_energy_share", ".3f"), ("sun_angle_deg", ".1f"), ("novel_psnr", ".2f")))
             lines.append(f"{scene:<10} {method:<6} {len(sel):>2} {cells[0]:>16} {sel[0]['gt_top_energy_share']:>9.3f} "
                          f"{cells[1]:>15} {cells[2]:>14}")
     return lines

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from dpi.exr import EXRError, read_exr
-from dpi.images import resize
+from dpi.images import luminance, resize
 
 
 def texel_angles(height: int) -> tuple[np.ndarray, np.ndarray]:
@@ -60,6 +60,14 @@ def texel_solid_angles(height: int) -> np.ndarray:
     edges = np.arange(height + 1) / height * np.pi
     band = np.cos(edges[:-1]) - np.cos(edges[1:])
     return (band * 2 * np.pi / (2 * height))[:, None]
+
+
+def top_energy_share(env: np.ndarray, fraction: float = 0.005) -> float:
+    """Share of an (H, 2H, 3) map's energy (luminance x texel solid angle) in its `fraction` of texels
+    that carry the most of it (a sun's texels carry about half of a clear sky's)."""
+    energy = (luminance(env) * texel_solid_angles(env.shape[0])).ravel()
+    top = max(1, int(round(fraction * energy.size)))
+    return float(np.sort(energy)[::-1][:top].sum() / energy.sum())
 
 
 def pad_for_mitsuba(env: torch.Tensor, data_width: int) -> torch.Tensor:

@@ -275,8 +275,7 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
         env = run.env(prior.encoding.to_radiance(state.x.clamp(-1, 1)), state)
     trace.info["log_exposure"] = float(state.log_exposure)
     if run.sun:
-        irradiance = run.scale * torch.exp(state.log_exposure + state.sun_log).detach()
-        trace.info["sun"] = sun_summary(state.sun_uv.detach(), irradiance, env)
+        trace.info["sun"] = sun_summary(state.sun_uv.detach(), run.sun_irradiance(state).detach(), env)
     refine = OptimizeConfig(iterations=cfg.refine_iterations, views_per_step=cfg.refine_views_per_step,
                             optimize_env=cfg.refine_lr_env > 0, lr_env=cfg.refine_lr_env, lr_albedo=cfg.lr_albedo,
                             lr_roughness=cfg.lr_roughness, lr_metallic=cfg.lr_metallic)

@@ -90,10 +90,12 @@ class DPSRun:
         height, times the state's exposure, plus its sun (splatted at the problem's height, so it stays a
         point of light where the prior's resolution would blur it)."""
         height = self.problem.settings.env_height
-        sky = resample_env(radiance, height)
-        if self.sun:
-            sky = sky + sun_env(state.sun_uv, torch.exp(state.sun_log), height)
-        return self.scale * torch.exp(state.log_exposure) * sky
+        env = self.scale * torch.exp(state.log_exposure) * resample_env(radiance, height)
+        return env + sun_env(state.sun_uv, self.sun_irradiance(state), height) if self.sun else env
+
+    def sun_irradiance(self, state: "DPSState") -> torch.Tensor:
+        """(3,) the state's sun in scene radiance units (its log irradiance is in the prior's, times the exposure)."""
+        return self.scale * torch.exp(state.log_exposure + state.sun_log)
 
     def views(self, generator: torch.Generator) -> list[int]:
         """Training views of one data term."""
@@ -295,8 +297,7 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
         prox = (encoding.to_prior(torch.exp(state.log_map)) - x0_hat).square().mean()
         loss = data + prox_weight * prox
         if run.sun:
-            irradiance = run.scale * torch.exp(state.log_exposure + state.sun_log)
-            loss = loss + cfg.sun_prior_weight * share_penalty(irradiance, env, cfg.sun_share)
+            loss = loss + cfg.sun_prior_weight * share_penalty(run.sun_irradiance(state), env, cfg.sun_share)
         state.optimizer.zero_grad()
         if not finite(loss):
             skipped += 1
