@@ -80,6 +80,7 @@ def append_csv(path: Path, row: dict, views: int, size: int, elevations: list[fl
     """One capture's row in the study CSV (a header when the file is new)."""
     record = {"shape": row["shape"], "background": row["background"], "views": views, "size": size,
               "elevations_deg": " ".join(f"{e:g}" for e in elevations), "support_plane": row["support_plane"],
+              "stereo": row["stereo"],
               "rotation_deg": row.get("rot_deg_mean", ""),
               "mask_iou": row.get("iou_mean", ""), "chamfer_pct": row.get("chamfer_pct", ""),
               "seconds": sum(v for k, v in row.items() if k.endswith("_s") and k != "render_s"),
@@ -95,6 +96,8 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=CSV, help="CSV the rows are appended to")
     parser.add_argument("--support-plane", action=argparse.BooleanOptionalAction, default=True,
                         help="cut the hull at the plane under the object (GeometryConfig.support_plane)")
+    parser.add_argument("--stereo", action=argparse.BooleanOptionalAction, default=True,
+                        help="carve what multi-view stereo sees as empty inside the hull (GeometryConfig.stereo)")
     parser.add_argument("--backgrounds", nargs="+", default=["textured", "plain"])
     parser.add_argument("--views", type=int, default=32)
     parser.add_argument("--size", type=int, default=240)
@@ -118,11 +121,12 @@ def main() -> None:
                 render_s = time.perf_counter() - start
                 try:
                     row = run_capture(root, Path(tmp) / f"work_{name}", args.threads,
-                                      {"support_plane": args.support_plane})
+                                      {"support_plane": args.support_plane, "stereo": args.stereo})
                 except Exception as exc:  # a failing stage is a result too
                     row = {"error": f"{type(exc).__name__}: {str(exc)[:80]}"}
                 rows.append({"shape": shape, "background": background, "render_s": render_s, **row})
-                append_csv(args.out, {**rows[-1], "support_plane": args.support_plane}, args.views, args.size,
+                append_csv(args.out, {**rows[-1], "support_plane": args.support_plane, "stereo": args.stereo}, args.views,
+                           args.size,
                            args.elevations)
                 print(tabulate([rows[-1]], headers="keys", floatfmt=".3g"), flush=True)
     print(f"\n{args.views} views of {args.size}x{args.size}, {args.spp} spp, {args.threads} threads")

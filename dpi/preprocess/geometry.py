@@ -1,5 +1,6 @@
 """A watertight surface from masks and cameras: the visual hull carved from the silhouettes
-(dpi.preprocess.hull), its zero level set, and a mesh clean-up chain.
+(dpi.preprocess.hull), carved further by multi-view stereo where the photos see empty space inside
+it (dpi.preprocess.stereo), its zero level set, and a mesh clean-up chain.
 
 **Surface.** Marching cubes (scikit-image) extracts the zero level set; pymeshlab then removes
 small components, repairs non-manifold edges and vertices, closes holes, applies Taubin
@@ -10,8 +11,9 @@ oriented outwards (positive volume), as Mitsuba's one-sided BSDFs need.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -50,6 +52,10 @@ class GeometryConfig:
     support_plane: bool = True
     """when every camera looks from above, cut the hull at the plane of the object's lowest rim point, so
     the underside no camera sees does not stay a cone (dpi.preprocess.hull.support_plane)"""
+    stereo: bool = True
+    """carve what multi-view stereo sees as empty inside the hull (needs the photos; dpi.preprocess.stereo)"""
+    stereo_settings: dict[str, Any] = field(default_factory=dict)
+    """fields of dpi.preprocess.stereo.StereoConfig (plane sweep, filtering, carving)"""
 
 
 def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
@@ -90,9 +96,10 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray, cfg: GeometryConfig) -> 
     return vertices, faces
 
 
-def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray],
-                        cfg: GeometryConfig | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
-    """Watertight mesh (vertices, faces) of the object seen in the masks, and a summary with timings."""
+def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray], cfg: GeometryConfig | None = None,
+                        images: list[np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Watertight mesh (vertices, faces) of the object seen in the masks, and a summary with timings;
+    with the views' linear RGB `images` (and `cfg.stereo`), carved further by multi-view stereo."""
     cfg = cfg or GeometryConfig()
     times = {}
     start = time.perf_counter()
@@ -103,6 +110,9 @@ def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray],
         field = cut_below(field, origin, size, *plane)
         box["support_plane"] = {"up": plane[0].tolist(), "height": plane[1]}
     times["carve_s"] = time.perf_counter() - start
+    if cfg.stereo and images is not None:
+        field, box["stereo"] = stereo_carve(field, origin, size, cameras, masks, images, cfg)
+        times["stereo_s"] = box["stereo"].pop("seconds")
     start = time.perf_counter()
     vertices, faces = marching_cubes(field, origin, size)
     times["marching_cubes_s"] = time.perf_counter() - start
@@ -112,6 +122,23 @@ def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray],
     summary = {**box, "voxel_size": size, "grid": list(field.shape), "vertices": len(vertices), "faces": len(faces),
                **{k: round(v, 3) for k, v in times.items()}}
     return vertices, faces, summary
+
+
+def stereo_carve(field: np.ndarray, origin: np.ndarray, size: float, cameras: list[Camera], masks: list[np.ndarray],
+                 images: list[np.ndarray], cfg: GeometryConfig) -> tuple[np.ndarray, dict]:
+    """The carved field with stereo's empty space removed, and a summary (depth coverage, voxels removed)."""
+    from dpi.preprocess.stereo import StereoConfig, carve_with_depths, depth_maps
+    from dpi.settings import settings_from_dict
+
+    stereo = settings_from_dict(StereoConfig, cfg.stereo_settings)
+    start = time.perf_counter()
+    depths = depth_maps(cameras, images, masks, *marching_cubes(field, origin, size), stereo)
+    carved = carve_with_depths(field, origin, size, cameras, depths, stereo)
+    coverage = float(np.mean([(d > 0).sum() / max(int(m.sum()), 1) for d, m in zip(depths, masks)]))
+    removed = int(((field < 0) & (carved >= 0)).sum())
+    return carved, {"depth_coverage": round(coverage, 4), "voxels_removed": removed,
+                    "voxels_removed_fraction": round(removed / max(int((field < 0).sum()), 1), 4),
+                    "seconds": time.perf_counter() - start}
 
 
 def write_mesh_ply(path: str | Path, vertices: np.ndarray, faces: np.ndarray) -> None:

@@ -131,9 +131,19 @@ def geometry_stage(capture_json: str | Path, out_dir: str | Path, settings: dict
     names = [v.name for v in capture.views if v.name in cameras and v.name in masks]
     if len(names) < 3:
         raise ValueError(f"{capture_json}: {len(names)} views have both a camera and a mask; carving needs at least 3")
+    cfg = settings_from_dict(GeometryConfig, settings)
+    images = None
+    if cfg.stereo:
+        import torch
+
+        from dpi.images import read_image
+
+        torch.set_num_threads(max(1, threads))
+        paths = {v.name: v.image for v in capture.views}
+        images = [read_image(paths[n]) for n in names]
     start = time.perf_counter()
     vertices, faces, summary = reconstruct_surface([cameras[n] for n in names], [read_mask(masks[n]) for n in names],
-                                                   settings_from_dict(GeometryConfig, settings))
+                                                   cfg, images)
     summary["seconds"] = round(time.perf_counter() - start, 3)
     files = geometry_files(out_dir)
     write_mesh_ply(files["mesh"], vertices, faces)

@@ -1,0 +1,108 @@
+"""Multi-view stereo inside the hull: plane-sweep depth of a known plane, the robust free-space
+distance, that carving never adds volume, and highlight detection."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dpi.cameras import from_fov, look_at, orbit
+from dpi.preprocess.stereo import (StereoConfig, camera_rays, carve_with_depths, free_space, highlights,
+                                   hull_depth_range, sweep_depth)
+
+SIZE = 64
+
+
+def plane_texture(seed: int = 0):
+    """A smooth random texture t(x, y) on the world plane z = 0 (bilinear on a blurred noise grid)."""
+    import cv2
+    from scipy.ndimage import map_coordinates
+
+    grid = cv2.GaussianBlur(np.random.default_rng(seed).random((96, 96)).astype(np.float32), (0, 0), 1.0)
+    grid = (grid - grid.min()) / (grid.max() - grid.min())
+
+    def texture(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return map_coordinates(grid, [(y + 3) * 16, (x + 3) * 16], order=1, mode="nearest").astype(np.float32)
+
+    return texture
+
+
+def plane_view(camera, texture) -> tuple[np.ndarray, np.ndarray]:
+    """Image of the textured plane z = 0 and its camera-space depth in a view."""
+    rays = camera_rays(camera)
+    world = rays @ camera.c2w[:3, :3].T
+    depth = -camera.center[2] / world[..., 2]  # rays are scaled to camera depth 1
+    hit = camera.center + depth[..., None] * world
+    return texture(hit[..., 0], hit[..., 1]), depth.astype(np.float32)
+
+
+def test_plane_sweep_finds_a_textured_plane():
+    texture = plane_texture()
+    cameras = [from_fov(look_at((x, y, 5.0), (0.0, 0.0, 0.0)), SIZE, SIZE, 30.0, f"v{i}")
+               for i, (x, y) in enumerate([(0.0, 0.0), (1.2, 0.0), (-1.2, 0.0), (0.0, 1.2), (0.0, -1.2)])]
+    images = [plane_view(c, texture)[0] for c in cameras]
+    truth = plane_view(cameras[0], texture)[1]
+    cfg = StereoConfig(planes=48, window=7, min_score=0.5, blur_px=0.0)
+    depth, score = sweep_depth(images[0], cameras[0], list(zip(images[1:], cameras[1:])), truth - 0.6, truth + 0.6,
+                               cfg)
+    inner = np.s_[8:-8, 8:-8]
+    found = depth[inner] > 0
+    assert found.mean() > 0.9
+    error = np.abs(depth[inner][found] - truth[inner][found]) / truth[inner][found]
+    assert np.median(error) < 0.002 and np.percentile(error, 90) < 0.01
+    assert np.median(score[inner]) > 0.9
+
+
+def sphere_scene():
+    """An open3d ray-casting scene of a unit sphere and 8 views around it."""
+    import open3d as o3d
+
+    mesh = o3d.geometry.TriangleMesh.create_sphere(1.0, 64)
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(mesh))
+    cameras = [from_fov(c2w, SIZE, SIZE, 40.0, f"v{i}") for i, c2w in enumerate(orbit(8, 4.0, (10.0,)))]
+    return scene, cameras
+
+
+def test_free_space_is_a_robust_signed_distance_to_the_seen_surface():
+    scene, cameras = sphere_scene()
+    depths = [np.where(np.isfinite(near), near, 0.0).astype(np.float32)
+              for near in (hull_depth_range(scene, c)[0] for c in cameras)]
+    band = 0.2
+    towards = cameras[0].center / np.linalg.norm(cameras[0].center)
+    points = np.array([1.1 * towards, 0.95 * towards, np.zeros(3)])
+    clean = free_space(points, depths, cameras, band, votes=2)
+    assert 0.08 < clean[0] <= band  # 0.1 in front of the surface, farther along oblique views' rays
+    assert -band <= clean[1] < -0.04  # just behind it
+    assert clean[2] == -np.inf  # far behind every view's surface: no view has evidence
+    # a view whose depths are all 0.5 too deep (a mirrored highlight) is outvoted by the two others that
+    # see the point (a mean would carve it: the wrong view's clipped +0.2 outweighs their -0.05 and -0.08)
+    wrong = [d + 0.5 * (d > 0) if i == 1 else d for i, d in enumerate(depths)]
+    assert free_space(points[1:2], wrong, cameras, band, votes=2)[0] < 0
+
+
+def test_carving_with_depths_only_removes_volume():
+    scene, cameras = sphere_scene()
+    depths = [np.where(np.isfinite(near), near, 0.0).astype(np.float32)
+              for near in (hull_depth_range(scene, c)[0] for c in cameras)]
+    size = 0.05
+    axis = np.arange(-1.5, 1.5 + size / 2, size)
+    origin = np.full(3, axis[0])
+    points = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1)
+    cube = np.abs(points).max(-1) - 1.2  # a hull that is a cube around the sphere
+    carved = carve_with_depths(cube, origin, size, cameras, depths, StereoConfig(votes=2))
+    assert (carved >= cube).all()
+    radius = np.linalg.norm(points, axis=-1)
+    in_front = (radius > 1.08) & (radius < 1.2) & (np.abs(points[..., 1]) < 0.3)  # seen before the sphere
+    assert (carved[in_front] >= 0).mean() > 0.9
+    assert (carved[radius < 0.9] < 0).all()
+
+
+def test_highlights_finds_a_bright_spot_not_texture():
+    rng = np.random.default_rng(1)
+    image = np.repeat(0.2 + 0.1 * rng.random((SIZE, SIZE, 1)), 3, -1).astype(np.float32)
+    ys, xs = np.mgrid[:SIZE, :SIZE]
+    image += (3.0 * np.exp(-((xs - 40) ** 2 + (ys - 20) ** 2) / 8.0))[..., None]
+    found = highlights(image, np.ones((SIZE, SIZE), bool), 1.3)
+    assert found[20, 40]
+    assert found.mean() < 0.1
