@@ -64,10 +64,18 @@ def sphere_scene():
     return scene, cameras
 
 
+def test_hull_depth_range_enters_and_leaves_a_sphere():
+    scene, cameras = sphere_scene()
+    near, far = hull_depth_range(scene, cameras[0], 10.0)
+    centre = SIZE // 2
+    assert near[centre, centre] == pytest.approx(3.0, abs=0.01) and far[centre, centre] == pytest.approx(5.0, abs=0.01)
+    assert np.isinf(near[0, 0]) and np.isinf(far[0, 0])
+
+
 def test_free_space_is_a_robust_signed_distance_to_the_seen_surface():
     scene, cameras = sphere_scene()
     depths = [np.where(np.isfinite(near), near, 0.0).astype(np.float32)
-              for near in (hull_depth_range(scene, c)[0] for c in cameras)]
+              for near in (hull_depth_range(scene, c, 10.0)[0] for c in cameras)]
     band = 0.2
     towards = cameras[0].center / np.linalg.norm(cameras[0].center)
     points = np.array([1.1 * towards, 0.95 * towards, np.zeros(3)])
@@ -84,7 +92,7 @@ def test_free_space_is_a_robust_signed_distance_to_the_seen_surface():
 def test_carving_with_depths_only_removes_volume():
     scene, cameras = sphere_scene()
     depths = [np.where(np.isfinite(near), near, 0.0).astype(np.float32)
-              for near in (hull_depth_range(scene, c)[0] for c in cameras)]
+              for near in (hull_depth_range(scene, c, 10.0)[0] for c in cameras)]
     size = 0.05
     axis = np.arange(-1.5, 1.5 + size / 2, size)
     origin = np.full(3, axis[0])

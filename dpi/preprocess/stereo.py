@@ -21,7 +21,6 @@ so stereo only removes volume the silhouettes left, never adds it.
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,12 +29,9 @@ import torch.nn.functional as F
 
 from dpi.cameras import Camera
 
-log = logging.getLogger(__name__)
-
-
 @dataclass
 class StereoConfig:
-    """Settings of the plane sweep and the depth fusion."""
+    """Settings of the plane sweep, the depth filters and the carving."""
 
     neighbours: int = 6
     """views each depth map is matched against (nearest viewing directions)"""
@@ -85,9 +81,9 @@ def camera_rays(camera: Camera) -> np.ndarray:
     return np.stack([(xs - camera.cx) / camera.fx, -(ys - camera.cy) / camera.fy, -np.ones_like(xs)], -1)
 
 
-def hull_depth_range(scene, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+def hull_depth_range(scene, camera: Camera, reach: float) -> tuple[np.ndarray, np.ndarray]:
     """Camera-space depths (h, w) where each pixel's ray enters and leaves a closed mesh (an
-    open3d RaycastingScene); inf where it misses."""
+    open3d RaycastingScene that lies within `reach` of the camera); inf where it misses."""
     import open3d as o3d
 
     rays = camera_rays(camera)
@@ -96,7 +92,6 @@ def hull_depth_range(scene, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
     origin = np.broadcast_to(camera.center, direction.shape)
     entry = scene.cast_rays(o3d.core.Tensor(np.concatenate([origin, direction], -1).astype(np.float32)))
     near = entry["t_hit"].numpy() / scale
-    reach = 4 * float(np.linalg.norm(camera.center)) + 100.0
     back = scene.cast_rays(o3d.core.Tensor(np.concatenate([origin + reach * direction, -direction],
                                                           -1).astype(np.float32)))
     far = (reach - back["t_hit"].numpy()) / scale
@@ -281,7 +276,8 @@ def depth_maps(cameras: list[Camera], images: list[np.ndarray], masks: list[np.n
     greys = [grey(image, cfg.blur_px) for image in images]
     depths = []
     for i, cam in enumerate(cameras):
-        near, far = hull_depth_range(scene, cam)
+        reach = 2 * float(np.linalg.norm(vertices - cam.center, axis=1).max())
+        near, far = hull_depth_range(scene, cam, reach)
         depth, _ = sweep_depth(greys[i], cam, [(greys[j], cameras[j]) for j in neighbours[i]], near, far, cfg)
         keep = masks[i] & ~highlights(images[i], masks[i], cfg.highlight_ratio) if cfg.highlight_ratio else masks[i]
         depths.append(np.where(keep, depth, 0.0).astype(np.float32))
