@@ -13,12 +13,15 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from dpi.cameras import Camera
 from dpi.preprocess.hull import cut_below, marching_cubes, support_plane, visual_hull
+
+if TYPE_CHECKING:
+    from dpi.preprocess.stereo import StereoConfig
 
 
 
@@ -56,6 +59,20 @@ class GeometryConfig:
     """carve what multi-view stereo sees as empty inside the hull (needs the photos; dpi.preprocess.stereo)"""
     stereo_settings: dict[str, Any] = field(default_factory=dict)
     """fields of dpi.preprocess.stereo.StereoConfig (plane sweep, filtering, carving)"""
+
+    def __post_init__(self):
+        """Check `stereo_settings` with the config (an error names `stereo_settings.<key>`)."""
+        self.stereo_config()
+
+    def stereo_config(self) -> "StereoConfig":
+        """The StereoConfig that `stereo_settings` describe."""
+        from dpi.preprocess.stereo import StereoConfig
+        from dpi.settings import SettingsError, settings_from_dict
+
+        try:
+            return settings_from_dict(StereoConfig, self.stereo_settings)
+        except SettingsError as exc:
+            raise SettingsError(f"stereo_settings.{exc.key}", exc.problem) from None
 
 
 def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
@@ -127,10 +144,9 @@ def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray], cfg: Geo
 def stereo_carve(field: np.ndarray, origin: np.ndarray, size: float, cameras: list[Camera], masks: list[np.ndarray],
                  images: list[np.ndarray], cfg: GeometryConfig) -> tuple[np.ndarray, dict]:
     """The carved field with stereo's empty space removed, and a summary (depth coverage, voxels removed)."""
-    from dpi.preprocess.stereo import StereoConfig, carve_with_depths, depth_maps
-    from dpi.settings import settings_from_dict
+    from dpi.preprocess.stereo import carve_with_depths, depth_maps
 
-    stereo = settings_from_dict(StereoConfig, cfg.stereo_settings)
+    stereo = cfg.stereo_config()
     start = time.perf_counter()
     depths = depth_maps(cameras, images, masks, *marching_cubes(field, origin, size), stereo)
     carved = carve_with_depths(field, origin, size, cameras, depths, stereo)

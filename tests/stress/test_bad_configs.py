@@ -88,6 +88,8 @@ BAD = {  # case: (patch of config.yaml, the message's start)
                             "preprocess.sfm.matchr: unknown SfMConfig setting; did you mean 'matcher'?"),
     "preprocess fraction above 1": ({"preprocess": {"sfm": {"min_registered_fraction": 1.5}}},
                                     "preprocess.sfm.min_registered_fraction: must be <= 1, got 1.5"),
+    "stereo key typo": ({"preprocess": {"geometry": {"stereo_settings": {"plane": 32}}}},
+                        "preprocess.geometry.stereo_settings.plane: unknown StereoConfig setting; did you mean 'planes'?"),
     "preprocess stage typo": ({"preprocess": {"uvs": {}}}, "preprocess.uvs: unknown key; did you mean 'uv'?"),
     "preset key typo": ({"presets": {"draft": {"rendr": {"spp": 4}}}},
                         "presets.draft.rendr: unknown key; did you mean 'render'?"),
