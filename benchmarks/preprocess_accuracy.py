@@ -125,9 +125,8 @@ def main() -> None:
                 except Exception as exc:  # a failing stage is a result too
                     row = {"error": f"{type(exc).__name__}: {str(exc)[:80]}"}
                 rows.append({"shape": shape, "background": background, "render_s": render_s, **row})
-                append_csv(args.out, {**rows[-1], "support_plane": args.support_plane, "stereo": args.stereo}, args.views,
-                           args.size,
-                           args.elevations)
+                append_csv(args.out, {**rows[-1], "support_plane": args.support_plane, "stereo": args.stereo},
+                           args.views, args.size, args.elevations)
                 print(tabulate([rows[-1]], headers="keys", floatfmt=".3g"), flush=True)
     print(f"\n{args.views} views of {args.size}x{args.size}, {args.spp} spp, {args.threads} threads")
     print(tabulate(rows, headers="keys", floatfmt=".3g"))

@@ -202,6 +202,17 @@ def sweep_depth(ref: np.ndarray, camera: Camera, others: list[tuple[np.ndarray, 
     return depth_map, score_map
 
 
+def observed_depth(depth: np.ndarray, camera: Camera, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The depth map's value at the pixel each world point (N, 3) falls in (0: none, or outside the
+    frame) and the points' own camera-space depths (N,)."""
+    xy, z = camera.project(points)
+    col, row = np.floor(xy[:, 0]).astype(np.int64), np.floor(xy[:, 1]).astype(np.int64)
+    ok = (z > 0) & (col >= 0) & (col < camera.width) & (row >= 0) & (row < camera.height)
+    observed = np.zeros(len(points), np.float32)
+    observed[ok] = depth[row[ok], col[ok]]
+    return observed, z
+
+
 def consistent(depths: list[np.ndarray], cameras: list[Camera], neighbours: list[list[int]],
                cfg: StereoConfig) -> list[np.ndarray]:
     """The depth maps with depths that fewer than `min_consistent` neighbour maps agree with set to 0."""
@@ -211,12 +222,7 @@ def consistent(depths: list[np.ndarray], cameras: list[Camera], neighbours: list
         points = (camera_rays(cam)[valid] * depth[valid][:, None]) @ cam.c2w[:3, :3].T + cam.center
         agree = np.zeros(len(points), np.int32)
         for j in neighbours[i]:
-            other, oc = depths[j], cameras[j]
-            xy, z = oc.project(points)
-            col, row = np.floor(xy[:, 0]).astype(int), np.floor(xy[:, 1]).astype(int)
-            ok = (z > 0) & (col >= 0) & (col < oc.width) & (row >= 0) & (row < oc.height)
-            seen = np.zeros(len(points), np.float32)
-            seen[ok] = other[row[ok], col[ok]]
+            seen, z = observed_depth(depths[j], cameras[j], points)
             agree += (seen > 0) & (np.abs(seen - z) <= cfg.consistency * z)
         kept = np.zeros_like(depth)
         kept[valid] = np.where(agree >= cfg.min_consistent, depth[valid], 0.0)
@@ -234,11 +240,7 @@ def free_space(points: np.ndarray, depths: list[np.ndarray], cameras: list[Camer
     points = np.asarray(points, np.float32)
     values = np.full((len(cameras), len(points)), np.nan, np.float32)
     for i, (depth, cam) in enumerate(zip(depths, cameras)):
-        xy, z = cam.project(points)
-        col, row = np.floor(xy[:, 0]).astype(np.int64), np.floor(xy[:, 1]).astype(np.int64)
-        ok = (z > 0) & (col >= 0) & (col < cam.width) & (row >= 0) & (row < cam.height)
-        observed = np.zeros(len(points), np.float32)
-        observed[ok] = depth[row[ok], col[ok]]
+        observed, z = observed_depth(depth, cam, points)
         s = observed - z
         values[i] = np.where((observed > 0) & (s >= -band), np.minimum(s, band), np.nan)
     count = np.isfinite(values).sum(0)
