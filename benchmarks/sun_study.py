@@ -9,6 +9,11 @@ picks) and `none`, per seed, through the posterior study's jobs (benchmarks/post
 - sun_angle_deg: the angle between the direction of the map's brightest texel and the true sun;
 - novel_psnr: held-out view PSNR, as in the posterior study.
 
+A reference row per scene and seed, `true_light`, is not a method: the ground-truth map (area-
+resampled to the problem's size) is held fixed while dps's refinement fits the materials from where
+every method starts (the init's roughness and metallic, a grey albedo). Its view PSNR is what a
+perfect light recovery would give with this material fit.
+
     .venv/bin/python benchmarks/sun_study.py [--seeds 0 1 2] [--jobs 2]
 
 Rows go to benchmarks/results/sun_study.csv (rows already there are not rerun), then it prints
@@ -19,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +46,7 @@ SUNS = {"demo_sun": (35.0, 60.0), "low_sun": (8.0, 250.0), "high_sun": (65.0, 15
 SCENES = {name: ("sun", {**DEMO, "sun_elevation_deg": elevation, "sun_azimuth_deg": azimuth})
           for name, (elevation, azimuth) in SUNS.items()}
 METHODS = ("dps", "none")
+TRUE_LIGHT = "true_light"
 
 
 def brightest_direction(env: np.ndarray) -> np.ndarray:
@@ -53,8 +60,33 @@ def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
     return math.degrees(math.acos(float(np.clip(np.dot(a, b), -1.0, 1.0))))
 
 
+def true_light_sample(job: Job) -> None:
+    """The `true_light` reference's sample folder (module notes), unless it is there."""
+    import torch
+
+    from dpi.solve.decomposition import Decomposition
+    from dpi.solve.dps import refine
+    from dpi.solve.init import starting_materials
+    from dpi.stages import SolveSettings, load_problem
+
+    files = job.layout.scene(job.scene)
+    if files.sample_files(job.label, job.seed)["trace"].exists():
+        return
+    problem = load_problem(files.capture_json, SolveSettings.from_config(job.config, threads=1))
+    height = problem.settings.env_height
+    gt = torch.from_numpy(read_exr(problem.capture.gt["envmap"])).float().permute(2, 0, 1)[None]
+    env = torch.nn.functional.interpolate(gt, size=(height, 2 * height), mode="area")[0].permute(1, 2, 0)
+    init = problem.load_decomposition(files.sample_dir("init"))
+    env, materials, trace = refine(problem, env / problem.exposure, starting_materials(init),
+                                   DPSConfig.from_dict(job.method_cfg), job.seed, progress=False)
+    problem.save_decomposition(Decomposition(env, materials, trace), job.sample_dir)
+
+
 def score(job: Job) -> dict[str, Any]:
-    """Draw and evaluate one sample (the posterior study's job), then measure its sun."""
+    """Draw and evaluate one sample (the posterior study's job; the true-light reference's folder is
+    made here), then measure its sun."""
+    if job.method == TRUE_LIGHT:
+        true_light_sample(job)
     row = run_job(job)
     env = read_exr(job.layout.scene(job.scene).sample_files(job.label, job.seed)["env"])
     gt = read_exr(load_capture(job.layout.capture_dir(job.scene)).gt["envmap"])
@@ -66,31 +98,41 @@ def score(job: Job) -> dict[str, Any]:
 
 def summary(rows: list[dict[str, Any]]) -> list[str]:
     """Mean +- std per scene and method."""
-    lines = [f"{'scene':<10} {'method':<6} {'n':>2} {'top 0.5 % share':>16} {'gt share':>9} {'sun angle':>15} "
+    lines = [f"{'scene':<10} {'method':<16} {'n':>2} {'top 0.5 % share':>16} {'gt share':>9} {'sun angle':>15} "
              f"{'view PSNR':>14}"]
     for scene in SCENES:
-        for method in METHODS:
-            sel = [r for r in rows if r["scene"] == scene and r["method"] == method]
-            if not sel:
-                continue
-            cells = mean_std_cells(sel, (("top_energy_share", ".3f"), ("sun_angle_deg", ".1f"), ("novel_psnr", ".2f")))
-            lines.append(f"{scene:<10} {method:<6} {len(sel):>2} {cells[0]:>16} {sel[0]['gt_top_energy_share']:>9.3f} "
-                         f"{cells[1]:>15} {cells[2]:>14}")
+        for method in (*METHODS, TRUE_LIGHT):
+            for sampler in sorted({r["sampler"] for r in rows if r["method"] == method}):
+                sel = [r for r in rows if r["scene"] == scene and r["method"] == method and r["sampler"] == sampler]
+                if sel:
+                    lines.append(summary_line(scene, f"{method} {sampler}".strip(), sel))
     return lines
+
+
+def summary_line(scene: str, label: str, sel: list[dict[str, Any]]) -> str:
+    """One scene and method's mean +- std cells."""
+    cells = mean_std_cells(sel, (("top_energy_share", ".3f"), ("sun_angle_deg", ".1f"), ("novel_psnr", ".2f")))
+    return (f"{scene:<10} {label:<16} {len(sel):>2} {cells[0]:>16} {sel[0]['gt_top_energy_share']:>9.3f} "
+            f"{cells[1]:>15} {cells[2]:>14}")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--scenes", nargs="*", default=list(SCENES), choices=list(SCENES))
     parser.add_argument("--seeds", nargs="*", type=int, default=[0, 1, 2])
+    parser.add_argument("--methods", nargs="*", default=[*METHODS, TRUE_LIGHT], choices=[*METHODS, TRUE_LIGHT])
+    parser.add_argument("--dps", nargs="*", default=[], metavar="NAME:key=value,...",
+                        help="dps variants drawn instead of config.yaml's sampler (dev studies)")
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--out", type=Path, default=CSV)
     args = parser.parse_args()
     config = workflow_config()
     dps = {k: v for k, v in config["method_params"].get("dps", {}).items() if k != "samples"}
-    study = argparse.Namespace(scenes=args.scenes, methods=list(METHODS), samplers=[DPSConfig.from_dict(dps).sampler],
-                               seeds=args.seeds, dps=[], rerun=False)
+    samplers = [spec.partition(":")[0] for spec in args.dps] or [DPSConfig.from_dict(dps).sampler]
+    study = argparse.Namespace(scenes=args.scenes, methods=args.methods, samplers=samplers, seeds=args.seeds,
+                               dps=args.dps, rerun=False)
     jobs = jobs_for(study, config, WORK, SCENES)
+    jobs = [replace(j, method_cfg=dps, sampler="") if j.method == TRUE_LIGHT else j for j in jobs]
     print("\n".join(summary(run_study(jobs, args.out, COLUMNS, score, args.jobs))))
 
 

@@ -30,6 +30,10 @@ class SettingsError(ValueError):
         self.key = key
         self.problem = problem
 
+    def __reduce__(self) -> tuple:
+        """Pickle by (key, problem), so the error crosses process pools intact."""
+        return type(self), (self.key, self.problem)
+
 
 @dataclass(frozen=True)
 class Bound:

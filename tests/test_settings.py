@@ -72,3 +72,13 @@ def test_settings_values_are_checked_by_type_and_field_bounds(values, message):
 def test_valid_values_pass_and_ints_count_as_numbers():
     s = settings_from_dict(S, {"steps": 1, "lr_env": 1, "scale": None, "names": ["a"]})
     assert (s.steps, s.lr_env, s.scale, s.names) == (1, 1, None, ["a"])
+
+
+def test_settings_error_survives_pickling():
+    """A worker process's settings error reaches the parent with its key and message."""
+    import pickle
+
+    error = pickle.loads(pickle.dumps(SettingsError("method_params.dps.lr_map", "must be > 0, got 0")))
+    assert isinstance(error, SettingsError)
+    assert (error.key, error.problem) == ("method_params.dps.lr_map", "must be > 0, got 0")
+    assert str(error) == "method_params.dps.lr_map: must be > 0, got 0"

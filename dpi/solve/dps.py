@@ -246,6 +246,19 @@ def strip_frames(snapshots: list[torch.Tensor], count: int) -> list[torch.Tensor
     return [snapshots[k] for k in keep]
 
 
+def refine(problem: InverseProblem, env: torch.Tensor, materials: MaterialTextures, cfg: DPSConfig, seed: int,
+           progress: bool = True) -> tuple[torch.Tensor, MaterialTextures, Trace]:
+    """The last stage of a sample: Adam on the materials under the map (fixed, or polished at
+    refine_lr_env); returns the map, the materials and the refinement's trace."""
+    settings = OptimizeConfig(iterations=cfg.refine_iterations, views_per_step=cfg.refine_views_per_step,
+                              optimize_env=cfg.refine_lr_env > 0, lr_env=cfg.refine_lr_env, lr_albedo=cfg.lr_albedo,
+                              lr_roughness=cfg.lr_roughness, lr_metallic=cfg.lr_metallic)
+    trace = Trace()
+    log_env, materials = fit(problem, env.clamp_min(1e-8).log(), materials.detached(), settings, seed, trace,
+                             progress=progress)
+    return log_env.exp(), materials, trace
+
+
 def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: DPSConfig, seed: int,
                progress: bool = True, checkpoint: Path | None = None,
                checkpoint_every: int = CHECKPOINT_EVERY) -> DPSResult:
@@ -276,13 +289,7 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
     trace.info["log_exposure"] = float(state.log_exposure)
     if run.sun:
         trace.info["sun"] = sun_summary(state.sun_uv.detach(), run.sun_irradiance(state).detach(), env)
-    refine = OptimizeConfig(iterations=cfg.refine_iterations, views_per_step=cfg.refine_views_per_step,
-                            optimize_env=cfg.refine_lr_env > 0, lr_env=cfg.refine_lr_env, lr_albedo=cfg.lr_albedo,
-                            lr_roughness=cfg.lr_roughness, lr_metallic=cfg.lr_metallic)
-    refine_trace = Trace()
-    log_env, materials = fit(problem, env.clamp_min(1e-8).log(), state.materials.detached(), refine, seed + 1,
-                             refine_trace, progress=progress)
-    env = log_env.exp()
+    env, materials, refine_trace = refine(problem, env, state.materials, cfg, seed + 1, progress)
     trace.info["refine"] = refine_trace.summary()
     trace.nan_skips += refine_trace.nan_skips
     if store:
