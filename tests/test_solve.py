@@ -10,7 +10,9 @@ from dpi.capture import load_capture
 from dpi.render import RenderSettings
 from dpi.solve.classic import ClassicConfig, balanced_weight, classic_sample
 from dpi.solve.dip import DeepImagePrior, DIPConfig, dip_sample, network_levels
-from dpi.solve.init import path_traced_init
+from dpi.materials import MaterialTextures
+from dpi.solve.decomposition import Decomposition
+from dpi.solve.init import START_ALBEDO, path_traced_init, starting_materials
 from dpi.solve.optimize import OptimizeConfig, fit
 from dpi.solve.priors import chromaticity_penalty, global_norm_penalty, make_prior, smoothness_penalty
 from dpi.solve.problem import InverseProblem, ProblemSettings
@@ -35,6 +37,16 @@ def test_priors_known_answers():
     assert make_prior("none", grey) is None
     with pytest.raises(ValueError, match="unknown prior"):
         make_prior("sharpness", grey)
+
+
+def test_posterior_methods_start_from_the_init_medians_and_a_grey_albedo():
+    roughness = torch.tensor([0.1, 0.2, 0.3, 0.9]).reshape(2, 2, 1)
+    metallic = torch.tensor([0.0, 0.0, 0.0, 0.8]).reshape(2, 2, 1)
+    init = Decomposition(torch.ones(4, 8, 3), MaterialTextures(torch.rand(2, 2, 3), roughness.clone(), metallic.clone()))
+    start = starting_materials(init)
+    assert torch.all(start.albedo == START_ALBEDO)
+    assert torch.all(start.roughness == 0.2) and torch.all(start.metallic == 0.0)  # lower medians of 4 texels
+    torch.testing.assert_close(init.materials.roughness, roughness)  # the init is not touched
 
 
 def test_balanced_weight_equalises_terms():

@@ -31,9 +31,15 @@ def starting_log_env(problem: InverseProblem) -> torch.Tensor:
 
 
 def starting_materials(init: Decomposition) -> MaterialTextures:
-    """Where every posterior method starts: the init's roughness and metallic, a grey albedo."""
+    """Where every posterior method starts: the init's median roughness and median metallic everywhere,
+    a grey albedo. Not the init's textures: fitted under its blurred light they carry its errors
+    (on the sun study's blob, roughness 0.55 against the truth's 0.30, metal up to 0.5 where the sun's
+    highlights fall), and with the true light fixed the fit from them gave held-out views 2.5 dB worse."""
     materials = init.materials.detached()
-    materials.albedo.fill_(START_ALBEDO)
+    with torch.no_grad():
+        materials.albedo.fill_(START_ALBEDO)
+        materials.roughness.fill_(float(materials.roughness.median()))
+        materials.metallic.fill_(float(materials.metallic.median()))
     return materials
 
 
