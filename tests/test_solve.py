@@ -12,7 +12,7 @@ from dpi.solve.classic import ClassicConfig, balanced_weight, classic_sample
 from dpi.solve.dip import DeepImagePrior, DIPConfig, dip_sample, network_levels
 from dpi.materials import MaterialTextures
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.init import START_ALBEDO, path_traced_init, starting_materials
+from dpi.solve.init import START_ALBEDO, is_glossy, path_traced_init, starting_materials
 from dpi.solve.optimize import OptimizeConfig, fit
 from dpi.solve.priors import chromaticity_penalty, global_norm_penalty, make_prior, smoothness_penalty
 from dpi.solve.problem import InverseProblem, ProblemSettings
@@ -40,13 +40,24 @@ def test_priors_known_answers():
 
 
 def test_posterior_methods_start_from_the_init_medians_and_a_grey_albedo():
-    roughness = torch.tensor([0.1, 0.2, 0.3, 0.9]).reshape(2, 2, 1)
+    roughness = torch.tensor([0.35, 0.4, 0.5, 0.9]).reshape(2, 2, 1)
     metallic = torch.tensor([0.0, 0.0, 0.0, 0.8]).reshape(2, 2, 1)
     init = Decomposition(torch.ones(4, 8, 3), MaterialTextures(torch.rand(2, 2, 3), roughness.clone(), metallic.clone()))
     start = starting_materials(init)
     assert torch.all(start.albedo == START_ALBEDO)
-    assert torch.all(start.roughness == 0.2) and torch.all(start.metallic == 0.0)  # lower medians of 4 texels
+    assert torch.all(start.roughness == 0.4) and torch.all(start.metallic == 0.0)  # lower medians of 4 texels
     torch.testing.assert_close(init.materials.roughness, roughness)  # the init is not touched
+
+
+def test_a_glossy_init_keeps_its_roughness_and_metallic_textures():
+    roughness = torch.tensor([0.05, 0.1, 0.5, 0.9]).reshape(2, 2, 1)  # 25th percentile 0.09 < 0.3
+    metallic = torch.tensor([1.0, 1.0, 0.2, 0.0]).reshape(2, 2, 1)
+    init = Decomposition(torch.ones(4, 8, 3), MaterialTextures(torch.rand(2, 2, 3), roughness, metallic))
+    assert is_glossy(init.materials)
+    start = starting_materials(init)
+    torch.testing.assert_close(start.roughness, roughness)
+    torch.testing.assert_close(start.metallic, metallic)
+    assert torch.all(start.albedo == START_ALBEDO)
 
 
 def test_balanced_weight_equalises_terms():

@@ -31,7 +31,7 @@ from dpi.prior.sample import Prior
 from dpi.settings import settings_from_dict
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.init import starting_materials
+from dpi.solve.init import GLOSSY_ROUGHNESS, is_glossy, starting_materials
 from dpi.solve.optimize import OptimizeConfig, fit
 from dpi.solve.problem import InverseProblem
 from dpi.solve.samplers import SAMPLERS, DPSRun, DPSState, resample_env, rho_schedule
@@ -109,7 +109,7 @@ class DPSConfig:
     sampler's, SAMPLER_DEFAULTS)"""
     sun_radius_deg: float = 25.0
     """radius around the init's brightest texel whose excess energy becomes the sun"""
-    sun_min_roughness: float = 0.3
+    sun_min_roughness: float = GLOSSY_ROUGHNESS
     """sun: auto leaves it off when the init's roughness 25th percentile is below this (untouched texels
     keep the start's 0.5, so the median misses a shiny object): a glossy object mirrors
     the light, the views resolve its sun, and the sun's share prior only costs accuracy there"""
@@ -210,7 +210,7 @@ def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: D
     scale = cfg.radiance_scale or estimate_radiance_scale(init.env, prior)
     first = int(round(cfg.start_noise * (diffusion.num_timesteps - 1)))
     sun = extract_sun(init.env, cfg.sun_radius_deg)
-    glossy = float(torch.quantile(init.materials.roughness.detach().flatten(), 0.25)) < cfg.sun_min_roughness
+    glossy = is_glossy(init.materials, cfg.sun_min_roughness)
     has_sun = cfg.sun == "on" or (cfg.sun == "auto" and prior.family in SUN_FAMILIES and not glossy
                                   and sun.share >= cfg.sun_min_share)
     run = DPSRun(problem, prior, cfg, diffusion, seed, scale, rho_schedule(cfg, first + 1), data_norm(problem), first,
