@@ -41,18 +41,18 @@ def is_glossy(materials: MaterialTextures, threshold: float = GLOSSY_ROUGHNESS) 
 
 
 def starting_materials(init: Decomposition) -> MaterialTextures:
-    """Where every posterior method starts: a grey albedo with, on a rough object, the init's median
-    roughness and median metallic everywhere, and on a glossy one (`is_glossy`) the init's textures.
-    A rough object's views see its light blurred, and the init's textures fitted under it carry its
-    errors (on the sun study's blob, roughness 0.55 against the truth's 0.30, metal up to 0.5 where the
-    sun's highlights fall): with the true light fixed, the fit from them gave held-out views 1.4-2.5 dB
-    worse than from the medians. A mirror's views resolve its materials, and there the textures are
-    the better start (posterior study, glossy scene: 1.5-2.7 dB of views for every method)."""
+    """Where every posterior method starts: a grey albedo, the init's roughness, and on a rough object
+    the init's median metallic everywhere (on a glossy one, `is_glossy`, its metallic texture).
+
+    The init fits a rough object's materials under a blurred light and explains the highlights it
+    cannot place with metal: on the sun study's blob its metallic reaches 0.5 where the sun's
+    highlights fall (truth 0). Starting from the median metallic, `dps`'s held-out views gain 0.1-0.6
+    dB on the sun study, the demo and the posterior study's ambiguous scenes (README, "Sun
+    recovery"). A mirror's views resolve its materials, and there the texture is the better start."""
     materials = init.materials.detached()
     with torch.no_grad():
         materials.albedo.fill_(START_ALBEDO)
         if not is_glossy(materials):
-            materials.roughness.fill_(float(materials.roughness.median()))
             materials.metallic.fill_(float(materials.metallic.median()))
     return materials
 
