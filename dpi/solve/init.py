@@ -46,9 +46,9 @@ def starting_materials(init: Decomposition) -> MaterialTextures:
 
     The init fits a rough object's materials under a blurred light and explains the highlights it
     cannot place with metal: on the sun study's blob its metallic reaches 0.5 where the sun's
-    highlights fall (truth 0). Starting from the median metallic, `dps`'s held-out views gain 0.1-0.6
-    dB on the sun study, the demo and the posterior study's ambiguous scenes (README, "Sun
-    recovery"). A mirror's views resolve its materials, and there the texture is the better start."""
+    highlights fall (truth 0). Starting from the median metallic, `dps`'s held-out views gain
+    0.4-0.6 dB on the sun study, 0.2 on the demo and 0.07 on the posterior study's ambiguous scenes
+    (README, "Sun recovery"). A mirror's views resolve its materials: there the texture starts."""
     materials = init.materials.detached()
     with torch.no_grad():
         materials.albedo.fill_(START_ALBEDO)
