@@ -32,14 +32,16 @@ from dpi.settings import settings_from_dict
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.init import GLOSSY_ROUGHNESS, is_glossy, starting_materials
-from dpi.solve.optimize import OptimizeConfig, fit
+from dpi.solve.optimize import FreeEnvMap, OptimizeConfig, fit_env_model
 from dpi.solve.problem import InverseProblem
 from dpi.solve.samplers import SAMPLERS, DPSRun, DPSState, resample_env, rho_schedule
+from dpi.solve.smooth_gain import SmoothGain
 from dpi.solve.sun import extract_sun, sun_summary
 from dpi.solve.trace import Trace
 
 RHO_SCHEDULES = ("linear", "step", "constant")
 MAP_UPDATES = ("adam", "normalized")
+REFINE_ENV = ("fixed", "gain", "texels")
 SUN_MODES = ("auto", "on", "off")
 SUN_FAMILIES = ("outdoor",)
 """prior families whose maps get a parametric sun under sun: auto"""
@@ -100,9 +102,14 @@ class DPSConfig:
     refine_iterations: int = 200
     """Adam iterations on the materials with the final map fixed"""
     refine_views_per_step: int = 2
-    refine_lr_env: float = 0.0
-    """Adam rate of the map's log radiance during the refinement (0: the sampled map stays fixed; a small
-    rate polishes its fit to the views, the few iterations keeping it near the sample)"""
+    refine_env: str = "fixed"
+    """what the refinement may change of the sampled map: fixed; gain, a smooth log gain (spherical harmonics
+    up to refine_gain_order: the light's low frequencies, which the views determine, dpi.solve.smooth_gain);
+    texels, every texel (a polish, the few iterations keeping it near the sample)"""
+    refine_gain_order: int = 2
+    """gain: highest spherical-harmonic band of the log gain (0-2)"""
+    refine_lr_env: float = 0.03
+    """Adam rate of the map's parameters during the refinement (gain coefficients or log-radiance texels)"""
     sun: str | None = None
     """a parametric sun next to the prior's sky (dpi.solve.sun): on, off, or auto (on with the outdoor
     prior for objects that are not glossy); it starts from the init's brightest region (None: the
@@ -146,6 +153,10 @@ class DPSConfig:
             raise ValueError(f"inner_steps must be >= 1, got {cfg.inner_steps}")
         if cfg.map_update not in MAP_UPDATES:
             raise ValueError(f"map_update must be one of {MAP_UPDATES}, got {cfg.map_update!r}")
+        if cfg.refine_env not in REFINE_ENV:
+            raise ValueError(f"refine_env must be one of {REFINE_ENV}, got {cfg.refine_env!r}")
+        if not 0 <= cfg.refine_gain_order <= 2:
+            raise ValueError(f"refine_gain_order must be 0, 1 or 2, got {cfg.refine_gain_order}")
         if cfg.sun not in SUN_MODES:
             raise ValueError(f"sun must be one of {SUN_MODES}, got {cfg.sun!r}")
         if not 0 < cfg.start_noise <= 1:
@@ -248,14 +259,15 @@ def strip_frames(snapshots: list[torch.Tensor], count: int) -> list[torch.Tensor
 
 def refine(problem: InverseProblem, env: torch.Tensor, materials: MaterialTextures, cfg: DPSConfig, seed: int,
            progress: bool = True) -> tuple[torch.Tensor, MaterialTextures, Trace]:
-    """The last stage of a sample: Adam on the materials under the map (fixed, or polished at
-    refine_lr_env); returns the map, the materials and the refinement's trace."""
+    """The last stage of a sample: Adam on the materials under the map (fixed, with a smooth gain, or
+    every texel: refine_env); returns the map, the materials and the refinement's trace."""
     settings = OptimizeConfig(iterations=cfg.refine_iterations, views_per_step=cfg.refine_views_per_step,
-                              optimize_env=cfg.refine_lr_env > 0, lr_env=cfg.refine_lr_env, lr_albedo=cfg.lr_albedo,
-                              lr_roughness=cfg.lr_roughness, lr_metallic=cfg.lr_metallic)
+                              optimize_env=cfg.refine_env != "fixed", lr_env=cfg.refine_lr_env,
+                              lr_albedo=cfg.lr_albedo, lr_roughness=cfg.lr_roughness, lr_metallic=cfg.lr_metallic)
     trace = Trace()
-    log_env, materials = fit(problem, env.clamp_min(1e-8).log(), materials.detached(), settings, seed, trace,
-                             progress=progress)
+    log_env = env.clamp_min(1e-8).log()
+    model = SmoothGain(log_env, cfg.refine_gain_order) if cfg.refine_env == "gain" else FreeEnvMap(log_env)
+    log_env, materials = fit_env_model(problem, model, materials.detached(), settings, seed, trace, progress=progress)
     return log_env.exp(), materials, trace
 
 

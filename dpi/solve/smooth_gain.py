@@ -1,0 +1,44 @@
+"""A sampled map corrected by a smooth gain: the views' low frequencies on the prior's detail.
+
+A diffuse or rough object filters the light it reflects like a low-pass filter: its views fix the
+map's lowest spherical-harmonic bands well (Ramamoorthi and Hanrahan 2001: nine coefficients
+carry almost all of a Lambertian object's irradiance) and its finer detail hardly at all. So after
+sampling, `dps` can fit a multiplicative gain exp(sum_k c_k Y_k(w)) with real spherical harmonics
+up to a low order: where the prior got the broad balance of the light wrong (a ground too dark
+under a bright sky), the views correct it, and every texel keeps the sample's detail and its sun.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from dpi.envmap import texel_directions
+from dpi.solve.optimize import LOG_ENV_RANGE, EnvModel
+
+
+def sh_basis(directions: np.ndarray, order: int) -> np.ndarray:
+    """Real spherical harmonics of bands 0..order (at most 2) at unit directions (..., 3): (..., (order+1)^2)."""
+    if not 0 <= order <= 2:
+        raise ValueError(f"spherical-harmonic order must be 0, 1 or 2, got {order}")
+    x, y, z = (directions[..., i] for i in range(3))
+    bands = [[0.282095 * np.ones_like(x)],
+             [0.488603 * y, 0.488603 * z, 0.488603 * x],
+             [1.092548 * x * y, 1.092548 * y * z, 0.315392 * (3 * z * z - 1), 1.092548 * x * z,
+              0.546274 * (x * x - y * y)]]
+    return np.stack([f for band in bands[: order + 1] for f in band], axis=-1)
+
+
+class SmoothGain(EnvModel):
+    """log-radiance = the given map's + a spherical-harmonic log gain per channel (coefficients start at 0)."""
+
+    def __init__(self, log_env: torch.Tensor, order: int = 2):
+        super().__init__()
+        basis = sh_basis(texel_directions(log_env.shape[0]), order)
+        self.register_buffer("base", log_env.detach().clone())
+        self.register_buffer("basis", torch.as_tensor(basis, dtype=log_env.dtype))
+        self.coefficients = torch.nn.Parameter(torch.zeros(basis.shape[-1], 3, dtype=log_env.dtype))
+
+    def forward(self) -> torch.Tensor:
+        """The base map's log-radiance plus the gain, kept inside about [1e-6, 1e6]."""
+        return (self.base + self.basis @ self.coefficients).clamp(*LOG_ENV_RANGE)

@@ -1,0 +1,45 @@
+"""The smooth-gain refinement of a sampled map (dpi.solve.smooth_gain)."""
+
+import numpy as np
+import pytest
+import torch
+
+from dpi.envmap import texel_directions, texel_solid_angles
+from dpi.solve.dps import DPSConfig
+from dpi.solve.smooth_gain import SmoothGain, sh_basis
+
+
+def test_sh_basis_is_orthonormal_over_the_sphere():
+    basis = sh_basis(texel_directions(128), 2)
+    weighted = basis * texel_solid_angles(128)[..., None]
+    gram = np.einsum("hwi,hwj->ij", weighted, basis)
+    np.testing.assert_allclose(gram, np.eye(9), atol=2e-3)
+
+
+def test_sh_basis_rejects_orders_above_two():
+    with pytest.raises(ValueError, match="order"):
+        sh_basis(texel_directions(4), 3)
+
+
+def test_smooth_gain_starts_at_the_map_and_recovers_a_low_order_gain():
+    torch.manual_seed(0)
+    base = torch.randn(16, 32, 3)
+    model = SmoothGain(base, order=1)
+    torch.testing.assert_close(model(), base)
+    truth = torch.tensor([[0.3, -0.2, 0.1], [0.5, 0.0, -0.4], [-0.1, 0.2, 0.0], [0.0, 0.3, 0.2]])
+    target = base + model.basis @ truth
+    optimizer = torch.optim.Adam(model.parameters(), lr=0.05)
+    for _ in range(400):
+        optimizer.zero_grad()
+        (model() - target).square().mean().backward()
+        optimizer.step()
+    torch.testing.assert_close(model.coefficients.detach(), truth, atol=1e-3, rtol=0)
+    assert [name for name, _ in model.named_parameters()] == ["coefficients"]
+
+
+def test_refine_env_settings_are_checked():
+    assert DPSConfig.from_dict({"refine_env": "gain"}).refine_env == "gain"
+    with pytest.raises(ValueError, match="refine_env"):
+        DPSConfig.from_dict({"refine_env": "smooth"})
+    with pytest.raises(ValueError, match="refine_gain_order"):
+        DPSConfig.from_dict({"refine_gain_order": 3})
