@@ -10,11 +10,11 @@ picks) and `none`, per seed, through the posterior study's jobs (benchmarks/post
 - novel_psnr: held-out view PSNR, as in the posterior study.
 
 A reference row per scene and seed, `true_light`, is not a method: the ground-truth map (area-
-resampled to the problem's size) is held fixed while dps's refinement fits the materials from where
-every method starts (the init's roughness and metallic, a grey albedo). Its view PSNR is what a
-perfect light recovery would give with this material fit.
+resampled to the problem's size) is held fixed (no gain) while dps's refinement fits the materials
+from where every method starts (dpi.solve.init.starting_materials). Its view PSNR is what a perfect
+light recovery would give with this material fit.
 
-    .venv/bin/python benchmarks/sun_study.py [--seeds 0 1 2] [--jobs 2]
+    .venv/bin/python benchmarks/sun_study.py [--seeds 0 1 2 3 4 5] [--jobs 2]
 
 Rows go to benchmarks/results/sun_study.csv (rows already there are not rerun), then it prints
 mean +- std per scene and method.
@@ -77,8 +77,9 @@ def true_light_sample(job: Job) -> None:
     gt = torch.from_numpy(read_exr(problem.capture.gt["envmap"])).float().permute(2, 0, 1)[None]
     env = torch.nn.functional.interpolate(gt, size=(height, 2 * height), mode="area")[0].permute(1, 2, 0)
     init = problem.load_decomposition(files.sample_dir("init"))
-    env, materials, trace = refine(problem, env / problem.exposure, starting_materials(init),
-                                   DPSConfig.from_dict(job.method_cfg), job.seed, progress=False)
+    cfg = replace(DPSConfig.from_dict(job.method_cfg), refine_env="fixed")  # the true map stays as it is
+    env, materials, trace = refine(problem, env / problem.exposure, starting_materials(init), cfg, job.seed,
+                                   progress=False)
     problem.save_decomposition(Decomposition(env, materials, trace), job.sample_dir)
 
 

@@ -102,12 +102,13 @@ class DPSConfig:
     refine_iterations: int = 200
     """Adam iterations on the materials with the final map fixed"""
     refine_views_per_step: int = 2
-    refine_env: str = "fixed"
+    refine_env: str = "gain"
     """what the refinement may change of the sampled map: fixed; gain, a smooth log gain (spherical harmonics
-    up to refine_gain_order: the light's low frequencies, which the views determine, dpi.solve.smooth_gain);
+    up to refine_gain_order: the light's broad balance, which the views determine, dpi.solve.smooth_gain);
     texels, every texel (a polish, the few iterations keeping it near the sample)"""
-    refine_gain_order: int = 2
-    """gain: highest spherical-harmonic band of the log gain (0-2)"""
+    refine_gain_order: int = 1
+    """gain: highest spherical-harmonic band of the log gain (0-2; 1: a level and a tilt per channel, e.g. the
+    ground against the sky; 2 fits the views better but bends the map away from the truth)"""
     refine_lr_env: float = 0.03
     """Adam rate of the map's parameters during the refinement (gain coefficients or log-radiance texels)"""
     sun: str | None = None
