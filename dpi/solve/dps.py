@@ -1,8 +1,8 @@
 """Diffusion posterior sampling with an optimisable measurement operator (the paper's method, `dps`).
 
 Reverse diffusion over the prior's image space x (encoded env maps in [-1, 1]), guided by the
-renderer, with the materials optimised jointly; after the last step the materials are refined with
-the clean map fixed. How one reverse step uses the data is the `sampler` setting
+renderer, with the materials optimised jointly; after the last step the materials are refined under
+the clean map, which keeps its detail and gets only a smooth gain (`refine_env`). How one reverse step uses the data is the `sampler` setting
 (dpi.solve.samplers: the paper's gradient guidance, or a proximal x0-space step).
 
 `posterior_steps` is the loop: a generator that runs one sampler step per schedule step and yields
