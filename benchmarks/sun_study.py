@@ -64,6 +64,8 @@ def true_light_sample(job: Job) -> None:
     """The `true_light` reference's sample folder (module notes), unless it is there."""
     import torch
 
+    from dpi.envmap import read_envmap
+    from dpi.prior.data import resize_area
     from dpi.solve.decomposition import Decomposition
     from dpi.solve.dps import refine
     from dpi.solve.init import starting_materials
@@ -73,9 +75,8 @@ def true_light_sample(job: Job) -> None:
     if files.sample_files(job.label, job.seed)["trace"].exists():
         return
     problem = load_problem(files.capture_json, SolveSettings.from_config(job.config, threads=1))
-    height = problem.settings.env_height
-    gt = torch.from_numpy(read_exr(problem.capture.gt["envmap"])).float().permute(2, 0, 1)[None]
-    env = torch.nn.functional.interpolate(gt, size=(height, 2 * height), mode="area")[0].permute(1, 2, 0)
+    gt = torch.from_numpy(read_envmap(problem.capture.gt["envmap"])).float().permute(2, 0, 1)
+    env = resize_area(gt, problem.settings.env_height).permute(1, 2, 0)
     init = problem.load_decomposition(files.sample_dir("init"))
     cfg = replace(DPSConfig.from_dict(job.method_cfg), refine_env="fixed")  # the true map stays as it is
     env, materials, trace = refine(problem, env / problem.exposure, starting_materials(init), cfg, job.seed,

@@ -2,8 +2,9 @@
 
 Reverse diffusion over the prior's image space x (encoded env maps in [-1, 1]), guided by the
 renderer, with the materials optimised jointly; after the last step the materials are refined under
-the clean map, which keeps its detail and gets only a smooth gain (`refine_env`). How one reverse step uses the data is the `sampler` setting
-(dpi.solve.samplers: the paper's gradient guidance, or a proximal x0-space step).
+the clean map, which keeps its detail and gets only a smooth gain (`refine_env`). How one reverse
+step uses the data is the `sampler` setting (dpi.solve.samplers: the paper's gradient guidance, or a
+proximal x0-space step).
 
 `posterior_steps` is the loop: a generator that runs one sampler step per schedule step and yields
 its record, like guided-diffusion's `p_sample_loop_progressive`; `dps_sample` consumes it for the
@@ -100,7 +101,7 @@ class DPSConfig:
     lr_roughness: float = 1.5e-2
     lr_metallic: float = 1e-2
     refine_iterations: int = 200
-    """Adam iterations on the materials with the final map fixed"""
+    """Adam iterations of the refinement: the materials under the final map (and its gain, `refine_env`)"""
     refine_views_per_step: int = 2
     refine_env: str = "gain"
     """what the refinement may change of the sampled map: fixed; gain, a smooth log gain (spherical harmonics
@@ -118,9 +119,8 @@ class DPSConfig:
     sun_radius_deg: float = 25.0
     """radius around the init's brightest texel whose excess energy becomes the sun"""
     sun_min_roughness: float = GLOSSY_ROUGHNESS
-    """sun: auto leaves it off when the init's roughness 25th percentile is below this (untouched texels
-    keep the start's 0.5, so the median misses a shiny object): a glossy object mirrors
-    the light, the views resolve its sun, and the sun's share prior only costs accuracy there"""
+    """sun: auto leaves it off for an init that `is_glossy` at this threshold: a glossy object mirrors the
+    light, the views resolve its sun, and the sun's share prior only costs accuracy there"""
     sun_min_share: float = 0.05
     """the sun is kept only when that excess carries at least this share of the init map's energy"""
     sun_share: float = 0.55
