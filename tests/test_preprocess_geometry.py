@@ -126,3 +126,18 @@ def test_support_plane_closes_the_unseen_underside(elevations, cut):
         assert error["planed"].max() < 0.5 * error["hull"].max() and error["planed"].mean() < 0.6 * error["hull"].mean()
     else:  # seen from below too: no plane
         assert "support_plane" not in summary and np.allclose(planed, hull)
+
+
+def test_support_plane_is_not_sunk_by_a_few_masks_with_ground_below():
+    """Two masks that take a strip of ground under the sphere for the object: the lowest rim would
+    sink the plane with them; the views' 10 % quantile keeps it at the footing."""
+    from dpi.preprocess.hull import support_plane, visual_hull
+
+    cameras = [from_fov(c2w, 96, 96, 40.0) for c2w in orbit(24, 3.0, (35.0, 60.0), target=(0.0, 0.5, 0.0))]
+    masks, _ = sphere_on_ground_masks(cameras)
+    for i in (0, 5):
+        rows, cols = np.flatnonzero(masks[i].any(1)), np.flatnonzero(masks[i].any(0))
+        masks[i][rows[-1]:rows[-1] + 12, cols[0]:cols[-1] + 1] = True
+    field, origin, size, _ = visual_hull(cameras, masks, 96)
+    (_, lowest), (_, robust) = (support_plane(cameras, masks, field, origin, size, quantile=q) for q in (0.0, 0.1))
+    assert lowest < -0.04 and -0.02 < robust < 0.06  # the true lowest rim of the clean masks: 0.018

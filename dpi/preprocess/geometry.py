@@ -53,8 +53,9 @@ class GeometryConfig:
     min_component: float = 20.0
     """components with a diagonal below this percent of the whole are removed"""
     support_plane: bool = True
-    """when every camera looks from above, cut the hull at the plane of the object's lowest rim point, so
-    the underside no camera sees does not stay a cone (dpi.preprocess.hull.support_plane)"""
+    """when every camera looks from above, cut the hull at the plane of the object's lowest rim points (a
+    low quantile over the views), so the underside no camera sees does not stay a cone
+    (dpi.preprocess.hull.support_plane)"""
     stereo: bool = True
     """carve what multi-view stereo sees as empty inside the hull (needs the photos; dpi.preprocess.stereo)"""
     stereo_settings: dict[str, Any] = field(default_factory=dict)

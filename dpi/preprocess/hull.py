@@ -191,13 +191,13 @@ def up_direction(cameras: list[Camera]) -> np.ndarray:
     return up / np.linalg.norm(up)
 
 
-def lowest_rim_height(cameras: list[Camera], masks: list[np.ndarray], field: np.ndarray, origin: np.ndarray,
-                      size: float, up: np.ndarray, samples: int = 2000) -> float:
-    """Height along `up` of the lowest point where a view's lowest silhouette ray grazes the carved hull.
+def rim_heights(cameras: list[Camera], masks: list[np.ndarray], field: np.ndarray, origin: np.ndarray,
+                size: float, up: np.ndarray, samples: int = 2000) -> list[float]:
+    """Per view, the height along `up` of the lowest point where its lowest silhouette ray grazes the carved hull.
 
     The ray through a silhouette's lowest pixel touches the object at its rim; where cameras look only
-    from above, the lowest such rim point over the views is the object's footing (exact for a flat
-    base; for a round bottom seen from elevation e it is r (1 - cos e) above the contact)."""
+    from above, the lowest rim point over the views is the object's footing (exact for a flat base; for
+    a round bottom seen from elevation e it is r (1 - cos e) above the contact)."""
     from scipy.ndimage import map_coordinates
 
     centre = origin + (np.array(field.shape) - 1) * size / 2
@@ -222,13 +222,16 @@ def lowest_rim_height(cameras: list[Camera], masks: list[np.ndarray], field: np.
         values = map_coordinates(field, ((points - origin) / size).T, order=1, mode="nearest")
         grazing = values <= values.min() + 0.5 * size
         heights.append(float((points[grazing] @ up).min()))
-    return min(heights)
+    return heights
 
 
 def support_plane(cameras: list[Camera], masks: list[np.ndarray], field: np.ndarray, origin: np.ndarray, size: float,
-                  min_elevation_deg: float = 5.0) -> tuple[np.ndarray, float] | None:
+                  min_elevation_deg: float = 5.0, quantile: float = 0.1) -> tuple[np.ndarray, float] | None:
     """(up, height) of the plane the object stands on when every camera looks at it from above (at least
-    `min_elevation_deg` over its centre), so no view sees its underside; None otherwise."""
+    `min_elevation_deg` over its centre), so no view sees its underside; None otherwise.
+
+    The height is the `quantile` of the views' `rim_heights` (0: the lowest): a few masks that take a
+    strip of the ground for the object do not sink the plane."""
     up = up_direction(cameras)
     inside = np.argwhere(field < 0)
     if not len(inside):
@@ -238,7 +241,10 @@ def support_plane(cameras: list[Camera], masks: list[np.ndarray], field: np.ndar
     elevations = np.degrees(np.arcsin(np.clip(offsets @ up / np.linalg.norm(offsets, axis=1), -1, 1)))
     if elevations.min() < min_elevation_deg:
         return None
-    return up, lowest_rim_height(cameras, masks, field, origin, size, up)
+    heights = rim_heights(cameras, masks, field, origin, size, up)
+    if not heights:
+        return None
+    return up, float(np.quantile(heights, quantile, method="lower"))
 
 
 def cut_below(field: np.ndarray, origin: np.ndarray, size: float, up: np.ndarray, height: float) -> np.ndarray:
