@@ -30,9 +30,10 @@ def sh_basis(directions: np.ndarray, order: int) -> np.ndarray:
 
 
 class SmoothGain(EnvModel):
-    """log-radiance = the given map's + a spherical-harmonic log gain per channel (coefficients start at 0)."""
+    """log-radiance = the given map's + a spherical-harmonic log gain per channel up to band `order`
+    (DPSConfig.refine_gain_order; coefficients start at 0)."""
 
-    def __init__(self, log_env: torch.Tensor, order: int = 2):
+    def __init__(self, log_env: torch.Tensor, order: int):
         super().__init__()
         basis = sh_basis(texel_directions(log_env.shape[0]), order)
         self.register_buffer("base", log_env.detach().clone())
