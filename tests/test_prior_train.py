@@ -12,8 +12,8 @@ from dpi.exr import write_exr
 from dpi.prior.data import EnvmapDataset
 from dpi.prior.outdoor import outdoor_envmap
 from dpi.prior.sample import draw_samples, load_prior, sample_to_files
-from dpi.prior.train import TrainConfig, export_model, train
-from dpi.prior.unet import SMALL_CONFIGS
+from dpi.prior.train import TrainConfig, export_model, learning_rate, train
+from dpi.prior.unet import SMALL_CONFIGS, CheckpointError, load_checkpoint
 from dpi.tonecurve import LogEncoding, ToneCurve, family_encoding
 
 
@@ -75,3 +75,31 @@ def test_paper_encoding_is_recorded_and_loads(tmp_path, maps_dir) -> None:
     export_model(tmp_path / "model.pt", tmp_path / "shipped.pt")
     prior = load_prior(tmp_path / "shipped.pt")
     assert prior.encoding == ToneCurve(0.5, 2.4) and prior.median_target == 0.3
+
+
+def test_cosine_schedule_warms_up_then_decays_to_zero() -> None:
+    cfg = TrainConfig(family="outdoor", data_dir="", out="", steps=100, lr=1e-3, warmup_steps=10,
+                      lr_schedule="cosine")
+    assert learning_rate(cfg, 0) == pytest.approx(1e-4 * 0.5 * (1 + np.cos(0.0)))
+    assert learning_rate(cfg, 50) == pytest.approx(0.5e-3)
+    assert learning_rate(cfg, 100) == pytest.approx(0.0, abs=1e-12)
+    cfg.lr_schedule = "constant"
+    assert learning_rate(cfg, 50) == learning_rate(cfg, 99) == 1e-3
+    cfg.lr_schedule = "linear"
+    with pytest.raises(ValueError, match="lr_schedule"):
+        learning_rate(cfg, 0)
+
+
+def test_fine_tune_starts_from_the_given_prior(tmp_path, maps_dir) -> None:
+    """A run with `init` starts from that prior's weights: at learning rate 0 its EMA stays them exactly."""
+    train(config(tmp_path, maps_dir, 3), progress=False)
+    export_model(tmp_path / "model.pt", tmp_path / "shipped.pt")
+    cfg = config(tmp_path, maps_dir, 2)
+    cfg.out, cfg.init, cfg.lr = str(tmp_path / "tuned.pt"), str(tmp_path / "shipped.pt"), 0.0
+    train(cfg, progress=False)
+    before = load_checkpoint(tmp_path / "shipped.pt").float().state_dict()
+    after = load_checkpoint(tmp_path / "tuned.pt").state_dict()
+    assert all(torch.equal(before[k], after[k]) for k in before)
+    cfg.out, cfg.model = str(tmp_path / "other.pt"), SMALL_CONFIGS["small_32x64"]
+    with pytest.raises(CheckpointError, match="shipped.pt"):
+        train(cfg, progress=False)

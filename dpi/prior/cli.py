@@ -6,7 +6,7 @@ import argparse
 import json
 
 from dpi.capture import PRIORS
-from dpi.prior.train import DEFAULT_MODEL, PriorJobConfig, TrainConfig
+from dpi.prior.train import DEFAULT_MODEL, LR_SCHEDULES, PriorJobConfig, TrainConfig
 from dpi.settings import field_default
 from dpi.tonecurve import ENCODINGS
 
@@ -55,6 +55,7 @@ def cmd_train_prior(args: argparse.Namespace) -> None:
         raise SystemExit(f"unknown --model {args.model!r}; choose from {', '.join(sorted(SMALL_CONFIGS))}")
     config = TrainConfig(family=args.family, data_dir=args.data, out=args.out, model=SMALL_CONFIGS[args.model],
                          steps=args.steps, batch_size=args.batch_size, lr=args.lr, warmup_steps=args.warmup_steps,
+                         lr_schedule=args.lr_schedule, init=args.init,
                          ema_decay=args.ema_decay, sample_steps=args.sample_steps,
                          max_minutes=args.max_minutes,
                          sample_every=args.sample_every, checkpoint_every=args.checkpoint_every,
@@ -102,6 +103,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="checkpoint path (resumed when it exists)")
     p.add_argument("--export", default=None, help="then write the shippable model (EMA weights, fp16) here")
     p.add_argument("--model", default=DEFAULT_MODEL, help="name in dpi.prior.unet.SMALL_CONFIGS")
+    p.add_argument("--init", default=None, help="start a new run from this prior checkpoint's weights (same --model)")
+    p.add_argument("--lr-schedule", choices=LR_SCHEDULES, default=field_default(TrainConfig, "lr_schedule"),
+                   help="cosine: decay the learning rate to 0 at --steps")
     for name, kind, text in (("steps", int, None), ("batch_size", int, None), ("lr", float, None),
                              ("warmup_steps", int, "linear learning-rate warm-up"), ("ema_decay", float, None),
                              ("max_minutes", float, "stop (with a checkpoint) after this wall time"),

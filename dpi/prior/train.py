@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import copy
 import json
+import math
 import time
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
@@ -23,7 +24,7 @@ from dpi.atomic import atomic_path
 from dpi.prior.data import EnvmapDataset, median_target, read_dataset
 from dpi.prior.diffusion import base_diffusion, evenly_spaced_timesteps, respaced, sample, training_losses
 from dpi.prior.sample import write_grid
-from dpi.prior.unet import SMALL_CONFIGS, UNetConfig, UNetModel, count_parameters
+from dpi.prior.unet import SMALL_CONFIGS, CheckpointError, UNetConfig, UNetModel, count_parameters, load_checkpoint
 from dpi.settings import SettingsError, settings_from_dict
 from dpi.tonecurve import family_encoding
 
@@ -44,6 +45,8 @@ class TrainConfig:
     batch_size: int = 8
     lr: float = 3e-4
     warmup_steps: int = 0  # linear learning-rate warm-up from 0 (large batches on a GPU want a few hundred)
+    lr_schedule: str = "constant"  # 'constant', or 'cosine' (decays to 0 at `steps`; a fine-tune's end)
+    init: str | None = None  # start a new run from this prior's weights (model and EMA); ignored when resuming
     ema_decay: float = 0.995  # with warm-up min(decay, (1 + step) / (10 + step)); short CPU runs want < 0.999
     num_timesteps: int = 1000
     max_minutes: float | None = None  # stop after this wall time (checkpoint written)
@@ -96,6 +99,19 @@ class PriorJobConfig:
                                                "seed": self.seed, **self.train})
         cfg.model = SMALL_CONFIGS[self.model]
         return cfg
+
+
+LR_SCHEDULES = ("constant", "cosine")
+
+
+def learning_rate(cfg: TrainConfig, step: int) -> float:
+    """The learning rate of optimiser step `step` (0-based): linear warm-up, then constant or cosine to 0."""
+    rate = cfg.lr * min(1.0, (step + 1) / cfg.warmup_steps) if cfg.warmup_steps else cfg.lr
+    if cfg.lr_schedule == "cosine":
+        rate *= 0.5 * (1.0 + math.cos(math.pi * min(step, cfg.steps) / cfg.steps))
+    elif cfg.lr_schedule != "constant":
+        raise ValueError(f"unknown lr_schedule {cfg.lr_schedule!r}; choose from {', '.join(LR_SCHEDULES)}")
+    return rate
 
 
 def ema_update(ema: torch.nn.Module, model: torch.nn.Module, decay: float) -> None:
@@ -163,6 +179,12 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
         ema.load_state_dict(ckpt["ema"])
         optimizer.load_state_dict(ckpt["optimizer"])
         step, wall = ckpt["step"], ckpt["wall_seconds"]
+    elif cfg.init:
+        initial = load_checkpoint(cfg.init, device=cfg.device).float()
+        if initial.config != cfg.model:
+            raise CheckpointError(f"{cfg.init}: its network differs from the run's model; train with the same --model")
+        model.load_state_dict(initial.state_dict())
+        ema.load_state_dict(initial.state_dict())
     diffusion = base_diffusion(cfg.num_timesteps, cfg.model.learn_sigma)
     generator = torch.Generator(device=cfg.device).manual_seed(cfg.seed * 1_000_003 + step)
     start = time.perf_counter() - wall
@@ -180,7 +202,7 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
         optimizer.zero_grad(set_to_none=True)
         losses["loss"].backward()
         for group in optimizer.param_groups:
-            group["lr"] = cfg.lr * min(1.0, (step + 1) / cfg.warmup_steps) if cfg.warmup_steps else cfg.lr
+            group["lr"] = learning_rate(cfg, step)
         optimizer.step()
         step += 1
         ema_update(ema, model, min(cfg.ema_decay, (1 + step) / (10 + step)))
