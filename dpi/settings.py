@@ -78,6 +78,7 @@ FIELD_BOUNDS: dict[str, Bound] = {
     "data_height": Bound(1),
     "batch_size": Bound(1),
     "threads": Bound(1),
+    "passes": Bound(1),
     "lr": Bound(0, strict=True),
 }
 """valid ranges of numeric settings by field-name pattern (fnmatch); the first matching pattern applies"""

@@ -121,16 +121,19 @@ def test_support_plane_closes_the_unseen_underside(elevations, cut):
     planed, _, summary = reconstruct_surface(cameras, masks, GeometryConfig(support_plane=True))
     error = {name: np.abs(np.linalg.norm(v - centre, axis=1) - 0.5) for name, v in (("hull", hull), ("planed", planed))}
     if cut:  # seen only from above: the hull hangs a cone under the sphere (to y = -0.18); the plane cuts it
-        assert hull[:, 1].min() < -0.1 and -0.02 < planed[:, 1].min() < 0.06
+        # where the lowest silhouette rays (45 deg down) touch the sphere, 0.146 above its contact: the
+        # silhouettes cannot tell a round bottom from a flat one, and the plane takes the touch for both
+        assert hull[:, 1].min() < -0.1 and 0.12 < planed[:, 1].min() < 0.16
         assert summary["support_plane"]["up"] == pytest.approx([0, 1, 0], abs=1e-6)
-        assert error["planed"].max() < 0.5 * error["hull"].max() and error["planed"].mean() < 0.6 * error["hull"].mean()
+        assert error["planed"].mean() < 0.7 * error["hull"].mean()
     else:  # seen from below too: no plane
         assert "support_plane" not in summary and np.allclose(planed, hull)
 
 
 def test_support_plane_is_not_sunk_by_a_few_masks_with_ground_below():
-    """Two masks that take a strip of ground under the sphere for the object: the lowest rim would
-    sink the plane with them; the views' 10 % quantile keeps it at the footing."""
+    """Two masks that take a strip of ground under the sphere for the object: their lowest rays miss
+    the hull the other views carve, so they have no say, and the plane stays where the clean masks put
+    it (0.145, the lowest silhouette rays' touch; the views' 10 % quantile guards besides)."""
     from dpi.preprocess.hull import support_plane, visual_hull
 
     cameras = [from_fov(c2w, 96, 96, 40.0) for c2w in orbit(24, 3.0, (35.0, 60.0), target=(0.0, 0.5, 0.0))]
@@ -140,4 +143,33 @@ def test_support_plane_is_not_sunk_by_a_few_masks_with_ground_below():
         masks[i][rows[-1]:rows[-1] + 12, cols[0]:cols[-1] + 1] = True
     field, origin, size, _ = visual_hull(cameras, masks, 96)
     (_, lowest), (_, robust) = (support_plane(cameras, masks, field, origin, size, quantile=q) for q in (0.0, 0.1))
-    assert lowest < -0.04 and -0.02 < robust < 0.06  # the true lowest rim of the clean masks: 0.018
+    assert lowest == pytest.approx(0.145, abs=0.01) and robust == pytest.approx(0.145, abs=0.01)
+
+
+def cylinder_on_ground_masks(cameras, radius=0.5, height=0.4):
+    """Exact silhouettes of a solid cylinder standing on the plane y = 0 (a flat base, like a bowl's)."""
+    masks = []
+    for cam in cameras:
+        origins, dirs = (a[:, :, 0] for a in pixel_rays(cam))
+        o, d = origins[..., [0, 2]], dirs[..., [0, 2]]
+        a, b, c = (d * d).sum(-1), (o * d).sum(-1), (o * o).sum(-1) - radius**2
+        root = np.sqrt(np.maximum(b * b - a * c, 0)) / np.maximum(a, 1e-12)
+        t0, t1 = -b / np.maximum(a, 1e-12) - root, -b / np.maximum(a, 1e-12) + root
+        s0, s1 = ((y - origins[..., 1]) / dirs[..., 1] for y in (0.0, height))
+        lo, hi = np.maximum(t0, np.minimum(s0, s1)), np.minimum(t1, np.maximum(s0, s1))
+        masks.append((b * b - a * c > 0) & (lo <= hi) & (hi > 0))
+    return masks
+
+
+def test_support_plane_of_a_flat_base_is_its_front_edge_not_the_cone_behind():
+    """A low view's lowest silhouette ray touches a flat base at its front edge, then runs on along the
+    hull's underside (the cone no view carves, 0.18 deep at 20 deg); the rim is where it first touches."""
+    from dpi.preprocess.hull import rim_heights, support_plane, visual_hull
+
+    cameras = [from_fov(c2w, 96, 96, 40.0) for c2w in orbit(24, 3.0, (20.0, 45.0), target=(0.0, 0.2, 0.0))]
+    masks = cylinder_on_ground_masks(cameras)
+    field, origin, size, _ = visual_hull(cameras, masks, 96)
+    heights = np.array(rim_heights(cameras, masks, field, origin, size, np.array([0.0, 1.0, 0.0])))
+    assert np.abs(heights).max() < 0.03 and field.min() < 0  # every view: within a voxel or two of the base
+    _, height = support_plane(cameras, masks, field, origin, size)
+    assert -0.02 < height < 0.02

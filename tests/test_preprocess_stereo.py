@@ -114,3 +114,14 @@ def test_highlights_finds_a_bright_spot_not_texture():
     found = highlights(image, np.ones((SIZE, SIZE), bool), 1.3)
     assert found[20, 40]
     assert found.mean() < 0.1
+
+
+def test_stereo_settings_are_checked_with_the_geometry_config():
+    from dpi.preprocess.geometry import GeometryConfig
+    from dpi.settings import SettingsError
+
+    assert GeometryConfig(stereo_settings={"passes": 3}).stereo_config().passes == 3
+    with pytest.raises(SettingsError, match=r"stereo_settings\.passes: must be >= 1"):
+        GeometryConfig(stereo_settings={"passes": 0})
+    with pytest.raises(SettingsError, match=r"stereo_settings\.pases: unknown .*did you mean 'passes'"):
+        GeometryConfig(stereo_settings={"pases": 2})

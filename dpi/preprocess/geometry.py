@@ -149,8 +149,10 @@ def stereo_carve(field: np.ndarray, origin: np.ndarray, size: float, cameras: li
 
     stereo = cfg.stereo_config()
     start = time.perf_counter()
-    depths = depth_maps(cameras, images, masks, *marching_cubes(field, origin, size), stereo)
-    carved = carve_with_depths(field, origin, size, cameras, depths, stereo)
+    carved = field
+    for _ in range(stereo.passes):
+        depths = depth_maps(cameras, images, masks, *marching_cubes(carved, origin, size), stereo)
+        carved = carve_with_depths(carved, origin, size, cameras, depths, stereo)
     coverage = float(np.mean([(d > 0).sum() / max(int(m.sum()), 1) for d, m in zip(depths, masks)]))
     removed = int(((field < 0) & (carved >= 0)).sum())
     return carved, {"depth_coverage": round(coverage, 4), "voxels_removed": removed,

@@ -193,11 +193,14 @@ def up_direction(cameras: list[Camera]) -> np.ndarray:
 
 def rim_heights(cameras: list[Camera], masks: list[np.ndarray], field: np.ndarray, origin: np.ndarray,
                 size: float, up: np.ndarray, samples: int = 2000) -> list[float]:
-    """Per view, the height along `up` of the lowest point where its lowest silhouette ray grazes the carved hull.
+    """Per view, the height along `up` of the point where its lowest silhouette ray first touches the
+    carved hull (seen from the camera); views whose ray misses the hull by more than a voxel have none.
 
     The ray through a silhouette's lowest pixel touches the object at its rim; where cameras look only
-    from above, the lowest rim point over the views is the object's footing (exact for a flat base; for
-    a round bottom seen from elevation e it is r (1 - cos e) above the contact)."""
+    from above, that is the object's footing: exact for a flat base, r (1 - cos a) above the contact
+    for a round bottom met by a ray a below the horizon. Past the touch the ray runs on along the
+    hull's underside, the cone no view carves, so its lowest point there would sink a flat base's
+    plane by up to r tan a."""
     from scipy.ndimage import map_coordinates
 
     centre = origin + (np.array(field.shape) - 1) * size / 2
@@ -220,8 +223,12 @@ def rim_heights(cameras: list[Camera], masks: list[np.ndarray], field: np.ndarra
         reach = float(np.linalg.norm(cam.center - centre))
         points = cam.center + np.linspace(reach - span, reach + span, samples)[:, None] * ray
         values = map_coordinates(field, ((points - origin) / size).T, order=1, mode="nearest")
-        grazing = values <= values.min() + 0.5 * size
-        heights.append(float((points[grazing] @ up).min()))
+        if values.min() > size:  # the ray misses the hull: this mask's bottom disagrees with the others
+            continue
+        first = np.flatnonzero(values <= values.min() + 0.5 * size)[0]
+        while first + 1 < len(values) and values[first + 1] < values[first]:  # on to the first local minimum
+            first += 1
+        heights.append(float(points[first] @ up))
     return heights
 
 

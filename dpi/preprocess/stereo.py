@@ -12,6 +12,9 @@ no specular highlight covers it (a pixel much brighter than its surroundings: a 
 image lies behind the surface, and views near each other agree on it) and `min_consistent`
 neighbour depth maps agree with it.
 
+**Passes.** Depths and carving repeat `passes` times, each round inside the surface the previous one
+left (a bowl's cavity opens further once its first round removed the lid the silhouettes left).
+
 **Carving.** Each voxel inside the hull gets the median, over the views that see it in front of
 their surface or at most `band_voxels` behind it, of (observed depth - voxel depth) clipped to the
 band: a truncated signed distance whose median, unlike a mean, lets no small group of wrong depths
@@ -63,6 +66,9 @@ class StereoConfig:
     """views that must have a depth at a voxel for it to be carved"""
     max_baseline_deg: float = 50.0
     """neighbours see the object's centre within this angle of the reference view"""
+    passes: int = 2
+    """rounds of depth maps and carving, each swept inside the surface the previous one carved: depths
+    in front of it are no longer hypotheses, so cavities the first round half opened open further"""
 
 
 def grey(image: np.ndarray, blur_px: float) -> np.ndarray:
