@@ -14,6 +14,7 @@ from dpi.prior.outdoor import outdoor_envmap
 from dpi.prior.sample import draw_samples, load_prior, sample_to_files
 from dpi.prior.train import TrainConfig, export_model, learning_rate, train
 from dpi.prior.unet import SMALL_CONFIGS, CheckpointError, load_checkpoint
+from dpi.settings import SettingsError
 from dpi.tonecurve import LogEncoding, ToneCurve, family_encoding
 
 
@@ -85,9 +86,8 @@ def test_cosine_schedule_warms_up_then_decays_to_zero() -> None:
     assert learning_rate(cfg, 100) == pytest.approx(0.0, abs=1e-12)
     cfg.lr_schedule = "constant"
     assert learning_rate(cfg, 50) == learning_rate(cfg, 99) == 1e-3
-    cfg.lr_schedule = "linear"
-    with pytest.raises(ValueError, match="lr_schedule"):
-        learning_rate(cfg, 0)
+    with pytest.raises(SettingsError, match="lr_schedule: unknown schedule 'linear'"):
+        TrainConfig(family="outdoor", data_dir="", out="", lr_schedule="linear")
 
 
 def test_fine_tune_starts_from_the_given_prior(tmp_path, maps_dir) -> None:

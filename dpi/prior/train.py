@@ -29,6 +29,8 @@ from dpi.settings import SettingsError, settings_from_dict
 from dpi.tonecurve import family_encoding
 
 CHECKPOINT_FORMAT = "dpi-prior-v1"
+LR_SCHEDULES = ("constant", "cosine")
+"""learning-rate schedules after the warm-up (`learning_rate`)"""
 DEFAULT_MODEL = "small_32x64"
 """the network (a name in dpi.prior.unet.SMALL_CONFIGS) a prior is trained with unless told otherwise"""
 
@@ -58,6 +60,12 @@ class TrainConfig:
     seed: int = 0
     encoding: str = "log"  # 'log' (log radiance around the median) or 'paper' (the family's tone curve)
     amp: bool = True  # bfloat16 autocast of the forward pass on CUDA (ignored on the CPU)
+
+    def __post_init__(self):
+        """An unknown schedule fails here, not at the first optimiser step."""
+        if self.lr_schedule not in LR_SCHEDULES:
+            raise SettingsError("lr_schedule", f"unknown schedule {self.lr_schedule!r}; choose from "
+                                               f"{', '.join(LR_SCHEDULES)}")
 
 
 @dataclass
@@ -101,16 +109,11 @@ class PriorJobConfig:
         return cfg
 
 
-LR_SCHEDULES = ("constant", "cosine")
-
-
 def learning_rate(cfg: TrainConfig, step: int) -> float:
     """The learning rate of optimiser step `step` (0-based): linear warm-up, then constant or cosine to 0."""
     rate = cfg.lr * min(1.0, (step + 1) / cfg.warmup_steps) if cfg.warmup_steps else cfg.lr
     if cfg.lr_schedule == "cosine":
         rate *= 0.5 * (1.0 + math.cos(math.pi * min(step, cfg.steps) / cfg.steps))
-    elif cfg.lr_schedule != "constant":
-        raise ValueError(f"unknown lr_schedule {cfg.lr_schedule!r}; choose from {', '.join(LR_SCHEDULES)}")
     return rate
 
 
