@@ -36,7 +36,7 @@ from dpi.solve.init import GLOSSY_ROUGHNESS, is_glossy, starting_materials
 from dpi.solve.optimize import FreeEnvMap, OptimizeConfig, fit_env_model
 from dpi.solve.problem import InverseProblem
 from dpi.solve.samplers import SAMPLERS, DPSRun, DPSState, resample_env, rho_schedule
-from dpi.solve.smooth_gain import SmoothGain
+from dpi.solve.smooth_gain import MAX_ORDER, SmoothGain
 from dpi.solve.sun import extract_sun, sun_summary
 from dpi.solve.trace import Trace
 
@@ -156,8 +156,8 @@ class DPSConfig:
             raise ValueError(f"map_update must be one of {MAP_UPDATES}, got {cfg.map_update!r}")
         if cfg.refine_env not in REFINE_ENV:
             raise ValueError(f"refine_env must be one of {REFINE_ENV}, got {cfg.refine_env!r}")
-        if not 0 <= cfg.refine_gain_order <= 2:
-            raise ValueError(f"refine_gain_order must be 0, 1 or 2, got {cfg.refine_gain_order}")
+        if not 0 <= cfg.refine_gain_order <= MAX_ORDER:
+            raise ValueError(f"refine_gain_order must be 0..{MAX_ORDER}, got {cfg.refine_gain_order}")
         if cfg.sun not in SUN_MODES:
             raise ValueError(f"sun must be one of {SUN_MODES}, got {cfg.sun!r}")
         if not 0 < cfg.start_noise <= 1:

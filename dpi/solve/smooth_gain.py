@@ -16,11 +16,14 @@ import torch
 from dpi.envmap import texel_directions
 from dpi.solve.optimize import LOG_ENV_RANGE, EnvModel
 
+MAX_ORDER = 2
+"""the highest spherical-harmonic band `sh_basis` has"""
+
 
 def sh_basis(directions: np.ndarray, order: int) -> np.ndarray:
-    """Real spherical harmonics of bands 0..order (at most 2) at unit directions (..., 3): (..., (order+1)^2)."""
-    if not 0 <= order <= 2:
-        raise ValueError(f"spherical-harmonic order must be 0, 1 or 2, got {order}")
+    """Real spherical harmonics of bands 0..order (at most MAX_ORDER) at unit directions (..., 3): (..., (order+1)^2)."""
+    if not 0 <= order <= MAX_ORDER:
+        raise ValueError(f"spherical-harmonic order must be 0..{MAX_ORDER}, got {order}")
     x, y, z = (directions[..., i] for i in range(3))
     bands = [[0.282095 * np.ones_like(x)],
              [0.488603 * y, 0.488603 * z, 0.488603 * x],
