@@ -79,6 +79,10 @@ FIELD_BOUNDS: dict[str, Bound] = {
     "batch_size": Bound(1),
     "threads": Bound(1),
     "passes": Bound(1),
+    "ground_seed": Bound(-1, 1),
+    "ground_grow": Bound(-1, 1),
+    "ground_fit": Bound(-1, 1),
+    "ground_min_pixels": Bound(0),
     "lr": Bound(0, strict=True),
 }
 """valid ranges of numeric settings by field-name pattern (fnmatch); the first matching pattern applies"""

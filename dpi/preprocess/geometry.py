@@ -1,5 +1,5 @@
 """A watertight surface from masks and cameras: the visual hull carved from the silhouettes
-(dpi.preprocess.hull), carved further by multi-view stereo where the photos see empty space inside
+(dpi.preprocess.hull), once more after the masks lost the ground they took (dpi.preprocess.ground), carved further by multi-view stereo where the photos see empty space inside
 it (dpi.preprocess.stereo), its zero level set, and a mesh clean-up chain.
 
 **Surface.** Marching cubes (scikit-image) extracts the zero level set; pymeshlab then removes
@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from dpi.cameras import Camera
-from dpi.preprocess.hull import cut_below, marching_cubes, support_plane, visual_hull
+from dpi.preprocess.hull import cut_below, marching_cubes, seen_from_above, support_plane, visual_hull
 
 if TYPE_CHECKING:
     from dpi.preprocess.stereo import StereoConfig
@@ -56,6 +56,9 @@ class GeometryConfig:
     """when every camera looks from above, cut the hull at the plane of the object's lowest rim points (a
     low quantile over the views), so the underside no camera sees does not stay a cone
     (dpi.preprocess.hull.support_plane)"""
+    ground: bool = True
+    """when every camera looks from above, remove from the masks the pixels that see the ground (photo-
+    consistent under the ground plane's homography; needs the photos; dpi.preprocess.ground) before carving"""
     stereo: bool = True
     """carve what multi-view stereo sees as empty inside the hull (needs the photos; dpi.preprocess.stereo)"""
     stereo_settings: dict[str, Any] = field(default_factory=dict)
@@ -114,20 +117,37 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray, cfg: GeometryConfig) -> 
     return vertices, faces
 
 
+def carve_hull(cameras: list[Camera], masks: list[np.ndarray], cfg: GeometryConfig) -> tuple[np.ndarray, np.ndarray, float, dict]:
+    """The visual hull with the config's carving settings (dpi.preprocess.hull.visual_hull)."""
+    return visual_hull(cameras, masks, cfg.resolution, cfg.coarse_resolution, cfg.outside_votes,
+                       cfg.min_view_fraction, cfg.object_in_frame, cfg.margin)
+
+
 def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray], cfg: GeometryConfig | None = None,
                         images: list[np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """Watertight mesh (vertices, faces) of the object seen in the masks, and a summary with timings;
-    with the views' linear RGB `images` (and `cfg.stereo`), carved further by multi-view stereo."""
+    with the views' linear RGB `images`, the masks lose the ground they took (`cfg.ground`) and the hull
+    is carved further by multi-view stereo (`cfg.stereo`)."""
     cfg = cfg or GeometryConfig()
     times = {}
     start = time.perf_counter()
-    field, origin, size, box = visual_hull(cameras, masks, cfg.resolution, cfg.coarse_resolution, cfg.outside_votes,
-                                           cfg.min_view_fraction, cfg.object_in_frame, cfg.margin)
+    field, origin, size, box = carve_hull(cameras, masks, cfg)
+    up = seen_from_above(cameras, field, origin, size)
+    if cfg.ground and images is not None and up is not None:
+        from dpi.preprocess.ground import remove_ground
+
+        ground_start = time.perf_counter()
+        masks, ground = remove_ground(cameras, masks, images, up, marching_cubes(field, origin, size),
+                                      cfg.stereo_config())
+        times["ground_s"] = time.perf_counter() - ground_start
+        if ground["removed_fraction"]:
+            field, origin, size, box = carve_hull(cameras, masks, cfg)
+        box["ground"] = ground
     plane = support_plane(cameras, masks, field, origin, size) if cfg.support_plane else None
     if plane is not None:
         field = cut_below(field, origin, size, *plane)
         box["support_plane"] = {"up": plane[0].tolist(), "height": plane[1]}
-    times["carve_s"] = time.perf_counter() - start
+    times["carve_s"] = time.perf_counter() - start - times.get("ground_s", 0.0)
     if cfg.stereo and images is not None:
         field, box["stereo"] = stereo_carve(field, origin, size, cameras, masks, images, cfg)
         times["stereo_s"] = box["stereo"].pop("seconds")

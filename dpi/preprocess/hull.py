@@ -232,13 +232,10 @@ def rim_heights(cameras: list[Camera], masks: list[np.ndarray], field: np.ndarra
     return heights
 
 
-def support_plane(cameras: list[Camera], masks: list[np.ndarray], field: np.ndarray, origin: np.ndarray, size: float,
-                  min_elevation_deg: float = 5.0, quantile: float = 0.1) -> tuple[np.ndarray, float] | None:
-    """(up, height) of the plane the object stands on when every camera looks at it from above (at least
-    `min_elevation_deg` over its centre), so no view sees its underside; None otherwise.
-
-    The height is the `quantile` of the views' `rim_heights` (0: the lowest): a few masks that take a
-    strip of the ground for the object do not sink the plane."""
+def seen_from_above(cameras: list[Camera], field: np.ndarray, origin: np.ndarray, size: float,
+                    min_elevation_deg: float = 5.0) -> np.ndarray | None:
+    """World up (`up_direction`) when every camera looks at the carved object's centre from at least
+    `min_elevation_deg` above it (no view sees its underside, every view sees the ground); None otherwise."""
     up = up_direction(cameras)
     inside = np.argwhere(field < 0)
     if not len(inside):
@@ -246,7 +243,18 @@ def support_plane(cameras: list[Camera], masks: list[np.ndarray], field: np.ndar
     centre = origin + inside.mean(0) * size
     offsets = np.array([cam.center - centre for cam in cameras])
     elevations = np.degrees(np.arcsin(np.clip(offsets @ up / np.linalg.norm(offsets, axis=1), -1, 1)))
-    if elevations.min() < min_elevation_deg:
+    return up if elevations.min() >= min_elevation_deg else None
+
+
+def support_plane(cameras: list[Camera], masks: list[np.ndarray], field: np.ndarray, origin: np.ndarray, size: float,
+                  min_elevation_deg: float = 5.0, quantile: float = 0.1) -> tuple[np.ndarray, float] | None:
+    """(up, height) of the plane the object stands on when every camera looks at it from above (at least
+    `min_elevation_deg` over its centre), so no view sees its underside; None otherwise.
+
+    The height is the `quantile` of the views' `rim_heights` (0: the lowest): a few masks that take a
+    strip of the ground for the object do not sink the plane."""
+    up = seen_from_above(cameras, field, origin, size, min_elevation_deg)
+    if up is None:
         return None
     heights = rim_heights(cameras, masks, field, origin, size, up)
     if not heights:

@@ -69,6 +69,15 @@ class StereoConfig:
     passes: int = 2
     """rounds of depth maps and carving, each swept inside the surface the previous one carved: depths
     in front of it are no longer hypotheses, so cavities the first round half opened open further"""
+    ground_fit: float = 0.02
+    """the ground test (dpi.preprocess.ground) runs only when at least this fraction of the background
+    pixels near the object reach `ground_seed` under the fitted ground plane (a plain ground: none)"""
+    ground_seed: float = 0.95
+    """NCC under the ground plane's homography at which a masked pixel sees the ground"""
+    ground_grow: float = 0.7
+    """NCC at which a masked pixel connected to a seed sees the ground too"""
+    ground_min_pixels: int = 20
+    """ground regions smaller than this (pixels) stay in the mask"""
 
 
 def grey(image: np.ndarray, blur_px: float) -> np.ndarray:
@@ -123,7 +132,7 @@ def _box(x: torch.Tensor, window: int) -> torch.Tensor:
     return F.avg_pool2d(x, window, stride=1, padding=window // 2, count_include_pad=False)
 
 
-class _Matcher:
+class Matcher:
     """NCC of a reference view against its neighbours for per-pixel depth hypotheses, on a crop."""
 
     def __init__(self, ref: np.ndarray, camera: Camera, others: list[tuple[np.ndarray, Camera]],
@@ -181,7 +190,7 @@ def sweep_depth(ref: np.ndarray, camera: Camera, others: list[tuple[np.ndarray, 
     ys, xs = np.nonzero(inside)
     rows = slice(max(ys.min() - pad, 0), ys.max() + pad + 1)
     cols = slice(max(xs.min() - pad, 0), xs.max() + pad + 1)
-    matcher = _Matcher(ref, camera, others, rows, cols, cfg)
+    matcher = Matcher(ref, camera, others, rows, cols, cfg)
     crop_inside = torch.from_numpy(inside[rows, cols])
     crop_near = torch.from_numpy(np.where(inside, near, 0)[rows, cols])
     z_lo, z_hi = float(near[inside].min()), float(far[inside].max())
