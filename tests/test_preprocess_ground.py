@@ -103,5 +103,5 @@ def test_a_plain_ground_leaves_the_masks_alone(capture):
     cameras, images, silhouettes, masks = capture
     plain = [np.where(s[..., None], im, 0.4).astype(np.float32) for im, s in zip(images, silhouettes)]
     kept, summary = remove_ground(cameras, masks, plain, UP, hull(), StereoConfig())
-    assert summary["score"] < StereoConfig().ground_fit and summary["removed_fraction"] == 0
+    assert summary["match"] < StereoConfig().ground_fit and summary["removed_fraction"] == 0
     assert all((k == m).all() for k, m in zip(kept, masks))

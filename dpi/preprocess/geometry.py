@@ -1,6 +1,7 @@
 """A watertight surface from masks and cameras: the visual hull carved from the silhouettes
-(dpi.preprocess.hull), once more after the masks lost the ground they took (dpi.preprocess.ground), carved further by multi-view stereo where the photos see empty space inside
-it (dpi.preprocess.stereo), its zero level set, and a mesh clean-up chain.
+(dpi.preprocess.hull), carved once more after the masks lost the ground they took
+(dpi.preprocess.ground), carved further by multi-view stereo where the photos see empty space
+inside it (dpi.preprocess.stereo), its zero level set, and a mesh clean-up chain.
 
 **Surface.** Marching cubes (scikit-image) extracts the zero level set; pymeshlab then removes
 small components, repairs non-manifold edges and vertices, closes holes, applies Taubin
@@ -117,7 +118,8 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray, cfg: GeometryConfig) -> 
     return vertices, faces
 
 
-def carve_hull(cameras: list[Camera], masks: list[np.ndarray], cfg: GeometryConfig) -> tuple[np.ndarray, np.ndarray, float, dict]:
+def carve_hull(cameras: list[Camera], masks: list[np.ndarray],
+               cfg: GeometryConfig) -> tuple[np.ndarray, np.ndarray, float, dict]:
     """The visual hull with the config's carving settings (dpi.preprocess.hull.visual_hull)."""
     return visual_hull(cameras, masks, cfg.resolution, cfg.coarse_resolution, cfg.outside_votes,
                        cfg.min_view_fraction, cfg.object_in_frame, cfg.margin)

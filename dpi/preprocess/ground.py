@@ -24,7 +24,8 @@ import torch
 
 from dpi.cameras import Camera
 from dpi.preprocess.hull import axes_centre
-from dpi.preprocess.stereo import Matcher, StereoConfig, camera_rays, grey, hull_depth_range, neighbour_views
+from dpi.preprocess.stereo import (Matcher, StereoConfig, camera_rays, grey, hull_depth_range, neighbour_views,
+                                   raycasting_scene)
 
 FIT_VIEWS = 8
 """views the ground's height is fitted on (evenly spread over the capture)"""
@@ -150,11 +151,9 @@ def ground_pixels(greys: list[np.ndarray], cameras: list[Camera], masks: list[np
     """Per view, the masked pixels that see the ground plane at `height`: they match under its
     homography (hysteresis) better than at any depth inside the carved hull (vertices, faces) above it."""
     import cv2
-    import open3d as o3d
     from skimage.filters import apply_hysteresis_threshold
 
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.core.Tensor(hull[0].astype(np.float32)), o3d.core.Tensor(hull[1].astype(np.uint32)))
+    scene = raycasting_scene(*hull)
     clearance = CLEARANCE * pixel_footprint(cameras)
     out = []
     for i, (cam, mask) in enumerate(zip(cameras, masks)):
@@ -174,16 +173,17 @@ def ground_pixels(greys: list[np.ndarray], cameras: list[Camera], masks: list[np
 def remove_ground(cameras: list[Camera], masks: list[np.ndarray], images: list[np.ndarray], up: np.ndarray,
                   hull: tuple[np.ndarray, np.ndarray], cfg: StereoConfig) -> tuple[list[np.ndarray], dict]:
     """The masks without the pixels that see the ground (unchanged when the ground matches nowhere),
-    and a summary: the ground's height and match score, the fraction of mask pixels removed. `hull`:
+    and a summary: the ground's height, its match (`fit_ground`), the fraction of mask pixels removed. `hull`:
     (vertices, faces) of the closed carved hull the masks give."""
     greys = [grey(image, cfg.blur_px) for image in images]
     neighbours = neighbour_views(cameras, axes_centre(cameras), cfg.neighbours, cfg.max_baseline_deg)
     lowest = float((hull[0] @ up).min())
     diagonal = float(np.linalg.norm(hull[0].max(0) - hull[0].min(0)))
-    height, score = fit_ground(greys, cameras, masks, neighbours, up, lowest, diagonal, cfg)
-    summary = {"height": round(height, 5), "score": round(score, 4), "removed_fraction": 0.0}
-    if score < cfg.ground_fit:
+    height, match = fit_ground(greys, cameras, masks, neighbours, up, lowest, diagonal, cfg)
+    summary = {"height": round(height, 5), "match": round(match, 4), "removed_fraction": 0.0}
+    if match < cfg.ground_fit:
         return masks, summary
     ground = ground_pixels(greys, cameras, masks, neighbours, up, height, hull, cfg)
-    summary["removed_fraction"] = round(sum(int(g.sum()) for g in ground) / max(sum(int(m.sum()) for m in masks), 1), 5)
+    removed = sum(int(g.sum()) for g in ground) / max(sum(int(m.sum()) for m in masks), 1)
+    summary["removed_fraction"] = round(removed, 5)
     return [m & ~g for m, g in zip(masks, ground)], summary

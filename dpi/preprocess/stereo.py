@@ -96,6 +96,15 @@ def camera_rays(camera: Camera) -> np.ndarray:
     return np.stack([(xs - camera.cx) / camera.fx, -(ys - camera.cy) / camera.fy, -np.ones_like(xs)], -1)
 
 
+def raycasting_scene(vertices: np.ndarray, faces: np.ndarray):
+    """An open3d RaycastingScene of a triangle mesh (what `hull_depth_range` casts rays into)."""
+    import open3d as o3d
+
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(vertices.astype(np.float32)), o3d.core.Tensor(faces.astype(np.uint32)))
+    return scene
+
+
 def hull_depth_range(scene, camera: Camera, reach: float) -> tuple[np.ndarray, np.ndarray]:
     """Camera-space depths (h, w) where each pixel's ray enters and leaves a closed mesh (an
     open3d RaycastingScene that lies within `reach` of the camera); inf where it misses."""
@@ -283,12 +292,9 @@ def depth_maps(cameras: list[Camera], images: list[np.ndarray], masks: list[np.n
                faces: np.ndarray, cfg: StereoConfig) -> list[np.ndarray]:
     """Filtered stereo depth maps (camera-space depth, 0: none) of every view, searched inside the
     depth range of the closed mesh (vertices, faces) that contains the object (the carved hull)."""
-    import open3d as o3d
-
     from dpi.preprocess.hull import axes_centre
 
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.core.Tensor(vertices.astype(np.float32)), o3d.core.Tensor(faces.astype(np.uint32)))
+    scene = raycasting_scene(vertices, faces)
     neighbours = neighbour_views(cameras, axes_centre(cameras), cfg.neighbours, cfg.max_baseline_deg)
     greys = [grey(image, cfg.blur_px) for image in images]
     depths = []
