@@ -81,7 +81,7 @@ FIELD_BOUNDS: dict[str, Bound] = {
     "passes": Bound(1),
     "ground_seed": Bound(-1, 1),
     "ground_grow": Bound(-1, 1),
-    "ground_fit": Bound(-1, 1),
+    "ground_fit": Bound(0, 1),
     "ground_min_pixels": Bound(0),
     "lr": Bound(0, strict=True),
 }
