@@ -47,17 +47,30 @@ def hull() -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(box.vertices), np.asarray(box.faces)
 
 
-@pytest.fixture(scope="module")
-def capture():
-    """24 views from 45 deg above, masks that took a 10-pixel ring of ground around the card."""
+def render_capture(size: int):
+    """24 views of size x size px from 45 deg above, masks that took a ring of ground around the card
+    (10 px wide at 96 px)."""
     import cv2
 
-    cameras = [from_fov(c2w, SIZE, SIZE, 40.0) for c2w in orbit(24, 4.0, (45.0,), target=(0.0, 0.4, 0.0))]
+    cameras = [from_fov(c2w, size, size, 40.0) for c2w in orbit(24, 4.0, (45.0,), target=(0.0, 0.4, 0.0))]
     ground, card = texture(0), texture(1)
     views = [scene_view(cam, ground, card) for cam in cameras]
-    ring = np.ones((21, 21), np.uint8)
+    ring = np.ones((2 * (10 * size // SIZE) + 1,) * 2, np.uint8)
     masks = [cv2.dilate(s.astype(np.uint8), ring) > 0 for _, s in views]
     return cameras, [im for im, _ in views], [s for _, s in views], masks
+
+
+@pytest.fixture(scope="module")
+def capture():
+    return render_capture(SIZE)
+
+
+def wrongly_removed(ground: list[np.ndarray], silhouettes: list[np.ndarray]) -> np.ndarray:
+    """Distances (px) from the silhouette's edge of the object pixels that `ground` took for ground."""
+    import cv2
+
+    depth = [cv2.distanceTransform(s.astype(np.uint8), cv2.DIST_L2, 3) for s in silhouettes]
+    return np.concatenate([d[g & s] for d, g, s in zip(depth, ground, silhouettes)])
 
 
 def test_plane_depths_of_a_camera_looking_down():
@@ -80,8 +93,6 @@ def test_the_grounds_height_is_fitted_from_the_background(capture):
 
 
 def test_mask_pixels_that_see_the_ground_are_found(capture):
-    import cv2
-
     cameras, images, silhouettes, masks = capture
     cfg = StereoConfig()
     greys = [grey(im, cfg.blur_px) for im in images]
@@ -92,8 +103,7 @@ def test_mask_pixels_that_see_the_ground_are_found(capture):
     assert found >= 0.8 * ring
     # of the card, only its edge goes: pixels whose NCC window (and the blur's 2 sigma) reaches over the
     # silhouette into the ground
-    depth = [cv2.distanceTransform(s.astype(np.uint8), cv2.DIST_L2, 3) for s in silhouettes]
-    wrong = np.concatenate([d[g & s] for d, g, s in zip(depth, ground, silhouettes)])
+    wrong = wrongly_removed(ground, silhouettes)
     assert wrong.max() <= cfg.window // 2 + 2 * cfg.blur_px + 0.5
     assert len(wrong) <= 0.15 * sum(int(s.sum()) for s in silhouettes)
     assert all(not (g & ~m).any() for g, m in zip(ground, masks))  # only mask pixels leave
@@ -105,3 +115,22 @@ def test_a_plain_ground_leaves_the_masks_alone(capture):
     kept, summary = remove_ground(cameras, masks, plain, UP, hull(), StereoConfig())
     assert summary["match"] < StereoConfig().ground_fit and summary["removed_fraction"] == 0
     assert all((k == m).all() for k, m in zip(kept, masks))
+
+
+def test_large_photos_are_matched_at_the_working_size_and_their_masks_lose_the_ground():
+    from dpi.preprocess.geometry import without_ground, working_photos
+
+    cameras, images, silhouettes, masks = render_capture(2 * SIZE)
+    photos = working_photos(cameras, masks, images, SIZE)
+    assert photos[0][0].width == SIZE and photos[1][0].shape == photos[2][0].shape[:2] == (SIZE, SIZE)
+    kept, photos, summary = without_ground(masks, photos, UP, hull(), StereoConfig())
+    assert summary["removed_fraction"] > 0 and photos[1][0].shape == (SIZE, SIZE)
+    ring = sum(int((m & ~s).sum()) for m, s in zip(masks, silhouettes))
+    found = sum(int((m & ~k & ~s).sum()) for m, k, s in zip(masks, kept, silhouettes))
+    assert found >= 0.8 * ring
+    # the card loses only its edge: what the working size's NCC window and blur reach, twice as wide here
+    cfg = StereoConfig()
+    wrong = wrongly_removed([m & ~k for m, k in zip(masks, kept)], silhouettes)
+    assert wrong.max() <= 2 * (cfg.window // 2 + 2 * cfg.blur_px + 1)
+    assert len(wrong) <= 0.15 * sum(int(s.sum()) for s in silhouettes)
+    assert all(not (k & ~m).any() for k, m in zip(kept, masks))

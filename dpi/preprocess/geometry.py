@@ -64,6 +64,10 @@ class GeometryConfig:
     """carve what multi-view stereo sees as empty inside the hull (needs the photos; dpi.preprocess.stereo)"""
     stereo_settings: dict[str, Any] = field(default_factory=dict)
     """fields of dpi.preprocess.stereo.StereoConfig (plane sweep, filtering, carving)"""
+    photo_size: int | None = 480
+    """longer side (px) of the photos the ground test and stereo match: larger ones are area-downsampled,
+    cameras and masks follow (their windows are in pixels and their cost grows with the pixels; None:
+    the photos' own size). The silhouettes carve at full size"""
 
     def __post_init__(self):
         """Check `stereo_settings` with the config (an error names `stereo_settings.<key>`)."""
@@ -125,6 +129,37 @@ def carve_hull(cameras: list[Camera], masks: list[np.ndarray],
                        cfg.min_view_fraction, cfg.object_in_frame, cfg.margin)
 
 
+def working_photos(cameras: list[Camera], masks: list[np.ndarray], images: list[np.ndarray],
+                   max_size: int | None) -> tuple[list[Camera], list[np.ndarray], list[np.ndarray]]:
+    """(cameras, masks, images) of the views with the longer side at most `max_size` px (area-
+    downsampled; None or smaller views: as they are)."""
+    import torch
+
+    from dpi.images import resize, resize_mask, working_size
+
+    out = ([], [], [])
+    for camera, mask, image in zip(cameras, masks, images):
+        width, height = working_size((camera.width, camera.height), max_size)
+        out[0].append(camera.resized(width, height) if (width, height) != (camera.width, camera.height) else camera)
+        out[1].append(resize_mask(mask, width, height))
+        out[2].append(resize(torch.from_numpy(np.ascontiguousarray(image, np.float32)), height, width).numpy())
+    return out
+
+
+def without_ground(masks: list[np.ndarray], photos: tuple[list[Camera], list[np.ndarray], list[np.ndarray]],
+                   up: np.ndarray, hull: tuple[np.ndarray, np.ndarray], stereo: "StereoConfig"
+                   ) -> tuple[list[np.ndarray], tuple[list[Camera], list[np.ndarray], list[np.ndarray]], dict]:
+    """The full-size masks and the `working_photos` without the pixels that see the ground, found at the
+    working photos' size (dpi.preprocess.ground.remove_ground), and the ground test's summary."""
+    from dpi.images import resize_mask
+    from dpi.preprocess.ground import remove_ground
+
+    cameras, small, images = photos
+    kept, summary = remove_ground(cameras, small, images, up, hull, stereo)
+    masks = [m & ~resize_mask(before & ~after, m.shape[1], m.shape[0]) for m, before, after in zip(masks, small, kept)]
+    return masks, (cameras, kept, images), summary
+
+
 def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray], cfg: GeometryConfig | None = None,
                         images: list[np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """Watertight mesh (vertices, faces) of the object seen in the masks, and a summary with timings;
@@ -135,12 +170,11 @@ def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray], cfg: Geo
     start = time.perf_counter()
     field, origin, size, box = carve_hull(cameras, masks, cfg)
     up = seen_from_above(cameras, field, origin, size)
-    if cfg.ground and images is not None and up is not None:
-        from dpi.preprocess.ground import remove_ground
-
+    photos = working_photos(cameras, masks, images, cfg.photo_size) if images is not None else None
+    if cfg.ground and photos is not None and up is not None:
         ground_start = time.perf_counter()
-        masks, ground = remove_ground(cameras, masks, images, up, marching_cubes(field, origin, size),
-                                      cfg.stereo_config())
+        masks, photos, ground = without_ground(masks, photos, up, marching_cubes(field, origin, size),
+                                               cfg.stereo_config())
         times["ground_s"] = time.perf_counter() - ground_start
         if ground["removed_fraction"]:
             field, origin, size, box = carve_hull(cameras, masks, cfg)
@@ -150,8 +184,8 @@ def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray], cfg: Geo
         field = cut_below(field, origin, size, *plane)
         box["support_plane"] = {"up": plane[0].tolist(), "height": plane[1]}
     times["carve_s"] = time.perf_counter() - start - times.get("ground_s", 0.0)
-    if cfg.stereo and images is not None:
-        field, box["stereo"] = stereo_carve(field, origin, size, cameras, masks, images, cfg)
+    if cfg.stereo and photos is not None:
+        field, box["stereo"] = stereo_carve(field, origin, size, *photos, cfg)
         times["stereo_s"] = box["stereo"].pop("seconds")
     start = time.perf_counter()
     vertices, faces = marching_cubes(field, origin, size)

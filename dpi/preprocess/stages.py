@@ -133,7 +133,7 @@ def geometry_stage(capture_json: str | Path, out_dir: str | Path, settings: dict
         raise ValueError(f"{capture_json}: {len(names)} views have both a camera and a mask; carving needs at least 3")
     cfg = settings_from_dict(GeometryConfig, settings)
     images = None
-    if cfg.stereo:
+    if cfg.stereo or cfg.ground:
         import torch
 
         from dpi.images import read_image
