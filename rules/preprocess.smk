@@ -83,7 +83,7 @@ rule geometry:
         summary=SCENE.geometry["summary"],
     params:
         settings=config["preprocess"]["geometry"],
-    threads: 1
+    threads: PIPELINE.threads("preprocess")
     resources:
         **config["resources"]["geometry"],
     log:
