@@ -1,5 +1,5 @@
 """Multi-view stereo inside the hull: plane-sweep depth of a known plane, the robust free-space
-distance, that carving never adds volume, and highlight detection."""
+distance, that carving never adds volume, highlight and grazing-depth detection."""
 
 from __future__ import annotations
 
@@ -125,3 +125,25 @@ def test_stereo_settings_are_checked_with_the_geometry_config():
         GeometryConfig(stereo_settings={"passes": 0})
     with pytest.raises(SettingsError, match=r"stereo_settings\.pases: unknown .*did you mean 'passes'"):
         GeometryConfig(stereo_settings={"pases": 2})
+
+
+def test_grazing_depths_are_found_from_the_depth_maps_own_normals():
+    from scipy.ndimage import minimum_filter
+
+    from dpi.preprocess.stereo import grazing
+
+    camera = from_fov(look_at((0.0, 0.0, 0.0), (0.0, 0.0, -1.0)), 64, 48, 60.0)
+    rays = camera_rays(camera)
+    for tilt in (30.0, 60.0, 80.0):
+        # the plane -z - k x = 2 in camera space (normal (k, 0, 1)), tilted `tilt` deg about the y axis
+        k = np.tan(np.radians(tilt))
+        depth = (2.0 / (1.0 - k * rays[..., 0])).astype(np.float32)
+        depth[depth <= 0] = 0.0
+        normal = np.array([k, 0.0, 1.0]) / np.hypot(k, 1.0)
+        angle = np.degrees(np.arccos(np.abs(rays @ normal) / np.linalg.norm(rays, axis=-1)))
+        found = grazing(depth, camera, 70.0)
+        inner = np.zeros_like(found)  # pixels with a depth 2 px either way: the normal is known
+        inner[2:-2, 2:-2] = minimum_filter(depth > 0, size=5)[2:-2, 2:-2]
+        clear = inner & (np.abs(angle - 70.0) > 0.5)
+        assert (found[clear] == (angle[clear] > 70.0)).all()
+        assert not found[~inner].any()

@@ -66,6 +66,9 @@ class StereoConfig:
     """views that must have a depth at a voxel for it to be carved"""
     max_baseline_deg: float = 50.0
     """neighbours see the object's centre within this angle of the reference view"""
+    max_incidence_deg: float = 90.0
+    """depths whose surface (the depth map's own normal) is seen more than this from head-on are dropped
+    (a window on a grazing surface spans more depth than the sweep resolves; 90: off)"""
     passes: int = 2
     """rounds of depth maps and carving, each swept inside the surface the previous one carved: depths
     in front of it are no longer hypotheses, so cavities the first round half opened open further"""
@@ -137,8 +140,11 @@ def neighbour_views(cameras: list[Camera], centre: np.ndarray, count: int, max_a
 
 
 def _box(x: torch.Tensor, window: int) -> torch.Tensor:
-    """Mean over a window x window neighbourhood of (n, 1, h, w) maps (edges: mean of what is inside)."""
-    return F.avg_pool2d(x, window, stride=1, padding=window // 2, count_include_pad=False)
+    """Mean over a window x window neighbourhood of (n, 1, h, w) maps (edges: mean of what is inside);
+    separable, a row mean then a column mean, so its cost grows with the side, not the area."""
+    half = window // 2
+    x = F.avg_pool2d(x, (1, window), stride=1, padding=(0, half), count_include_pad=False)
+    return F.avg_pool2d(x, (window, 1), stride=1, padding=(half, 0), count_include_pad=False)
 
 
 class Matcher:
@@ -288,6 +294,25 @@ def highlights(image: np.ndarray, mask: np.ndarray, ratio: float) -> np.ndarray:
     return cv2.dilate(bright, np.ones((7, 7), np.uint8)) > 0
 
 
+def grazing(depth: np.ndarray, camera: Camera, max_deg: float, step: int = 2) -> np.ndarray:
+    """Pixels (h, w) whose depth's surface normal, from the depth map's points `step` px either side,
+    is more than `max_deg` from the pixel's ray (pixels without both neighbours: False)."""
+    rays = camera_rays(camera)
+    points = rays * depth[..., None]
+    valid = depth > 0
+    dx = np.zeros_like(points)
+    dy = np.zeros_like(points)
+    dx[:, step:-step] = points[:, 2 * step:] - points[:, :-2 * step]
+    dy[step:-step] = points[2 * step:] - points[:-2 * step]
+    known = np.zeros_like(valid)
+    known[step:-step, step:-step] = (valid[step:-step, 2 * step:] & valid[step:-step, :-2 * step]
+                                     & valid[2 * step:, step:-step] & valid[:-2 * step, step:-step])
+    normal = np.cross(dx, dy)
+    length = np.linalg.norm(normal, axis=-1) * np.linalg.norm(rays, axis=-1)
+    cos = np.abs((normal * rays).sum(-1)) / np.maximum(length, 1e-12)
+    return known & valid & (cos < np.cos(np.radians(max_deg)))
+
+
 def depth_maps(cameras: list[Camera], images: list[np.ndarray], masks: list[np.ndarray], vertices: np.ndarray,
                faces: np.ndarray, cfg: StereoConfig) -> list[np.ndarray]:
     """Filtered stereo depth maps (camera-space depth, 0: none) of every view, searched inside the
@@ -303,6 +328,8 @@ def depth_maps(cameras: list[Camera], images: list[np.ndarray], masks: list[np.n
         near, far = hull_depth_range(scene, cam, reach)
         depth, _ = sweep_depth(greys[i], cam, [(greys[j], cameras[j]) for j in neighbours[i]], near, far, cfg)
         keep = masks[i] & ~highlights(images[i], masks[i], cfg.highlight_ratio) if cfg.highlight_ratio else masks[i]
+        if cfg.max_incidence_deg < 90:
+            keep &= ~grazing(depth, cam, cfg.max_incidence_deg)
         depths.append(np.where(keep, depth, 0.0).astype(np.float32))
     return consistent(depths, cameras, neighbours, cfg)
 
