@@ -140,9 +140,11 @@ def working_photos(cameras: list[Camera], masks: list[np.ndarray], images: list[
     out = ([], [], [])
     for camera, mask, image in zip(cameras, masks, images):
         width, height = working_size((camera.width, camera.height), max_size)
-        out[0].append(camera.resized(width, height) if (width, height) != (camera.width, camera.height) else camera)
-        out[1].append(resize_mask(mask, width, height))
-        out[2].append(resize(torch.from_numpy(np.ascontiguousarray(image, np.float32)), height, width).numpy())
+        if (width, height) != (camera.width, camera.height):
+            camera, mask = camera.resized(width, height), resize_mask(mask, width, height)
+            image = resize(torch.from_numpy(np.ascontiguousarray(image, np.float32)), height, width).numpy()
+        for part, value in zip(out, (camera, mask, image)):
+            part.append(value)
     return out
 
 
