@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 import torch
+import yaml
 
 from dpi.capture import load_capture
 from dpi.prior.diffusion import base_diffusion
@@ -32,6 +33,15 @@ def test_rho_schedules_known_answers():
     assert np.allclose(rho_schedule(DPSConfig(rho_schedule="constant", rho_start=0.3), 4), 0.3)
     with pytest.raises(ValueError, match="rho_schedule"):
         DPSConfig.from_dict({"rho_schedule": "cosine"})
+
+
+def test_yaml_booleans_name_the_sun_modes():
+    """YAML 1.1 reads `sun: off` as False: the config means the mode, not a type error."""
+    parsed = yaml.safe_load("sun: off\n")
+    assert parsed == {"sun": False}
+    assert DPSConfig.from_dict(parsed).sun == "off"
+    assert DPSConfig.from_dict(yaml.safe_load("sun: on\n")).sun == "on"
+    assert DPSConfig.from_dict({"sun": "auto"}).sun == "auto"
 
 
 def test_guidance_is_scaled_to_its_bound():

@@ -144,7 +144,10 @@ class DPSConfig:
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> "DPSConfig":
-        """Config from a `method_params.dps` entry."""
+        """Config from a `method_params.dps` entry. YAML reads a bare `sun: on` / `sun: off` as a
+        boolean; it means the mode of that name."""
+        if isinstance(values.get("sun"), bool):
+            values = {**values, "sun": "on" if values["sun"] else "off"}
         cfg = settings_from_dict(cls, values)
         if cfg.sampler not in SAMPLERS:
             raise ValueError(f"sampler must be one of {tuple(SAMPLERS)}, got {cfg.sampler!r}")
