@@ -85,6 +85,7 @@ FIELD_BOUNDS: dict[str, Bound] = {
     "ground_min_pixels": Bound(0),
     "photo_size": Bound(16),
     "max_incidence_deg": Bound(0, 90),
+    "fallback_window": Bound(0),
     "lr": Bound(0, strict=True),
 }
 """valid ranges of numeric settings by field-name pattern (fnmatch); the first matching pattern applies"""

@@ -1,7 +1,9 @@
 """Multi-view stereo inside the hull: plane-sweep depth of a known plane, the robust free-space
-distance, that carving never adds volume, highlight and grazing-depth detection."""
+distance, that carving never adds volume, highlight and grazing-depth detection, the fallback window."""
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -147,3 +149,32 @@ def test_grazing_depths_are_found_from_the_depth_maps_own_normals():
         clear = inner & (np.abs(angle - 70.0) > 0.5)
         assert (found[clear] == (angle[clear] > 70.0)).all()
         assert not found[~inner].any()
+
+
+def test_fallback_window_fills_only_what_the_fine_window_missed():
+    """Noisy views of a textured plane: a 5 px window finds few consistent depths, the 13 px fallback
+    fills the rest with accurate ones and leaves the fine window's depths as they were."""
+    import open3d as o3d
+
+    from dpi.preprocess.stereo import depth_maps
+
+    texture = plane_texture()
+    cameras = [from_fov(look_at((x, y, 5.0), (0.0, 0.0, 0.0)), SIZE, SIZE, 30.0, f"v{i}")
+               for i, (x, y) in enumerate([(0.0, 0.0), (1.2, 0.0), (-1.2, 0.0), (0.0, 1.2), (0.0, -1.2)])]
+    rng = np.random.default_rng(1)
+    images = [np.repeat(plane_view(c, texture)[0][..., None] + 0.1 * rng.standard_normal((SIZE, SIZE, 1)), 3, -1)
+              .astype(np.float32) for c in cameras]
+    masks = [np.ones((SIZE, SIZE), bool)] * len(cameras)
+    box = o3d.geometry.TriangleMesh.create_box(8, 8, 1.2).translate((-4, -4, -0.6))  # the "hull" around the plane
+    hull = np.asarray(box.vertices), np.asarray(box.triangles)
+    cfg = StereoConfig(planes=48, window=5, fallback_window=0, min_score=0.5, blur_px=0.0, highlight_ratio=0,
+                       neighbours=4, max_baseline_deg=60)
+    fine = depth_maps(cameras, images, masks, *hull, cfg)[0]
+    both = depth_maps(cameras, images, masks, *hull, replace(cfg, fallback_window=13))[0]
+    truth = plane_view(cameras[0], texture)[1]
+    inner = np.s_[8:-8, 8:-8]
+    assert (fine[inner] > 0).mean() < 0.5 and (both[inner] > 0).mean() > 0.8
+    assert np.array_equal(both[fine > 0], fine[fine > 0])
+    assert all(m.all() for m in masks)  # the filters did not write into the caller's masks
+    added = (both > 0) & (fine == 0)
+    assert np.median(np.abs(both[added] - truth[added]) / truth[added]) < 0.01

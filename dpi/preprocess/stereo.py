@@ -24,7 +24,7 @@ so stereo only removes volume the silhouettes left, never adds it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
@@ -46,6 +46,10 @@ class StereoConfig:
     """per-pixel depths around the best plane, one plane step either side (second pass)"""
     window: int = 11
     """NCC window side in pixels"""
+    fallback_window: int = 15
+    """pixels left without a consistent depth at `window` take the depth a sweep with this larger window
+    finds, if that one is consistent (a noisy, weakly lit patch such as a bowl's cavity matches over
+    more pixels; at most `window`: off)"""
     min_score: float = 0.3
     """mean NCC a depth must reach"""
     blur_px: float = 1.0
@@ -66,7 +70,7 @@ class StereoConfig:
     """views that must have a depth at a voxel for it to be carved"""
     max_baseline_deg: float = 50.0
     """neighbours see the object's centre within this angle of the reference view"""
-    max_incidence_deg: float = 90.0
+    max_incidence_deg: float = 70.0
     """depths whose surface (the depth map's own normal) is seen more than this from head-on are dropped
     (a window on a grazing surface spans more depth than the sweep resolves; 90: off)"""
     passes: int = 2
@@ -322,16 +326,28 @@ def depth_maps(cameras: list[Camera], images: list[np.ndarray], masks: list[np.n
     scene = raycasting_scene(vertices, faces)
     neighbours = neighbour_views(cameras, axes_centre(cameras), cfg.neighbours, cfg.max_baseline_deg)
     greys = [grey(image, cfg.blur_px) for image in images]
-    depths = []
-    for i, cam in enumerate(cameras):
+    ranges = []
+    for cam in cameras:
         reach = 2 * float(np.linalg.norm(vertices - cam.center, axis=1).max())
-        near, far = hull_depth_range(scene, cam, reach)
-        depth, _ = sweep_depth(greys[i], cam, [(greys[j], cameras[j]) for j in neighbours[i]], near, far, cfg)
-        keep = masks[i] & ~highlights(images[i], masks[i], cfg.highlight_ratio) if cfg.highlight_ratio else masks[i]
-        if cfg.max_incidence_deg < 90:
-            keep &= ~grazing(depth, cam, cfg.max_incidence_deg)
-        depths.append(np.where(keep, depth, 0.0).astype(np.float32))
-    return consistent(depths, cameras, neighbours, cfg)
+        ranges.append(hull_depth_range(scene, cam, reach))
+
+    def raw(window: int) -> list[np.ndarray]:
+        """Every view's filtered depth map at one NCC window, before the consistency check."""
+        wcfg = replace(cfg, window=window)
+        depths = []
+        for i, cam in enumerate(cameras):
+            depth, _ = sweep_depth(greys[i], cam, [(greys[j], cameras[j]) for j in neighbours[i]], *ranges[i], wcfg)
+            keep = masks[i] & ~highlights(images[i], masks[i], cfg.highlight_ratio) if cfg.highlight_ratio else masks[i]
+            if cfg.max_incidence_deg < 90:
+                keep = keep & ~grazing(depth, cam, cfg.max_incidence_deg)  # not in place: keep may be masks[i]
+            depths.append(np.where(keep, depth, 0.0).astype(np.float32))
+        return depths
+
+    fine = consistent(raw(cfg.window), cameras, neighbours, cfg)
+    if cfg.fallback_window <= cfg.window:
+        return fine
+    merged = [np.where(f > 0, f, c) for f, c in zip(fine, raw(cfg.fallback_window))]
+    return [np.where(f > 0, f, m) for f, m in zip(fine, consistent(merged, cameras, neighbours, cfg))]
 
 
 def carve_with_depths(field: np.ndarray, origin: np.ndarray, size: float, cameras: list[Camera],
