@@ -1,4 +1,4 @@
-"""Env-map dataset: tone curve round trip, normalisation, area resize, augmentation, folder loading."""
+"""Env-map dataset: tone curve round trip, normalisation, area resize, augmentation, 8-bit clipping, folder loading."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import torch
 from PIL import Image
 
 from dpi.exr import write_exr
-from dpi.prior.data import (MEDIAN_TARGETS, EnvmapDataset, augment, list_panoramas, median_target,
+from dpi.prior.data import (MEDIAN_TARGETS, EnvmapDataset, augment, clip_highlights, list_panoramas, median_target,
                             radiance_scale, read_dataset, read_panorama, resize_area, roll_columns, split_files,
                             to_prior_space)
 from dpi.tonecurve import family_encoding
@@ -44,6 +44,29 @@ def test_log_encoding_holds_a_sun() -> None:
         assert bool(torch.isclose(back[0, 2, 5], torch.tensor(2000.0), rtol=1e-3)) == kept
     low, high = family_encoding("outdoor", "log").range
     assert low <= 1e-2 and high >= 1e4
+
+
+@pytest.mark.parametrize("family,encoding", ENCODINGS)
+def test_clip_highlights_clips_luminance_at_a_multiple_of_the_median(family: str, encoding: str) -> None:
+    """Chosen maps lose everything above `level` x median luminance, with its hue; the rest are untouched."""
+    from dpi.images import luminance
+
+    enc = family_encoding(family, encoding)
+    target = median_target(family, enc)
+    sky = torch.ones(2, 3, 8, 16) * torch.tensor([1.0, 0.9, 0.8])[:, None, None]
+    sky[:, :, 2, 5] = torch.tensor([8.0, 4.0, 2.0])  # a warm bright texel
+    x = torch.stack([to_prior_space(m, enc, target) for m in sky])
+    out = clip_highlights(x, enc, target, 1.0, (2.0, 2.0))
+    kept = clip_highlights(x, enc, target, 0.0, (2.0, 2.0))
+    assert torch.equal(kept, x)
+    radiance = enc.with_scale(1.0).to_radiance(out)
+    lum = luminance(radiance.permute(0, 2, 3, 1))
+    before = enc.with_scale(1.0).to_radiance(x)
+    median = luminance(before.permute(0, 2, 3, 1)).flatten(1).median(1).values
+    assert torch.allclose(lum.flatten(1).max(1).values, 2.0 * median, rtol=2e-3)
+    hue = lambda c: c / c.sum(0)  # noqa: E731
+    assert torch.allclose(hue(radiance[0, :, 2, 5]), hue(before[0, :, 2, 5]), atol=1e-3)
+    assert torch.allclose(out[:, :, 0, 0], x[:, :, 0, 0])  # texels under the level keep their value
 
 
 def test_radiance_scale_maps_median_to_target() -> None:

@@ -59,7 +59,8 @@ def cmd_train_prior(args: argparse.Namespace) -> None:
                          ema_decay=args.ema_decay, sample_steps=args.sample_steps,
                          max_minutes=args.max_minutes,
                          sample_every=args.sample_every, checkpoint_every=args.checkpoint_every,
-                         device=args.device, seed=args.seed, encoding=args.encoding)
+                         device=args.device, seed=args.seed, encoding=args.encoding,
+                         clip_fraction=args.clip_fraction)
     train(config)
     if args.export:
         export_model(args.out, args.export)
@@ -110,7 +111,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              ("warmup_steps", int, "linear learning-rate warm-up"), ("ema_decay", float, None),
                              ("max_minutes", float, "stop (with a checkpoint) after this wall time"),
                              ("sample_every", int, None), ("sample_steps", int, "respaced steps of those sample grids"),
-                             ("checkpoint_every", int, None), ("device", str, None), ("seed", int, None)):
+                             ("checkpoint_every", int, None), ("device", str, None), ("seed", int, None),
+                             ("clip_fraction", float, "share of each batch clipped like 8-bit panoramas")):
         p.add_argument(f"--{name.replace('_', '-')}", type=kind, default=field_default(TrainConfig, name), help=text)
     p.add_argument("--threads", type=int, default=1)
     p.set_defaults(fn=cmd_train_prior)

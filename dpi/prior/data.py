@@ -12,6 +12,7 @@ encoding) to train elsewhere, e.g. on a GPU machine without the generators.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +20,7 @@ import torch
 from torch.nn import functional as F
 
 from dpi.atomic import atomic_path
-from dpi.images import IMAGE_SUFFIXES, luminance, read_image
+from dpi.images import IMAGE_SUFFIXES, REC709_LUMA, luminance, read_image
 from dpi.tonecurve import Encoding, encoding_from_dict
 
 PANORAMA_SUFFIXES = IMAGE_SUFFIXES + (".hdr",)
@@ -79,6 +80,22 @@ def roll_columns(x: torch.Tensor, shifts: torch.Tensor) -> torch.Tensor:
     width = x.shape[-1]
     cols = (torch.arange(width, device=x.device)[None] - shifts[:, None]) % width
     return torch.gather(x, -1, cols[:, None, None, :].expand_as(x))
+
+
+def clip_highlights(x: torch.Tensor, encoding: Encoding, median: float, fraction: float,
+                    multiples: tuple[float, float], generator: torch.Generator | None = None) -> torch.Tensor:
+    """A random `fraction` of a batch (B, 3, H, W) of prior-space maps (median luminance `median` at
+    the encoding's scale 1) with their luminance clipped at a multiple of the median drawn log-uniformly from `multiples`, hue kept: what
+    an 8-bit panorama decoded to linear looks like (the paper's outdoor data were such panoramas)."""
+    b = x.shape[0]
+    chosen = torch.rand(b, generator=generator, device=x.device) < fraction
+    lo, hi = (math.log(m) for m in multiples)
+    level = median * torch.exp(lo + (hi - lo) * torch.rand(b, generator=generator, device=x.device))
+    radiance = encoding.with_scale(1.0).to_radiance(x)
+    luma = torch.tensor(REC709_LUMA, device=x.device, dtype=x.dtype)
+    lum = (radiance * luma[:, None, None]).sum(1, keepdim=True)
+    factor = (level[:, None, None, None] / lum.clamp_min(1e-12)).clamp(max=1.0)
+    return torch.where(chosen[:, None, None, None], encoding.with_scale(1.0).to_prior(radiance * factor), x)
 
 
 def augment(x: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:

@@ -21,7 +21,7 @@ import torch
 from tqdm import tqdm
 
 from dpi.atomic import atomic_path
-from dpi.prior.data import EnvmapDataset, median_target, read_dataset
+from dpi.prior.data import EnvmapDataset, clip_highlights, median_target, read_dataset
 from dpi.prior.diffusion import base_diffusion, evenly_spaced_timesteps, respaced, sample, training_losses
 from dpi.prior.sample import write_grid
 from dpi.prior.unet import SMALL_CONFIGS, CheckpointError, UNetConfig, UNetModel, count_parameters, load_checkpoint
@@ -60,6 +60,8 @@ class TrainConfig:
     seed: int = 0
     encoding: str = "log"  # 'log' (log radiance around the median) or 'paper' (the family's tone curve)
     amp: bool = True  # bfloat16 autocast of the forward pass on CUDA (ignored on the CPU)
+    clip_fraction: float = 0.0  # share of each batch clipped like 8-bit panoramas (dpi.prior.data.clip_highlights)
+    clip_multiples: tuple[float, float] = (3.0, 30.0)  # clip levels, in multiples of the median luminance
 
     def __post_init__(self):
         """An unknown schedule fails here, not at the first optimiser step."""
@@ -197,6 +199,9 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
                postfix={"params": f"{count_parameters(model) / 1e6:.2f}M"})
     while step < cfg.steps and (deadline is None or time.perf_counter() < deadline):
         x0 = data.batch(cfg.batch_size, generator)
+        if cfg.clip_fraction:
+            x0 = clip_highlights(x0, data.encoding, median_target(cfg.family, data.encoding), cfg.clip_fraction,
+                                 cfg.clip_multiples, generator)
         t = torch.randint(0, cfg.num_timesteps, (cfg.batch_size,), generator=generator, device=cfg.device)
         noise = torch.randn(x0.shape, generator=generator, device=cfg.device)
         with torch.autocast("cuda", dtype=torch.bfloat16, enabled=cuda and cfg.amp):
