@@ -86,6 +86,7 @@ FIELD_BOUNDS: dict[str, Bound] = {
     "photo_size": Bound(16),
     "max_incidence_deg": Bound(0, 90),
     "fallback_window": Bound(0),
+    "clip_fraction": Bound(0, 1),
     "lr": Bound(0, strict=True),
 }
 """valid ranges of numeric settings by field-name pattern (fnmatch); the first matching pattern applies"""
