@@ -84,9 +84,10 @@ def roll_columns(x: torch.Tensor, shifts: torch.Tensor) -> torch.Tensor:
 
 def clip_highlights(x: torch.Tensor, encoding: Encoding, median: float, fraction: float,
                     multiples: tuple[float, float], generator: torch.Generator | None = None) -> torch.Tensor:
-    """A random `fraction` of a batch (B, 3, H, W) of prior-space maps (median luminance `median` at
-    the encoding's scale 1) with their luminance clipped at a multiple of the median drawn log-uniformly from `multiples`, hue kept: what
-    an 8-bit panorama decoded to linear looks like (the paper's outdoor data were such panoramas)."""
+    """A random `fraction` of a batch (B, 3, H, W) of prior-space maps (median luminance `median` at the
+    encoding's scale 1) with their luminance clipped at a multiple of the median drawn log-uniformly from
+    `multiples`, hue kept: what an 8-bit panorama decoded to linear looks like (the paper's outdoor data
+    were such panoramas)."""
     b = x.shape[0]
     chosen = torch.rand(b, generator=generator, device=x.device) < fraction
     lo, hi = (math.log(m) for m in multiples)
