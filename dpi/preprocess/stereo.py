@@ -9,8 +9,10 @@ images scores the match. A plane's score is the mean of its best `best_of` neigh
 ones do not vote); a second pass refines each pixel around its best plane, with a parabola through
 the best. A depth is kept when its score reaches `min_score`, it is not at the end of the range,
 no specular highlight covers it (a pixel much brighter than its surroundings: a highlight's mirror
-image lies behind the surface, and views near each other agree on it) and `min_consistent`
-neighbour depth maps agree with it.
+image lies behind the surface, and views near each other agree on it), its surface (the depth map's
+own normal) is seen within `max_incidence_deg` of head-on, and `min_consistent` neighbour depth maps
+agree with it. Pixels left without a depth take the one a sweep with the larger `fallback_window`
+finds, under the same checks (a noisy, weakly lit cavity matches over more pixels).
 
 **Passes.** Depths and carving repeat `passes` times, each round inside the surface the previous one
 left (a bowl's cavity opens further once its first round removed the lid the silhouettes left).
