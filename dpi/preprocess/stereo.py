@@ -328,10 +328,10 @@ def depth_maps(cameras: list[Camera], images: list[np.ndarray], masks: list[np.n
     scene = raycasting_scene(vertices, faces)
     neighbours = neighbour_views(cameras, axes_centre(cameras), cfg.neighbours, cfg.max_baseline_deg)
     greys = [grey(image, cfg.blur_px) for image in images]
-    ranges = []
-    for cam in cameras:
-        reach = 2 * float(np.linalg.norm(vertices - cam.center, axis=1).max())
-        ranges.append(hull_depth_range(scene, cam, reach))
+    ranges = [hull_depth_range(scene, cam, 2 * float(np.linalg.norm(vertices - cam.center, axis=1).max()))
+              for cam in cameras]
+    usable = [mask & ~highlights(image, mask, cfg.highlight_ratio) if cfg.highlight_ratio else mask
+              for image, mask in zip(images, masks)]
 
     def raw(window: int) -> list[np.ndarray]:
         """Every view's filtered depth map at one NCC window, before the consistency check."""
@@ -339,7 +339,7 @@ def depth_maps(cameras: list[Camera], images: list[np.ndarray], masks: list[np.n
         depths = []
         for i, cam in enumerate(cameras):
             depth, _ = sweep_depth(greys[i], cam, [(greys[j], cameras[j]) for j in neighbours[i]], *ranges[i], wcfg)
-            keep = masks[i] & ~highlights(images[i], masks[i], cfg.highlight_ratio) if cfg.highlight_ratio else masks[i]
+            keep = usable[i]
             if cfg.max_incidence_deg < 90:
                 keep = keep & ~grazing(depth, cam, cfg.max_incidence_deg)  # not in place: keep may be masks[i]
             depths.append(np.where(keep, depth, 0.0).astype(np.float32))

@@ -20,7 +20,7 @@ import torch
 from torch.nn import functional as F
 
 from dpi.atomic import atomic_path
-from dpi.images import IMAGE_SUFFIXES, REC709_LUMA, luminance, read_image
+from dpi.images import IMAGE_SUFFIXES, luminance, read_image
 from dpi.tonecurve import Encoding, encoding_from_dict
 
 PANORAMA_SUFFIXES = IMAGE_SUFFIXES + (".hdr",)
@@ -93,8 +93,7 @@ def clip_highlights(x: torch.Tensor, encoding: Encoding, median: float, fraction
     lo, hi = (math.log(m) for m in multiples)
     level = median * torch.exp(lo + (hi - lo) * torch.rand(b, generator=generator, device=x.device))
     radiance = encoding.with_scale(1.0).to_radiance(x)
-    luma = torch.tensor(REC709_LUMA, device=x.device, dtype=x.dtype)
-    lum = (radiance * luma[:, None, None]).sum(1, keepdim=True)
+    lum = luminance(radiance.movedim(1, -1)).unsqueeze(1)
     factor = (level[:, None, None, None] / lum.clamp_min(1e-12)).clamp(max=1.0)
     return torch.where(chosen[:, None, None, None], encoding.with_scale(1.0).to_prior(radiance * factor), x)
 
