@@ -37,8 +37,25 @@ def test_smooth_gain_starts_at_the_map_and_recovers_a_low_order_gain():
     assert [name for name, _ in model.named_parameters()] == ["coefficients"]
 
 
+def test_polish_moves_every_texel_at_its_share_of_the_rate():
+    torch.manual_seed(1)
+    base = torch.randn(8, 16, 3)
+    model = SmoothGain(base, order=0, polish=0.1)
+    torch.testing.assert_close(model(), base)
+    target = base + torch.randn_like(base)
+    optimizer = torch.optim.Adam([model.texels], lr=0.05)
+    optimizer.zero_grad()
+    (model() - target).square().sum().backward()
+    optimizer.step()
+    # Adam's first step is the rate times the gradient's sign: 0.05 on the texel parameter, 0.005 on the map
+    step = (model() - base).detach()
+    torch.testing.assert_close(step.abs(), torch.full_like(base, 0.005), atol=1e-6, rtol=0)
+    assert bool(((target - base) * step > 0).all())
+
+
 def test_refine_env_settings_are_checked():
     assert DPSConfig.from_dict({"refine_env": "gain"}).refine_env == "gain"
+    assert DPSConfig.from_dict({"refine_env": "polish"}).refine_env == "polish"
     with pytest.raises(ValueError, match="refine_env"):
         DPSConfig.from_dict({"refine_env": "smooth"})
     with pytest.raises(ValueError, match="refine_gain_order"):

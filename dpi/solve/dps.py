@@ -33,7 +33,7 @@ from dpi.settings import settings_from_dict
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.init import GLOSSY_ROUGHNESS, is_glossy, starting_materials
-from dpi.solve.optimize import FreeEnvMap, OptimizeConfig, fit_env_model
+from dpi.solve.optimize import EnvModel, FreeEnvMap, OptimizeConfig, fit_env_model
 from dpi.solve.problem import InverseProblem
 from dpi.solve.samplers import SAMPLERS, DPSRun, DPSState, resample_env, rho_schedule
 from dpi.solve.smooth_gain import MAX_ORDER, SmoothGain
@@ -42,7 +42,7 @@ from dpi.solve.trace import Trace
 
 RHO_SCHEDULES = ("linear", "step", "constant")
 MAP_UPDATES = ("adam", "normalized")
-REFINE_ENV = ("fixed", "gain", "texels")
+REFINE_ENV = ("fixed", "gain", "polish", "texels")
 SUN_MODES = ("auto", "on", "off")
 SUN_FAMILIES = ("outdoor",)
 """prior families whose maps get a parametric sun under sun: auto"""
@@ -106,12 +106,14 @@ class DPSConfig:
     refine_env: str = "gain"
     """what the refinement may change of the sampled map: fixed; gain, a smooth log gain (spherical harmonics
     up to refine_gain_order: the light's broad balance, which the views determine, dpi.solve.smooth_gain);
-    texels, every texel (a polish, the few iterations keeping it near the sample)"""
+    polish, the gain and every texel at refine_lr_texels; texels, every texel at refine_lr_env"""
     refine_gain_order: int = 1
     """gain: highest spherical-harmonic band of the log gain (0-2; 1: a level and a tilt per channel, e.g. the
     ground against the sky; 2 fits the views better but bends the map away from the truth)"""
     refine_lr_env: float = 0.03
     """Adam rate of the map's parameters during the refinement (gain coefficients or log-radiance texels)"""
+    refine_lr_texels: float = 0.005
+    """polish: Adam rate of the texels' log radiance next to the gain (a few hundredths over the refinement)"""
     sun: str | None = None
     """a parametric sun next to the prior's sky (dpi.solve.sun): on, off, or auto (on with the outdoor
     prior for objects that are not glossy); it starts from the init's brightest region (None: the
@@ -270,7 +272,11 @@ def refine(problem: InverseProblem, env: torch.Tensor, materials: MaterialTextur
                               lr_albedo=cfg.lr_albedo, lr_roughness=cfg.lr_roughness, lr_metallic=cfg.lr_metallic)
     trace = Trace()
     log_env = env.clamp_min(1e-8).log()
-    model = SmoothGain(log_env, cfg.refine_gain_order) if cfg.refine_env == "gain" else FreeEnvMap(log_env)
+    if cfg.refine_env == "texels":
+        model: EnvModel = FreeEnvMap(log_env)
+    else:
+        polish = cfg.refine_lr_texels / cfg.refine_lr_env if cfg.refine_env == "polish" else 0.0
+        model = SmoothGain(log_env, cfg.refine_gain_order, polish)
     log_env, materials = fit_env_model(problem, model, materials.detached(), settings, seed, trace, progress=progress)
     return log_env.exp(), materials, trace
 

@@ -34,15 +34,23 @@ def sh_basis(directions: np.ndarray, order: int) -> np.ndarray:
 
 class SmoothGain(EnvModel):
     """log-radiance = the given map's + a spherical-harmonic log gain per channel up to band `order`
-    (DPSConfig.refine_gain_order; coefficients start at 0)."""
+    (DPSConfig.refine_gain_order; coefficients start at 0), and with `polish` > 0 a per-texel log
+    residual too, scaled by `polish`: under Adam, whose steps do not depend on a gradient's size, the
+    texels then move at `polish` times the coefficients' rate (a light polish on top of the gain)."""
 
-    def __init__(self, log_env: torch.Tensor, order: int):
+    def __init__(self, log_env: torch.Tensor, order: int, polish: float = 0.0):
         super().__init__()
         basis = sh_basis(texel_directions(log_env.shape[0]), order)
+        self.polish = polish
         self.register_buffer("base", log_env.detach().clone())
         self.register_buffer("basis", torch.as_tensor(basis, dtype=log_env.dtype))
         self.coefficients = torch.nn.Parameter(torch.zeros(basis.shape[-1], 3, dtype=log_env.dtype))
+        if polish > 0:
+            self.texels = torch.nn.Parameter(torch.zeros_like(self.base))
 
     def forward(self) -> torch.Tensor:
-        """The base map's log-radiance plus the gain, kept inside about [1e-6, 1e6]."""
-        return (self.base + self.basis @ self.coefficients).clamp(*LOG_ENV_RANGE)
+        """The base map's log-radiance plus the gain (and the polish), kept inside about [1e-6, 1e6]."""
+        log_env = self.base + self.basis @ self.coefficients
+        if self.polish > 0:
+            log_env = log_env + self.polish * self.texels
+        return log_env.clamp(*LOG_ENV_RANGE)
