@@ -57,6 +57,7 @@ FIELD_BOUNDS: dict[str, Bound] = {
     "*views_per_step": Bound(1),
     "*iterations": Bound(0),
     "lr_*": Bound(0, strict=True),
+    "refine_lr_*": Bound(0, strict=True),
     "spp": Bound(1),
     "max_depth": Bound(1),
     "views": Bound(1),

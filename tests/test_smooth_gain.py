@@ -55,7 +55,9 @@ def test_polish_moves_every_texel_at_its_share_of_the_rate():
 
 def test_refine_env_settings_are_checked():
     assert DPSConfig.from_dict({"refine_env": "gain"}).refine_env == "gain"
-    assert DPSConfig.from_dict({"refine_env": "polish"}).refine_env == "polish"
+    assert DPSConfig().refine_env == "polish"
+    with pytest.raises(ValueError, match="refine_lr_gain"):
+        DPSConfig.from_dict({"refine_lr_gain": 0})
     with pytest.raises(ValueError, match="refine_env"):
         DPSConfig.from_dict({"refine_env": "smooth"})
     with pytest.raises(ValueError, match="refine_gain_order"):

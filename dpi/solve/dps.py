@@ -2,7 +2,7 @@
 
 Reverse diffusion over the prior's image space x (encoded env maps in [-1, 1]), guided by the
 renderer, with the materials optimised jointly; after the last step the materials are refined under
-the clean map, which keeps its detail and gets only a smooth gain (`refine_env`). How one reverse
+the clean map, which keeps its detail and gets a smooth gain and a light per-texel polish (`refine_env`). How one reverse
 step uses the data is the `sampler` setting (dpi.solve.samplers: the paper's gradient guidance, or a
 proximal x0-space step).
 
@@ -103,17 +103,17 @@ class DPSConfig:
     refine_iterations: int = 200
     """Adam iterations of the refinement: the materials under the final map (and its gain, `refine_env`)"""
     refine_views_per_step: int = 2
-    refine_env: str = "gain"
+    refine_env: str = "polish"
     """what the refinement may change of the sampled map: fixed; gain, a smooth log gain (spherical harmonics
     up to refine_gain_order: the light's broad balance, which the views determine, dpi.solve.smooth_gain);
-    polish, the gain and every texel at refine_lr_texels; texels, every texel at refine_lr_env"""
+    polish, the gain and every texel (at refine_lr_texels, so they stay near the sample); texels, every texel"""
     refine_gain_order: int = 1
     """gain: highest spherical-harmonic band of the log gain (0-2; 1: a level and a tilt per channel, e.g. the
     ground against the sky; 2 fits the views better but bends the map away from the truth)"""
-    refine_lr_env: float = 0.03
-    """Adam rate of the map's parameters during the refinement (gain coefficients or log-radiance texels)"""
+    refine_lr_gain: float = 0.03
+    """Adam rate of the gain's coefficients during the refinement"""
     refine_lr_texels: float = 0.005
-    """polish: Adam rate of the texels' log radiance next to the gain (a few hundredths over the refinement)"""
+    """Adam rate of the texels' log radiance during the refinement (polish, texels): at most 1 over 200 steps"""
     sun: str | None = None
     """a parametric sun next to the prior's sky (dpi.solve.sun): on, off, or auto (on with the outdoor
     prior for objects that are not glossy); it starts from the init's brightest region (None: the
@@ -265,17 +265,18 @@ def strip_frames(snapshots: list[torch.Tensor], count: int) -> list[torch.Tensor
 
 def refine(problem: InverseProblem, env: torch.Tensor, materials: MaterialTextures, cfg: DPSConfig, seed: int,
            progress: bool = True) -> tuple[torch.Tensor, MaterialTextures, Trace]:
-    """The last stage of a sample: Adam on the materials under the map (fixed, with a smooth gain, or
-    every texel: refine_env); returns the map, the materials and the refinement's trace."""
+    """The last stage of a sample: Adam on the materials under the map (fixed, with a smooth gain, the
+    gain and a polish, or every texel: refine_env); returns the map, the materials and the refinement's trace."""
     settings = OptimizeConfig(iterations=cfg.refine_iterations, views_per_step=cfg.refine_views_per_step,
-                              optimize_env=cfg.refine_env != "fixed", lr_env=cfg.refine_lr_env,
+                              optimize_env=cfg.refine_env != "fixed",
+                              lr_env=cfg.refine_lr_texels if cfg.refine_env == "texels" else cfg.refine_lr_gain,
                               lr_albedo=cfg.lr_albedo, lr_roughness=cfg.lr_roughness, lr_metallic=cfg.lr_metallic)
     trace = Trace()
     log_env = env.clamp_min(1e-8).log()
     if cfg.refine_env == "texels":
         model: EnvModel = FreeEnvMap(log_env)
     else:
-        polish = cfg.refine_lr_texels / cfg.refine_lr_env if cfg.refine_env == "polish" else 0.0
+        polish = cfg.refine_lr_texels / cfg.refine_lr_gain if cfg.refine_env == "polish" else 0.0
         model = SmoothGain(log_env, cfg.refine_gain_order, polish)
     log_env, materials = fit_env_model(problem, model, materials.detached(), settings, seed, trace, progress=progress)
     return log_env.exp(), materials, trace
