@@ -2,9 +2,9 @@
 
 Reverse diffusion over the prior's image space x (encoded env maps in [-1, 1]), guided by the
 renderer, with the materials optimised jointly; after the last step the materials are refined under
-the clean map, which keeps its detail and gets a smooth gain and a light per-texel polish (`refine_env`). How one reverse
-step uses the data is the `sampler` setting (dpi.solve.samplers: the paper's gradient guidance, or a
-proximal x0-space step).
+the clean map, which keeps its detail and gets a smooth gain and a light per-texel polish
+(`refine_env`). How one reverse step uses the data is the `sampler` setting (dpi.solve.samplers: the
+paper's gradient guidance, or a proximal x0-space step).
 
 `posterior_steps` is the loop: a generator that runs one sampler step per schedule step and yields
 its record, like guided-diffusion's `p_sample_loop_progressive`; `dps_sample` consumes it for the
