@@ -1,7 +1,7 @@
 """The workflow config checked before any job runs, with the offending key's path in the one message.
 
 Two passes, both before Snakemake builds the DAG (rules/common.smk):
-1. the JSON schema (rules/config.schema.yaml), closed at every level, so a typo anywhere is an
+1. the JSON schema (dpi/data/config.schema.yaml), closed at every level, so a typo anywhere is an
    unknown key with the closest valid one suggested;
 2. every section a settings dataclass owns is built by it: `method_params.{method}` by that
    method's config (dpi.solve.methods, so new dataclass fields are accepted without touching the

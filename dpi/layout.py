@@ -1,7 +1,7 @@
 """Where every artefact of a run lives: the one place that builds a results path from its parts.
 
 `Layout(results, captures)` names the run-wide files (summary, report, prior training) and each
-scene's `SceneLayout` the files under `results/{scene}/` (DESIGN.md "Data flow and cached files"):
+scene's `SceneLayout` the files under `results/{scene}/`:
 
     capture.json                       validated capture
     poses/transforms.json, points.ply  cameras from structure from motion       (photo captures)
