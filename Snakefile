@@ -1,7 +1,11 @@
 # dpi: Diffusion Posterior Illumination as a Snakemake workflow.
-#   snakemake --cores 2                         # the demo (dpi's defaults, dpi/data/config.yaml)
-#   snakemake --cores 2 --configfile my.yaml    # your own scenes, merged over the defaults
-# A config.yaml in the working directory is merged over the defaults too (dpi.pipeline).
+#   snakemake --cores 2                         # the scenes and methods of ./config.yaml (as shipped: the demo)
+#   snakemake --cores 2 --configfile my.yaml    # more settings, merged over ./config.yaml
+# Settings: dpi's defaults (dpi/data/config.yaml), then config.yaml in the working directory (the
+# top-level file of the checkout), then --configfile / --config, then the preset. rules/common.smk
+# resolves them with dpi.pipeline.resolve_config, the same call the `dpi` command makes, so
+# `dpi config` prints what this workflow runs with. (No `configfile:` directive: resolve_config owns
+# the order, and a working directory without config.yaml runs on the defaults.)
 # Every intermediate is a file under results/ (dpi.layout); unchanged stages are not rerun.
 
 

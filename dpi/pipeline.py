@@ -4,7 +4,8 @@ where every artefact lives (dpi.layout) and which methods exist (dpi.solve.metho
 **Config resolution** (`resolve_config`), the same for the Snakemake workflow and the `dpi` command:
 
 1. dpi's defaults, `dpi/data/config.yaml` (shipped in the package; `dpi config` prints the result);
-2. `config.yaml` in the working directory, when there is one;
+2. `config.yaml` in the working directory, when there is one (in the checkout: the top-level file a user
+   edits, which the Snakefile reads the same way, through this function);
 3. each file given with `snakemake --configfile` or `dpi --config`, in order, and Snakemake's
    `--config key=value`, merged key by key as Snakemake merges config files (a dict is merged into
    the dict below it, anything else replaces);
@@ -43,7 +44,7 @@ from dpi.synth.capture import SynthConfig
 DEFAULT_CONFIG = package_data("config.yaml")
 CONFIG_SCHEMA = package_data("config.schema.yaml")
 LOCAL_CONFIG = Path("config.yaml")
-"""a run directory's own settings, read over the defaults when present (as Snakemake's `configfile:`)"""
+"""a run directory's own settings (the checkout's top-level config.yaml), read over the defaults when present"""
 
 
 def merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:

@@ -10,9 +10,10 @@ from dpi.pipeline import Pipeline, plain, resolve_config
 from dpi.preprocess.stages import stage_inputs
 from dpi.solve.methods import METHODS as KNOWN_METHODS, REGISTRY
 
-# dpi's defaults, ./config.yaml, then the --configfile files and --config values Snakemake merged into
-# `config`; the preset fills what is unset, and the schema and settings dataclasses check it, with the
-# key's path in one message, before the DAG is built.
+# dpi's defaults (dpi/data/config.yaml), ./config.yaml when present (the checkout's top-level file), then
+# the --configfile files and --config values Snakemake merged into `config`; the preset fills what is
+# unset, and the schema and settings dataclasses check it, with the key's path in one message, before
+# the DAG is built. `dpi` resolves the same way (dpi.pipeline.resolve_config owns the order).
 config.update(resolve_config(config))
 PIPELINE = Pipeline(config)
 LAYOUT = PIPELINE.layout
