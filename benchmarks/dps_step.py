@@ -36,9 +36,9 @@ from dpi.layout import INIT
 from dpi.materials import MaterialTextures
 from dpi.prior.sample import load_scene_prior
 from dpi.render import Renderer, RenderSettings
-from dpi.solve.dps import DPSConfig, posterior_steps, start_run
+from dpi.solve.dps import SAMPLERS, DPSConfig, posterior_steps, start_run
+from dpi.solve.dps.state import DPSRun
 from dpi.solve.problem import InverseProblem, ProblemSettings
-from dpi.solve.samplers import SAMPLERS, DPSRun
 
 PARTS = {"network": "network forward (UNet, random roll)", "render": "render forward + backward",
          "network_backward": "network backward (UNet to x_t)", "rest": "reverse step, Adam and the rest",
@@ -64,7 +64,8 @@ def make_run(sampler: str, threads: int, seed: int) -> tuple[DPSRun, Iterator[di
     problem = InverseProblem(capture, ProblemSettings(env_height=base.env_height, texture_size=base.texture_size),
                              RenderSettings(spp=base.spp, threads=threads))
     init = problem.load_decomposition(PIPELINE.layout.scene(DEMO).sample_dir(INIT))
-    cfg = DPSConfig(sampler=sampler, steps=base.steps, views_per_step=base.views_per_step)
+    cfg = DPSConfig.from_dict({"sampler": sampler, "steps": base.steps,
+                               sampler: {"views_per_step": base.views_per_step}})
     run, state = start_run(problem, load_scene_prior(capture.options, PIPELINE.prior_checkpoint(DEMO)), init, cfg, seed)
     return run, posterior_steps(run, state)
 

@@ -152,15 +152,23 @@ def run_job(job: Job) -> dict[str, Any]:
 
 
 def dps_variants(config: dict, extra: list[str]) -> dict[str, dict]:
-    """dps settings per sampler label: each built-in sampler, plus `NAME:key=value,...` variants."""
-    from dpi.solve.samplers import SAMPLERS
+    """dps settings per sampler label: each built-in sampler, plus `NAME:key=value,...` variants (a dotted key
+    names a section's setting: `proximal.inner_steps=4`)."""
+    from dpi.pipeline import merge
+    from dpi.solve.dps import SAMPLERS
 
     base = config["method_params"].get("dps", {})
     variants = {name: {**base, "sampler": name} for name in SAMPLERS}
     for spec in extra:
         name, _, pairs = spec.partition(":")
-        values = {k: yaml.safe_load(v) for k, v in (p.split("=", 1) for p in pairs.split(",") if p)}
-        variants[name] = {**base, **values}
+        values: dict = {}
+        for key, value in (p.split("=", 1) for p in pairs.split(",") if p):
+            *sections, leaf = key.split(".")
+            node = values
+            for section in sections:
+                node = node.setdefault(section, {})
+            node[leaf] = yaml.safe_load(value)
+        variants[name] = merge(base, values)
     return variants
 
 

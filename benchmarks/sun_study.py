@@ -67,8 +67,9 @@ def true_light_sample(job: Job) -> None:
     from dpi.envmap import read_envmap
     from dpi.prior.data import resize_area
     from dpi.solve.decomposition import Decomposition
-    from dpi.solve.dps import refine
     from dpi.solve.init import starting_materials
+    from dpi.solve.optimize import fit
+    from dpi.solve.trace import Trace
     from dpi.stages import SolveSettings, load_problem
 
     files = job.layout.scene(job.scene)
@@ -78,10 +79,12 @@ def true_light_sample(job: Job) -> None:
     gt = torch.from_numpy(read_envmap(problem.capture.gt["envmap"])).float().permute(2, 0, 1)
     env = resize_area(gt, problem.settings.env_height).permute(1, 2, 0)
     init = problem.load_decomposition(files.sample_dir("init"))
-    cfg = replace(DPSConfig.from_dict(job.method_cfg), refine_env="fixed")  # the true map stays as it is
-    env, materials, trace = refine(problem, env / problem.exposure, starting_materials(init), cfg, job.seed,
-                                   progress=False)
-    problem.save_decomposition(Decomposition(env, materials, trace), job.sample_dir)
+    cfg = DPSConfig.from_dict(job.method_cfg)
+    settings = replace(cfg.refine.optimize(cfg), optimize_env=False)  # dps's refinement; the true map stays as it is
+    trace = Trace()
+    log_env, materials = fit(problem, (env / problem.exposure).log(), starting_materials(init), settings, job.seed,
+                             trace, progress=False)
+    problem.save_decomposition(Decomposition(log_env.exp(), materials, trace), job.sample_dir)
 
 
 def score(job: Job) -> dict[str, Any]:

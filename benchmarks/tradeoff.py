@@ -60,8 +60,8 @@ def preset_setting(name: str | None = None) -> Setting:
     pipeline = PIPELINE if name is None else Pipeline(resolve_config({"preset": name}))
     dps, solve = pipeline.method_settings("dps"), pipeline.solve_settings()
     return Setting(steps=dps.steps, spp=solve.render.spp, resolution=pipeline.synth_settings(DEMO).width,
-                   views_per_step=dps.views_per_step, env_height=solve.problem.env_height,
-                   texture_size=solve.problem.texture_size, refine_iterations=dps.refine_iterations)
+                   views_per_step=dps.sampler_settings.views_per_step, env_height=solve.problem.env_height,
+                   texture_size=solve.problem.texture_size, refine_iterations=dps.refine.iterations)
 
 
 def capture_at(resolution: int, threads: int) -> Path:
@@ -81,8 +81,9 @@ def run(setting: Setting, init_dir: Path, prior, threads: int, seed: int) -> dic
     problem = InverseProblem(capture, ProblemSettings(env_height=setting.env_height, texture_size=setting.texture_size),
                              RenderSettings(spp=setting.spp, threads=threads))
     init = problem.load_decomposition(init_dir)
-    cfg = replace(PIPELINE.method_settings("dps"), steps=setting.steps, views_per_step=setting.views_per_step,
-                  refine_iterations=setting.refine_iterations)
+    base = PIPELINE.method_settings("dps")
+    cfg = replace(base, steps=setting.steps, refine=replace(base.refine, iterations=setting.refine_iterations),
+                  **{base.sampler: replace(base.sampler_settings, views_per_step=setting.views_per_step)})
     start = time.perf_counter()
     result = dps_sample(problem, prior, init, cfg, seed=seed, progress=False).decomposition
     seconds = time.perf_counter() - start

@@ -21,7 +21,7 @@ import numpy as np
 from dpi.atomic import write_json
 from dpi.exr import read_exr
 from dpi.materials import MaterialTextures
-from dpi.evaluation.metrics import normalized_env, sample_variance
+from dpi.spread import normalized_env, sample_variance
 from dpi.settings import settings_from_dict
 
 

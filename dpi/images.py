@@ -154,3 +154,9 @@ def write_mask(path: str | os.PathLike, mask: np.ndarray) -> None:
     """Write a boolean mask as an 8-bit PNG (255 = foreground), atomically."""
     with atomic_path(path) as tmp:
         Image.fromarray(np.where(mask, 255, 0).astype(np.uint8)).save(tmp, format="PNG")
+
+
+def tonemap(radiance: np.ndarray) -> np.ndarray:
+    """Reinhard L / (1 + L): HDR radiance into [0, 1) for image metrics."""
+    radiance = np.clip(radiance, 0, None)
+    return radiance / (1.0 + radiance)

@@ -20,6 +20,20 @@ RANGES = {"albedo": (0.0, 1.0), "roughness": (0.02, 1.0), "metallic": (0.0, 1.0)
 
 
 @dataclass
+class MaterialRates:
+    """Adam learning rates of the three textures: the one owner of their defaults, which the init, the
+    optimisation-based methods, sds and dps inherit (their config keys lr_albedo, lr_roughness, lr_metallic)."""
+
+    lr_albedo: float = 2e-2
+    lr_roughness: float = 1.5e-2
+    lr_metallic: float = 1e-2
+
+    def rate(self, name: str) -> float:
+        """The rate of texture `name` (albedo, roughness, metallic)."""
+        return getattr(self, f"lr_{name}")
+
+
+@dataclass
 class MaterialTextures:
     """Principled-BSDF textures in UV space (row 0 at v = 1, as Mitsuba's bitmaps)."""
 

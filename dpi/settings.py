@@ -57,7 +57,6 @@ FIELD_BOUNDS: dict[str, Bound] = {
     "*views_per_step": Bound(1),
     "*iterations": Bound(0),
     "lr_*": Bound(0, strict=True),
-    "refine_lr_*": Bound(0, strict=True),
     "spp": Bound(1),
     "max_depth": Bound(1),
     "views": Bound(1),
@@ -89,6 +88,15 @@ FIELD_BOUNDS: dict[str, Bound] = {
     "fallback_window": Bound(0),
     "clip_fraction": Bound(0, 1),
     "lr": Bound(0, strict=True),
+    "share": Bound(0, 1, strict=True),
+    "min_share": Bound(0, 1),
+    "radius_deg": Bound(0, 90, strict=True),
+    "min_roughness": Bound(0, 1),
+    "prior_weight": Bound(0),
+    "noise_mix": Bound(0, 1),
+    "material_start": Bound(0, 1),
+    "prox_weight": Bound(0),
+    "inner_steps": Bound(1),
 }
 """valid ranges of numeric settings by field-name pattern (fnmatch); the first matching pattern applies"""
 

@@ -12,10 +12,11 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from dpi.capture import load_capture
-from dpi.evaluation.metrics import normalized_env, sample_variance
+from dpi.spread import normalized_env, sample_variance
 from dpi.prior.sample import Prior
 from dpi.render import RenderSettings
 from dpi.solve.dps import DPSConfig, dps_sample
+from dpi.solve.dps.refine import RefineSettings
 from dpi.solve.init import path_traced_init
 from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import InverseProblem, ProblemSettings
@@ -31,7 +32,7 @@ class SweepSettings:
     problem: ProblemSettings = field(default_factory=lambda: ProblemSettings(env_height=16, texture_size=32))
     render: RenderSettings = field(default_factory=lambda: RenderSettings(spp=8))
     init: OptimizeConfig = field(default_factory=lambda: OptimizeConfig(iterations=60))
-    dps: DPSConfig = field(default_factory=lambda: DPSConfig(steps=50, refine_iterations=20))
+    dps: DPSConfig = field(default_factory=lambda: DPSConfig(steps=50, refine=RefineSettings(iterations=20)))
     samples: int = 3
 
 

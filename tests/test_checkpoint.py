@@ -90,8 +90,8 @@ def test_cut_fit_continues_to_the_uninterrupted_result(problem_and_init, tmp_pat
 def test_cut_dps_sample_continues_to_the_uninterrupted_result(problem_and_init, tmp_path, monkeypatch, sampler, call,
                                                               per_step):
     problem, init = problem_and_init
-    cfg = DPSConfig(sampler=sampler, steps=4, start_noise=1.0, views_per_step=1, inner_steps=2, refine_iterations=1,
-                    strip_frames=3)
+    cfg = DPSConfig.from_dict({"sampler": sampler, "steps": 4, "strip_frames": 3, "refine": {"iterations": 1},
+                               "proximal": {"start_noise": 1.0, "views_per_step": 1, "inner_steps": 2}})
     resume = tmp_path / ".resume.pt"
     with cut_after(monkeypatch, problem, call, steps=3 * per_step):
         dps_sample(problem, tiny_prior(), init, cfg, seed=1, progress=False, checkpoint=resume, checkpoint_every=2)

@@ -10,8 +10,8 @@ from dpi.prior.diffusion import base_diffusion
 from dpi.prior.sample import Prior
 from dpi.prior.unet import SMALL_CONFIGS, UNetModel
 from dpi.render import RenderSettings
-from dpi.solve.dps import DPSConfig, dps_sample
-from dpi.solve.samplers import SAMPLERS, rho_schedule, scale_to_bound
+from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample
+from dpi.solve.dps.paper import PaperSettings, rho_schedule, scale_to_bound
 from dpi.solve.init import path_traced_init
 from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import InverseProblem, ProblemSettings
@@ -26,22 +26,40 @@ def tiny_prior(height: int = 8) -> Prior:
 
 
 def test_rho_schedules_known_answers():
-    linear = rho_schedule(DPSConfig(), 10)
+    linear = rho_schedule(PaperSettings(), 10)
     assert np.allclose(linear[:5], 0.1) and linear[-1] == pytest.approx(1.0) and (np.diff(linear) >= 0).all()
-    step = rho_schedule(DPSConfig(rho_schedule="step"), 10)
+    step = rho_schedule(PaperSettings(rho_schedule="step"), 10)
     assert np.allclose(step[:5], 0.1) and np.allclose(step[5:], 1.0)
-    assert np.allclose(rho_schedule(DPSConfig(rho_schedule="constant", rho_start=0.3), 4), 0.3)
-    with pytest.raises(ValueError, match="rho_schedule"):
-        DPSConfig.from_dict({"rho_schedule": "cosine"})
+    assert np.allclose(rho_schedule(PaperSettings(rho_schedule="constant", rho_start=0.3), 4), 0.3)
+    with pytest.raises(ValueError, match="paper.rho_schedule: must be one of linear, step, constant"):
+        DPSConfig.from_dict({"paper": {"rho_schedule": "cosine"}})
 
 
 def test_yaml_booleans_name_the_sun_modes():
     """YAML 1.1 reads `sun: off` as False: the config means the mode, not a type error."""
     parsed = yaml.safe_load("sun: off\n")
     assert parsed == {"sun": False}
-    assert DPSConfig.from_dict(parsed).sun == "off"
-    assert DPSConfig.from_dict(yaml.safe_load("sun: on\n")).sun == "on"
-    assert DPSConfig.from_dict({"sun": "auto"}).sun == "auto"
+    assert DPSConfig.from_dict(parsed).sun.mode == "off"
+    assert DPSConfig.from_dict(yaml.safe_load("sun: on\n")).sun.mode == "on"
+    assert DPSConfig.from_dict(yaml.safe_load("sun: {mode: off, share: 0.4}\n")).sun.share == 0.4
+    assert DPSConfig.from_dict({"sun": "auto"}).sun.mode == "auto"
+
+
+def test_settings_are_grouped_and_the_flat_keys_name_their_new_place():
+    cfg = DPSConfig.from_dict({"steps": 7, "proximal": {"inner_steps": 3}, "refine": {"iterations": 9}})
+    assert (cfg.steps, cfg.sampler_settings.inner_steps, cfg.refine.iterations) == (7, 3, 9)
+    with pytest.raises(ValueError, match="inner_steps: moved to proximal.inner_steps"):
+        DPSConfig.from_dict({"inner_steps": 3})
+    with pytest.raises(ValueError, match="refine_iterations: moved to refine.iterations"):
+        DPSConfig.from_dict({"refine_iterations": 3})
+    with pytest.raises(ValueError, match="map_update: removed"):
+        DPSConfig.from_dict({"map_update": "normalized"})
+    with pytest.raises(ValueError, match="proximal.start_noise: must be in"):
+        DPSConfig.from_dict({"proximal": {"start_noise": 0}})
+    with pytest.raises(ValueError, match="proximal.lr_mapp: unknown ProximalSettings setting; did you mean 'lr_map'"):
+        DPSConfig.from_dict({"proximal": {"lr_mapp": 0.1}})
+    with pytest.raises(ValueError, match="refine: must be a mapping"):
+        DPSConfig.from_dict({"refine": 3})
 
 
 def test_guidance_is_scaled_to_its_bound():
@@ -59,7 +77,7 @@ def problem_and_init(tiny_capture):
 
 def test_dps_run_is_finite_and_traced(problem_and_init):
     problem, init = problem_and_init
-    cfg = DPSConfig(sampler="paper", steps=4, refine_iterations=2, strip_frames=3)
+    cfg = DPSConfig.from_dict({"sampler": "paper", "steps": 4, "refine": {"iterations": 2}, "strip_frames": 3})
     result = dps_sample(problem, tiny_prior(), init, cfg, seed=1, progress=False)
     d = result.decomposition
     assert d.env.shape == (4, 8, 3) and torch.isfinite(d.env).all() and (d.env >= 0).all()
@@ -84,8 +102,8 @@ def test_nan_network_output_is_skipped_not_propagated(problem_and_init):
     prior.model.forward = flaky
     for sampler in SAMPLERS:
         calls["n"] = 0
-        result = dps_sample(problem, prior, init, DPSConfig(sampler=sampler, steps=4, refine_iterations=1), seed=2,
-                            progress=False)
+        cfg = DPSConfig.from_dict({"sampler": sampler, "steps": 4, "refine": {"iterations": 1}})
+        result = dps_sample(problem, prior, init, cfg, seed=2, progress=False)
         assert result.decomposition.trace.nan_skips == 1, sampler
         assert torch.isfinite(result.decomposition.env).all()
 

@@ -6,7 +6,8 @@ import pytest
 
 from dpi.evaluation.summary import sample_rows, summarize
 from dpi.exr import write_exr
-from dpi.evaluation.metrics import PSNR_CAP, albedo_mse, env_metrics, psnr, sample_variance, ssim
+from dpi.evaluation.metrics import PSNR_CAP, albedo_mse, env_metrics, psnr, ssim
+from dpi.spread import sample_variance
 from dpi.evaluation.perceptual import INCEPTION_WEIGHTS, WEIGHTS_ENV
 
 

@@ -16,11 +16,11 @@ from dpi.prior.sample import Prior, draw_samples
 from dpi.prior.unet import SMALL_CONFIGS, UNetModel
 from dpi.render import RenderSettings
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.dps import DPSConfig, dps_sample, posterior_steps, prior_to_env, start_run
+from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, start_run
 from dpi.solve.init import path_traced_init
 from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import InverseProblem, ProblemSettings
-from dpi.solve.samplers import SAMPLERS
+from dpi.solve.prior_space import prior_to_env
 from dpi.solve.sun import map_energy, sun_env
 from dpi.tonecurve import LogEncoding
 
@@ -87,8 +87,8 @@ def test_proximal_step_with_an_exact_operator_converges_to_the_data():
     truth = torch.exp(torch.randn(height, 2 * height, 3, generator=torch.Generator().manual_seed(1)))
     problem = LinearProblem(truth)
     init = Decomposition(torch.ones(height, 2 * height, 3), MaterialTextures.constant(4))
-    cfg = DPSConfig(steps=40, inner_steps=8, prox_weight=0.0, noise_mix=0.0, lr_map=0.05, warm_start=True, start_noise=1.0,
-                    radiance_scale=1.0)
+    cfg = DPSConfig.from_dict({"steps": 40, "radiance_scale": 1.0, "proximal": {
+        "inner_steps": 8, "prox_weight": 0.0, "noise_mix": 0.0, "lr_map": 0.05, "start_noise": 1.0}})
     run, state = start_run(problem, gaussian_prior(height), init, cfg, seed=0)
     start = relative_residual(problem, run.env(torch.exp(state.log_map), state).detach())
     records = list(posterior_steps(run, state))
@@ -113,7 +113,8 @@ def training_residual(problem: InverseProblem, decomposition: Decomposition) -> 
 def test_guided_sample_fits_the_views_far_better_than_the_prior_alone(problem_and_init):
     problem, init = problem_and_init
     prior = gaussian_prior()
-    cfg = DPSConfig(steps=12, inner_steps=3, views_per_step=2, lr_map=0.1, refine_iterations=5)
+    cfg = DPSConfig.from_dict({"steps": 12, "refine": {"iterations": 5},
+                               "proximal": {"inner_steps": 3, "views_per_step": 2, "lr_map": 0.1}})
     guided = dps_sample(problem, prior, init, cfg, seed=3, progress=False).decomposition
     unguided_x = draw_samples(prior, 1, steps=12, seed=3)
     scale = guided.trace.info["radiance_scale"]
@@ -124,7 +125,8 @@ def test_guided_sample_fits_the_views_far_better_than_the_prior_alone(problem_an
 @pytest.mark.parametrize("sampler", list(SAMPLERS))
 def test_every_sampler_runs_in_the_one_loop_and_is_seeded(problem_and_init, sampler):
     problem, init = problem_and_init
-    cfg = DPSConfig(sampler=sampler, steps=3, start_noise=1.0, refine_iterations=1, strip_frames=2)
+    cfg = DPSConfig.from_dict({"sampler": sampler, "steps": 3, "refine": {"iterations": 1}, "strip_frames": 2,
+                               sampler: {"start_noise": 1.0}})
     first = dps_sample(problem, log_prior(), init, cfg, seed=4, progress=False)
     again = dps_sample(problem, log_prior(), init, cfg, seed=4, progress=False)
     d = first.decomposition
@@ -136,8 +138,8 @@ def test_every_sampler_runs_in_the_one_loop_and_is_seeded(problem_and_init, samp
 def test_unknown_sampler_is_an_error():
     with pytest.raises(ValueError, match="sampler"):
         DPSConfig.from_dict({"sampler": "telepathy"})
-    with pytest.raises(ValueError, match="inner_steps"):
-        DPSConfig.from_dict({"inner_steps": 0})
+    with pytest.raises(ValueError, match="proximal.inner_steps: must be >= 1"):
+        DPSConfig.from_dict({"proximal": {"inner_steps": 0}})
 
 
 def test_sample_stage_draws_a_dps_sample(tiny_capture, tmp_path):
@@ -154,7 +156,7 @@ def test_sample_stage_draws_a_dps_sample(tiny_capture, tmp_path):
     capture_stage(tiny_capture, tmp_path / "capture.json")
     init_stage(tmp_path / "capture.json", tmp_path / "init", "tiny", {"iterations": 3}, settings, progress=False)
     sample_stage(tmp_path / "capture.json", tmp_path / "init", tmp_path / "dps", "tiny", "dps", 0,
-                 {"steps": 4, "refine_iterations": 2}, settings, prior_checkpoint=checkpoint, progress=False)
+                 {"steps": 4, "refine": {"iterations": 2}}, settings, prior_checkpoint=checkpoint, progress=False)
     trace = json.loads((tmp_path / "dps" / "trace.json").read_text())
     assert trace["info"]["sampler"] == "proximal" and len(trace["steps"]) >= 2
     assert (tmp_path / "dps" / "x0_strip.png").is_file()
@@ -163,15 +165,15 @@ def test_sample_stage_draws_a_dps_sample(tiny_capture, tmp_path):
 
 def test_a_parametric_sun_is_fitted_and_lands_in_the_map(problem_and_init):
     problem, init = problem_and_init
-    cfg = DPSConfig(steps=4, start_noise=1.0, refine_iterations=1, sun="on")
+    cfg = DPSConfig.from_dict({"steps": 4, "proximal": {"start_noise": 1.0}, "refine": {"iterations": 1}, "sun": "on"})
     sunny = dps_sample(problem, log_prior(), init, cfg, seed=2, progress=False).decomposition
     sun = sunny.trace.info["sun"]
     assert 0 < sun["energy_share"] < 1 and len(sun["direction"]) == 3
     footprint = sun_env(torch.tensor(sun["uv"]), torch.ones(3), problem.settings.env_height)[..., :1] > 0
     held = map_energy(sunny.env * footprint)  # the sun's texels hold its irradiance on top of the sky's
     assert bool((held >= 0.999 * torch.tensor(sun["irradiance"])).all())
-    plain = dps_sample(problem, log_prior(), init, DPSConfig(steps=4, start_noise=1.0, refine_iterations=1, sun="off"),
-                       seed=2, progress=False).decomposition
+    off = DPSConfig.from_dict({"steps": 4, "proximal": {"start_noise": 1.0}, "refine": {"iterations": 1}, "sun": "off"})
+    plain = dps_sample(problem, log_prior(), init, off, seed=2, progress=False).decomposition
     assert "sun" not in plain.trace.info
-    with pytest.raises(ValueError, match="sun"):
+    with pytest.raises(ValueError, match="sun.mode: must be one of auto, on, off"):
         DPSConfig.from_dict({"sun": "sometimes"})

@@ -53,12 +53,7 @@ def test_polish_moves_every_texel_at_its_share_of_the_rate():
     assert bool(((target - base) * step > 0).all())
 
 
-def test_refine_env_settings_are_checked():
-    assert DPSConfig.from_dict({"refine_env": "gain"}).refine_env == "gain"
-    assert DPSConfig().refine_env == "polish"
-    with pytest.raises(ValueError, match="refine_lr_gain"):
-        DPSConfig.from_dict({"refine_lr_gain": 0})
-    with pytest.raises(ValueError, match="refine_env"):
-        DPSConfig.from_dict({"refine_env": "smooth"})
-    with pytest.raises(ValueError, match="refine_gain_order"):
-        DPSConfig.from_dict({"refine_gain_order": 3})
+def test_refine_settings_are_checked():
+    assert DPSConfig.from_dict({"refine": {"lr_texels": 0.01}}).refine.lr_texels == 0.01
+    with pytest.raises(ValueError, match="refine.lr_gain: must be > 0"):
+        DPSConfig.from_dict({"refine": {"lr_gain": 0}})

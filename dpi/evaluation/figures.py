@@ -19,7 +19,8 @@ from dpi.exr import read_exr  # noqa: E402
 from dpi.images import linear_to_srgb, luminance  # noqa: E402
 from dpi.exposure import middle_grey_gain  # noqa: E402
 from dpi.layout import TEXTURE_NAMES  # noqa: E402
-from dpi.evaluation.metrics import aligned_env, tonemap  # noqa: E402
+from dpi.evaluation.metrics import aligned_env  # noqa: E402
+from dpi.images import tonemap  # noqa: E402
 
 HELD_OUT_COLOR = "#d62728"
 SCENE_MARKERS = "osD^vPX*"

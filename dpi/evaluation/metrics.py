@@ -17,7 +17,7 @@ import torch
 from skimage.metrics import structural_similarity
 
 from dpi.exposure import middle_grey_gain, robust_level
-from dpi.images import luminance, resize
+from dpi.images import luminance, resize, tonemap
 
 EPS = 1e-6
 """log-space guard, relative to a map's level"""
@@ -60,12 +60,6 @@ def env_scale(estimate: np.ndarray, reference: np.ndarray) -> float:
     return float(np.exp(np.mean(np.log(yr + guard_r) - np.log(ye + guard_e))))
 
 
-def tonemap(radiance: np.ndarray) -> np.ndarray:
-    """Reinhard L / (1 + L): HDR radiance into [0, 1) for image metrics."""
-    radiance = np.clip(radiance, 0, None)
-    return radiance / (1.0 + radiance)
-
-
 def aligned_env(estimate: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """Tone-mapped scale-aligned estimate and reference (resized to the estimate), both at the reference's
     median luminance MIDDLE_GREY, and the scale aligning the estimate to the reference."""
@@ -89,13 +83,3 @@ def albedo_mse(estimate: np.ndarray, reference: np.ndarray) -> tuple[float, np.n
     return float(((e * scales - r) ** 2).mean()), scales
 
 
-def normalized_env(env: np.ndarray) -> np.ndarray:
-    """Env map divided by its median (positive) luminance, tone-mapped: scale-free, for spread across samples."""
-    return tonemap(env / (robust_level(luminance(env)) or 1.0))
-
-
-def sample_variance(samples: list[np.ndarray]) -> float:
-    """Per-element variance across samples, averaged (sigma2_sample); 0 for a single sample."""
-    if len(samples) < 2:
-        return 0.0
-    return float(np.stack(samples).var(axis=0, ddof=1).mean())

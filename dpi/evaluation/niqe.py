@@ -29,7 +29,8 @@ from scipy.special import gamma
 
 from dpi.images import linear_to_srgb, luminance
 from dpi.layout import package_data
-from dpi.evaluation.metrics import normalized_env, resize_area
+from dpi.evaluation.metrics import resize_area
+from dpi.spread import normalized_env
 
 PRISTINE_MODEL = package_data("niqe_pristine.npz")
 PATCH_SIZE = 96

@@ -16,7 +16,8 @@ import numpy as np
 
 from dpi.atomic import atomic_path
 from dpi.envmap import read_envmap
-from dpi.evaluation.metrics import aligned_env, missing, normalized_env, resize_area, sample_variance
+from dpi.evaluation.metrics import aligned_env, missing, resize_area
+from dpi.spread import normalized_env, sample_variance
 from dpi.evaluation.perceptual import (INCEPTION_WEIGHTS, azimuth_rolls, frechet_distance, inception_features,
                                        missing_weights, pretrained_inception)
 from dpi.exr import read_exr

@@ -19,7 +19,7 @@ from typing import Any, Callable, TypeVar
 import torch
 from tqdm import tqdm
 
-from dpi.materials import MaterialTextures
+from dpi.materials import MaterialRates, MaterialTextures
 from dpi.settings import check_keys, check_values, settings_from_dict
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.problem import InverseProblem
@@ -31,8 +31,8 @@ CHECKPOINT_EVERY = 25
 
 
 @dataclass
-class OptimizeConfig:
-    """Adam settings of a joint env-map + materials fit."""
+class OptimizeConfig(MaterialRates):
+    """Adam settings of a joint env-map + materials fit (the textures' rates: MaterialRates)."""
 
     iterations: int = 400
     """number of Adam steps"""
@@ -40,9 +40,6 @@ class OptimizeConfig:
     """training views rendered per step (all views if larger than their number)"""
     lr_env: float = 3e-2
     """Adam learning rate of the env map's parameters (its log-radiance texels; dip: the network weights)"""
-    lr_albedo: float = 2e-2
-    lr_roughness: float = 1.5e-2
-    lr_metallic: float = 1e-2
     optimize_env: bool = True
     """False keeps the env map fixed (material refinement)"""
     optimize_materials: tuple[str, ...] = ("albedo", "roughness", "metallic")
@@ -134,7 +131,7 @@ def fit_env_model(problem: InverseProblem, env_model: EnvModel, materials: Mater
     for name, tensor in materials.items():
         if name in cfg.optimize_materials:
             tensor.requires_grad_(True)
-            groups.append({"params": [tensor], "lr": getattr(cfg, f"lr_{name}")})
+            groups.append({"params": [tensor], "lr": cfg.rate(name)})
     free = [p for g in groups for p in g["params"]]
     optimizer = torch.optim.Adam(groups) if groups else None
     generator = torch.Generator().manual_seed(seed)

@@ -16,11 +16,12 @@ from typing import Any
 import torch
 from tqdm import tqdm
 
+from dpi.materials import MaterialRates
 from dpi.prior.diffusion import model_output_with_random_roll, q_sample, split_model_output
 from dpi.prior.sample import Prior
 from dpi.settings import settings_from_dict
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.dps import estimate_radiance_scale, prior_to_env
+from dpi.solve.prior_space import estimate_radiance_scale, prior_to_env
 from dpi.solve.init import starting_materials
 from dpi.solve.optimize import all_finite
 from dpi.solve.problem import InverseProblem
@@ -28,16 +29,13 @@ from dpi.solve.trace import Trace
 
 
 @dataclass
-class SDSConfig:
-    """Settings of the `sds` ablation."""
+class SDSConfig(MaterialRates):
+    """Settings of the `sds` ablation (the textures' rates: MaterialRates)."""
 
     iterations: int = 150
     views_per_step: int = 1
     lr_map: float = 2e-2
     """Adam learning rate on the prior-space map x"""
-    lr_albedo: float = 2e-2
-    lr_roughness: float = 1.5e-2
-    lr_metallic: float = 1e-2
     t_min: float = 0.02
     t_max: float = 0.98
     """range of diffusion times, as fractions of the schedule"""
@@ -73,9 +71,7 @@ def sds_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
     materials = starting_materials(init)
     free = [x, *(t.requires_grad_(True) for _, t in materials.items())]
     optimizer = torch.optim.Adam([{"params": [x], "lr": cfg.lr_map},
-                                  {"params": [materials.albedo], "lr": cfg.lr_albedo},
-                                  {"params": [materials.roughness], "lr": cfg.lr_roughness},
-                                  {"params": [materials.metallic], "lr": cfg.lr_metallic}])
+                                  *({"params": [t], "lr": cfg.rate(name)} for name, t in materials.items())])
     trace = Trace(info={"method": "sds", "seed": seed, "radiance_scale": scale, "config": vars(cfg).copy()})
     weight = None
     for step in tqdm(range(cfg.iterations), desc="sds", disable=not progress, mininterval=2.0):

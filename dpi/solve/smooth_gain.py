@@ -34,7 +34,7 @@ def sh_basis(directions: np.ndarray, order: int) -> np.ndarray:
 
 class SmoothGain(EnvModel):
     """log-radiance = the given map's + a spherical-harmonic log gain per channel up to band `order`
-    (DPSConfig.refine_gain_order; coefficients start at 0), and with `polish` > 0 a per-texel log
+    (dps uses 1: dpi.solve.dps.refine; coefficients start at 0), and with `polish` > 0 a per-texel log
     residual too, scaled by `polish`: under Adam, whose steps do not depend on a gradient's size, the
     texels then move at `polish` times the coefficients' rate (a light polish on top of the gain)."""
 

@@ -17,7 +17,8 @@ from dpi.exposure import MIDDLE_GREY, capture_exposure
 from dpi.exr import read_exr, write_exr
 from dpi.evaluation.sample_metrics import evaluate_sample
 from dpi.evaluation.figures import display_env
-from dpi.evaluation.metrics import PSNR_CAP, env_metrics, normalized_env
+from dpi.evaluation.metrics import PSNR_CAP, env_metrics
+from dpi.spread import normalized_env
 from dpi.evaluation.niqe import env_niqe
 from dpi.render import RenderSettings
 from dpi.solve.decomposition import Decomposition

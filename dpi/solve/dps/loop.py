@@ -1,0 +1,149 @@
+"""One `dps` posterior sample: the reverse-diffusion loop around a sampler's step, then the refinement.
+
+`posterior_steps` is the loop: a generator that runs one sampler step per schedule step and yields
+its record, like guided-diffusion's `p_sample_loop_progressive`; `dps_sample` consumes it for the
+trace, the progress bar and the resume file, and benchmarks/dps_step.py for its timings. A step
+with a non-finite network output, loss or gradient does not update (it is counted in the trace).
+Given a `checkpoint` file the loop saves its state there every `checkpoint_every` steps and a
+rerun continues from it (see dpi.solve.checkpoint); the refinement, short, is simply run again.
+The file is deleted when the sample is done.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Iterator
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from dpi.materials import MaterialRates, MaterialTextures
+from dpi.prior.diffusion import q_sample
+from dpi.prior.sample import Prior
+from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
+from dpi.solve.decomposition import Decomposition
+from dpi.solve.dps.config import SAMPLERS, DPSConfig
+from dpi.solve.dps.refine import refine
+from dpi.solve.dps.state import DPSRun, DPSState
+from dpi.solve.dps.sun import LR_SUN, LR_SUN_UV, wants_sun
+from dpi.solve.init import starting_materials
+from dpi.solve.prior_space import env_to_prior, estimate_radiance_scale
+from dpi.solve.problem import InverseProblem
+from dpi.solve.sun import extract_sun, sun_summary
+from dpi.solve.trace import Trace
+
+CHECKPOINT_EVERY = 10
+"""reverse steps between two saves of the resume state (a save costs far less than one step)"""
+ADAM_BETAS = (0.9, 0.99)
+"""the data loss falls by orders of magnitude during a sample: a short second-moment memory keeps
+Adam's steps from stalling on the large gradients of the first steps"""
+
+
+@dataclass
+class DPSResult:
+    """A dps decomposition and the x0_hat snapshots (prior space, (3, H, W) each) for the strip."""
+
+    decomposition: Decomposition
+    snapshots: list[torch.Tensor] = field(default_factory=list)
+
+
+def state_optimizer(materials: MaterialTextures, rates: MaterialRates, lr_map: float, log_map: torch.Tensor,
+                    sun_uv: torch.Tensor, sun_log: torch.Tensor) -> torch.optim.Adam:
+    """Adam on albedo / roughness / metallic, the map's log radiance and the sun, each at its own rate
+    (a sampler's step updates those whose gradient it computed)."""
+    return torch.optim.Adam([*({"params": [t], "lr": rates.rate(name)} for name, t in materials.items()),
+                             {"params": [log_map], "lr": lr_map},
+                             {"params": [sun_uv], "lr": LR_SUN_UV},
+                             {"params": [sun_log], "lr": LR_SUN}], betas=ADAM_BETAS)
+
+
+def data_norm(problem: InverseProblem) -> float:
+    """Mean squared foreground radiance over the training views (the relative data term's unit)."""
+    values = [problem.images[i][problem.masks[i]].square().mean() for i in problem.train_ids]
+    return max(float(torch.stack(values).mean()), 1e-30)
+
+
+def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: DPSConfig,
+              seed: int) -> tuple[DPSRun, DPSState]:
+    """The fixed part of one sample and its loop state at its first step (the init's materials, grey albedo):
+    x_T ~ N(0, I), or the init map noised to the sampler's start_noise."""
+    sampler = cfg.sampler_settings
+    generator = torch.Generator().manual_seed(seed)
+    diffusion = prior.schedule(cfg.steps)
+    scale = cfg.radiance_scale or estimate_radiance_scale(init.env, prior)
+    first = int(round(sampler.start_noise * (diffusion.num_timesteps - 1)))
+    sun = extract_sun(init.env, cfg.sun.radius_deg)
+    has_sun = wants_sun(cfg.sun, sampler.models_sun, prior.family, init.materials, sun)
+    run = DPSRun(problem, prior, sampler, cfg, diffusion, seed, scale, data_norm(problem), first,
+                 cfg.sun if has_sun else None)
+    materials = starting_materials(init)
+    for _, t in materials.items():
+        t.requires_grad_(True)
+    shape = (1, 3, prior.height, 2 * prior.height)
+    log_map = torch.zeros(shape, requires_grad=True)
+    sun_uv = sun.uv.clone().requires_grad_(True)
+    sun_log = torch.log(sun.irradiance.clamp_min(1e-12 * scale) / scale).requires_grad_(True)
+    x = torch.randn(shape, generator=generator)
+    if first < diffusion.num_timesteps - 1:
+        start = env_to_prior(sun.sky if has_sun else init.env, prior, scale)
+        x = q_sample(diffusion, start, torch.tensor([first]), x)
+    lr_map = getattr(sampler, "lr_map", 0.0)  # samplers without a log map never step it
+    state = DPSState(x, materials, torch.zeros(()), log_map, sun_uv, sun_log,
+                     state_optimizer(materials, cfg, lr_map, log_map, sun_uv, sun_log), generator)
+    return run, state
+
+
+def posterior_steps(run: DPSRun, state: DPSState, start: int = 0) -> Iterator[dict[str, Any]]:
+    """Run the sampler's reverse steps start .. end on `state`, yielding each step's record."""
+    step = {s.settings: s.step for s in SAMPLERS.values()}[type(run.sampler)]
+    for n in range(start, run.num_steps):
+        yield step(run, state, n)
+
+
+def strip_frames(snapshots: list[torch.Tensor], count: int) -> list[torch.Tensor]:
+    """`count` evenly spaced snapshots (all when fewer)."""
+    if len(snapshots) <= count:
+        return snapshots
+    keep = np.linspace(0, len(snapshots) - 1, count).round().astype(int)
+    return [snapshots[k] for k in keep]
+
+
+def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: DPSConfig, seed: int,
+               progress: bool = True, checkpoint: Path | None = None,
+               checkpoint_every: int = CHECKPOINT_EVERY) -> DPSResult:
+    """One posterior sample: reverse diffusion guided by the renderer, joint material steps, refinement.
+    With a `checkpoint` file the sample continues from the state a killed run of it left there."""
+    run, state = start_run(problem, prior, init, cfg, seed)
+    settings = asdict(cfg)
+    trace = Trace(info={"method": "dps", "sampler": cfg.sampler, "seed": seed, "radiance_scale": run.scale,
+                        "family": prior.family, "config": settings})
+    store = checkpoint_for(checkpoint, checkpoint_every, "dps", settings, seed, run.scale, problem_identity(problem),
+                           init.env, dict(init.materials.items()), prior.family, prior.model.state_dict())
+    saved = store.resume(state.tensors(), state.optimizer, state.generator, trace) if store else None
+    start = saved.step if saved else 0
+    if saved:
+        state.snapshots = list(saved.snapshots)
+    bar = tqdm(total=run.num_steps, initial=start, desc=f"dps {cfg.sampler}", disable=not progress,
+               mininterval=2.0)
+    for record in posterior_steps(run, state, start):
+        trace.nan_skips += int("skipped" in record) + record.pop("nan_inner", 0)
+        trace.record(**record)
+        bar.update(1)
+        n = record["step"] + 1
+        if store and n < run.num_steps and store.due(n, start):
+            store.save(LoopState.capture(n, state.tensors(), state.optimizer, state.generator, trace,
+                                         state.snapshots))
+    bar.close()
+    with torch.no_grad():
+        env = run.env(prior.encoding.to_radiance(state.x.clamp(-1, 1)), state)
+    trace.info["log_exposure"] = float(state.log_exposure)
+    if run.sun:
+        trace.info["sun"] = sun_summary(state.sun_uv.detach(), run.sun_irradiance(state).detach(), env)
+    env, materials, refine_trace = refine(problem, env, state.materials, cfg.refine, cfg, seed + 1, progress)
+    trace.info["refine"] = refine_trace.summary()
+    trace.nan_skips += refine_trace.nan_skips
+    if store:
+        store.remove()
+    return DPSResult(Decomposition(env, materials, trace), strip_frames(state.snapshots, cfg.strip_frames))

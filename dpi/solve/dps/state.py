@@ -1,0 +1,151 @@
+"""What one `dps` sample carries: the fixed run (problem, prior, schedule, settings) and the loop state.
+
+A sampler's step function takes both, advances the state by one schedule step and returns the
+step's record for the trace (`skipped` says why a step did not update; `nan_inner` counts skipped
+inner updates; `seconds_*` time its parts).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import torch
+
+from dpi.materials import MaterialRates, MaterialTextures
+from dpi.prior.diffusion import Diffusion, model_output_with_random_roll, model_timesteps, p_mean_variance
+from dpi.prior.sample import Prior
+from dpi.settings import SettingsError, settings_from_dict
+from dpi.solve.dps.sun import SunSettings
+from dpi.solve.prior_space import resample_env
+from dpi.solve.problem import InverseProblem
+from dpi.solve.sun import sun_env
+
+
+@dataclass
+class SamplerSettings:
+    """What every sampler's settings have (each sampler's subclass sets its own defaults)."""
+
+    views_per_step: int = 1
+    """training views rendered per data term"""
+    start_noise: float = 1.0
+    """noise level the reverse diffusion starts from, as a fraction of the schedule: 1 starts from pure noise;
+    less starts from the init map noised to that level (SDEdit) and runs that fraction of the steps"""
+
+    models_sun = False
+    """whether sun mode auto gives this sampler's samples a parametric sun (dpi.solve.dps.sun)"""
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> Any:
+        """Settings from the sampler's section of method_params.dps."""
+        settings = settings_from_dict(cls, values)
+        if not 0 < settings.start_noise <= 1:
+            raise SettingsError("start_noise", f"must be in (0, 1], got {settings.start_noise}")
+        return settings
+
+
+@dataclass
+class DPSRun:
+    """What stays fixed during one posterior sample."""
+
+    problem: InverseProblem
+    prior: Prior
+    sampler: Any
+    """the sampler's own settings (dpi.solve.dps.config.SAMPLERS)"""
+    rates: MaterialRates
+    diffusion: Diffusion
+    seed: int
+    scale: float
+    """scene radiance per unit of the prior's normalised radiance (times exp(log-exposure))"""
+    data_norm: float
+    """mean squared foreground radiance of the training views (makes the data term relative)"""
+    first_index: int
+    """schedule index of the first executed step (the last index, or lower when starting from the noised init)"""
+    sun: SunSettings | None = None
+    """the map's parametric sun next to the prior's sky (dpi.solve.sun), None without one"""
+
+    @property
+    def num_steps(self) -> int:
+        """Executed reverse steps."""
+        return self.first_index + 1
+
+    def index(self, n: int) -> int:
+        """Schedule index of executed step n (the first executed step is the noisiest)."""
+        return self.first_index - n
+
+    def env(self, radiance: torch.Tensor, state: "DPSState") -> torch.Tensor:
+        """Prior-resolution normalised radiance (1, 3, h, 2h) -> scene env map (H, 2H, 3) at the problem's
+        height, times the state's exposure, plus its sun (splatted at the problem's height, so it stays a
+        point of light where the prior's resolution would blur it)."""
+        height = self.problem.settings.env_height
+        env = self.scale * torch.exp(state.log_exposure) * resample_env(radiance, height)
+        return env + sun_env(state.sun_uv, self.sun_irradiance(state), height) if self.sun else env
+
+    def sun_irradiance(self, state: "DPSState") -> torch.Tensor:
+        """(3,) the state's sun in scene radiance units (its log irradiance is in the prior's, times the exposure)."""
+        return self.scale * torch.exp(state.log_exposure + state.sun_log)
+
+    def views(self, generator: torch.Generator) -> list[int]:
+        """Training views of one data term (the sampler's views_per_step)."""
+        return self.problem.sample_views(self.sampler.views_per_step, generator)
+
+    def render_seed(self, n: int, k: int = 0) -> int:
+        """Mitsuba seed of inner update k of step n (a continued run renders what an uninterrupted one would)."""
+        return self.seed * 7919 + n * 31 + k
+
+
+@dataclass
+class DPSState:
+    """What the reverse loop carries from step to step (saved in resume files)."""
+
+    x: torch.Tensor
+    """x_t (1, 3, h, 2h) in prior space"""
+    materials: MaterialTextures
+    log_exposure: torch.Tensor
+    """global log-exposure of the map (scalar): absorbs the light/albedo scale ambiguity"""
+    log_map: torch.Tensor
+    """the map's normalised log radiance (1, 3, h, 2h) during a step's data updates (samplers that keep one)"""
+    sun_uv: torch.Tensor
+    """(2,) map coordinates of the sun (used when the run has one)"""
+    sun_log: torch.Tensor
+    """(3,) log irradiance of the sun per channel, in the prior's normalised units (times the exposure)"""
+    optimizer: torch.optim.Adam
+    generator: torch.Generator
+    snapshots: list[torch.Tensor] = field(default_factory=list)
+    """x0_hat at a few steps, for the progress strip"""
+
+    def tensors(self) -> dict[str, torch.Tensor]:
+        """The loop's variables by name (for resume files)."""
+        return {"x": self.x, **dict(self.materials.items()), "log_exposure": self.log_exposure,
+                "log_map": self.log_map, "sun_uv": self.sun_uv, "sun_log": self.sun_log}
+
+
+class Laps:
+    """Wall time of a step's parts: `lap(name)` adds the time since the previous lap to `name`."""
+
+    def __init__(self) -> None:
+        self.start = self.clock = time.perf_counter()
+        self.seconds: dict[str, float] = {}
+
+    def lap(self, name: str) -> None:
+        now = time.perf_counter()
+        self.seconds[name] = self.seconds.get(name, 0.0) + now - self.clock
+        self.clock = now
+
+    def record(self) -> dict[str, float]:
+        """seconds (whole step) and seconds_<part>, rounded."""
+        return {"seconds": round(time.perf_counter() - self.start, 4),
+                **{f"seconds_{k}": round(v, 4) for k, v in self.seconds.items()}}
+
+
+def network_step(run: DPSRun, x: torch.Tensor, i: int, generator: torch.Generator) -> dict[str, torch.Tensor]:
+    """p_mean_variance of the randomly rolled network output at schedule index i (x0 clamped to [-1, 1])."""
+    t = torch.full((1,), i, dtype=torch.long)
+    output = model_output_with_random_roll(run.prior.model, x, model_timesteps(run.diffusion, t), generator)
+    return p_mean_variance(run.diffusion, output, x, t)
+
+
+def finite(*tensors: torch.Tensor) -> bool:
+    """True when every tensor is free of NaN/Inf."""
+    return all(bool(torch.isfinite(t).all()) for t in tensors)
