@@ -78,9 +78,9 @@ SMALL_CONFIGS = {
     "medium_32x64": UNetConfig(image_size=32, num_channels=64, num_res_blocks=2, channel_mult=(1, 2, 2, 2),
                                attention_ds=(4, 8), num_head_channels=32, norm_groups=16),
 }
-"""CPU-sized configs: 'tiny' for tests, 'small_32x64' (1.97 M parameters) for the paper-curve models
-trained on CPU, 'base_32x64' (7.8 M) for the log-radiance models trained on a GPU: its forward pass
-costs about 1.6x small's on the CPU and its fp16 weights fit in 16 MB."""
+"""CPU-sized configs: 'tiny' for tests, 'small_32x64' (1.97 M parameters; the earlier paper-curve CPU
+models, see the model card), 'base_32x64' (7.8 M) for the log-radiance models trained on a GPU: its
+forward pass costs about 1.6x small's on the CPU and its fp16 weights fit in 16 MB."""
 
 
 def timestep_embedding(t: torch.Tensor, dim: int, max_period: float = 10000.0) -> torch.Tensor:
