@@ -125,6 +125,17 @@ class Renderer:
                              int(view), seed, int(spp or self.settings.spp))
         return image.to(env.device)
 
+    def set_scene(self, env: torch.Tensor, albedo: torch.Tensor, roughness: torch.Tensor,
+                  metallic: torch.Tensor) -> None:
+        """Load a map and textures into the scene without rendering (for code that traces the scene itself,
+        dpi.solve.transport); the map also becomes the emitter's importance-sampling distribution."""
+        mi = self.mi
+        self.params[ENV_KEY] = mi.TensorXf(np.ascontiguousarray(
+            pad_for_mitsuba(env.detach().float(), self.env_data_width).cpu().numpy()))
+        for name, tex in (("albedo", albedo), ("roughness", roughness), ("metallic", metallic)):
+            self.params[TEXTURE_KEYS[name]] = mi.TensorXf(np.ascontiguousarray(tex.detach().float().cpu().numpy()))
+        self.params.update()
+
     def object_hits(self, view: int, supersample: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Sub-pixel rays of `view` ((h, w, s*s, 3) origins and directions) and whether each hits the object."""
         mi = self.mi
