@@ -189,12 +189,12 @@ def jobs_for(args: argparse.Namespace, config: dict, root: Path = WORK,
     return jobs
 
 
-def read_rows(path: Path) -> list[dict[str, Any]]:
-    """Rows of a study CSV (numbers parsed)."""
+def read_rows(path: Path, text: tuple[str, ...] = TEXT_COLUMNS) -> list[dict[str, Any]]:
+    """Rows of a study CSV (numbers parsed, except the `text` columns)."""
     if not path.exists():
         return []
     with open(path, newline="") as f:
-        return [{k: (v if k in TEXT_COLUMNS else float(v)) for k, v in row.items()} for row in csv.DictReader(f)]
+        return [{k: (v if k in text else float(v)) for k, v in row.items()} for row in csv.DictReader(f)]
 
 
 def append_row(path: Path, row: dict[str, Any], columns: tuple[str, ...] = COLUMNS) -> None:

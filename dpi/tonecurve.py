@@ -35,6 +35,8 @@ class Encoding(Protocol):
 
     def to_radiance(self, x: torch.Tensor) -> torch.Tensor: ...
 
+    def log_to_prior(self, log_radiance: torch.Tensor) -> torch.Tensor: ...
+
     def with_scale(self, scale: float) -> "Encoding": ...
 
     def to_dict(self) -> dict[str, Any]: ...
@@ -57,6 +59,10 @@ class ToneCurve:
         """Prior space x in [-1, 1] -> linear HDR radiance; exact inverse of `to_prior` below the clamp."""
         base = ((x.clamp(-1, 1) + 1) / 2 / self.a).clamp_min(0)
         return self.scale * base.pow(self.gamma)
+
+    def log_to_prior(self, log_radiance: torch.Tensor) -> torch.Tensor:
+        """`to_prior` of exp(log_radiance) without the clamp: smooth everywhere, for penalties on x."""
+        return 2 * self.a * torch.exp((log_radiance - math.log(self.scale)) / self.gamma) - 1
 
     def with_scale(self, scale: float) -> "ToneCurve":
         """Same curve with another radiance scale."""
@@ -83,6 +89,10 @@ class LogEncoding:
     def to_radiance(self, x: torch.Tensor) -> torch.Tensor:
         """Prior space x in [-1, 1] -> linear HDR radiance, smooth (exp) and exact inside the range."""
         return self.scale * torch.exp(self.offset + self.width * x.clamp(-1, 1))
+
+    def log_to_prior(self, log_radiance: torch.Tensor) -> torch.Tensor:
+        """`to_prior` of exp(log_radiance) without the clip: affine, for penalties on x."""
+        return (log_radiance - math.log(self.scale) - self.offset) / self.width
 
     def with_scale(self, scale: float) -> "LogEncoding":
         """Same encoding with another radiance scale."""

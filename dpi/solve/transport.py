@@ -9,11 +9,10 @@ instead: the map's bilinear lookup (Mitsuba's own, see `texel_weights`) spreads 
 over its four texels. Next-event directions come from a fixed guide map (the current map with a
 floor), not from the map T will be applied to, so T L is an unbiased render for every L.
 
-The data term of dps is a sum of per-view foreground mean squares, so `record_transport` keeps only
-its normal equations, per channel: G = sum_v T_v^T W_v T_v and b = sum_v T_v^T W_v y_v (W_v: the
-view's loss weights). Then the data loss of all training views under any map is
-L^T G L - 2 b^T L + k (milliseconds, memory (texels^2 x 3), independent of the pixel count) and
-its gradient is 2 (G L - b). Each view's T at `spp` paths per pixel is noisy, so G carries the
+A data term is a sum of squared foreground residuals, so `record_transport` keeps only its normal
+equations, per channel: G = sum_v T_v^T T_v and b = sum_v T_v^T y_v. Then the sum of squares over
+all training views under any map is L^T G L - 2 b^T L + k (milliseconds, memory (texels^2 x 3),
+independent of the pixel count) and its gradient is 2 (G L - b). Each view's T at `spp` paths per pixel is noisy, so G carries the
 variance of T L as a small ridge; `spp` sets it. T depends on the materials: `Transport.stale`
 says when they have moved enough since the recording for a refresh.
 """
@@ -24,12 +23,16 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 import torch
 
 from dpi.materials import MaterialTextures
+from dpi.render import SEED_MODULUS
 from dpi.solve.problem import InverseProblem
 
+DIRECT_SPP = 4
+"""camera samples per pixel of the stratified direct light (every cell of the map gets a shadow ray from each)"""
+CHUNK_LANES = 1 << 20
+"""lanes of one Dr.Jit launch of the direct light (camera samples x cells)"""
 GUIDE_FLOOR = 0.25
 """the guide map for next-event directions is the map plus this share of its mean: every texel keeps a
 chance to be sampled, so T stays unbiased and useful for maps brighter elsewhere"""
@@ -68,19 +71,17 @@ def texel_weights(directions: np.ndarray, height: int) -> tuple[np.ndarray, np.n
 
 @dataclass
 class ViewTransport:
-    """T of one view: per channel a sparse (foreground pixels x texels) matrix, and which pixels they are."""
+    """T of one view: a dense (3, foreground pixels, texels) array, and which pixels its rows are."""
 
-    matrices: list[sp.csr_matrix]
+    matrix: np.ndarray
     pixels: np.ndarray
-    """flat indices (row-major in the (h, w) image) of the matrices' rows"""
+    """flat indices (row-major in the (h, w) image) of the rows"""
     shape: tuple[int, int]
 
     def image(self, env: np.ndarray) -> np.ndarray:
         """The view's (h, w, 3) image under an (H, 2H, 3) map: T L on the foreground, 0 elsewhere."""
-        flat = env.reshape(-1, 3)
         out = np.zeros((self.shape[0] * self.shape[1], 3))
-        for c, matrix in enumerate(self.matrices):
-            out[self.pixels, c] = matrix @ flat[:, c]
+        out[self.pixels] = np.einsum("cpn,nc->pc", self.matrix, env.reshape(-1, 3))
         return out.reshape(*self.shape, 3)
 
 
@@ -90,55 +91,152 @@ def guide_map(env: torch.Tensor) -> np.ndarray:
     return (env + GUIDE_FLOOR * max(float(env.mean()), 1e-12)).astype(np.float32)
 
 
-def record_view(problem: InverseProblem, view: int, materials: MaterialTextures, guide: np.ndarray, spp: int,
-                seed: int) -> ViewTransport:
-    """T of one view's foreground pixels (module notes), `spp` paths per pixel, seeded."""
-    renderer = problem.renderer
-    mi = renderer.mi
+class Accumulator:
+    """Adds (pixel, direction, RGB weight) contributions into a view's dense T through the map's lookup."""
+
+    def __init__(self, pixels: np.ndarray, image_size: int, height: int):
+        self.row_of = np.full(image_size, -1, np.int64)
+        self.row_of[pixels] = np.arange(len(pixels))
+        self.height, self.texels = height, 2 * height * height
+        self.matrix = np.zeros((3, len(pixels), self.texels))
+
+    def add(self, pixel: np.ndarray, direction: np.ndarray, weight: np.ndarray) -> None:
+        """T[c, pixel, texel] += weight_c x bilinear(texel; direction) for every contribution."""
+        if len(pixel) == 0:
+            return
+        index, bilinear = texel_weights(direction, self.height)
+        flat = (self.row_of[pixel][:, None] * self.texels + index).reshape(-1)
+        size = self.matrix[0].size
+        for c in range(3):
+            self.matrix[c] += np.bincount(flat, (bilinear * weight[:, c:c + 1]).reshape(-1),
+                                          minlength=size).reshape(self.matrix[c].shape)
+
+
+def texel_density(direction_y, height: int):
+    """Solid-angle density, times the number of texels, of `record_direct`'s directions (one per texel, each
+    drawn in proportion to its bilinear tent): sum_j tent_j / |tent_j| over 2 pi^2 sin(theta). Interior tents
+    all have the area du dv and sum to 1; the first and last rows' are halved at the poles."""
     import drjit as dr
 
-    renderer.set_scene(torch.from_numpy(guide), materials.albedo, materials.roughness, materials.metallic)
-    scene, height = renderer.scene, renderer.env_height
-    camera = renderer.cameras[view]
-    w, h = camera.width, camera.height
-    pixels = np.flatnonzero(problem.masks[view].numpy().reshape(-1))
-    n = len(pixels) * spp
+    du, dv = 1.0 / (2 * height), 1.0 / (height - 1)
+    v = dr.safe_acos(direction_y) / np.pi
+    edge = dr.maximum(1 - v / dv, 0) + dr.maximum(1 - (1 - v) / dv, 0)
+    return (1 + edge) / (du * dv * 2 * np.pi ** 2 * dr.maximum(dr.safe_sqrt(1 - dr.square(direction_y)), 1e-4))
+
+
+def camera_rays(mi, sensor, pixel: np.ndarray, jitter: np.ndarray, size: tuple[int, int]):
+    """Primary rays through `pixel` (flat indices) at sub-pixel offsets `jitter` (n, 2) of an (h, w) image."""
+    h, w = size
+    position = mi.Vector2f((pixel % w + jitter[:, 0]) / w, (pixel // w + jitter[:, 1]) / h)
+    ray, _ = sensor.sample_ray(0.0, 0.5, position, mi.Point2f(0.5, 0.5))
+    return ray
+
+
+def tent_inverse(xi):
+    """The inverse CDF of the tent 1 - |x| on [-1, 1]: a uniform xi in [0, 1) to a tent-distributed x."""
+    import drjit as dr
+
+    return dr.select(xi < 0.5, dr.sqrt(2 * xi) - 1, 1 - dr.sqrt(2 * (1 - xi)))
+
+
+def record_direct(mi, scene, sensor, pixels: np.ndarray, size: tuple[int, int], height: int, spp: int,
+                  seed: int, rng: np.random.Generator, matrix: np.ndarray) -> None:
+    """Light arriving straight from the map at the first surface point, texel by texel: for every texel one
+    direction drawn in proportion to its bilinear tent in (u, v) (Mitsuba's lookup, `texel_weights`; so a sun's
+    texel is never missed and gets its exact share), shadow-tested, weighted against BSDF sampling by the
+    balance heuristic (`record_paths` takes the rest); `spp` camera samples per pixel. The sample's weight is
+    f cos / (its density + the BSDF's), times the tent's area over its density in (u, v), 2 pi^2 sin(theta) |tent|
+    (the first and last rows' tents are halves at the poles: their draws fold back). Adds into `matrix`."""
+    import drjit as dr
+
+    width, texels, ctx = 2 * height, 2 * height * height, mi.BSDFContext()
+    du, dv = 1.0 / width, 1.0 / (height - 1)
+    samples = len(pixels) * spp
+    row = mi.UInt32(np.repeat(np.arange(len(pixels)), spp).astype(np.uint32))
+    pixel = mi.UInt32(np.repeat(pixels, spp).astype(np.uint32))
+    jitter = rng.random((samples, 2)).astype(np.float32)
+    jx, jy = mi.Float(jitter[:, 0]), mi.Float(jitter[:, 1])
+    sums = [dr.zeros(mi.Float, matrix[0].size) for _ in range(3)]
+    chunk = max(1, min(texels, CHUNK_LANES // max(samples, 1)))
     sampler = mi.load_dict({"type": "independent"})
-    sampler.seed(seed, n)
-    pixel_np = np.repeat(pixels, spp)
-    pixel = mi.UInt32(pixel_np.astype(np.uint32))
-    position = mi.Vector2f(mi.Float(pixel % w), mi.Float(pixel // w)) + sampler.next_2d()
-    ray, _ = scene.sensors()[view].sample_ray(0.0, sampler.next_1d(), position / mi.Vector2f(w, h), sampler.next_2d())
+    side = max(1, int(spp ** 0.5))
+    for first in range(0, texels, chunk):
+        count = min(chunk, texels - first)
+        lane = dr.arange(mi.UInt32, samples * count)
+        h, cell = lane // count, first + lane % count
+        p = dr.gather(mi.UInt32, pixel, h)
+        position = mi.Point2f((mi.Float(p % size[1]) + dr.gather(mi.Float, jx, h)) / size[1],
+                              (mi.Float(p // size[1]) + dr.gather(mi.Float, jy, h)) / size[0])
+        ray, _ = sensor.sample_ray(0.0, 0.5, position, mi.Point2f(0.5, 0.5))
+        sampler.seed(int(seed + first) % SEED_MODULUS, samples * count)
+        stratum = (h % spp) % (side * side)  # a pixel's camera samples split each tent into side x side strata
+        cell_row, cell_col = cell // width, cell % width
+        xi = (mi.Point2f(mi.Float(stratum % side), mi.Float(stratum // side)) + sampler.next_2d()) / side
+        u = (mi.Float(cell_col) + 0.5 + tent_inverse(xi.x)) * du
+        u -= dr.floor(u)
+        v = dr.abs((mi.Float(cell_row) + tent_inverse(xi.y)) * dv)
+        v = dr.select(v > 1, 2 - v, v)
+        theta, phi = dr.pi * v, 2 * dr.pi * u
+        d = mi.Vector3f(dr.sin(phi) * dr.sin(theta), dr.cos(theta), -dr.cos(phi) * dr.sin(theta))
+        area = du * dv * dr.select((cell_row == 0) | (cell_row == height - 1), 0.5, 1.0)
+        si = scene.ray_intersect(ray)
+        bsdf = si.bsdf(ray)
+        hit = si.is_valid() & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
+        value, bsdf_pdf = bsdf.eval_pdf(ctx, si, si.to_local(d), hit)
+        hit &= ~scene.ray_test(si.spawn_ray(d), hit)
+        density = texel_density(d.y, height)
+        weight = value * (density / (density + bsdf_pdf) * area * 2 * dr.pi ** 2 * dr.sin(theta) / spp)
+        index = dr.gather(mi.UInt32, row, h) * texels + cell
+        for c in range(3):
+            dr.scatter_reduce(dr.ReduceOp.Add, sums[c], weight[c], index, hit)
+        dr.eval(sums)
+    for c in range(3):
+        matrix[c] += np.asarray(sums[c], np.float64).reshape(matrix[c].shape)
+
+
+def record_paths(mi, scene, sensor, pixels: np.ndarray, size: tuple[int, int], height: int, spp: int,
+                 max_depth: int, seed: int, rng: np.random.Generator, accumulator: Accumulator) -> None:
+    """Everything but `record_direct`'s part, along prb's paths (`spp` per pixel): the map seen by the camera,
+    BSDF-sampled rays that escape (after the first surface point weighted against the stratified cells, after
+    later ones against next-event estimation), and next-event estimation from the second point on."""
+    import drjit as dr
+
+    pixel = np.repeat(pixels, spp)
+    n = len(pixel)
+    sampler = mi.load_dict({"type": "independent"})
+    sampler.seed(int(seed) % SEED_MODULUS, n)
+    ray = camera_rays(mi, sensor, pixel, rng.random((n, 2)), size)
     ctx = mi.BSDFContext()
-    beta = mi.Spectrum(1.0)
+    beta = mi.Spectrum(1.0 / spp)
     active = mi.Bool(True)
     prev_si = dr.zeros(mi.SurfaceInteraction3f, n)
     prev_pdf, prev_delta = mi.Float(1.0), mi.Bool(True)
-    events: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
 
     def keep(mask, direction, weight) -> None:
-        """Record the paths where `mask` holds: their pixel, the map's direction and the RGB weight of L there."""
         dr.eval(mask, direction, weight)
         m = np.asarray(mask, bool)
-        if m.any():
-            events.append((pixel_np[m], np.asarray(direction).T[m], np.asarray(weight).T[m]))
+        accumulator.add(pixel[m], np.asarray(direction).T[m], np.asarray(weight).T[m])
 
-    for depth in range(renderer.settings.max_depth):
+    for depth in range(max_depth):
         si = scene.ray_intersect(ray, active)
         escaped = active & ~si.is_valid()
-        ds = mi.DirectionSample3f(scene, si=si, ref=prev_si)
-        mis = mis_weight(prev_pdf, scene.pdf_emitter_direction(prev_si, ds, ~prev_delta))
+        if depth == 1:  # against record_direct's texel-by-texel draws
+            mis = dr.select(prev_delta, 1.0, prev_pdf / (prev_pdf + texel_density(ray.d.y, height)))
+        else:
+            ds = mi.DirectionSample3f(scene, si=si, ref=prev_si)
+            mis = mis_weight(prev_pdf, scene.pdf_emitter_direction(prev_si, ds, ~prev_delta))
         keep(escaped, ray.d, beta * mis)
-        active &= si.is_valid() & (depth + 1 < renderer.settings.max_depth)
-        if depth + 1 >= renderer.settings.max_depth:
+        active &= si.is_valid() & (depth + 1 < max_depth)
+        if depth + 1 >= max_depth:
             break
         bsdf = si.bsdf(ray)
-        active_em = active & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-        ds, _ = scene.sample_emitter_direction(si, sampler.next_2d(), False, active_em)
-        active_em &= ds.pdf != 0.0
-        active_em &= ~scene.ray_test(si.spawn_ray(ds.d), active_em)
-        value, bsdf_pdf = bsdf.eval_pdf(ctx, si, si.to_local(ds.d), active_em)
-        keep(active_em, ds.d, beta * value * mis_weight(ds.pdf, bsdf_pdf) / ds.pdf)
+        if depth >= 1:
+            active_em = active & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
+            ds, _ = scene.sample_emitter_direction(si, sampler.next_2d(), False, active_em)
+            active_em &= ds.pdf != 0.0
+            active_em &= ~scene.ray_test(si.spawn_ray(ds.d), active_em)
+            value, bsdf_pdf = bsdf.eval_pdf(ctx, si, si.to_local(ds.d), active_em)
+            keep(active_em, ds.d, beta * value * mis_weight(ds.pdf, bsdf_pdf) / ds.pdf)
         sample, weight = bsdf.sample(ctx, si, sampler.next_1d(), sampler.next_2d(), active)
         ray = si.spawn_ray(si.to_world(sample.wo))
         beta *= weight
@@ -147,7 +245,25 @@ def record_view(problem: InverseProblem, view: int, materials: MaterialTextures,
         prev_delta = mi.has_flag(sample.sampled_type, mi.BSDFFlags.Delta)
         active &= dr.max(beta) != 0
         dr.eval(ray, beta, prev_si, prev_pdf, prev_delta, active)
-    return assemble(events, pixels, (h, w), height, spp)
+
+
+def record_view(problem: InverseProblem, view: int, materials: MaterialTextures, guide: np.ndarray, spp: int,
+                seed: int, direct_spp: int | None = None) -> ViewTransport:
+    """T of one view's foreground pixels (module notes): `direct_spp` camera samples per pixel for the light
+    arriving straight from the map, `spp` paths per pixel for the rest; seeded."""
+    renderer = problem.renderer
+    renderer.set_scene(torch.from_numpy(guide), materials.albedo, materials.roughness, materials.metallic)
+    mi, scene, height = renderer.mi, renderer.scene, renderer.env_height
+    camera = renderer.cameras[view]
+    size = (camera.height, camera.width)
+    pixels = np.flatnonzero(problem.masks[view].numpy().reshape(-1))
+    sensor = scene.sensors()[view]
+    rng = np.random.default_rng(seed)
+    accumulator = Accumulator(pixels, size[0] * size[1], height)
+    direct_spp = direct_spp or DIRECT_SPP
+    record_direct(mi, scene, sensor, pixels, size, height, direct_spp, seed * 7 + 1, rng, accumulator.matrix)
+    record_paths(mi, scene, sensor, pixels, size, height, spp, renderer.settings.max_depth, seed, rng, accumulator)
+    return ViewTransport(accumulator.matrix, pixels, size)
 
 
 def mis_weight(pdf_a, pdf_b):
@@ -158,36 +274,18 @@ def mis_weight(pdf_a, pdf_b):
     return dr.detach(dr.select(pdf_a > 0, a2 / (a2 + b2), 0))
 
 
-def assemble(events: list[tuple[np.ndarray, np.ndarray, np.ndarray]], pixels: np.ndarray, shape: tuple[int, int],
-             height: int, spp: int) -> ViewTransport:
-    """Sparse per-channel T from recorded (pixel, direction, RGB weight) events, averaged over `spp` paths."""
-    row_of = np.full(shape[0] * shape[1], -1, np.int64)
-    row_of[pixels] = np.arange(len(pixels))
-    texels = 2 * height * height
-    matrices = []
-    if events:
-        pixel = np.concatenate([e[0] for e in events])
-        index, bilinear = texel_weights(np.concatenate([e[1] for e in events]), height)
-        weight = np.concatenate([e[2] for e in events]) / spp
-        rows = np.repeat(row_of[pixel], 4)
-        for c in range(3):
-            values = (bilinear * weight[:, c:c + 1]).reshape(-1)
-            matrices.append(sp.csr_matrix((values, (rows, index.reshape(-1))), shape=(len(pixels), texels)))
-    else:
-        matrices = [sp.csr_matrix((len(pixels), texels)) for _ in range(3)]
-    return ViewTransport(matrices, pixels, shape)
-
-
 @dataclass
 class Transport:
     """The data term's normal equations over the training views under fixed materials (module notes)."""
 
     gram: torch.Tensor
-    """(3, N, N) per channel sum_v T_v^T W_v T_v, N = H x 2H texels (row-major)"""
+    """(3, N, N) per channel sum_v T_v^T T_v, N = H x 2H texels (row-major)"""
     rhs: torch.Tensor
-    """(3, N) per channel sum_v T_v^T W_v y_v"""
+    """(3, N) per channel sum_v T_v^T y_v"""
     constant: float
-    """sum_v y_v^T W_v y_v: the loss of a black map"""
+    """sum_v y_v^T y_v: the sum of squares of a black map"""
+    pixels: int
+    """foreground pixels of the views (each with 3 channels)"""
     height: int
     views: list[int]
     materials: MaterialTextures
@@ -202,11 +300,16 @@ class Transport:
         """Memory the data term keeps."""
         return self.gram.element_size() * self.gram.numel() + self.rhs.element_size() * self.rhs.numel()
 
-    def data_loss(self, env: torch.Tensor) -> torch.Tensor:
-        """Sum of the views' foreground mean squared errors under an (H, 2H, 3) map (differentiable)."""
+    def sum_squares(self, env: torch.Tensor, rhs: torch.Tensor | None = None) -> torch.Tensor:
+        """Sum of squared foreground residuals of the views under an (H, 2H, 3) map (differentiable, float64);
+        `rhs` replaces b (a perturbed data term)."""
         flat = env.reshape(-1, 3).T.to(self.gram.dtype)
         quadratic = (flat * torch.einsum("cij,cj->ci", self.gram, flat)).sum()
-        return (quadratic - 2 * (self.rhs * flat).sum() + self.constant).clamp_min(0).to(env.dtype)
+        return quadratic - 2 * ((self.rhs if rhs is None else rhs) * flat).sum() + self.constant
+
+    def mean_squares(self, env: torch.Tensor) -> torch.Tensor:
+        """Mean squared foreground residual per pixel and channel over the views (differentiable)."""
+        return (self.sum_squares(env) / (3 * self.pixels)).clamp_min(0).to(env.dtype)
 
     def exposure(self, env: torch.Tensor) -> float:
         """The least-squares global scale c of the map against the views (c L fits best)."""
@@ -232,16 +335,15 @@ def record_transport(problem: InverseProblem, materials: MaterialTextures, env: 
     texels = 2 * height * height
     gram = np.zeros((3, texels, texels))
     rhs = np.zeros((3, texels))
-    constant, entries = 0.0, 0
+    constant, entries, pixels = 0.0, 0, 0
     guide = guide_map(env)
     for j, v in enumerate(views):
         t = record_view(problem, v, materials, guide, spp, seed * 1009 + j)
-        weight = 1.0 / (3 * max(len(t.pixels), 1))
         y = problem.images[v].reshape(-1, 3).double().numpy()[t.pixels]
-        for c, matrix in enumerate(t.matrices):
-            gram[c] += weight * (matrix.T @ matrix).toarray()
-            rhs[c] += weight * (matrix.T @ y[:, c])
-            entries += matrix.nnz
-        constant += weight * float(np.square(y).sum())
-    return Transport(torch.from_numpy(gram), torch.from_numpy(rhs), constant, height, views, materials.detached(),
-                     time.perf_counter() - start, entries)
+        gram += t.matrix.transpose(0, 2, 1) @ t.matrix
+        rhs += np.einsum("cpi,pc->ci", t.matrix, y)
+        entries += int(np.count_nonzero(t.matrix))
+        constant += float(np.square(y).sum())
+        pixels += len(t.pixels)
+    return Transport(torch.from_numpy(gram), torch.from_numpy(rhs), constant, pixels, height, views,
+                     materials.detached(), time.perf_counter() - start, entries)

@@ -13,6 +13,7 @@ from typing import Any, Callable
 
 from dpi.materials import MaterialRates
 from dpi.settings import SettingsError, check_keys, check_values, settings_from_dict
+from dpi.solve.dps.annealed import AnnealedSettings, annealed_step
 from dpi.solve.dps.paper import PaperSettings, paper_step
 from dpi.solve.dps.proximal import ProximalSettings, proximal_step
 from dpi.solve.dps.refine import RefineSettings
@@ -31,6 +32,7 @@ class Sampler:
 
 
 SAMPLERS: dict[str, Sampler] = {"proximal": Sampler(ProximalSettings, proximal_step),
+                                "annealed": Sampler(AnnealedSettings, annealed_step),
                                 "paper": Sampler(PaperSettings, paper_step)}
 """dps's samplers by name (the `sampler` setting and its section's key); the first is the default"""
 
@@ -58,7 +60,8 @@ class DPSConfig(MaterialRates):
     """Settings of the `dps` method (defaults: the CPU preset); the textures' rates: MaterialRates."""
 
     sampler: str = next(iter(SAMPLERS))
-    """how a reverse step uses the data: proximal (x0-space data steps, no network backward) or paper"""
+    """how a reverse step uses the data: proximal (x0-space data steps), annealed (posterior draws with the
+    recorded light transport) or paper (the reference's gradient guidance)"""
     steps: int = 100
     """reverse-diffusion steps (respaced from the prior's 1000; the paper uses 1000)"""
     radiance_scale: float | None = None
@@ -66,6 +69,7 @@ class DPSConfig(MaterialRates):
     strip_frames: int = 8
     """x0_hat snapshots kept for the progress strip"""
     proximal: ProximalSettings = field(default_factory=ProximalSettings)
+    annealed: AnnealedSettings = field(default_factory=AnnealedSettings)
     paper: PaperSettings = field(default_factory=PaperSettings)
     sun: SunSettings = field(default_factory=SunSettings)
     refine: RefineSettings = field(default_factory=RefineSettings)

@@ -77,7 +77,7 @@ def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: D
     sun = extract_sun(init.env, cfg.sun.radius_deg)
     has_sun = wants_sun(cfg.sun, sampler.models_sun, prior.family, init.materials, sun)
     run = DPSRun(problem, prior, sampler, cfg, diffusion, seed, scale, data_norm(problem), first,
-                 cfg.sun if has_sun else None)
+                 cfg.sun if has_sun else None, init)
     materials = starting_materials(init)
     for _, t in materials.items():
         t.requires_grad_(True)
@@ -125,10 +125,12 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
     start = saved.step if saved else 0
     if saved:
         state.snapshots = list(saved.snapshots)
+    refreshes = 0
     bar = tqdm(total=run.num_steps, initial=start, desc=f"dps {cfg.sampler}", disable=not progress,
                mininterval=2.0)
     for record in posterior_steps(run, state, start):
         trace.nan_skips += int("skipped" in record) + record.pop("nan_inner", 0)
+        refreshes += int(record.get("refresh", False))
         trace.record(**record)
         bar.update(1)
         n = record["step"] + 1
@@ -139,6 +141,11 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
     with torch.no_grad():
         env = run.env(prior.encoding.to_radiance(state.x.clamp(-1, 1)), state)
     trace.info["log_exposure"] = float(state.log_exposure)
+    if "transport" in state.extra:
+        transport = state.extra["transport"]
+        trace.info["transport"] = {"recordings": refreshes, "spp": cfg.sampler_settings.transport_spp,
+                                   "seconds_last": round(transport.seconds, 3), "bytes": transport.nbytes,
+                                   "entries_last": transport.entries}
     if run.sun:
         trace.info["sun"] = sun_summary(state.sun_uv.detach(), run.sun_irradiance(state).detach(), env)
     env, materials, refine_trace = refine(problem, env, state.materials, cfg.refine, cfg, seed + 1, progress)

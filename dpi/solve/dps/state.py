@@ -17,6 +17,7 @@ from dpi.materials import MaterialRates, MaterialTextures
 from dpi.prior.diffusion import Diffusion, model_output_with_random_roll, model_timesteps, p_mean_variance
 from dpi.prior.sample import Prior
 from dpi.settings import SettingsError, settings_from_dict
+from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.sun import SunSettings
 from dpi.solve.prior_space import resample_env
 from dpi.solve.problem import InverseProblem
@@ -64,6 +65,8 @@ class DPSRun:
     """schedule index of the first executed step (the last index, or lower when starting from the noised init)"""
     sun: SunSettings | None = None
     """the map's parametric sun next to the prior's sky (dpi.solve.sun), None without one"""
+    init: Decomposition | None = None
+    """the initialisation the sample starts from"""
 
     @property
     def num_steps(self) -> int:
@@ -114,6 +117,8 @@ class DPSState:
     generator: torch.Generator
     snapshots: list[torch.Tensor] = field(default_factory=list)
     """x0_hat at a few steps, for the progress strip"""
+    extra: dict[str, Any] = field(default_factory=dict)
+    """a sampler's caches (not saved in resume files: rebuilt from the tensors, e.g. the light transport)"""
 
     def tensors(self) -> dict[str, torch.Tensor]:
         """The loop's variables by name (for resume files)."""

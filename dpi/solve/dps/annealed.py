@@ -1,0 +1,336 @@
+"""The annealed sampler: decoupled annealing (DAPS, Zhang et al. 2024) with the recorded light transport.
+
+Each reverse step draws a clean map z from (approximately) p(z | x_t, y) and re-noises it, with
+fresh noise, to the next level: x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) eps. The draw
+combines the prior's denoiser with the data:
+  p(z | x_t, y)  ~  N(z; x0_hat(x_t), r_t^2)  exp(-||y - c T L(z)||^2 / (2 sigma^2))
+with x0_hat by Tweedie (randomly rolled network, as the other samplers), r_t^2 the variance of x0
+given x_t under a Gaussian prior of std `prior_std` (s^2 (1 - abar) / (1 - abar + abar s^2)), T the
+training views' light transport (dpi.solve.transport, all views, no render), c the global exposure
+(least squares) and sigma^2 the per-pixel noise: the init's residual times `noise_scale`. The draw is
+randomise-then-optimise: both terms are perturbed by their own noise (z~ = x0_hat + r_t xi, and the
+data's normal equations by sigma G^(1/2) eta), then L-BFGS minimises the perturbed sum over the
+map's log radiance (warm-started from the previous draw). For a linear model this is an exact
+posterior draw; here the map is exp of the variable, so it is close to one. The spread of the
+samples is what the views leave open: a mirror's views pin every texel, a rough object's only the
+broad light, and where the data are silent the prior's own variety remains.
+
+The materials follow in a Gibbs alternation: after `material_start` of the steps, `material_steps`
+Adam steps on them per reverse step against path-traced renders of `views_per_step` views under
+the current draw. T is recorded again when they have moved by more than `refresh_tolerance` since
+its recording (counted in the trace). There is no parametric sun: a sun enters the map only where
+the views ask for one, through the data term.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import torch
+
+from dpi.settings import SettingsError
+from dpi.solve.dps.proximal import recentre_
+from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerSettings, finite, network_step
+from dpi.solve.optimize import all_finite
+from dpi.solve.prior_space import resample_env
+from dpi.solve.transport import Transport, record_transport
+
+DARK_FLOOR = 1e-6
+"""radiance floor (times the prior's median) before the logarithm"""
+
+
+START_MATERIALS = ("init", "reset")
+
+
+@dataclass
+class AnnealedSettings(SamplerSettings):
+    """The annealed sampler (method_params.dps.annealed)."""
+
+    views_per_step: int = 2
+    """training views rendered per material step"""
+    start_noise: float = 0.8
+    """starts from pure noise at 0.8 of the schedule (x_t there is all but noise; above it the network's x0_hat
+    saturates), so every sample explores the prior on its own"""
+    noise_scale: float = 1.0
+    """likelihood temperature: the per-pixel noise is the init's residual times this (larger: wider spread)"""
+    prior_std: float = 0.5
+    """std of a prior-space map around its mean, for r_t (the prior's own spread)"""
+    smoothness: float = 4.0
+    """the deviation of a draw from x0_hat is a smooth field: its prior precision is (I + smoothness x the grid's
+    Laplacian) / r_t^2, so the views correct x0_hat over about sqrt(smoothness) texels, not texel by texel
+    (an i.i.d. prior lets a noisy T write speckle into the map)"""
+    data_noise: float = 1.0
+    prior_noise: float = 0.0
+    """share of r_t added as white noise to x0_hat before the draw (1: DAPS's Gaussian around x0_hat; 0: the draw
+    stays at x0_hat where the views are silent, and the prior's variety comes from the reverse process)"""
+    solver_iterations: int = 3
+    """Gauss-Newton iterations of each conditional draw (warm-started from the previous draw)"""
+    start_materials: str = "init"
+    """the materials the sample starts from: init (the init's textures, a consistent pair with the views: a grey
+    albedo makes the draws explain its texture by spikes of coloured light) or reset (grey albedo, as the other
+    samplers)"""
+    material_start: float = 0.5
+    """fraction of the steps before the materials move"""
+    material_steps: int = 1
+    """Adam steps on the materials per reverse step (each renders views_per_step views)"""
+    transport_spp: int = 32
+    """paths per pixel of each recording of the light transport"""
+    refresh_tolerance: float = 0.02
+    """record T again when the materials moved by more than this (RMS) since its recording ..."""
+    refresh_every: int = 10
+    """... and at least this many steps have passed since"""
+
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> "AnnealedSettings":
+        settings = super().from_dict(values)
+        if settings.start_materials not in START_MATERIALS:
+            raise SettingsError("start_materials", f"must be one of {', '.join(START_MATERIALS)}, "
+                                f"got {settings.start_materials!r}")
+        return settings
+
+
+def posterior_variance(abar: float, prior_std: float) -> float:
+    """Var(x0 | x_t) per texel under a Gaussian prior of std `prior_std` at noise level abar."""
+    s2 = prior_std ** 2
+    return s2 * (1.0 - abar) / (1.0 - abar + abar * s2)
+
+
+def noise_variance(run: DPSRun, state: DPSState) -> float:
+    """The per-pixel noise sigma^2 of the likelihood: the init's mean squared residual over the training views'
+    foreground (one render each), times noise_scale^2 (stored on the state at the first step)."""
+    if "noise" not in state.extra:
+        problem, init = run.problem, run.init
+        with torch.no_grad():
+            total = sum(float((problem.masks[v][..., None] * (problem.render(init.env, init.materials, v, seed=7 + v)
+                                                              - problem.images[v]).square()).sum())
+                        for v in problem.train_ids)
+        pixels = sum(int(problem.masks[v].sum()) * 3 for v in problem.train_ids)
+        state.extra["noise"] = max(total / pixels, 1e-12 * run.data_norm) * run.sampler.noise_scale ** 2
+    return state.extra["noise"]
+
+
+def current_transport(run: DPSRun, state: DPSState, n: int, env: torch.Tensor) -> tuple[Transport, bool]:
+    """The training views' light transport under the state's materials, recorded again when stale."""
+    settings: AnnealedSettings = run.sampler
+    transport = state.extra.get("transport")
+    recent = n - state.extra.get("recorded_at", -settings.refresh_every) < settings.refresh_every
+    if transport is not None and (recent or not transport.stale(state.materials, settings.refresh_tolerance)):
+        return transport, False
+    transport = record_transport(run.problem, state.materials.detached(), env, settings.transport_spp,
+                                 run.render_seed(n, 97))
+    state.extra["transport"] = transport
+    state.extra["recorded_at"] = n
+    state.extra.pop("gram_factor", None)
+    return transport, True
+
+
+def gram_factor(state: DPSState, transport: Transport) -> torch.Tensor:
+    """(3, N, N) a factor F with F F^T = G (+ a jitter of 1e-9 its mean diagonal), for the data perturbation."""
+    if "gram_factor" not in state.extra:
+        gram = transport.gram
+        jitter = 1e-9 * gram.diagonal(dim1=1, dim2=2).mean(dim=1).clamp_min(1e-30)
+        state.extra["gram_factor"] = torch.linalg.cholesky(gram + jitter[:, None, None] * torch.eye(gram.shape[-1],
+                                                                                                     dtype=gram.dtype))
+    return state.extra["gram_factor"]
+
+
+@dataclass(frozen=True)
+class Resampling:
+    """`resample_env` on one channel as sparse matrices (it is linear): A (N_env, N_prior), A^T, and (A o A)^T."""
+
+    forward: torch.Tensor
+    adjoint: torch.Tensor
+    adjoint_squared: torch.Tensor
+
+    @classmethod
+    def between(cls, prior_height: int, env_height: int) -> "Resampling":
+        """The matrices from the prior's resolution to the problem's, built by resampling unit maps."""
+        units = torch.eye(2 * prior_height ** 2, dtype=torch.float64).reshape(-1, 1, prior_height, 2 * prior_height)
+        columns = resample_env(units.reshape(-1, prior_height, 2 * prior_height)[None], env_height)
+        a = columns.reshape(-1, units.shape[0])  # (N_env, N_prior): texel i of the map from prior texel j
+        return cls(a.to_sparse_csr(), a.T.contiguous().to_sparse_csr(), a.square().T.contiguous().to_sparse_csr())
+
+    def apply(self, x: torch.Tensor) -> torch.Tensor:
+        """(3, N_prior) -> (3, N_env)."""
+        return (self.forward @ x.T).T
+
+    def transpose(self, y: torch.Tensor) -> torch.Tensor:
+        """(3, N_env) -> (3, N_prior)."""
+        return (self.adjoint @ y.T).T
+
+
+def conjugate_gradients(apply: Callable[[torch.Tensor], torch.Tensor], rhs: torch.Tensor, diagonal: torch.Tensor,
+                        iterations: int, tolerance: float = 1e-6) -> torch.Tensor:
+    """Solve apply(x) = rhs per row (a batch of symmetric positive definite systems) by conjugate gradients
+    with a Jacobi preconditioner (`diagonal`), from x = 0."""
+    x = torch.zeros_like(rhs)
+    r = rhs.clone()
+    z = r / diagonal
+    d = z.clone()
+    rz = (r * z).sum(-1, keepdim=True)
+    goal = tolerance ** 2 * (rhs * rhs).sum(-1, keepdim=True)
+    for _ in range(iterations):
+        q = apply(d)
+        step = rz / (d * q).sum(-1, keepdim=True).clamp_min(1e-300)
+        x = x + step * d
+        r = r - step * q
+        if bool(((r * r).sum(-1, keepdim=True) <= goal).all()):
+            break
+        z = r / diagonal
+        rz_next = (r * z).sum(-1, keepdim=True)
+        d = z + rz_next / rz.clamp_min(1e-300) * d
+        rz = rz_next
+    return x
+
+
+def negative_laplacian(x: torch.Tensor) -> torch.Tensor:
+    """(C, H, W) -> 4 x minus its four neighbours on the equirectangular grid (azimuth wraps; the poles' rows
+    reflect): the graph Laplacian whose quadratic form sums the squared differences of neighbouring texels."""
+    up = torch.cat([x[:, :1], x[:, :-1]], dim=1)
+    down = torch.cat([x[:, 1:], x[:, -1:]], dim=1)
+    return 4 * x - up - down - torch.roll(x, 1, dims=2) - torch.roll(x, -1, dims=2)
+
+
+def prior_coordinates(encoding: Any, log_map: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The prior-space map z(l) of log radiance l (unclipped) and its elementwise slope dz/dl."""
+    l = log_map.detach().requires_grad_(True)
+    z = encoding.log_to_prior(l)
+    (slope,) = torch.autograd.grad(z.sum(), l)
+    return z.detach(), slope
+
+
+RANGE_STD = 0.02
+"""the prior's maps lie inside the encoding's range [-1, 1]: a draw beyond it pays (excess / RANGE_STD)^2 / 2"""
+MAX_LOG_STEP = 3.0
+"""largest change of a texel's log radiance in one Gauss-Newton iteration (a trust region)"""
+CG_ITERATIONS = 30
+BACKTRACKS = 6
+
+
+def conditional_draw(run: DPSRun, state: DPSState, transport: Transport, x0_hat: torch.Tensor, variance: float,
+                     sigma2: float) -> tuple[float, float]:
+    """Randomise-then-optimise draw of the map's log radiance l (state.log_map, in place) and log-exposure
+    (module notes): Gauss-Newton on l (conjugate gradients) with the exposure solved exactly before each
+    iteration; returns the draw's data term (mean squared error per pixel and channel) and its prior term."""
+    settings: AnnealedSettings = run.sampler
+    gen, encoding = state.generator, run.prior.encoding
+    shape = x0_hat.shape[-2:]
+
+    def smooth(x: torch.Tensor) -> torch.Tensor:  # Q x = x + smoothness (minus the Laplacian) x, per channel
+        return x + settings.smoothness * negative_laplacian(x.reshape(3, *shape)).reshape(3, -1)
+
+    if "resampling" not in state.extra:
+        state.extra["resampling"] = Resampling.between(run.prior.height, run.problem.settings.env_height)
+    resampling: Resampling = state.extra["resampling"]
+    spread = settings.prior_noise * math.sqrt(variance)
+    target = (x0_hat + spread * torch.randn(x0_hat.shape, generator=gen)).reshape(3, -1).double()
+    noise = torch.randn(transport.rhs.shape, generator=gen, dtype=transport.rhs.dtype)
+    rhs = transport.rhs + settings.data_noise * math.sqrt(sigma2) * torch.einsum("cij,cj->ci", gram_factor(state, transport), noise)
+    gram = transport.gram / sigma2
+    jacobi = resampling.adjoint_squared @ gram.diagonal(dim1=1, dim2=2).T  # (N_prior, 3): diag of A^T H A
+    l = state.log_map.detach().reshape(3, -1).double().clone()  # from the previous draw
+    log_exposure = float(state.log_exposure)
+
+    def objective(l: torch.Tensor, log_exposure: float) -> tuple[float, float, float]:
+        """The perturbed posterior's negative log (data / 2 sigma^2 + prior + range), its data SSE, its prior."""
+        env = math.exp(log_exposure) * resampling.apply(run.scale * torch.exp(l))
+        sse = float(transport.sum_squares(env.T, rhs))
+        z, _ = prior_coordinates(encoding, l)
+        prior = float(((z - target) * smooth(z - target)).sum()) / (2 * variance)
+        beyond = float(((z.abs() - 1).clamp_min(0) / RANGE_STD).square().sum()) / 2
+        return sse / (2 * sigma2) + prior + beyond, sse, prior
+
+    for _ in range(settings.solver_iterations):
+        unit = run.scale * torch.exp(l)
+        mapped = resampling.apply(unit)
+        curvature = float((mapped * torch.einsum("cij,cj->ci", transport.gram, mapped)).sum())
+        projection = float((rhs * mapped).sum())
+        if curvature > 0 and projection > 0:
+            log_exposure = math.log(projection / curvature)
+        u = math.exp(log_exposure) * unit
+        residual = torch.einsum("cij,cj->ci", gram, resampling.apply(u)) - rhs / sigma2
+        z, slope = prior_coordinates(encoding, l)
+        outside = (z.abs() - 1).clamp_min(0) * z.sign()
+        gradient = u * resampling.transpose(residual) + slope * (smooth(z - target) / variance
+                                                                 + outside / RANGE_STD ** 2)
+        precision = slope.square() * (outside != 0) / RANGE_STD ** 2
+
+        def hessian(x: torch.Tensor) -> torch.Tensor:
+            return (precision * x + slope * smooth(slope * x) / variance
+                    + u * resampling.transpose(torch.einsum("cij,cj->ci", gram, resampling.apply(u * x))))
+
+        diagonal = precision + slope.square() * (1 + 4 * settings.smoothness) / variance + u.square() * jacobi.T
+        step = conjugate_gradients(hessian, -gradient, diagonal, CG_ITERATIONS)
+        step = step.clamp(-MAX_LOG_STEP, MAX_LOG_STEP)
+        current = objective(l, log_exposure)[0]
+        for _ in range(BACKTRACKS):  # Gauss-Newton overshoots where exp bends: halve the step until it helps
+            if objective(l + step, log_exposure)[0] < current:
+                l = l + step
+                break
+            step = step / 2
+    _, sse, prior = objective(l, log_exposure)
+    if finite(l) and math.isfinite(log_exposure):
+        with torch.no_grad():
+            state.log_map.copy_(l.reshape(x0_hat.shape).float())
+            state.log_exposure.fill_(log_exposure + recentre_(state.log_map, run.prior.median_target))
+    return sse / (3 * transport.pixels), prior
+
+
+def material_step(run: DPSRun, state: DPSState, env: torch.Tensor, n: int, k: int) -> float | None:
+    """One Adam step on the materials against renders of a few views under the (fixed) map; its loss."""
+    views = run.views(state.generator)
+    loss = run.problem.data_loss(env.detach(), state.materials, views, seed=run.render_seed(n, k))
+    state.optimizer.zero_grad()
+    if not finite(loss):
+        return None
+    loss.backward()
+    if not all_finite([t for _, t in state.materials.items()]):
+        return None
+    state.optimizer.step()
+    state.materials.clamp_()
+    return float(loss) / len(views)
+
+
+def annealed_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
+    """x0_hat, a conditional draw of the clean map given it and all the views, the materials' Gibbs steps, and
+    the re-noising of the draw to the next level with fresh noise."""
+    settings: AnnealedSettings = run.sampler
+    laps, i, gen = Laps(), run.index(n), state.generator
+    encoding = run.prior.encoding
+    with torch.no_grad():
+        p = network_step(run, state.x, i, gen)
+    laps.lap("network")
+    record: dict[str, Any] = {"step": n, "t": int(run.diffusion.timestep_map[i])}
+    if not finite(p["x0"]):
+        return {**record, "skipped": "non-finite network output", **laps.record()}  # keep x_t
+    x0_hat = p["x0"]
+    state.snapshots.append(x0_hat[0])
+    if n == 0:
+        with torch.no_grad():
+            if settings.start_materials == "init":
+                for (_, mine), (_, theirs) in zip(state.materials.items(), run.init.materials.items()):
+                    mine.copy_(theirs)
+            state.log_map.copy_(torch.log(encoding.to_radiance(x0_hat).clamp_min(DARK_FLOOR * run.prior.median_target)))
+    env = run.env(torch.exp(state.log_map), state).detach()
+    transport, refreshed = current_transport(run, state, n, env)
+    laps.lap("transport")
+    abar = float(run.diffusion.alphas_cumprod[i])
+    abar_prev = float(run.diffusion.alphas_cumprod_prev[i])
+    variance = posterior_variance(abar, settings.prior_std)
+    data, prior = conditional_draw(run, state, transport, x0_hat, variance, noise_variance(run, state))
+    laps.lap("draw")
+    losses = []
+    if n >= settings.material_start * run.num_steps:
+        env = run.env(torch.exp(state.log_map), state).detach()
+        losses = [material_step(run, state, env, n, k) for k in range(settings.material_steps)]
+    laps.lap("render")
+    with torch.no_grad():
+        z = encoding.to_prior(torch.exp(state.log_map))
+        state.x = abar_prev ** 0.5 * z + (1.0 - abar_prev) ** 0.5 * torch.randn(z.shape, generator=gen)
+    skipped = sum(loss is None for loss in losses)
+    return {**record, "loss": data, "prior": prior, "r2": variance, "refresh": refreshed,
+            "material_loss": next((v for v in reversed(losses) if v is not None), None),
+            "log_exposure": float(state.log_exposure), "nan_inner": skipped, **laps.record()}
