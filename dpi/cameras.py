@@ -163,38 +163,108 @@ def orbit(n: int, radius: float, elevations_deg: tuple[float, ...], target=(0.0,
     return poses
 
 
+class TransformsError(ValueError):
+    """A transforms.json value of the wrong type or missing; the message names the frame (or the top level) and key."""
+
+
+NUMERIC_STRING_KEYS = ("fl_x", "fl_y", "cx", "cy", "w", "h", "camera_angle_x")
+"""keys nerfstudio reads through float() or int(), so a numeric string there is a number"""
+BOOLEAN_FRAME_KEYS = ("held_out",)
+
+
+def json_value(value: object) -> str:
+    """A value as JSON writes it, with its JSON type: 'true (a boolean)', '"32" (a string)'."""
+    kind = ("a boolean" if isinstance(value, bool) else "a number" if isinstance(value, (int, float))
+            else "a string" if isinstance(value, str) else "null" if value is None
+            else "a list" if isinstance(value, list) else "an object")
+    text = json.dumps(value, default=str)
+    return text if value is None else f"{text[:60]}{'...' if len(text) > 60 else ''} ({kind})"
+
+
+def _where(data: dict, frame: dict, i: int, key: str) -> str:
+    """Where a key's value comes from: 'frame 3 (images/r_3.png)' or 'top level'."""
+    return f"frame {i} ({frame.get('file_path')})" if key in frame or key not in data else "top level"
+
+
+def _number(data: dict, frame: dict, i: int, key: str, integer: bool = False) -> float:
+    """The frame's (else the top level's) number `key`: a JSON number, or a numeric string where nerfstudio
+    takes one (NUMERIC_STRING_KEYS); booleans and anything else are a TransformsError naming frame and key."""
+    value = frame.get(key, data.get(key))
+    expected = "an integer" if integer else "a number"
+    if isinstance(value, str) and key in NUMERIC_STRING_KEYS:
+        try:
+            return int(value) if integer else float(value)
+        except ValueError:
+            pass
+    elif isinstance(value, (int, float)) and not isinstance(value, bool) and (not integer or float(value).is_integer()):
+        return int(value) if integer else float(value)
+    raise TransformsError(f"{_where(data, frame, i, key)}: {key} must be {expected}, got {json_value(value)}")
+
+
+def _matrix(frame: dict, i: int) -> np.ndarray:
+    """A frame's transform_matrix: 4 rows of 4 JSON numbers, finite."""
+    rows = frame["transform_matrix"]
+    where = f"frame {i} ({frame.get('file_path')})"
+    if not isinstance(rows, list) or len(rows) != 4 or not all(isinstance(r, list) and len(r) == 4 for r in rows):
+        raise TransformsError(f"{where}: transform_matrix must be a 4x4 matrix (4 lists of 4 numbers), "
+                              f"got {json_value(rows)}")
+    for r, row in enumerate(rows):
+        for c, value in enumerate(row):
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise TransformsError(f"{where}: transform_matrix[{r}][{c}] must be a number, got {json_value(value)}")
+    c2w = np.asarray(rows, dtype=np.float64)
+    if not np.isfinite(c2w).all():
+        raise TransformsError(f"{where}: transform_matrix must be a finite 4x4 matrix")
+    return c2w
+
+
+def _extras(frame: dict, i: int) -> dict:
+    """A frame's keys besides file_path and transform_matrix, the booleans (held_out) checked."""
+    for key in BOOLEAN_FRAME_KEYS:
+        if key in frame and not isinstance(frame[key], bool):
+            raise TransformsError(f"frame {i} ({frame.get('file_path')}): {key} must be a boolean (true or false), "
+                                  f"got {json_value(frame[key])}")
+    return {k: frame[k] for k in frame if k not in ("file_path", "transform_matrix")}
+
+
+def _frame_camera(data: dict, frame: dict, i: int, default_size: tuple[int, int] | None) -> Camera:
+    """The camera of one frame, intrinsics from the frame, else the top level, else `default_size`."""
+    if not isinstance(frame.get("file_path"), str):
+        raise TransformsError(f"frame {i}: file_path must be a string, got {json_value(frame.get('file_path'))}")
+    size = []
+    for key, default in zip(("w", "h"), default_size or (None, None)):
+        if key not in frame and key not in data and default is None:
+            raise TransformsError(f"frame {i} ({frame['file_path']}): missing intrinsics: image size (w, h) unknown")
+        size.append(_number(data, frame, i, key, integer=True) if key in frame or key in data else default)
+    width, height = size
+    if "fl_x" in frame or "fl_x" in data:
+        fx = _number(data, frame, i, "fl_x")
+        fy = _number(data, frame, i, "fl_y") if "fl_y" in frame or "fl_y" in data else fx
+    elif "camera_angle_x" in frame or "camera_angle_x" in data:
+        angle = _number(data, frame, i, "camera_angle_x")
+        if not 0 < angle < math.pi:
+            raise TransformsError(f"{_where(data, frame, i, 'camera_angle_x')}: camera_angle_x must be in (0, pi) "
+                                  f"radians, got {angle!r}")
+        fx = fy = width / (2 * math.tan(angle / 2))
+    else:
+        raise TransformsError(f"frame {i} ({frame['file_path']}): missing intrinsics: no focal length "
+                              "(fl_x or camera_angle_x)")
+    cx = _number(data, frame, i, "cx") if "cx" in frame or "cx" in data else width / 2
+    cy = _number(data, frame, i, "cy") if "cy" in frame or "cy" in data else height / 2
+    return Camera(_matrix(frame, i), width, height, fx, fy, cx, cy, frame["file_path"], _extras(frame, i))
+
+
 def read_transforms(data: dict, default_size: tuple[int, int] | None = None) -> list[tuple[str, Camera]]:
     """(file_path, Camera) per frame of a parsed transforms.json (nerfstudio or NeRF-synthetic).
 
     Intrinsics come from the frame, else the file's top level; NeRF-synthetic files give only
-    `camera_angle_x`, so the image size must then come from `default_size` (width, height).
+    `camera_angle_x`, so the image size must then come from `default_size` (width, height). Values are
+    typed strictly (a TransformsError names the frame, the key, the value and the type expected): numbers
+    are JSON numbers, or numeric strings for the intrinsics nerfstudio reads with float()/int(); held_out
+    is a boolean.
     """
-    out = []
-    for i, frame in enumerate(data["frames"]):
-        info = {**data, **frame}
-        width = info.get("w", default_size[0] if default_size else None)
-        height = info.get("h", default_size[1] if default_size else None)
-        if width is None or height is None:
-            raise KeyError(f"frame {i}: image size (w, h) unknown")
-        if "fl_x" in info:
-            fx = float(info["fl_x"])
-            fy = float(info.get("fl_y", fx))
-        elif "camera_angle_x" in info:
-            angle = float(info["camera_angle_x"])
-            if not 0 < angle < math.pi:
-                raise ValueError(f"frame {i}: camera_angle_x must be in (0, pi) radians, got {angle!r}")
-            fx = fy = float(width) / (2 * math.tan(angle / 2))
-        else:
-            raise KeyError(f"frame {i}: no focal length (fl_x or camera_angle_x)")
-        c2w = np.asarray(frame["transform_matrix"], dtype=np.float64)
-        if c2w.shape != (4, 4) or not np.isfinite(c2w).all():
-            raise ValueError(f"frame {i}: transform_matrix must be a finite 4x4 matrix")
-        cx = float(info.get("cx", width / 2))
-        cy = float(info.get("cy", height / 2))
-        extras = {k: frame[k] for k in frame if k not in ("file_path", "transform_matrix")}
-        out.append((str(frame["file_path"]), Camera(c2w, int(width), int(height), fx, fy, cx, cy,
-                                                    str(frame["file_path"]), extras)))
-    return out
+    cameras = [_frame_camera(data, frame, i, default_size) for i, frame in enumerate(data["frames"])]
+    return [(camera.name, camera) for camera in cameras]
 
 
 def read_cameras(path: str | Path) -> dict[str, Camera]:

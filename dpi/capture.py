@@ -26,8 +26,9 @@ import numpy as np
 import yaml
 
 from dpi.atomic import write_json
-from dpi.cameras import Camera, camera_problem, read_cameras, read_transforms
-from dpi.envmap import EnvmapLayoutError, equirect
+from dpi.cameras import Camera, TransformsError, camera_problem, json_value, read_cameras, read_transforms
+from dpi.consistency import cameras_problem
+from dpi.envmap import EnvmapLayoutError, read_envmap
 from dpi.exr import EXRError, read_exr
 from dpi.images import HDR_SUFFIXES, IMAGE_SUFFIXES, LDR_SUFFIXES, ImageError, read_image, read_mask
 from dpi.layout import SceneLayout
@@ -37,11 +38,16 @@ SCENE_YAML_KEYS = ("prior", "held_out", "radiance_scale", "object", "notes", "fo
 PRIORS = ("indoor", "outdoor")
 GT_NAMES = ("envmap", "albedo", "roughness", "metallic")
 MESH_NAMES = ("mesh.ply", "mesh.obj")
+"""matched case-insensitively (mesh.PLY), as image suffixes are"""
 PLY_UV_PAIRS = (("u", "v"), ("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
 PLY_HEADER_BYTES = 1 << 16
 ASPECT_TOLERANCE = 1e-3
 CLIPPED_WARNING_FRACTION = 0.01
 """an LDR image with at least this fraction of pixels at white gets a warning"""
+MIN_IMAGE_SIZE = 8
+"""an image smaller than this (px) on either side holds no shading to fit"""
+MIN_TRAIN_VIEWS = 3
+"""a capture with fewer training views gets a warning: too few to constrain the light and the materials"""
 
 
 class CaptureError(ValueError):
@@ -49,7 +55,8 @@ class CaptureError(ValueError):
 
 
 class CaptureWarning(UserWarning):
-    """A capture is usable but part of it is not (clipped pixels); the message starts with the file."""
+    """A capture is usable but part of it is not (clipped pixels, nothing held out, too few views); the message
+    starts with the file."""
 
 
 @dataclass
@@ -237,25 +244,32 @@ def read_scene_options(root: str | os.PathLike) -> dict:
         raise CaptureError(f"{path}: unknown keys {unknown} (allowed: {', '.join(SCENE_YAML_KEYS)})")
     if "prior" in options and options["prior"] not in PRIORS:
         raise CaptureError(f"{path}: prior must be one of {', '.join(PRIORS)}, got {options['prior']!r}")
-    held_out = options.get("held_out", [])
-    if not isinstance(held_out, list) or not all(isinstance(v, (str, int)) for v in held_out):
-        raise CaptureError(f"{path}: held_out must be a list of image names")
     if "held_out" in options:
-        options["held_out"] = [str(v) for v in held_out]
-    scale = options.get("radiance_scale", 1.0)
-    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not (math.isfinite(scale) and scale > 0):
-        raise CaptureError(f"{path}: radiance_scale must be a positive number, got {scale!r}")
-    if "radiance_scale" in options:
-        options["radiance_scale"] = float(scale)
-    focal = options.get("focal_length_px", 1.0)
-    if isinstance(focal, bool) or not isinstance(focal, (int, float)) or not (math.isfinite(focal) and focal > 0):
-        raise CaptureError(f"{path}: focal_length_px must be a positive number (pixels), got {focal!r}")
-    if "focal_length_px" in options:
-        options["focal_length_px"] = float(focal)
+        options["held_out"] = _held_out_names(path, options["held_out"])
+    for key, unit in (("radiance_scale", ""), ("focal_length_px", " (pixels)")):
+        if key in options:
+            options[key] = _positive_number(path, key, options[key], unit)
     for key in ("object", "notes"):
         if key in options and not isinstance(options[key], str):
-            raise CaptureError(f"{path}: {key} must be a string, got {options[key]!r}")
+            raise CaptureError(f"{path}: {key} must be a string, got {json_value(options[key])}")
     return options
+
+
+def _held_out_names(path: Path, value: object) -> list[str]:
+    """scene.yaml's held_out: a list of image names (strings, or integers for numbered images; not booleans)."""
+    if not isinstance(value, list):
+        raise CaptureError(f"{path}: held_out must be a list of image names, got {json_value(value)}")
+    for i, name in enumerate(value):
+        if isinstance(name, bool) or not isinstance(name, (str, int)):
+            raise CaptureError(f"{path}: held_out[{i}] must be an image name (a string), got {json_value(name)}")
+    return [str(name) for name in value]
+
+
+def _positive_number(path: Path, key: str, value: object, unit: str) -> float:
+    """A scene.yaml number that must be positive and finite (a YAML number: not a boolean, not a quoted string)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0):
+        raise CaptureError(f"{path}: {key} must be a positive number{unit}, got {json_value(value)}")
+    return float(value)
 
 
 def _camera_xml(root: Path) -> Path | None:
@@ -275,9 +289,15 @@ def _xml_sensors(path: Path) -> list[Camera]:
         raise CaptureError(str(exc)) from exc
 
 
+def named_files(folder: Path, names: tuple[str, ...]) -> list[Path]:
+    """The files of `folder` named one of `names` when case is ignored (mesh.PLY for mesh.ply), in that order."""
+    files = [p for p in sorted(folder.iterdir()) if p.is_file()] if folder.is_dir() else []
+    return [p for name in names for p in files if p.name.lower() == name]
+
+
 def _mesh_file(root: Path, options: dict) -> Path | None:
-    """The given mesh: mesh.ply / mesh.obj, else scene.xml's mesh shape (the one named `object` if several)."""
-    given = [root / name for name in MESH_NAMES if (root / name).is_file()]
+    """The given mesh: mesh.ply / mesh.obj (any case), else scene.xml's mesh shape (the one named `object` if several)."""
+    given = named_files(root, MESH_NAMES)
     if len(given) > 1:
         raise CaptureError(f"{given[1]}: ambiguous mesh, {given[0].name} is also given")
     if given:
@@ -379,8 +399,11 @@ def _check_images(images: dict[str, Path]) -> tuple[int, int]:
             image = read_image(path)
         except ImageError as exc:
             raise CaptureError(str(exc)) from exc
-        _check_signal(path, image)
         height, width = image.shape[:2]
+        if min(width, height) < MIN_IMAGE_SIZE:
+            raise CaptureError(f"{path}: image is {width}x{height} px; dpi needs at least {MIN_IMAGE_SIZE} px on each "
+                               "side (a photo or a render of the object, not a thumbnail)")
+        _check_signal(path, image)
         if size is None:
             size, first = (width, height), path
         elif (width, height) != size:
@@ -438,10 +461,8 @@ def _transforms_cameras(path: Path, names: list[str], size: tuple[int, int]) -> 
             raise CaptureError(f"{path}: frame {i} needs 'file_path' and 'transform_matrix'")
     try:
         frames = read_transforms(data, default_size=size)
-    except KeyError as exc:
-        raise CaptureError(f"{path}: missing intrinsics: {exc.args[0]}") from exc
-    except (ValueError, TypeError) as exc:
-        raise CaptureError(f"{path}: invalid camera: {exc}") from exc
+    except TransformsError as exc:
+        raise CaptureError(f"{path}: {exc}") from exc
     cameras: dict[str, Camera] = {}
     unmatched = []
     for file_path, camera in frames:
@@ -493,8 +514,9 @@ def _mask_files(root: Path, images: dict[str, Path], size: tuple[int, int]) -> d
     return masks
 
 
-def _check_mesh(path: Path) -> None:
-    """Fail unless the mesh file loads with trimesh, has faces indexing its vertices, and finite vertices and UVs."""
+def _check_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh's vertices and faces, failing unless the file loads with trimesh, has faces indexing its
+    vertices, and finite vertices and UVs."""
     import trimesh
 
     if not path.is_file():
@@ -513,27 +535,32 @@ def _check_mesh(path: Path) -> None:
     uv = getattr(mesh.visual, "uv", None)
     if uv is not None and not np.isfinite(uv).all():
         raise CaptureError(f"{path}: mesh UVs contain NaN or Inf values")
+    return np.asarray(mesh.vertices), np.asarray(mesh.faces)
+
+
+def read_ground_truth(path: str | os.PathLike, name: str) -> np.ndarray:
+    """A ground-truth map, the one reader of gt/*.exr: the envmap (H, 2H, 3) through `dpi.envmap.read_envmap`
+    (any layout it reads), a texture (albedo (H, W, 3), grey repeated; roughness, metallic (H, W, 1), the first
+    channel, as `MaterialTextures.load`); NaN, Inf or negative values are an EXRError naming the file."""
+    if name == "envmap":
+        return read_envmap(path, log=False)
+    data = read_exr(path)
+    if not np.isfinite(data).all() or (data < 0).any():
+        raise EXRError(f"{path}: ground truth {name} has NaN, Inf or negative values")
+    channels = 3 if name == "albedo" else 1
+    return np.repeat(data, 3, axis=-1) if data.shape[-1] < channels else data[..., :channels]
 
 
 def _gt_files(root: Path) -> dict[str, Path]:
-    """name -> ground-truth EXR, each finite and the envmap an equirect in a layout `dpi.envmap.equirect` reads."""
+    """name -> ground-truth EXR (gt/{name}.exr, any case), each read as every stage reads it (`read_ground_truth`)."""
     gt = {}
     for name in GT_NAMES:
-        path = root / "gt" / f"{name}.exr"
-        if not path.is_file():
-            continue
-        try:
-            data = read_exr(path)
-        except EXRError as exc:
-            raise CaptureError(str(exc)) from exc
-        if not np.isfinite(data).all():
-            raise CaptureError(f"{path}: ground truth contains NaN or Inf values")
-        if name == "envmap":
+        for path in named_files(root / "gt", (f"{name}.exr",))[:1]:
             try:
-                equirect(data, str(path))
-            except EnvmapLayoutError as exc:
+                read_ground_truth(path, name)
+            except (EXRError, EnvmapLayoutError) as exc:
                 raise CaptureError(str(exc)) from exc
-        gt[name] = path
+            gt[name] = path
     return gt
 
 
@@ -553,24 +580,52 @@ def _held_out(root: Path, names: list[str], options: dict, cameras: dict[str, Ca
     return held
 
 
+def camera_fit_problem(mesh: tuple[np.ndarray, np.ndarray], cameras: dict[str, Camera],
+                       masks: dict[str, Path] | None) -> str | None:
+    """Why the cameras contradict the mesh and the masks (or, without masks, the image frames), or None:
+    `dpi.consistency.cameras_problem` over the views with a camera."""
+    names = list(cameras)
+    return cameras_problem(*mesh, [cameras[n] for n in names],
+                           None if masks is None else [read_mask(masks[n]) for n in names], names)
+
+
+def capture_warnings(capture: Capture) -> list[str]:
+    """Why a usable capture gives weak results, a line each: nothing held out (no novel-view score), or fewer
+    than MIN_TRAIN_VIEWS training views (too few to constrain light and materials); the log and the report
+    show them."""
+    lines = []
+    if not capture.held_out_views:
+        lines.append(f"{capture.root}: no held-out view, so the novel-view metrics (PSNR, SSIM, LPIPS) cannot be "
+                     "scored; flag views `held_out` in transforms.json or list them in scene.yaml")
+    if len(capture.train_views) < MIN_TRAIN_VIEWS:
+        lines.append(f"{capture.root}: only {len(capture.train_views)} training view(s): too few to constrain the "
+                     f"illumination and the materials (use {MIN_TRAIN_VIEWS} or more, dozens for a good fit)")
+    return lines
+
+
 def load_capture(root: str | os.PathLike) -> Capture:
-    """Read and validate a whole capture folder; raises one CaptureError naming the first bad file."""
+    """Read and validate a whole capture folder; raises one CaptureError naming the first bad file, and warns
+    (CaptureWarning) about a capture that cannot be scored or has too few views (`capture_warnings`)."""
     root = Path(root).resolve()
     _check_root(root)
     options = read_scene_options(root)
     images = _image_files(root)
     names = list(images)
     size = _check_images(images)
-    if (root / "transforms.json").is_file():
-        cameras = _transforms_cameras(root / "transforms.json", names, size)
-    elif (xml := _camera_xml(root)) is not None:
-        cameras = _xml_cameras(xml, names, size)
-    else:
+    camera_file = root / "transforms.json" if (root / "transforms.json").is_file() else _camera_xml(root)
+    if camera_file is None:
         cameras = {}
+    elif camera_file.suffix == ".json":
+        cameras = _transforms_cameras(camera_file, names, size)
+    else:
+        cameras = _xml_cameras(camera_file, names, size)
     masks = _mask_files(root, images, size)
     mesh = _mesh_file(root, options)
     if mesh is not None:
-        _check_mesh(mesh)
+        surface = _check_mesh(mesh)
+        problem = camera_fit_problem(surface, cameras, masks) if cameras else None
+        if problem:
+            raise CaptureError(f"{camera_file}: {problem}")
     has_uv = mesh is not None and mesh_has_uv(mesh)
     gt = _gt_files(root)
     held = _held_out(root, names, options, cameras)
@@ -581,4 +636,7 @@ def load_capture(root: str | os.PathLike) -> Capture:
         "mesh": "given" if mesh is not None else "derived",
         "uv": "given" if has_uv else "derived",
     }
-    return Capture(root, views, mesh, has_uv, gt, options, provenance, size)
+    capture = Capture(root, views, mesh, has_uv, gt, options, provenance, size)
+    for line in capture_warnings(capture):
+        warnings.warn(line, CaptureWarning, stacklevel=2)
+    return capture

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Callable
 
@@ -17,6 +18,7 @@ from dpi.images import write_mask, write_srgb
 NAMES = ("r_0", "r_1", "r_2", "r_3")
 FRAME_PATHS = ("images/r_0.png", "./images/r_1", "r_2", "images/r_3.exr")
 SIZE = 8
+DISTANCE, FOV_DEG = 3.0, 40.0
 
 
 def image(value: float = 0.5, height: int = SIZE, width: int = SIZE) -> np.ndarray:
@@ -34,7 +36,16 @@ def raw_exr(path: Path, data: np.ndarray) -> None:
 
 def cameras(n: int = len(NAMES)) -> list[Camera]:
     """Cameras on a ring around the origin, 8x8 pixels."""
-    return [from_fov(c2w, SIZE, SIZE, 40.0) for c2w in orbit(n, 3.0, (20.0, 35.0))]
+    return [from_fov(c2w, SIZE, SIZE, FOV_DEG) for c2w in orbit(n, DISTANCE, (20.0, 35.0))]
+
+
+def sphere_mask() -> np.ndarray:
+    """What every camera of `cameras` sees of the unit sphere at the origin (the capture's mesh): the disc
+    of pixel centres within its projected radius f tan(asin(1 / distance))."""
+    focal = SIZE / (2 * math.tan(math.radians(FOV_DEG) / 2))
+    radius = focal * math.tan(math.asin(1 / DISTANCE))
+    y, x = np.mgrid[:SIZE, :SIZE] + 0.5
+    return np.hypot(x - SIZE / 2, y - SIZE / 2) <= radius
 
 
 def make_capture(root: Path, transforms: bool = True, masks: bool = True, mesh: bool = True,
@@ -51,10 +62,8 @@ def make_capture(root: Path, transforms: bool = True, masks: bool = True, mesh: 
         cams[3].extras["held_out"] = True
         (root / "transforms.json").write_text(json.dumps(write_transforms(list(zip(FRAME_PATHS, cams)))))
     if masks:
-        mask = np.zeros((SIZE, SIZE), bool)
-        mask[2:6, 2:6] = True
         for name in NAMES:
-            write_mask(root / "masks" / f"{name}.png", mask)
+            write_mask(root / "masks" / f"{name}.png", sphere_mask())
     if mesh:
         trimesh.creation.icosphere(subdivisions=1).export(root / "mesh.ply")
     if gt:

@@ -91,17 +91,18 @@ def test_exr_wins_over_ldr_copy_of_the_same_view(capture_root):
     assert load_capture(capture_root).views[2].image.name == "r_2.exr"
 
 
-def test_ply_with_uvs_written_by_mitsuba_is_detected(capture_root):
-    """Vertex s/t properties in a PLY header mean the mesh has UVs."""
-    write_mitsuba_uv_ply(capture_root / "mesh.ply")
-    capture = load_capture(capture_root)
+def test_ply_with_uvs_written_by_mitsuba_is_detected(tmp_path):
+    """Vertex s/t properties in a PLY header mean the mesh has UVs (no masks: a triangle is not the sphere they show)."""
+    root = make_capture(tmp_path / "scene", masks=False)
+    write_mitsuba_uv_ply(root / "mesh.ply")
+    capture = load_capture(root)
     assert capture.mesh_has_uv and capture.provenance["uv"] == "given"
-    assert inspect_capture(capture_root)["mesh_has_uv"]
+    assert inspect_capture(root)["mesh_has_uv"]
 
 
 def test_obj_with_texture_coordinates_is_detected(tmp_path):
-    """`vt` lines in an OBJ mean the mesh has UVs."""
-    root = make_capture(tmp_path / "s", mesh=False)
+    """`vt` lines in an OBJ mean the mesh has UVs (no masks: a triangle is not the sphere they show)."""
+    root = make_capture(tmp_path / "s", mesh=False, masks=False)
     (root / "mesh.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n")
     assert load_capture(root).mesh_has_uv and inspect_capture(root)["mesh_has_uv"]
 
@@ -222,7 +223,7 @@ ERRORS = {
     "nan in image": (lambda r: raw_exr(r / "images" / "r_2.exr", image() * np.nan), "r_2.exr", "NaN"),
     "inf in image": (lambda r: raw_exr(r / "images" / "r_3.exr", image() + np.inf), "r_3.exr", "Inf"),
     "negative image": (lambda r: raw_exr(r / "images" / "r_3.exr", image() - 1), "r_3.exr", "negative"),
-    "image sizes differ": (lambda r: write_srgb(r / "images" / "r_1.png", image(height=6)), "r_1.png", "size"),
+    "image sizes differ": (lambda r: write_srgb(r / "images" / "r_1.png", image(height=12)), "r_1.png", "size"),
     "unreadable transforms": (lambda r: (r / "transforms.json").write_text("{frames: "), "transforms.json", "JSON"),
     "no frames": (lambda r: edit_transforms(r, _no_frames), "transforms.json", "frames"),
     "camera count": (lambda r: edit_transforms(r, _drop_frame), "transforms.json", "count"),

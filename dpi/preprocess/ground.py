@@ -23,9 +23,9 @@ import numpy as np
 import torch
 
 from dpi.cameras import Camera
+from dpi.consistency import raycasting_scene
 from dpi.preprocess.hull import axes_centre
-from dpi.preprocess.stereo import (Matcher, StereoConfig, camera_rays, grey, hull_depth_range, neighbour_views,
-                                   raycasting_scene)
+from dpi.preprocess.stereo import Matcher, StereoConfig, camera_rays, grey, hull_depth_range, neighbour_views
 
 FIT_VIEWS = 8
 """views the ground's height is fitted on (evenly spread over the capture)"""

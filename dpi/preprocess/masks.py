@@ -32,6 +32,7 @@ import numpy as np
 import torch
 
 from dpi.cameras import Camera
+from dpi.consistency import mask_overlap
 from dpi.images import read_image, resize, resize_mask, to_uint8, working_size, write_mask
 from dpi.preprocess.hull import marching_cubes, visible_sphere, visual_hull
 
@@ -319,11 +320,5 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
         write_mask(out_dir / f"{name}.png", mask)
         summary["views"][name] = {"method": method, "foreground_fraction": round(float(mask.mean()), 4)}
     return summary
-
-
-def mask_overlap(a: np.ndarray, b: np.ndarray) -> float:
-    """Intersection over union of two boolean masks."""
-    union = np.logical_or(a, b).sum()
-    return float(np.logical_and(a, b).sum() / union) if union else 1.0
 
 

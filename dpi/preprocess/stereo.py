@@ -33,6 +33,7 @@ import torch
 import torch.nn.functional as F
 
 from dpi.cameras import Camera
+from dpi.consistency import raycasting_scene
 
 @dataclass
 class StereoConfig:
@@ -105,18 +106,9 @@ def camera_rays(camera: Camera) -> np.ndarray:
     return np.stack([(xs - camera.cx) / camera.fx, -(ys - camera.cy) / camera.fy, -np.ones_like(xs)], -1)
 
 
-def raycasting_scene(vertices: np.ndarray, faces: np.ndarray):
-    """An open3d RaycastingScene of a triangle mesh (what `hull_depth_range` casts rays into)."""
-    import open3d as o3d
-
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.core.Tensor(vertices.astype(np.float32)), o3d.core.Tensor(faces.astype(np.uint32)))
-    return scene
-
-
 def hull_depth_range(scene, camera: Camera, reach: float) -> tuple[np.ndarray, np.ndarray]:
-    """Camera-space depths (h, w) where each pixel's ray enters and leaves a closed mesh (an
-    open3d RaycastingScene that lies within `reach` of the camera); inf where it misses."""
+    """Camera-space depths (h, w) where each pixel's ray enters and leaves a closed mesh (an open3d
+    RaycastingScene, `dpi.consistency.raycasting_scene`, that lies within `reach` of the camera); inf where it misses."""
     import open3d as o3d
 
     rays = camera_rays(camera)

@@ -230,7 +230,7 @@ BROKEN = {  # case: (break the capture, file the message starts with, words it c
     "nan focal": (set_frame("fl_x", np.nan), "transforms.json", "intrinsics must be finite"),
     "nan principal point": (set_frame("cx", np.nan), "transforms.json", "intrinsics must be finite"),
     "non-square pixels": (set_frame("fl_y", 30.0), "transforms.json", "pixels must be square"),
-    "focal not a number": (set_frame("fl_x", "wide"), "transforms.json", "invalid camera"),
+    "focal not a number": (set_frame("fl_x", "wide"), "transforms.json", 'frame 0 (images/r_0.png): fl_x must be a number, got "wide" (a string)'),
     "zero width": (set_frame("w", 0), "transforms.json", "image size must be positive, got 0x8"),
     "camera_angle_x 0": (nerf_synthetic(0.0), "transforms.json", "camera_angle_x must be in (0, pi)"),
     "camera_angle_x pi": (nerf_synthetic(np.pi), "transforms.json", "camera_angle_x must be in (0, pi)"),
@@ -293,6 +293,7 @@ def test_a_few_white_pixels_do_not_warn(tmp_path):
     codes[0, :100] = 255
     for name in NAMES:
         write_cv2(tmp_path / "images" / f"{name}.png", codes)
+    (tmp_path / "scene.yaml").write_text("held_out: [r_3]\n")
     with warnings.catch_warnings():
         warnings.simplefilter("error", CaptureWarning)
         assert load_capture(tmp_path).image_size == (128, 128)
