@@ -1,7 +1,7 @@
 """OpenEXR reading and writing: linear HDR images as float32 numpy arrays (H, W, C).
 
 All EXR access of dpi goes through this module. Reading places the data window inside the
-display window, accepts half or float channels, RGB(A) or a single (Y or other) channel.
+display window, accepts half or float channels, by name: RGB(A) or Y (grey).
 Writing is atomic and refuses NaN/Inf.
 """
 
@@ -21,15 +21,14 @@ class EXRError(ValueError):
 
 
 def _channel_stack(path: Path, channels: dict[str, np.ndarray]) -> np.ndarray:
-    """Stack the colour channels of one EXR part into (H, W, C)."""
+    """Stack the colour channels of one EXR part into (H, W, C), by name: R, G, B (C = 3) or Y (grey, C = 1);
+    alpha and other channels are ignored, and a file with neither (a lone depth channel Z) is an error."""
     if all(n in channels for n in RGB_NAMES):
         return np.stack([channels[n] for n in RGB_NAMES], axis=-1)
     if "Y" in channels:
         return channels["Y"][..., None]
-    plain = [n for n in sorted(channels) if n != "A"]
-    if len(plain) == 1:
-        return channels[plain[0]][..., None]
-    raise EXRError(f"{path}: cannot interpret EXR channels {sorted(channels)} (expected R,G,B or one channel)")
+    raise EXRError(f"{path}: EXR channels {', '.join(sorted(channels))} hold no image: dpi reads R, G, B "
+                   "(with or without A) or Y (grey)")
 
 
 def read_exr(path: str | os.PathLike) -> np.ndarray:

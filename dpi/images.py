@@ -121,8 +121,9 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
 
 
 def read_mask(path: str | os.PathLike) -> np.ndarray:
-    """Boolean foreground mask (H, W) from a PNG/JPG (grey or Rec. 601 luma > 0.5, or alpha when present;
-    8 or 16 bits) or EXR (> 0.5)."""
+    """Boolean foreground mask (H, W) from a PNG/JPG (8 or 16 bits) or EXR, above 0.5: the alpha channel where
+    it varies (a cut-out), else the grey value (Rec. 601 luma of RGB): an opaque alpha, as many editors save a
+    black-and-white mask, says nothing."""
     path = Path(path)
     if not path.is_file():
         raise ImageError(f"{path}: mask file does not exist")
@@ -132,9 +133,10 @@ def read_mask(path: str | os.PathLike) -> np.ndarray:
         except EXRError as exc:
             raise ImageError(str(exc)) from exc
     values = decode_ldr(path)
-    if values.shape[-1] == 4:
-        return values[..., 3] > 0.5
-    return (values[..., :3] @ np.array(REC601_LUMA, np.float32) if values.shape[-1] == 3 else values[..., 0]) > 0.5
+    colour, alpha = (values[..., :3], values[..., 3]) if values.shape[-1] == 4 else (values, None)  # grey + alpha: RGBA
+    if alpha is not None and alpha.min() < alpha.max():
+        return alpha > 0.5
+    return (colour @ np.array(REC601_LUMA, np.float32) if colour.shape[-1] == 3 else colour[..., 0]) > 0.5
 
 
 def to_uint8(linear: np.ndarray, exposure: float = 1.0) -> np.ndarray:

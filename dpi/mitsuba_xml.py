@@ -26,6 +26,10 @@ MESH_SHAPE_TYPES = ("obj", "ply")
 DEFAULT_FILM_SIZE = (768, 576)  # Mitsuba's hdrfilm default (width, height)
 DEFAULT_FOCAL_LENGTH_MM = 50.0  # Mitsuba's default when neither fov nor focal_length is given
 _VARIABLE = re.compile(r"\$(\w+)")
+SENSOR_PROPERTIES = {"fov": "float", "principal_point_offset_x": "float", "principal_point_offset_y": "float",
+                     "fov_axis": "string", "focal_length": "string"}
+"""the sensor properties dpi reads, with the tag (type) Mitsuba requires"""
+FILM_PROPERTIES = {"width": "integer", "height": "integer"}
 
 
 class MitsubaXMLError(ValueError):
@@ -152,19 +156,42 @@ def _properties(element: ET.Element, tag: str) -> dict[str, str]:
     return {p.get("name"): p.get("value") for p in element.findall(tag)}
 
 
-def x_fov_deg(path: Path, sensor: ET.Element, width: int, height: int) -> float:
-    """Horizontal field of view of a sensor, following Mitsuba's fov / fov_axis / focal_length rules."""
-    floats, strings = _properties(sensor, "float"), _properties(sensor, "string")
+def _typed(path: Path, owner: str, element: ET.Element | None, spec: dict[str, str]) -> dict[str, float | int | str]:
+    """name -> value of the properties of `element` that `spec` names, each of its type as Mitsuba requires
+    (an <integer> where a float is due is a float, as in Mitsuba); anything else is an error naming the file,
+    the owner (sensor), the property, its value and the type expected."""
+    values: dict[str, float | int | str] = {}
+    for child in [] if element is None else element:
+        name, text = child.get("name"), child.get("value", "")
+        if name not in spec:
+            continue
+        expected = spec[name]
+        wanted = f"{'an' if expected == 'integer' else 'a'} {expected}"
+        shown = f'<{child.tag} name="{name}" value="{text}"/>'
+        if child.tag != expected and (expected, child.tag) != ("float", "integer"):
+            raise MitsubaXMLError(f"{path}: {owner}: {name} must be {wanted} (<{expected}>), got {shown}")
+        try:
+            values[name] = {"float": float, "integer": int, "string": str}[expected](text)
+        except ValueError as exc:
+            raise MitsubaXMLError(f"{path}: {owner}: {name} must be {wanted}, got {shown}") from exc
+        if expected == "float" and not math.isfinite(values[name]):
+            raise MitsubaXMLError(f"{path}: {owner}: {name} must be a finite number, got {shown}")
+    return values
+
+
+def x_fov_deg(path: Path, properties: dict, width: int, height: int) -> float:
+    """Horizontal field of view of a sensor (its `_typed` properties), following Mitsuba's fov / fov_axis /
+    focal_length rules."""
     aspect = width / height
-    if "fov" in floats:
-        fov = float(floats["fov"])
-        axis = strings.get("fov_axis", "x").lower()
+    if "fov" in properties:
+        fov = properties["fov"]
+        axis = properties.get("fov_axis", "x").lower()
         if axis == "smaller":
             axis = "y" if aspect > 1 else "x"
         elif axis == "larger":
             axis = "x" if aspect > 1 else "y"
     else:
-        focal = strings.get("focal_length", f"{DEFAULT_FOCAL_LENGTH_MM}mm").strip().removesuffix("mm")
+        focal = properties.get("focal_length", f"{DEFAULT_FOCAL_LENGTH_MM}mm").strip().removesuffix("mm")
         try:
             fov = math.degrees(2 * math.atan(math.hypot(36.0, 24.0) / (2 * float(focal))))
         except ValueError as exc:
@@ -184,23 +211,18 @@ def x_fov_deg(path: Path, sensor: ET.Element, width: int, height: int) -> float:
 
 def sensor_camera(path: Path, sensor: ET.Element, name: str = "") -> Camera:
     """dpi Camera (OpenGL c2w, pixel intrinsics) of one `<sensor>` element."""
-    film = sensor.find("film")
-    sizes = _properties(film, "integer") if film is not None else {}
-    try:
-        width = int(sizes.get("width", DEFAULT_FILM_SIZE[0]))
-        height = int(sizes.get("height", DEFAULT_FILM_SIZE[1]))
-    except ValueError as exc:
-        raise MitsubaXMLError(f"{path}: sensor {name!r} has a non-integer film size") from exc
+    sizes = _typed(path, f"sensor {name!r} film", sensor.find("film"), FILM_PROPERTIES)
+    width, height = sizes.get("width", DEFAULT_FILM_SIZE[0]), sizes.get("height", DEFAULT_FILM_SIZE[1])
+    properties = _typed(path, f"sensor {name!r}", sensor, SENSOR_PROPERTIES)
     transform = sensor.find("transform[@name='to_world']")
     to_world = np.eye(4) if transform is None else transform_matrix(path, transform)
     if not np.allclose(np.linalg.norm(to_world[:3, :3], axis=0), 1.0, atol=1e-3):
         raise MitsubaXMLError(f"{path}: sensor {name!r} has scale factors in its to_world transform "
                               f"(Mitsuba does not allow them)")
-    fx = width / (2 * math.tan(math.radians(x_fov_deg(path, sensor, width, height)) / 2))
-    floats = _properties(sensor, "float")
+    fx = width / (2 * math.tan(math.radians(x_fov_deg(path, properties, width, height)) / 2))
     # Mitsuba shifts the film window by offset * size, which moves the principal point the other way.
-    cx = width / 2 - float(floats.get("principal_point_offset_x", 0.0)) * width
-    cy = height / 2 - float(floats.get("principal_point_offset_y", 0.0)) * height
+    cx = width / 2 - properties.get("principal_point_offset_x", 0.0) * width
+    cy = height / 2 - properties.get("principal_point_offset_y", 0.0) * height
     return Camera(from_mitsuba_matrix(to_world), width, height, fx, fx, cx, cy, name)
 
 
