@@ -538,12 +538,13 @@ def _check_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(mesh.vertices), np.asarray(mesh.faces)
 
 
-def read_ground_truth(path: str | os.PathLike, name: str) -> np.ndarray:
+def read_ground_truth(path: str | os.PathLike, name: str, log: bool = False) -> np.ndarray:
     """A ground-truth map, the one reader of gt/*.exr: the envmap (H, 2H, 3) through `dpi.envmap.read_envmap`
-    (any layout it reads), a texture (albedo (H, W, 3), grey repeated; roughness, metallic (H, W, 1), the first
-    channel, as `MaterialTextures.load`); NaN, Inf or negative values are an EXRError naming the file."""
+    (any layout it reads; `log` prints its changes), a texture (albedo (H, W, 3), grey repeated; roughness,
+    metallic (H, W, 1), the first channel, as `MaterialTextures.load`); NaN, Inf or negative values are an
+    EXRError naming the file."""
     if name == "envmap":
-        return read_envmap(path, log=False)
+        return read_envmap(path, log=log)
     data = read_exr(path)
     if not np.isfinite(data).all() or (data < 0).any():
         raise EXRError(f"{path}: ground truth {name} has NaN, Inf or negative values")

@@ -14,8 +14,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from dpi.atomic import atomic_path  # noqa: E402
+from dpi.capture import read_ground_truth  # noqa: E402
 from dpi.envmap import read_envmap  # noqa: E402
-from dpi.exr import read_exr  # noqa: E402
 from dpi.images import linear_to_srgb, luminance  # noqa: E402
 from dpi.exposure import middle_grey_gain  # noqa: E402
 from dpi.layout import TEXTURE_NAMES  # noqa: E402
@@ -52,14 +52,15 @@ def display_env(env: np.ndarray, reference: np.ndarray | None) -> np.ndarray:
 
 
 def envmap_grid(rows: list[tuple[str, list[Path]]], path: str | Path, reference: Path | None = None) -> None:
-    """PNG grid: one row per (label, env EXRs), ground truth on top when given; maps scale-aligned to it."""
-    ref = read_envmap(reference, log=False) if reference else None
+    """PNG grid: one row per (label, env EXRs), ground truth on top when given; maps scale-aligned to it. Every
+    map is read by `dpi.envmap.read_envmap`, so a ground truth in an authors' layout (256 x 257) is drawn H x 2H."""
+    ref = read_ground_truth(reference, "envmap") if reference else None
     table = ([("ground truth", [reference])] if reference else []) + rows
     axes = _panels(len(table), max(len(files) for _, files in table), 2.4, 1.4)
     for r, (label, files) in enumerate(table):
         for c, ax in enumerate(axes[r]):
             if c < len(files):
-                ax.imshow(display_env(read_exr(files[c]), ref), interpolation="nearest")
+                ax.imshow(display_env(read_envmap(files[c], log=False), ref), interpolation="nearest")
                 ax.set_title(label if len(files) == 1 else f"{label} #{c}", fontsize=8)
             else:
                 ax.axis("off")

@@ -19,7 +19,7 @@ from urllib.parse import quote
 import numpy as np
 
 from dpi.atomic import write_text
-from dpi.capture import Capture, complete_capture, read_capture_json
+from dpi.capture import Capture, complete_capture, read_capture_json, read_ground_truth
 from dpi.evaluation.figures import (MethodPoint, Rerender, quality_diversity_plot, rerender_grid,
                                     roughness_diversity_plot, texture_grid, view_strip)
 from dpi.evaluation.metric_table import metric_table, missing_reason, number, read_summary
@@ -54,7 +54,7 @@ def scene_roughness(capture: Capture) -> float | None:
     marker = read_marker(capture.root)
     if marker is not None:
         return float(marker["roughness"])
-    return float(read_exr(capture.gt["roughness"]).mean()) if "roughness" in capture.gt else None
+    return float(read_ground_truth(capture.gt["roughness"], "roughness").mean()) if "roughness" in capture.gt else None
 
 
 def recorded_notes(layout: Layout, rows: list[dict[str, str]]) -> dict[str, list[str]]:
@@ -160,8 +160,13 @@ def roughness_section(rows: list[dict[str, str]], captures: dict[str, Capture], 
 
 
 def read_textures(files: dict[str, Path]) -> dict[str, np.ndarray]:
-    """The albedo/roughness/metallic arrays among `files` (name -> EXR) that exist."""
+    """The albedo/roughness/metallic arrays among a sample's `files` (name -> EXR) that exist."""
     return {n: read_exr(p) for n, p in files.items() if n in TEXTURE_NAMES and Path(p).is_file()}
+
+
+def ground_truth_textures(capture: Capture) -> dict[str, np.ndarray]:
+    """The capture's ground-truth albedo/roughness/metallic, read as the evaluation reads them."""
+    return {n: read_ground_truth(p, n) for n, p in capture.gt.items() if n in TEXTURE_NAMES}
 
 
 def held_out_rerenders(scene: SceneLayout, capture: Capture, methods: list[str],
@@ -217,7 +222,7 @@ def scene_section(scene_name: str, scene: SceneLayout, rows: list[dict[str, str]
                             "; the capture has no ground truth.")))
 
     path = page.png(scene_name, "textures")
-    gt = read_textures(capture.gt)
+    gt = ground_truth_textures(capture)
     texture_grid(([("ground truth", gt)] if gt else [])
                  + [(m, read_textures({n: scene.sample_dir(m, 0) / texture_file(n) for n in TEXTURE_NAMES}))
                     for m in methods], path)

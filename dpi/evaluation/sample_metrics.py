@@ -14,13 +14,12 @@ from typing import Any
 import numpy as np
 import torch
 
-from dpi.envmap import read_envmap
+from dpi.capture import read_ground_truth
 from dpi.evaluation.metrics import PSNR_CAP, aligned_env, albedo_mse, env_metrics, missing, psnr, ssim
 from dpi.evaluation.naturalness import naturalness
 from dpi.evaluation.niqe import ENV_HEIGHT, env_niqe
 from dpi.evaluation.perceptual import ALEXNET_WEIGHTS, LPIPS_MIN_SIZE, lpips_distance, missing_weights, pretrained_lpips
 from dpi.exposure import MIDDLE_GREY
-from dpi.exr import read_exr
 from dpi.images import linear_to_srgb
 from dpi.prior.sample import Prior, load_scene_prior
 from dpi.solve.decomposition import Decomposition
@@ -82,7 +81,7 @@ def ground_truth_metrics(decomposition: Decomposition, gt: dict[str, Path]) -> d
     """Env-map PSNR/SSIM/LPIPS and albedo MSE against ground-truth files, when present."""
     out: dict[str, Any] = {}
     if "envmap" in gt:
-        env, reference = decomposition.env.numpy(), read_envmap(gt["envmap"])
+        env, reference = decomposition.env.numpy(), read_ground_truth(gt["envmap"], "envmap", log=True)
         out.update(env_metrics(env, reference))
         net = lpips_network()
         a, b, _ = aligned_env(env, reference)
@@ -90,7 +89,7 @@ def ground_truth_metrics(decomposition: Decomposition, gt: dict[str, Path]) -> d
     else:
         out.update({k: missing("no gt/envmap.exr") for k in ("env_psnr", "env_ssim", "env_lpips")})
     if "albedo" in gt:
-        mse, scales = albedo_mse(decomposition.materials.albedo.numpy(), read_exr(gt["albedo"]))
+        mse, scales = albedo_mse(decomposition.materials.albedo.numpy(), read_ground_truth(gt["albedo"], "albedo"))
         out.update({"albedo_mse": mse, "albedo_scale": [float(s) for s in scales]})
     else:
         out["albedo_mse"] = missing("no gt/albedo.exr")

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from dpi.atomic import atomic_path
-from dpi.envmap import read_envmap
+from dpi.capture import read_ground_truth
 from dpi.evaluation.metrics import aligned_env, missing, resize_area
 from dpi.spread import normalized_env, sample_variance
 from dpi.evaluation.perceptual import (INCEPTION_WEIGHTS, azimuth_rolls, frechet_distance, inception_features,
@@ -104,7 +104,7 @@ def env_fid(records: list[dict[str, Any]]) -> dict[str, Any]:
         estimates, references = [], {}
         for r in records:
             if r["method"] == method and r.get("gt_envmap"):
-                a, b, _ = aligned_env(read_exr(Path(r["sample_dir"]) / ENV_FILE), read_envmap(r["gt_envmap"], log=False))
+                a, b, _ = aligned_env(read_exr(Path(r["sample_dir"]) / ENV_FILE), read_ground_truth(r["gt_envmap"], "envmap"))
                 estimates += azimuth_rolls(linear_to_srgb(a))
                 references.setdefault(r["scene"], azimuth_rolls(linear_to_srgb(b)))
         out[method] = (frechet_distance(inception_features(estimates, net),
