@@ -26,7 +26,8 @@ from posterior_study import append_row
 from tabulate import tabulate
 
 from dpi.images import read_mask
-from dpi.preprocess.accuracy import align_mesh, chamfer, mask_iou, pose_errors
+from dpi.consistency import mask_iou
+from dpi.preprocess.accuracy import align_mesh, chamfer, pose_errors
 from dpi.preprocess.geometry import read_mesh
 from dpi.preprocess.sfm import SfMError
 from dpi.cameras import read_cameras

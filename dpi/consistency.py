@@ -79,8 +79,8 @@ def overlaps(masks: np.ndarray, silhouettes: np.ndarray) -> np.ndarray:
     return np.where(union > 0, both / np.maximum(union, 1), 1.0)
 
 
-def mask_overlap(a: np.ndarray, b: np.ndarray) -> float:
-    """Intersection over union of two boolean masks."""
+def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
+    """Intersection over union of two boolean masks (1 when both are empty)."""
     return float(overlaps(a[None], b[None])[0, 0])
 
 

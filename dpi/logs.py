@@ -10,8 +10,12 @@ from typing import Iterator
 
 
 @contextmanager
-def log_to(path: str | Path | None) -> Iterator[None]:
-    """Redirect stdout and stderr into `path` (appending) for the block; no-op for None."""
+def log_to(path: str | Path | None, one_line: tuple[type[Exception], ...] = ()) -> Iterator[None]:
+    """Redirect stdout and stderr into `path` (appending) for the block; no-op for None.
+
+    An exception of a `one_line` type (an input error whose message names the file and what to fix, as
+    `dpi validate` prints it) ends the job with that line alone, in the log and on stderr, and exit status 1;
+    any other exception goes to the log with its traceback and propagates."""
     if path is None:
         yield
         return
@@ -19,6 +23,11 @@ def log_to(path: str | Path | None) -> Iterator[None]:
     with open(path, "a", buffering=1) as log, redirect_stdout(log), redirect_stderr(log):
         try:
             yield
+            return
+        except one_line as exc:
+            message = str(exc)
+            print(message, file=sys.stderr)
         except Exception:
             traceback.print_exc(file=sys.stderr)
             raise
+    sys.exit(message)

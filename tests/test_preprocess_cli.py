@@ -11,7 +11,7 @@ import yaml
 from dpi.cameras import from_fov, orbit, write_transforms
 from dpi.cli import main
 from dpi.images import read_mask, write_srgb
-from dpi.preprocess.accuracy import mask_iou
+from dpi.consistency import mask_iou
 from dpi.preprocess.stages import needed_stages
 from test_preprocess_masks import sphere_view
 

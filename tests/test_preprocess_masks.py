@@ -9,7 +9,7 @@ import pytest
 
 from dpi.cameras import from_fov, orbit, pixel_rays
 from dpi.images import srgb_to_linear
-from dpi.preprocess.accuracy import mask_iou
+from dpi.consistency import mask_iou
 from dpi.preprocess.hull import visible_sphere
 from dpi.preprocess.masks import (MaskConfig, clean_mask, derive_masks, drop_outliers, mesh_silhouette,
                                   object_mask, refine_masks)

@@ -57,7 +57,8 @@ def photo_run(tmp_path_factory) -> Path:
 def test_photo_capture_is_derived_and_fitted(photo_run):
     from dpi.capture import read_capture_json
     from dpi.images import read_mask
-    from dpi.preprocess.accuracy import align_mesh, chamfer, mask_iou, pose_errors
+    from dpi.consistency import mask_iou
+    from dpi.preprocess.accuracy import align_mesh, chamfer, pose_errors
     from dpi.preprocess.geometry import read_mesh
     from dpi.cameras import read_cameras
 

@@ -1,4 +1,4 @@
-"""Accuracy of derived inputs against ground truth: camera poses, masks and surfaces.
+"""Accuracy of derived inputs against ground truth: camera poses and surfaces (masks: dpi.consistency.mask_iou).
 
 Poses from structure from motion live in their own frame, so they are compared after the
 similarity (Umeyama) that best maps their camera centres onto the true ones. Surfaces are
@@ -48,12 +48,6 @@ def pose_errors(estimated: dict[str, Camera], truth: dict[str, Camera]) -> dict[
     return {"views": len(names), "centre_error_mean": float(centre.mean()), "centre_error_max": float(centre.max()),
             "rotation_error_deg_mean": float(np.mean(angles)), "rotation_error_deg_max": float(np.max(angles)),
             "focal_error_mean": float(np.mean(focal))}
-
-
-def mask_iou(predicted: np.ndarray, truth: np.ndarray) -> float:
-    """Intersection over union of two boolean masks."""
-    union = np.logical_or(predicted, truth).sum()
-    return float(np.logical_and(predicted, truth).sum() / union) if union else 1.0
 
 
 def sample_surface(vertices: np.ndarray, faces: np.ndarray, count: int, seed: int = 0) -> np.ndarray:

@@ -32,7 +32,7 @@ import numpy as np
 import torch
 
 from dpi.cameras import Camera
-from dpi.consistency import mask_overlap
+from dpi.consistency import mask_iou
 from dpi.images import read_image, resize, resize_mask, to_uint8, working_size, write_mask
 from dpi.preprocess.hull import marching_cubes, visible_sphere, visual_hull
 
@@ -275,7 +275,7 @@ def refine_masks(images8: list[np.ndarray | None], cameras: list[Camera], masks:
             masks[i] = clean_mask(grabcut(image8, band_prior(outline, width), cfg.grabcut_iterations),
                                   cfg.fill_holes_below)
             methods[i] = "grabcut"
-            if mask_overlap(masks[i], outline) < 0.5:  # GrabCut lost the object: keep the views' consensus
+            if mask_iou(masks[i], outline) < 0.5:  # GrabCut lost the object: keep the views' consensus
                 log.warning("%s: GrabCut disagrees with the consensus hull; using the hull's projection",
                             cameras[i].name)
                 masks[i], methods[i] = clean_mask(outline, cfg.fill_holes_below), "consensus hull"
