@@ -16,13 +16,18 @@ from pathlib import Path
 from typing import Any
 
 from dpi.atomic import write_json
-from dpi.cameras import read_cameras, write_transforms
-from dpi.capture import inspect_capture, load_capture, read_capture_json, write_capture_json
+from dpi.cameras import Camera, read_cameras, write_transforms
+from dpi.capture import (Capture, CaptureError, camera_fit_problem, inspect_capture, load_capture, read_capture_json,
+                         write_capture_json)
 from dpi.images import read_mask
 from dpi.layout import SUMMARY_FILE, SceneLayout, geometry_files, poses_files
 from dpi.settings import settings_from_dict
 
 STAGES = ("poses", "masks", "geometry", "uv")
+SFM_FRAME = ("the cameras are structure from motion's, in its own frame (the object at the origin with radius 1, "
+             "+Y up): give the mesh with its cameras (transforms.json), or leave the mesh out")
+DERIVED_MASKS = ("the masks are derived (keying or GrabCut): with the cameras and the mesh right, they are wrong; "
+                 "give masks/ or change the mask settings")
 
 log = logging.getLogger(__name__)
 
@@ -46,6 +51,19 @@ def stage_inputs(stage: str, given: dict[str, bool], scene: SceneLayout) -> dict
     if stage == "uv":
         return {} if given["mesh"] else {"mesh": scene.geometry["mesh"]}
     return {}
+
+
+def check_given_mesh(capture: Capture, cameras: dict[str, Camera], masks: dict[str, Path] | None, source: Path,
+                     derived: str) -> None:
+    """Stop with one CaptureError naming `source` when the capture's own mesh contradicts derived cameras or
+    masks (`dpi.capture.camera_fit_problem`, as validation checks given ones); `derived` says what was derived."""
+    if capture.provenance["mesh"] != "given":
+        return
+    from dpi.preprocess.geometry import read_mesh
+
+    problem = camera_fit_problem(read_mesh(capture.mesh), cameras, masks)
+    if problem:
+        raise CaptureError(f"{source}: {problem}; {derived}")
 
 
 def capture_stage(capture_dir: str | Path, out_json: str | Path) -> None:
@@ -82,6 +100,13 @@ def poses_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | 
             frames.append((f"images/{view.image.name}", camera))
     missing = [v.name for v in capture.views if v.name not in model.cameras]
     model.summary["unregistered"] = missing
+    masks = ({v.name: v.mask for v in capture.views if v.name in model.cameras}
+             if capture.provenance["masks"] == "given" else None)
+    try:
+        check_given_mesh(capture, model.cameras, masks, files["cameras"], SFM_FRAME)
+    except CaptureError as exc:
+        write_json(files["summary"], {**model.summary, "error": str(exc)})
+        raise
     write_points_ply(files["points"], model.points, model.colors, model.on_object)
     write_json(files["summary"], model.summary)
     write_json(files["cameras"], write_transforms(frames))
@@ -114,6 +139,8 @@ def masks_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | 
                            points)
     summary["seconds"] = round(time.perf_counter() - start, 3)
     write_json(Path(out_dir) / SUMMARY_FILE, summary)
+    check_given_mesh(capture, {n: cameras[n] for n in summary["views"]},
+                     {n: Path(out_dir) / f"{n}.png" for n in summary["views"]}, Path(out_dir), DERIVED_MASKS)
     return summary
 
 
