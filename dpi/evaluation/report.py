@@ -19,7 +19,7 @@ from urllib.parse import quote
 import numpy as np
 
 from dpi.atomic import write_text
-from dpi.capture import Capture, complete_capture, read_capture_json, read_ground_truth
+from dpi.capture import Capture, capture_warnings, complete_capture, read_capture_json, read_ground_truth
 from dpi.evaluation.figures import (MethodPoint, Rerender, quality_diversity_plot, rerender_grid,
                                     roughness_diversity_plot, texture_grid, view_strip)
 from dpi.evaluation.metric_table import metric_table, missing_reason, number, read_summary
@@ -46,6 +46,7 @@ td.missing { color: #aaa; background: #f4f4f4; font-style: italic; cursor: help;
 td.best { background: #e3f4e3; }
 span.std { color: #777; font-size: 10px; }
 p.note { color: #555; font-size: 13px; }
+p.warning { color: #7a4100; background: #fff3df; border-left: 4px solid #e69500; padding: 4px 8px; font-size: 13px; }
 """
 
 
@@ -204,6 +205,7 @@ def scene_section(scene_name: str, scene: SceneLayout, rows: list[dict[str, str]
     record = json.loads(scene.evaluation(methods[0], 0).read_text())
     exposure = record["exposure"]
     parts = [f"<h2 id='scene-{escape(scene_name)}'>Scene {escape(scene_name)}</h2>"]
+    parts += [f"<p class='warning'><b>Warning:</b> {escape(line)}</p>" for line in capture_warnings(capture)]
 
     path = page.png(scene_name, "views")
     view_strip([read_image(v.image) / exposure for v in capture.views], [v.name for v in capture.views],
