@@ -2,7 +2,7 @@
 
 from dpi.capture import CaptureError
 from dpi.logs import log_to
-from dpi.stages import capture_stage
+from dpi.preprocess.stages import capture_stage
 
 with log_to(snakemake.log[0], one_line=(CaptureError,)):
     capture_stage(snakemake.params.capture, snakemake.output[0])

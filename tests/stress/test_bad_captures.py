@@ -1,7 +1,8 @@
 """Bad and unusual capture inputs with known answers: PNGs of every bit depth and colour type read as
-their 8-bit copy does; truncated files, non-rigid or non-finite cameras, bad intrinsics, broken meshes,
-images without signal and bad scene.yaml each stop with one CaptureError naming the file, and leave
-no capture.json behind."""
+their 8-bit copy does; truncated files, non-rigid or non-finite cameras, bad intrinsics, values of the
+wrong type (naming frame, key, value and type), broken meshes, images without signal or under 8 px,
+depth-only EXRs, bad ground truth and bad scene.yaml each stop with one CaptureError naming the file,
+and leave no capture.json behind."""
 
 from __future__ import annotations
 
@@ -206,6 +207,27 @@ def fill_png(name: str, codes: int) -> Callable[[Path], None]:
     return lambda root: write_cv2(root / "images" / f"{name}.png", np.full((SIZE, SIZE, 3), codes, np.uint8))
 
 
+def set_matrix_entry(value) -> Callable[[Path], None]:
+    """An edit of transforms.json putting `value` (of any JSON type) into frame 0's matrix at row 0, column 3."""
+    return lambda root: edit_transforms(root, lambda data: data["frames"][0]["transform_matrix"][0].__setitem__(3, value))
+
+
+def exr_channels(path: str, names: str) -> Callable[[Path], None]:
+    """Replace an EXR of the capture by one whose channels have these one-letter names (e.g. "Z": depth only)."""
+    def edit(root: Path) -> None:
+        import OpenEXR
+
+        channels = {n: np.full((SIZE, 2 * SIZE if "envmap" in path else SIZE), 0.5, np.float32) for n in names}
+        with OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}, channels) as exr:
+            exr.write(str(root / path))
+    return edit
+
+
+def gt_values(name: str, shape: tuple[int, ...], value: float) -> Callable[[Path], None]:
+    """Replace gt/{name}.exr by a constant map (unchecked, through raw_exr)."""
+    return lambda root: raw_exr(root / "gt" / f"{name}.exr", np.full(shape, value))
+
+
 BROKEN = {  # case: (break the capture, file the message starts with, words it contains)
     "truncated exr (half)": (lambda r: truncate(r / "images" / "r_2.exr", 0.5), "r_2.exr", "not a readable EXR"),
     "truncated exr (last byte)": (lambda r: truncate(r / "images" / "r_3.exr", 0.999), "r_3.exr", "not a readable EXR"),
@@ -246,6 +268,39 @@ BROKEN = {  # case: (break the capture, file the message starts with, words it c
     "constant exr": (lambda r: raw_exr(r / "images" / "r_3.exr", np.full((SIZE, SIZE, 3), 7.0)), "r_3.exr",
                      "every pixel is clipped at 7"),
     "scene.yaml not UTF-8": (lambda r: (r / "scene.yaml").write_bytes(b"prior: \xff\xfe\n"), "scene.yaml", "UTF-8"),
+    # values of the wrong type: the frame, the key, the value and the type expected
+    "focal true": (set_frame("fl_x", True), "transforms.json",
+                   "frame 0 (images/r_0.png): fl_x must be a number, got true (a boolean)"),
+    "focal null": (set_frame("fl_x", None), "transforms.json", "frame 0 (images/r_0.png): fl_x must be a number, got null"),
+    "focal fifty": (set_frame("fl_x", "fifty"), "transforms.json", 'fl_x must be a number, got "fifty" (a string)'),
+    "held_out string": (set_frame("held_out", "false", 1), "transforms.json",
+                        'frame 1 (./images/r_1): held_out must be a boolean (true or false), got "false" (a string)'),
+    "held_out number": (set_frame("held_out", 1, 2), "transforms.json",
+                        "frame 2 (r_2): held_out must be a boolean (true or false), got 1 (a number)"),
+    "width fractional": (set_frame("w", 8.5), "transforms.json", "w must be an integer, got 8.5 (a number)"),
+    "width with unit": (set_frame("h", "8px"), "transforms.json", 'h must be an integer, got "8px" (a string)'),
+    "matrix entry string": (set_matrix_entry("1.5"), "transforms.json",
+                            'frame 0 (images/r_0.png): transform_matrix[0][3] must be a number, got "1.5" (a string)'),
+    "matrix entry boolean": (set_matrix_entry(False), "transforms.json",
+                             "transform_matrix[0][3] must be a number, got false (a boolean)"),
+    "file_path number": (set_frame("file_path", 3), "transforms.json", "frame 0: file_path must be a string, got 3"),
+    # images too small, depth-only EXRs
+    "1x1 image": (lambda r: write_cv2(r / "images" / "r_0.png", np.full((1, 1, 3), 90, np.uint8)), "r_0.png",
+                  "image is 1x1 px; dpi needs at least 8 px on each side"),
+    "7 px high image": (lambda r: write_cv2(r / "images" / "r_1.png", np.full((7, 12, 3), 90, np.uint8)), "r_1.png",
+                        "image is 12x7 px"),
+    "depth-only exr image": (exr_channels("images/r_2.exr", "Z"), "r_2.exr",
+                             "EXR channels Z hold no image: dpi reads R, G, B (with or without A) or Y (grey)"),
+    "two-channel exr image": (exr_channels("images/r_3.exr", "UV"), "r_3.exr", "EXR channels U, V hold no image"),
+    # ground truth, checked up front as the evaluation reads it
+    "negative gt envmap": (gt_values("envmap", (4, 8, 3), -1.0), "envmap.exr",
+                           "environment map has NaN, Inf or negative values"),
+    "nan gt albedo": (gt_values("albedo", (16, 16, 3), np.nan), "albedo.exr",
+                      "ground truth albedo has NaN, Inf or negative values"),
+    "negative gt roughness": (gt_values("roughness", (16, 16, 3), -0.5), "roughness.exr",
+                              "ground truth roughness has NaN, Inf or negative values"),
+    "gt envmap taller than wide": (gt_values("envmap", (8, 4, 3), 1.0), "envmap.exr", "8x4 is not an equirectangular map"),
+    "depth-only gt envmap": (exr_channels("gt/envmap.exr", "Z"), "envmap.exr", "EXR channels Z hold no image"),
 }
 
 
@@ -319,6 +374,9 @@ SCENE_YAML = {
     "unknown key": ("prior: indoor\npriors: outdoor\n", "unknown keys ['priors']"),
     "bad held_out": ("held_out: r_0\n", "held_out must be a list"),
     "zero focal": ("focal_length_px: 0\n", "focal_length_px must be a positive number"),
+    "held_out boolean": ("held_out: [r_0, true]\n", "held_out[1] must be an image name (a string), got true (a boolean)"),
+    "radiance_scale string": ('radiance_scale: "2"\n', 'radiance_scale must be a positive number, got "2" (a string)'),
+    "focal boolean": ("focal_length_px: yes\n", "focal_length_px must be a positive number (pixels), got true (a boolean)"),
 }
 
 

@@ -1,0 +1,145 @@
+"""Cameras that contradict the images, with known answers: on a copy of the tiny synthetic capture (a blob seen
+by 5 cameras, exact masks), poses in the OpenCV convention, the camera list shifted by one, cameras twice as far
+and a mesh twice as large each stop validation with one line naming the views, their IoU and the cause; without
+masks the mesh must project into the images; every capture the tests use passes; after derived masks a given
+mesh is checked too."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import pytest
+import trimesh
+from capture_helpers import edit_transforms, make_capture
+
+from dpi.capture import CaptureError, load_capture
+from dpi.consistency import OPENCV_TO_GL, check_cameras, check_masks, overlaps, raycasting_scene, silhouettes
+from dpi.images import read_mask
+
+VIEWS = ("r_000", "r_001", "r_002", "r_003", "r_004")
+
+
+def matrices(change: Callable[[list[np.ndarray]], list[np.ndarray]]) -> Callable[[Path], None]:
+    """An edit of transforms.json replacing the frames' camera-to-world matrices by change(matrices)."""
+    def edit(root: Path) -> None:
+        def apply(data: dict) -> None:
+            new = change([np.array(f["transform_matrix"]) for f in data["frames"]])
+            for frame, c2w in zip(data["frames"], new):
+                frame["transform_matrix"] = c2w.tolist()
+        edit_transforms(root, apply)
+    return edit
+
+
+def opencv(poses: list[np.ndarray]) -> list[np.ndarray]:
+    """The poses as OpenCV writes them (camera looking down +z, y down)."""
+    return [c2w @ OPENCV_TO_GL for c2w in poses]
+
+
+def shifted(poses: list[np.ndarray]) -> list[np.ndarray]:
+    """Each frame given the next frame's pose (the list off by one)."""
+    return poses[1:] + poses[:1]
+
+
+def twice_as_far(poses: list[np.ndarray]) -> list[np.ndarray]:
+    """The camera positions doubled: poses in units half the mesh's."""
+    out = [c2w.copy() for c2w in poses]
+    for c2w in out:
+        c2w[:3, 3] *= 2
+    return out
+
+
+def mesh_scaled(factor: float) -> Callable[[Path], None]:
+    """The mesh scaled about the origin."""
+    def edit(root: Path) -> None:
+        mesh = trimesh.load(root / "mesh.ply", process=False)
+        mesh.vertices *= factor
+        mesh.export(root / "mesh.ply")
+    return edit
+
+
+def without_masks(edit: Callable[[Path], None]) -> Callable[[Path], None]:
+    """`edit`, and the masks removed."""
+    def both(root: Path) -> None:
+        edit(root)
+        shutil.rmtree(root / "masks")
+    return both
+
+
+REJECTED = {  # case: (edit of the capture, words of the message after the file)
+    "opencv poses": (matrices(opencv), [
+        "the cameras contradict the masks: the mesh's silhouette overlaps the mask with IoU < 0.7 in 5 of 5 views "
+        "(r_000 0.00, r_001 0.00, r_002 0.00, r_003 0.00, r_004 0.00)",
+        "likely cause: convention: the poses are OpenCV's", "diag(1, -1, -1, 1) every view fits (IoU >= 0.9"]),
+    "list shifted by one": (matrices(shifted), [
+        "in 5 of 5 views the mask fits another view's camera better than its own",
+        "likely cause: order: the camera list is shifted by -1 against the images (r_000's mask fits the camera "
+        "given for r_004, IoU 0.9"]),
+    "cameras twice as far": (matrices(twice_as_far), [
+        "IoU < 0.7 in 5 of 5 views (r_000 0.2", "likely cause: scale: the mesh's silhouette is 0.49x the mask's size"]),
+    "mesh twice as large": (mesh_scaled(2.0), ["IoU < 0.7 in 5 of 5 views",
+                                               "likely cause: scale: the mesh's silhouette is 2.2x the mask's size"]),
+    "opencv poses, no masks": (without_masks(matrices(opencv)), [
+        "the cameras do not see the mesh: less than 50% of its vertices project into the image in 5 of 5 views "
+        "(fraction inside: r_000 0.00,", "likely cause: convention: the poses are OpenCV's",
+        "the mesh lies in every image (at least 100% of its vertices)"]),
+}
+
+
+@pytest.mark.parametrize("case", list(REJECTED))
+def test_cameras_contradicting_the_images_stop_validation(tiny_capture, tmp_path, case):
+    """One line, starting with transforms.json, naming the views with their IoU and the likely cause."""
+    edit, words = REJECTED[case]
+    root = shutil.copytree(tiny_capture, tmp_path / "scene")
+    edit(root)
+    with pytest.raises(CaptureError) as info:
+        load_capture(root)
+    message = str(info.value)
+    assert message.startswith(f"{root / 'transforms.json'}: ") and "\n" not in message, message
+    assert all(w in message for w in words), message
+
+
+def test_the_synthetic_capture_fits_its_own_cameras(tiny_capture):
+    """Measured: each view's mask against the mesh's silhouette from its own camera has IoU >= 0.98, and a
+    neighbour's camera fits worse (the margin the order check uses)."""
+    capture = load_capture(tiny_capture)
+    cameras = check_cameras([v.camera for v in capture.views])
+    masks = check_masks([read_mask(v.mask) for v in capture.views], (cameras[0].width, cameras[0].height))
+    mesh = trimesh.load(capture.mesh, process=False)
+    table = overlaps(masks, silhouettes(raycasting_scene(mesh.vertices, mesh.faces), cameras))
+    own = np.diag(table)
+    assert own.min() >= 0.98 and (table.max(1) == own).all(), table.round(3)
+
+
+def test_helper_and_reference_layout_captures_pass(tmp_path):
+    """The tests' own captures: the sphere with its disc masks, and without masks."""
+    assert load_capture(make_capture(tmp_path / "with")).provenance["masks"] == "given"
+    assert load_capture(make_capture(tmp_path / "without", masks=False)).provenance["masks"] == "derived"
+
+
+def test_derived_masks_are_checked_against_a_given_mesh(tmp_path):
+    """Photos of the unit sphere with cameras and a given mesh twice its size: validation passes (the mesh
+    projects into the images), the derived masks then stop the masks stage with one line naming their folder."""
+    from dpi.cameras import from_fov, orbit, write_transforms
+    from dpi.images import write_srgb
+    from dpi.preprocess.stages import masks_stage
+    from dpi.stages import capture_stage
+    from test_preprocess_masks import sphere_view
+
+    root = tmp_path / "capture"
+    cameras = [from_fov(c2w, 32, 32, 40.0, f"v{i}") for i, c2w in enumerate(orbit(6, 6.0, (10.0, 35.0)))]
+    for cam in cameras:
+        write_srgb(root / "images" / f"{cam.name}.png", sphere_view(cam, "plain")[0])
+    frames = write_transforms([(f"images/{c.name}.png", c) for c in cameras])
+    frames["frames"][0]["held_out"] = True
+    (root / "transforms.json").write_text(json.dumps(frames))
+    trimesh.creation.icosphere(subdivisions=3, radius=2.0).export(root / "mesh.ply")
+    capture_stage(root, tmp_path / "capture.json")
+    with pytest.raises(CaptureError) as info:
+        masks_stage(tmp_path / "capture.json", tmp_path / "masks")
+    message = str(info.value)
+    assert message.startswith(f"{tmp_path / 'masks'}: the cameras contradict the masks") and "\n" not in message
+    assert "likely cause: scale: the mesh's silhouette is 2" in message and "the masks are derived" in message
