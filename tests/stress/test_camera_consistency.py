@@ -2,7 +2,7 @@
 by 5 cameras, exact masks), poses in the OpenCV convention, the camera list shifted by one, cameras twice as far
 and a mesh twice as large each stop validation with one line naming the views, their IoU and the cause; without
 masks the mesh must project into the images; every capture the tests use passes; after derived masks a given
-mesh is checked too."""
+mesh is checked too, and so are the cameras structure from motion returns."""
 
 from __future__ import annotations
 
@@ -143,3 +143,33 @@ def test_derived_masks_are_checked_against_a_given_mesh(tmp_path):
     message = str(info.value)
     assert message.startswith(f"{tmp_path / 'masks'}: the cameras contradict the masks") and "\n" not in message
     assert "likely cause: scale: the mesh's silhouette is 2" in message and "the masks are derived" in message
+
+
+@pytest.mark.parametrize("frame_scale", [1.0, 2.0])
+def test_cameras_from_structure_from_motion_are_checked_against_a_given_mesh(tmp_path, monkeypatch, frame_scale):
+    """A capture with masks and a mesh but no cameras: the poses stage checks what structure from motion returns
+    (stubbed: the true cameras, or the same in a frame twice the size) before writing it."""
+    from dpi.preprocess import sfm
+    from dpi.preprocess.stages import poses_stage
+    from dpi.stages import capture_stage
+
+    root = make_capture(tmp_path / "scene", transforms=False)
+    (root / "scene.yaml").write_text("held_out: [r_3]\n")
+    true = load_capture(make_capture(tmp_path / "truth"))
+    poses = {v.name: v.camera for v in true.views}
+    for camera in poses.values():
+        camera.c2w[:3, 3] *= frame_scale
+    model = sfm.SparseModel(poses, np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, bool), {"registered": 4})
+    monkeypatch.setattr(sfm, "run_sfm", lambda *args: model)
+    monkeypatch.setattr(sfm, "normalise", lambda m: m)
+    capture_stage(root, tmp_path / "capture.json")
+    if frame_scale == 1.0:
+        assert poses_stage(tmp_path / "capture.json", tmp_path / "poses")["registered"] == 4
+        return
+    with pytest.raises(CaptureError) as info:
+        poses_stage(tmp_path / "capture.json", tmp_path / "poses")
+    message = str(info.value)
+    assert message.startswith(f"{tmp_path / 'poses' / 'transforms.json'}: the cameras contradict the masks")
+    assert "likely cause: scale" in message and "the cameras are structure from motion's" in message
+    assert not (tmp_path / "poses" / "transforms.json").exists()
+    assert json.loads((tmp_path / "poses" / "summary.json").read_text())["error"] == message
