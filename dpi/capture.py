@@ -5,6 +5,8 @@ A capture folder holds `images/` (required) and optionally `transforms.json`, `m
 `scene.yaml`. `load_capture` reads and checks everything once, in pure Python, and stops at the
 first problem with one `CaptureError` whose message starts with the offending file. Stages
 downstream only see the resulting `Capture` (stored as `capture.json`), never the raw folder.
+Values are typed strictly, the cameras are checked against the mesh and the masks (`dpi.consistency`),
+and a capture that cannot be scored or has few views is used with a `CaptureWarning`.
 `inspect_capture` is the cheap variant Snakemake uses at parse time to know which inputs exist.
 
 Views are named by image stem and ordered naturally ("2" before "10"). Where a stem has both
