@@ -4,26 +4,32 @@ At the default setting (64 x 64 images, 16 spp, env 16 x 32, textures 64, the de
 `dpi.solve.dps.posterior_steps` (the loop `dps_sample` runs, not a copy of it) for each sampler and
 reads each step's timings from its record:
   network            eps_theta on the randomly rolled x_t (paper: with the autograd graph)
-  render             the data term's renders, forward and backward (proximal: all inner updates)
+  transport          annealed: recording the light transport again (only when the materials moved)
+  draw               annealed: the conditional draw of the map on the recorded transport
+  render             the data term's renders, forward and backward (proximal: all inner updates;
+                     annealed: the materials' steps)
   network_backward   paper only: the gradient back through x0_hat and the UNet to x_t
   rest               the reverse step, Adam and bookkeeping
 Dr.Jit's kernel history (JitFlag.KernelHistory) says, per step, how many kernels were launched and
 whether each came from the in-memory cache, the on-disk cache (~/.drjit) or was compiled fresh.
 Then the same steps with the Mitsuba scene rebuilt before every step (a new Renderer, as a naive
 loop would do) against the scene built once and updated in place, as dps uses it. Warm-up steps
-(and one render of every training view) are not timed.
+(and one render of every training view) are not timed. Last, the data term over all training views
+with its gradient w.r.t. the map: path traced against the recorded light transport, and the cost of
+one recording.
 
 With 2 threads on a machine whose cores are busy with other work, torch's OpenMP threads spin-wait
 (libgomp's default) and the network can run tens of times slower; compare with
 OMP_WAIT_POLICY=PASSIVE in the environment (the header line says which was set).
 
-    .venv/bin/python benchmarks/dps_step.py [--samplers proximal paper] [--steps 20] [--rebuilt-steps 6] [--threads 2]
+    .venv/bin/python benchmarks/dps_step.py [--samplers proximal annealed paper] [--steps 20] [--rebuilt-steps 6] [--threads 2]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import time
 from typing import Any, Iterator
 
 import numpy as np
@@ -37,12 +43,19 @@ from dpi.materials import MaterialTextures
 from dpi.prior.sample import load_scene_prior
 from dpi.render import Renderer, RenderSettings
 from dpi.solve.dps import SAMPLERS, DPSConfig, posterior_steps, start_run
+from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.state import DPSRun
 from dpi.solve.problem import InverseProblem, ProblemSettings
+from dpi.solve.transport import DIRECT_SPP
 
-PARTS = {"network": "network forward (UNet, random roll)", "render": "render forward + backward",
+PARTS = {"network": "network forward (UNet, random roll)",
+         "transport": "light transport recording (annealed)",
+         "draw": "conditional draw on the transport (annealed)",
+         "render": "render forward + backward",
          "network_backward": "network backward (UNet to x_t)", "rest": "reverse step, Adam and the rest",
          "total": "whole step"}
+TIMED = ("network", "transport", "draw", "render", "network_backward")
+"""the parts a step's record times (seconds_<part>)"""
 
 
 def kernel_counts() -> dict[str, float]:
@@ -84,7 +97,7 @@ def timed_steps(run: DPSRun, steps: Iterator[dict[str, Any]], count: int, rebuil
         if rebuild:
             rebuild_renderer(run.problem)
         record = next(steps)
-        parts = {part: 1e3 * record.get(f"seconds_{part}", 0.0) for part in ("network", "render", "network_backward")}
+        parts = {part: 1e3 * record.get(f"seconds_{part}", 0.0) for part in TIMED}
         total = 1e3 * record["seconds"]
         costs.append({**parts, "rest": total - sum(parts.values()), "total": total, **kernel_counts()})
     return costs
@@ -101,6 +114,32 @@ def warm_up(run: DPSRun, steps: Iterator[dict[str, Any]], count: int) -> dict[st
     for cost in timed_steps(run, steps, count, rebuild=False):
         counts = {k: counts[k] + cost[k] for k in counts}
     return counts
+
+
+def data_term_costs(problem: InverseProblem, init: Decomposition, spp: int, repeats: int) -> None:
+    """Print the data term over all training views, evaluated with its gradient w.r.t. the map: path traced
+    against the recorded light transport (dpi.solve.transport), and what one recording costs."""
+    from dpi.solve.transport import record_transport
+
+    materials, views = init.materials, problem.train_ids
+    start = time.perf_counter()
+    transport = record_transport(problem, materials, init.env, spp, seed=1)
+    recording = time.perf_counter() - start
+    costs = {}
+    for name, loss in (("render", lambda env: problem.data_loss(env, materials, views, seed=3)),
+                       ("transport", lambda env: transport.sum_squares(env))):
+        loss(init.env.clone().requires_grad_(True)).backward()  # warm-up (kernels, allocations)
+        start = time.perf_counter()
+        for _ in range(repeats):
+            leaf = init.env.clone().requires_grad_(True)
+            loss(leaf).backward()
+        costs[name] = 1e3 * (time.perf_counter() - start) / repeats
+    print(f"\ndata term over all {len(views)} training views, loss and gradient w.r.t. the map ({repeats} repeats):")
+    print(f"  path traced ({problem.renderer.settings.spp} spp): {costs['render']:.1f} ms")
+    print(f"  recorded transport: {costs['transport']:.2f} ms ({costs['render'] / costs['transport']:.0f}x faster); "
+          f"one recording ({spp} paths + {DIRECT_SPP} direct samples per pixel) {1e3 * recording:.0f} ms "
+          f"(= {recording / (1e-3 * costs['render']):.1f} path-traced evaluations), "
+          f"{transport.nbytes / 2**20:.1f} MB")
 
 
 def stats(costs: list[dict[str, float]], name: str) -> tuple[float, float]:
@@ -136,6 +175,7 @@ def main() -> None:
     parser.add_argument("--warmup", type=int, default=3, help="untimed steps first")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--repeats", type=int, default=10, help="evaluations timed per data term")
     args = parser.parse_args()
 
     backend.mitsuba("auto", args.threads)
@@ -157,6 +197,7 @@ def main() -> None:
               f"({len(run.problem.train_ids)} views + {args.warmup} steps) {warm['kernels']} kernels, "
               f"{warm['compiled']} compiled, {warm['disk_hits']} from disk")
         report(sampler, reused, rebuilt)
+    data_term_costs(run.problem, run.init, DPSConfig().annealed.transport_spp, args.repeats)
 
 
 if __name__ == "__main__":

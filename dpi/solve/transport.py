@@ -31,6 +31,12 @@ from dpi.solve.problem import InverseProblem
 
 DIRECT_SPP = 4
 """camera samples per pixel of the stratified direct light (every cell of the map gets a shadow ray from each)"""
+BRIGHT_SHARE = 0.5
+"""the brightest texels that hold this share of the guide map's energy get extra direct-light draws ..."""
+BRIGHT_SPP = 16
+"""... this many more per pixel (a sun's column of T is most of the image: its noise is most of T's)"""
+FOOTPRINT = 64
+"""points of a pixel's area the direct light is seen through (each texel through one of them)"""
 CHUNK_LANES = 1 << 20
 """lanes of one Dr.Jit launch of the direct light (camera samples x cells)"""
 GUIDE_FLOOR = 0.25
@@ -77,6 +83,9 @@ class ViewTransport:
     pixels: np.ndarray
     """flat indices (row-major in the (h, w) image) of the rows"""
     shape: tuple[int, int]
+    column_variance: np.ndarray
+    """(3, texels): the sum over the rows of the estimated variance of each entry (its direct light's): the part of
+    E[T^T T] that T's noise adds to its diagonal"""
 
     def image(self, env: np.ndarray) -> np.ndarray:
         """The view's (h, w, 3) image under an (H, 2H, 3) map: T L on the foreground, 0 elsewhere."""
@@ -140,13 +149,15 @@ def tent_inverse(xi):
 
 
 def record_direct(mi, scene, sensor, pixels: np.ndarray, size: tuple[int, int], height: int, spp: int,
-                  seed: int, rng: np.random.Generator, matrix: np.ndarray) -> None:
+                  seed: int, rng: np.random.Generator, cells: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """Light arriving straight from the map at the first surface point, texel by texel: for every texel one
     direction drawn in proportion to its bilinear tent in (u, v) (Mitsuba's lookup, `texel_weights`; so a sun's
     texel is never missed and gets its exact share), shadow-tested, weighted against BSDF sampling by the
     balance heuristic (`record_paths` takes the rest); `spp` camera samples per pixel. The sample's weight is
     f cos / (its density + the BSDF's), times the tent's area over its density in (u, v), 2 pi^2 sin(theta) |tent|
-    (the first and last rows' tents are halves at the poles: their draws fold back). Adds into `matrix`."""
+    (the first and last rows' tents are halves at the poles: their draws fold back). Returns the (3, pixels,
+    texels) estimate, zero outside `cells` (default all), and its variance estimated from the draws' spread."""
     import drjit as dr
 
     width, texels, ctx = 2 * height, 2 * height * height, mi.BSDFContext()
@@ -154,19 +165,29 @@ def record_direct(mi, scene, sensor, pixels: np.ndarray, size: tuple[int, int], 
     samples = len(pixels) * spp
     row = mi.UInt32(np.repeat(np.arange(len(pixels)), spp).astype(np.uint32))
     pixel = mi.UInt32(np.repeat(pixels, spp).astype(np.uint32))
-    jitter = rng.random((samples, 2)).astype(np.float32)
-    jx, jy = mi.Float(jitter[:, 0]), mi.Float(jitter[:, 1])
-    sums = [dr.zeros(mi.Float, matrix[0].size) for _ in range(3)]
-    chunk = max(1, min(texels, CHUNK_LANES // max(samples, 1)))
+    jitter = ((np.arange(FOOTPRINT)[None, :, None] + rng.random((len(pixels), FOOTPRINT, 2)))
+              / FOOTPRINT).astype(np.float32)  # stratified in x and y (as Latin hypercube rows), per pixel
+    jitter[..., 1] = np.take_along_axis(jitter[..., 1], rng.permuted(np.tile(np.arange(FOOTPRINT), (len(pixels), 1)),
+                                                                      axis=1), axis=1)
+    jx, jy = mi.Float(jitter[..., 0].reshape(-1)), mi.Float(jitter[..., 1].reshape(-1))
+    size_flat = len(pixels) * texels
+    sums = [dr.zeros(mi.Float, size_flat) for _ in range(6)]  # per channel: the draws' sum, their sum of squares
+    cells = np.arange(texels) if cells is None else np.asarray(cells)
+    cell_list = mi.UInt32(cells.astype(np.uint32))
+    chunk = max(1, min(len(cells), CHUNK_LANES // max(samples, 1)))
     sampler = mi.load_dict({"type": "independent"})
     side = max(1, int(spp ** 0.5))
-    for first in range(0, texels, chunk):
-        count = min(chunk, texels - first)
+    for first in range(0, len(cells), chunk):
+        count = min(chunk, len(cells) - first)
         lane = dr.arange(mi.UInt32, samples * count)
-        h, cell = lane // count, first + lane % count
+        h = lane // count
+        cell = dr.gather(mi.UInt32, cell_list, first + lane % count)
         p = dr.gather(mi.UInt32, pixel, h)
-        position = mi.Point2f((mi.Float(p % size[1]) + dr.gather(mi.Float, jx, h)) / size[1],
-                              (mi.Float(p // size[1]) + dr.gather(mi.Float, jy, h)) / size[0])
+        # each texel sees the pixel through another of its FOOTPRINT points: an image under a whole map averages
+        # the pixel's area over all of them (a render with FOOTPRINT samples), at one ray per texel
+        footprint = dr.gather(mi.UInt32, row, h) * FOOTPRINT + (cell * 37 + (h % spp) * 11) % FOOTPRINT
+        position = mi.Point2f((mi.Float(p % size[1]) + dr.gather(mi.Float, jx, footprint)) / size[1],
+                              (mi.Float(p // size[1]) + dr.gather(mi.Float, jy, footprint)) / size[0])
         ray, _ = sensor.sample_ray(0.0, 0.5, position, mi.Point2f(0.5, 0.5))
         sampler.seed(int(seed + first) % SEED_MODULUS, samples * count)
         stratum = (h % spp) % (side * side)  # a pixel's camera samples split each tent into side x side strata
@@ -189,9 +210,25 @@ def record_direct(mi, scene, sensor, pixels: np.ndarray, size: tuple[int, int], 
         index = dr.gather(mi.UInt32, row, h) * texels + cell
         for c in range(3):
             dr.scatter_reduce(dr.ReduceOp.Add, sums[c], weight[c], index, hit)
+            dr.scatter_reduce(dr.ReduceOp.Add, sums[3 + c], dr.square(weight[c]), index, hit)
         dr.eval(sums)
-    for c in range(3):
-        matrix[c] += np.asarray(sums[c], np.float64).reshape(matrix[c].shape)
+    shape = (3, len(pixels), texels)
+    mean = np.stack([np.asarray(t, np.float64) for t in sums[:3]]).reshape(shape)
+    squares = np.stack([np.asarray(t, np.float64) for t in sums[3:]]).reshape(shape)
+    variance = (spp * squares - mean ** 2) / (spp - 1) if spp > 1 else mean ** 2  # of the mean of spp draws
+    return mean, variance.clip(min=0)
+
+
+def bright_texels(guide: np.ndarray, share: float) -> np.ndarray:
+    """The fewest texels that carry `share` of the guide map's energy (luminance x solid angle), if they are
+    at most an eighth of the map (a sun, a window); none for a map whose light is spread out."""
+    from dpi.envmap import texel_solid_angles
+    from dpi.images import luminance
+
+    energy = (luminance(guide) * texel_solid_angles(guide.shape[0])).reshape(-1)
+    order = np.argsort(energy)[::-1]
+    count = int(np.searchsorted(np.cumsum(energy[order]) / max(energy.sum(), 1e-30), share)) + 1
+    return np.sort(order[:count]) if count <= energy.size // 8 else np.zeros(0, np.int64)
 
 
 def record_paths(mi, scene, sensor, pixels: np.ndarray, size: tuple[int, int], height: int, spp: int,
@@ -261,9 +298,17 @@ def record_view(problem: InverseProblem, view: int, materials: MaterialTextures,
     rng = np.random.default_rng(seed)
     accumulator = Accumulator(pixels, size[0] * size[1], height)
     direct_spp = direct_spp or DIRECT_SPP
-    record_direct(mi, scene, sensor, pixels, size, height, direct_spp, seed * 7 + 1, rng, accumulator.matrix)
+    direct, variance = record_direct(mi, scene, sensor, pixels, size, height, direct_spp, seed * 7 + 1, rng)
+    bright = bright_texels(guide, BRIGHT_SHARE)
+    if len(bright):  # the texels that carry most of the light get BRIGHT_SPP draws more
+        extra, extra_variance = record_direct(mi, scene, sensor, pixels, size, height, BRIGHT_SPP, seed * 7 + 2, rng,
+                                              bright)
+        a, b = direct_spp / (direct_spp + BRIGHT_SPP), BRIGHT_SPP / (direct_spp + BRIGHT_SPP)
+        direct[:, :, bright] = a * direct[:, :, bright] + b * extra[:, :, bright]
+        variance[:, :, bright] = a ** 2 * variance[:, :, bright] + b ** 2 * extra_variance[:, :, bright]
+    accumulator.matrix += direct
     record_paths(mi, scene, sensor, pixels, size, height, spp, renderer.settings.max_depth, seed, rng, accumulator)
-    return ViewTransport(accumulator.matrix, pixels, size)
+    return ViewTransport(accumulator.matrix, pixels, size, variance.sum(axis=1))
 
 
 def mis_weight(pdf_a, pdf_b):
@@ -293,7 +338,9 @@ class Transport:
     seconds: float
     """wall time of the recording"""
     entries: int
-    """non-zeros of the views' sparse T (all channels), before the normal equations"""
+    """non-zeros of the views' T (all channels), before the normal equations"""
+    column_variance: torch.Tensor
+    """(3, N) the recording's noise: per texel, the summed variance of its entries (`ViewTransport`)"""
 
     @property
     def nbytes(self) -> int:
@@ -318,6 +365,12 @@ class Transport:
         num = float((self.rhs * flat).sum())
         return num / den if den > 0 and num > 0 else 1.0
 
+    def noise(self, env: torch.Tensor) -> float:
+        """The recording's own noise in an image under an (H, 2H, 3) map: the variance of T L per pixel and channel
+        (its direct light's, from the spread of its draws), which a fit to this T cannot tell from the data."""
+        flat = env.detach().reshape(-1, 3).T.to(self.column_variance.dtype)
+        return float((self.column_variance * flat.square()).sum()) / (3 * self.pixels)
+
     def stale(self, materials: MaterialTextures, tolerance: float) -> bool:
         """Whether the materials moved by more than `tolerance` (RMS over all texels) since the recording."""
         change = torch.cat([(a.detach() - b).reshape(-1) for (_, a), (_, b) in zip(materials.items(),
@@ -326,7 +379,7 @@ class Transport:
 
 
 def record_transport(problem: InverseProblem, materials: MaterialTextures, env: torch.Tensor, spp: int, seed: int,
-                     views: list[int] | None = None) -> Transport:
+                     views: list[int] | None = None, direct_spp: int | None = None) -> Transport:
     """The normal equations of the data term over `views` (the training views) under `materials`, with
     next-event directions guided by `env` (module notes)."""
     start = time.perf_counter()
@@ -336,14 +389,19 @@ def record_transport(problem: InverseProblem, materials: MaterialTextures, env: 
     gram = np.zeros((3, texels, texels))
     rhs = np.zeros((3, texels))
     constant, entries, pixels = 0.0, 0, 0
+    column_variance = np.zeros((3, texels))
     guide = guide_map(env)
     for j, v in enumerate(views):
-        t = record_view(problem, v, materials, guide, spp, seed * 1009 + j)
+        t = record_view(problem, v, materials, guide, spp, seed * 1009 + j, direct_spp)
         y = problem.images[v].reshape(-1, 3).double().numpy()[t.pixels]
         gram += t.matrix.transpose(0, 2, 1) @ t.matrix
+        gram[:, np.arange(gram.shape[1]), np.arange(gram.shape[1])] -= t.column_variance  # T's noise, unbiased
+        column_variance += t.column_variance
         rhs += np.einsum("cpi,pc->ci", t.matrix, y)
         entries += int(np.count_nonzero(t.matrix))
         constant += float(np.square(y).sum())
         pixels += len(t.pixels)
+    values, vectors = np.linalg.eigh(gram)  # the correction is noisy: keep G positive semi-definite
+    gram = (vectors * values.clip(min=0)[:, None, :]) @ vectors.transpose(0, 2, 1)
     return Transport(torch.from_numpy(gram), torch.from_numpy(rhs), constant, pixels, height, views,
-                     materials.detached(), time.perf_counter() - start, entries)
+                     materials.detached(), time.perf_counter() - start, entries, torch.from_numpy(column_variance))

@@ -1,25 +1,29 @@
-"""The annealed sampler: decoupled annealing (DAPS, Zhang et al. 2024) with the recorded light transport.
+"""The annealed sampler: decoupled annealing (DAPS, Zhang et al. 2024) on the recorded light transport.
 
-Each reverse step draws a clean map z from (approximately) p(z | x_t, y) and re-noises it, with
-fresh noise, to the next level: x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) eps. The draw
-combines the prior's denoiser with the data:
-  p(z | x_t, y)  ~  N(z; x0_hat(x_t), r_t^2)  exp(-||y - c T L(z)||^2 / (2 sigma^2))
-with x0_hat by Tweedie (randomly rolled network, as the other samplers), r_t^2 the variance of x0
-given x_t under a Gaussian prior of std `prior_std` (s^2 (1 - abar) / (1 - abar + abar s^2)), T the
-training views' light transport (dpi.solve.transport, all views, no render), c the global exposure
-(least squares) and sigma^2 the per-pixel noise: the init's residual times `noise_scale`. The draw is
-randomise-then-optimise: both terms are perturbed by their own noise (z~ = x0_hat + r_t xi, and the
-data's normal equations by sigma G^(1/2) eta), then L-BFGS minimises the perturbed sum over the
-map's log radiance (warm-started from the previous draw). For a linear model this is an exact
-posterior draw; here the map is exp of the variable, so it is close to one. The spread of the
-samples is what the views leave open: a mirror's views pin every texel, a rough object's only the
-broad light, and where the data are silent the prior's own variety remains.
+Each reverse step draws a clean map z given x_t and all the views, then re-noises it with fresh noise:
+x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) eps. The draw is randomise-then-optimise on
+  ||y + sigma eta - c T L(z)||^2 / (2 sigma^2)  +  (z - x0_hat)^T Q (z - x0_hat) / (2 r_t^2)
+- x0_hat by Tweedie from the randomly rolled network (as the other samplers); r_t^2 the variance of x0
+  given x_t under a Gaussian prior of std `prior_std`: s^2 (1 - abar) / (1 - abar + abar s^2);
+- Q = I + `smoothness` x the grid's Laplacian: the views correct x0_hat by a smooth field, not texel by
+  texel (an i.i.d. Gaussian around x0_hat lets the views write T's noise into the map as speckle);
+- T the training views' light transport (dpi.solve.transport): all views at every step, no render;
+  c the global exposure (least squares); eta ~ N(0, I) in the views, drawn through T's normal
+  equations as sigma G^(1/2) eta, so that for a linear model the minimiser is an exact posterior draw;
+- sigma^2 the init's residual per pixel (rendered at NOISE_SPP) plus T's own noise under the current
+  map (a draw must not fit the recording's noise).
+Gauss-Newton with conjugate gradients minimises it over the map's log radiance (from the previous
+draw, a few iterations, a backtracking line search). A point mass of data moves nothing where the
+views are silent: there the draw stays at x0_hat and the samples differ as the prior's reverse process
+makes them, from pure noise at `start_noise` on. The spread follows what the views leave open: a
+mirror's views pin most texels, a rough object's only the broad light (and the albedo takes the rest).
 
-The materials follow in a Gibbs alternation: after `material_start` of the steps, `material_steps`
-Adam steps on them per reverse step against path-traced renders of `views_per_step` views under
-the current draw. T is recorded again when they have moved by more than `refresh_tolerance` since
-its recording (counted in the trace). There is no parametric sun: a sun enters the map only where
-the views ask for one, through the data term.
+The materials follow in a Gibbs alternation: from `material_start` of the steps on, every
+`material_every` steps, `material_steps` Adam steps on them against path-traced renders of
+`views_per_step` views under the current draw, and then T is recorded again under them (counted in
+the trace). Every sample starts from a grey albedo (dpi.solve.init.starting_materials), as the other
+samplers, so the albedo explores with the light. There is no parametric sun: a sun enters a sample only
+where the views ask for one, through the data term.
 """
 
 from __future__ import annotations
@@ -30,18 +34,16 @@ from typing import Any, Callable
 
 import torch
 
-from dpi.settings import SettingsError
 from dpi.solve.dps.proximal import recentre_
 from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerSettings, finite, network_step
 from dpi.solve.optimize import all_finite
 from dpi.solve.prior_space import resample_env
 from dpi.solve.transport import Transport, record_transport
 
+NOISE_SPP = 64
+"""samples per pixel of the init's renders that measure the views' noise (a 16 spp render doubles it)"""
 DARK_FLOOR = 1e-6
 """radiance floor (times the prior's median) before the logarithm"""
-
-
-START_MATERIALS = ("init", "reset")
 
 
 @dataclass
@@ -61,35 +63,18 @@ class AnnealedSettings(SamplerSettings):
     """the deviation of a draw from x0_hat is a smooth field: its prior precision is (I + smoothness x the grid's
     Laplacian) / r_t^2, so the views correct x0_hat over about sqrt(smoothness) texels, not texel by texel
     (an i.i.d. prior lets a noisy T write speckle into the map)"""
-    data_noise: float = 1.0
-    prior_noise: float = 0.0
-    """share of r_t added as white noise to x0_hat before the draw (1: DAPS's Gaussian around x0_hat; 0: the draw
-    stays at x0_hat where the views are silent, and the prior's variety comes from the reverse process)"""
     solver_iterations: int = 3
     """Gauss-Newton iterations of each conditional draw (warm-started from the previous draw)"""
-    start_materials: str = "init"
-    """the materials the sample starts from: init (the init's textures, a consistent pair with the views: a grey
-    albedo makes the draws explain its texture by spikes of coloured light) or reset (grey albedo, as the other
-    samplers)"""
-    material_start: float = 0.5
+    material_start: float = 0.3
     """fraction of the steps before the materials move"""
-    material_steps: int = 1
-    """Adam steps on the materials per reverse step (each renders views_per_step views)"""
+    material_every: int = 8
+    """reverse steps between two Gibbs phases of the materials (each followed by a new recording of T)"""
+    material_steps: int = 8
+    """Adam steps on the materials in a phase (each renders views_per_step views under the current draw)"""
     transport_spp: int = 32
-    """paths per pixel of each recording of the light transport"""
-    refresh_tolerance: float = 0.02
-    """record T again when the materials moved by more than this (RMS) since its recording ..."""
-    refresh_every: int = 10
-    """... and at least this many steps have passed since"""
-
-
-    @classmethod
-    def from_dict(cls, values: dict[str, Any]) -> "AnnealedSettings":
-        settings = super().from_dict(values)
-        if settings.start_materials not in START_MATERIALS:
-            raise SettingsError("start_materials", f"must be one of {', '.join(START_MATERIALS)}, "
-                                f"got {settings.start_materials!r}")
-        return settings
+    """paths per pixel of each recording of the light transport (light after the first bounce)"""
+    transport_direct_spp: int = 4
+    """camera samples per pixel of each recording's direct light (one shadow ray per texel each)"""
 
 
 def posterior_variance(abar: float, prior_std: float) -> float:
@@ -104,7 +89,8 @@ def noise_variance(run: DPSRun, state: DPSState) -> float:
     if "noise" not in state.extra:
         problem, init = run.problem, run.init
         with torch.no_grad():
-            total = sum(float((problem.masks[v][..., None] * (problem.render(init.env, init.materials, v, seed=7 + v)
+            total = sum(float((problem.masks[v][..., None] * (problem.render(init.env, init.materials, v, seed=7 + v,
+                                                                             spp=NOISE_SPP)
                                                               - problem.images[v]).square()).sum())
                         for v in problem.train_ids)
         pixels = sum(int(problem.masks[v].sum()) * 3 for v in problem.train_ids)
@@ -112,19 +98,21 @@ def noise_variance(run: DPSRun, state: DPSState) -> float:
     return state.extra["noise"]
 
 
-def current_transport(run: DPSRun, state: DPSState, n: int, env: torch.Tensor) -> tuple[Transport, bool]:
-    """The training views' light transport under the state's materials, recorded again when stale."""
+def refresh_transport(run: DPSRun, state: DPSState, n: int, env: torch.Tensor) -> Transport:
+    """Record the training views' light transport under the state's materials (guided by `env`), for the draws."""
     settings: AnnealedSettings = run.sampler
-    transport = state.extra.get("transport")
-    recent = n - state.extra.get("recorded_at", -settings.refresh_every) < settings.refresh_every
-    if transport is not None and (recent or not transport.stale(state.materials, settings.refresh_tolerance)):
-        return transport, False
     transport = record_transport(run.problem, state.materials.detached(), env, settings.transport_spp,
-                                 run.render_seed(n, 97))
+                                 run.render_seed(n, 97), direct_spp=settings.transport_direct_spp)
     state.extra["transport"] = transport
-    state.extra["recorded_at"] = n
     state.extra.pop("gram_factor", None)
-    return transport, True
+    return transport
+
+
+def material_phase(run: DPSRun, n: int) -> bool:
+    """Whether step n opens with the materials' Gibbs steps: every material_every steps from material_start on."""
+    settings: AnnealedSettings = run.sampler
+    first = math.ceil(settings.material_start * run.num_steps)
+    return n >= first and (n - first) % settings.material_every == 0
 
 
 def gram_factor(state: DPSState, transport: Transport) -> torch.Tensor:
@@ -225,10 +213,9 @@ def conditional_draw(run: DPSRun, state: DPSState, transport: Transport, x0_hat:
     if "resampling" not in state.extra:
         state.extra["resampling"] = Resampling.between(run.prior.height, run.problem.settings.env_height)
     resampling: Resampling = state.extra["resampling"]
-    spread = settings.prior_noise * math.sqrt(variance)
-    target = (x0_hat + spread * torch.randn(x0_hat.shape, generator=gen)).reshape(3, -1).double()
+    target = x0_hat.reshape(3, -1).double()
     noise = torch.randn(transport.rhs.shape, generator=gen, dtype=transport.rhs.dtype)
-    rhs = transport.rhs + settings.data_noise * math.sqrt(sigma2) * torch.einsum("cij,cj->ci", gram_factor(state, transport), noise)
+    rhs = transport.rhs + math.sqrt(sigma2) * torch.einsum("cij,cj->ci", gram_factor(state, transport), noise)
     gram = transport.gram / sigma2
     jacobi = resampling.adjoint_squared @ gram.diagonal(dim1=1, dim2=2).T  # (N_prior, 3): diag of A^T H A
     l = state.log_map.detach().reshape(3, -1).double().clone()  # from the previous draw
@@ -310,23 +297,21 @@ def annealed_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     state.snapshots.append(x0_hat[0])
     if n == 0:
         with torch.no_grad():
-            if settings.start_materials == "init":
-                for (_, mine), (_, theirs) in zip(state.materials.items(), run.init.materials.items()):
-                    mine.copy_(theirs)
             state.log_map.copy_(torch.log(encoding.to_radiance(x0_hat).clamp_min(DARK_FLOOR * run.prior.median_target)))
+    losses: list[float | None] = []
     env = run.env(torch.exp(state.log_map), state).detach()
-    transport, refreshed = current_transport(run, state, n, env)
+    if material_phase(run, n):  # Gibbs: the materials under the current map, then T under the new materials
+        losses = [material_step(run, state, env, n, k) for k in range(settings.material_steps)]
+    laps.lap("render")
+    refreshed = "transport" not in state.extra or bool(losses)
+    transport = refresh_transport(run, state, n, env) if refreshed else state.extra["transport"]
     laps.lap("transport")
     abar = float(run.diffusion.alphas_cumprod[i])
     abar_prev = float(run.diffusion.alphas_cumprod_prev[i])
     variance = posterior_variance(abar, settings.prior_std)
-    data, prior = conditional_draw(run, state, transport, x0_hat, variance, noise_variance(run, state))
+    sigma2 = noise_variance(run, state) + transport.noise(env)  # T's own noise too: a draw must not fit it
+    data, prior = conditional_draw(run, state, transport, x0_hat, variance, sigma2)
     laps.lap("draw")
-    losses = []
-    if n >= settings.material_start * run.num_steps:
-        env = run.env(torch.exp(state.log_map), state).detach()
-        losses = [material_step(run, state, env, n, k) for k in range(settings.material_steps)]
-    laps.lap("render")
     with torch.no_grad():
         z = encoding.to_prior(torch.exp(state.log_map))
         state.x = abar_prev ** 0.5 * z + (1.0 - abar_prev) ** 0.5 * torch.randn(z.shape, generator=gen)
