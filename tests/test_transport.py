@@ -75,7 +75,8 @@ def test_normal_equations_give_the_views_loss_and_its_gradient(problem):
     direct = sum(float(np.square(r[problem.masks[v].numpy()]).sum()) for r, v in zip(residuals, problem.train_ids))
     noise = float((transport.column_variance * env.reshape(-1, 3).T.double().square()).sum())
     assert 0 < noise < 0.1 * direct  # T's own noise, which the normal equations leave out
-    assert float(transport.sum_squares(env)) == pytest.approx(direct - noise, rel=1e-3)  # and G kept PSD
+    assert direct - noise - 1e-6 <= float(transport.sum_squares(env)) < direct  # (G is kept convex: not below)
+    assert float(torch.linalg.eigvalsh(transport.gram).min()) > -1e-9 * float(transport.gram.abs().max())
     assert transport.pixels == sum(int(problem.masks[v].sum()) for v in problem.train_ids)
     leaf = env.clone().double().requires_grad_(True)
     transport.sum_squares(leaf).backward()

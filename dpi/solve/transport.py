@@ -378,6 +378,22 @@ class Transport:
         return float(change.square().mean().sqrt()) > tolerance
 
 
+def without_noise(gram: np.ndarray, column_variance: np.ndarray) -> np.ndarray:
+    """T^T T less the recording's noise on its diagonal (E[T^T T] = T-bar^T T-bar + that noise). The estimated
+    noise is itself noisy and can leave a direction of slightly negative curvature: the diagonal is then raised
+    by the smallest eigenvalue (found by Lanczos iterations, cheap at 2048 texels unlike a full
+    eigendecomposition), so the data term stays convex."""
+    from scipy.sparse.linalg import eigsh
+
+    index = np.arange(gram.shape[-1])
+    for c in range(gram.shape[0]):
+        gram[c, index, index] -= column_variance[c]
+        lowest = float(eigsh(gram[c], k=1, which="SA", return_eigenvectors=False, tol=1e-6)[0])
+        if lowest < 0:
+            gram[c, index, index] -= lowest
+    return gram
+
+
 def record_transport(problem: InverseProblem, materials: MaterialTextures, env: torch.Tensor, spp: int, seed: int,
                      views: list[int] | None = None, direct_spp: int | None = None) -> Transport:
     """The normal equations of the data term over `views` (the training views) under `materials`, with
@@ -395,13 +411,11 @@ def record_transport(problem: InverseProblem, materials: MaterialTextures, env: 
         t = record_view(problem, v, materials, guide, spp, seed * 1009 + j, direct_spp)
         y = problem.images[v].reshape(-1, 3).double().numpy()[t.pixels]
         gram += t.matrix.transpose(0, 2, 1) @ t.matrix
-        gram[:, np.arange(gram.shape[1]), np.arange(gram.shape[1])] -= t.column_variance  # T's noise, unbiased
         column_variance += t.column_variance
         rhs += np.einsum("cpi,pc->ci", t.matrix, y)
         entries += int(np.count_nonzero(t.matrix))
         constant += float(np.square(y).sum())
         pixels += len(t.pixels)
-    values, vectors = np.linalg.eigh(gram)  # the correction is noisy: keep G positive semi-definite
-    gram = (vectors * values.clip(min=0)[:, None, :]) @ vectors.transpose(0, 2, 1)
+    gram = without_noise(gram, column_variance)
     return Transport(torch.from_numpy(gram), torch.from_numpy(rhs), constant, pixels, height, views,
                      materials.detached(), time.perf_counter() - start, entries, torch.from_numpy(column_variance))
