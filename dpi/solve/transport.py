@@ -29,6 +29,9 @@ from dpi.materials import MaterialTextures
 from dpi.render import SEED_MODULUS
 from dpi.solve.problem import InverseProblem
 
+MAX_TRANSPORT_HEIGHT = 32
+"""the largest map (rows) whose transport is recorded: its normal equations take (2 H^2)^2 x 3 floats (100 MB at
+32 rows, 1.6 GB at 64) and its direct light one shadow ray per texel per camera sample"""
 DIRECT_SPP = 4
 """camera samples per pixel of the stratified direct light (every cell of the map gets a shadow ray from each)"""
 BRIGHT_SHARE = 0.5
