@@ -132,7 +132,11 @@ def test_every_sampler_runs_in_the_one_loop_and_is_seeded(problem_and_init, samp
     d = first.decomposition
     assert d.trace.info["sampler"] == sampler and len(d.trace.steps) == 3 and len(first.snapshots) == 2
     assert all(s["seconds_network"] >= 0 and s["seconds"] >= s["seconds_network"] for s in d.trace.steps)
-    torch.testing.assert_close(d.env, again.decomposition.env)
+    # Mitsuba's parallel film sums a pixel's samples in whatever order its threads run, so two runs of one seed
+    # agree to float rounding, not bit for bit; another seed's sample differs by far more
+    torch.testing.assert_close(d.env, again.decomposition.env, rtol=1e-3, atol=1e-3)
+    other = dps_sample(problem, log_prior(), init, cfg, seed=5, progress=False).decomposition.env
+    assert float((other - d.env).abs().max()) > 1e-2
 
 
 def test_unknown_sampler_is_an_error():

@@ -174,7 +174,7 @@ def record_direct(mi, scene, sensor, pixels: np.ndarray, size: tuple[int, int], 
                                                                       axis=1), axis=1)
     jx, jy = mi.Float(jitter[..., 0].reshape(-1)), mi.Float(jitter[..., 1].reshape(-1))
     size_flat = len(pixels) * texels
-    sums = [dr.zeros(mi.Float, size_flat) for _ in range(6)]  # per channel: the draws' sum, their sum of squares
+    sums = np.zeros((6, size_flat))  # per channel: the draws' sum, their sum of squares
     cells = np.arange(texels) if cells is None else np.asarray(cells)
     cell_list = mi.UInt32(cells.astype(np.uint32))
     chunk = max(1, min(len(cells), CHUNK_LANES // max(samples, 1)))
@@ -211,13 +211,16 @@ def record_direct(mi, scene, sensor, pixels: np.ndarray, size: tuple[int, int], 
         density = texel_density(d.y, height)
         weight = value * (density / (density + bsdf_pdf) * area * 2 * dr.pi ** 2 * dr.sin(theta) / spp)
         index = dr.gather(mi.UInt32, row, h) * texels + cell
+        dr.eval(weight, index, hit)
+        # summed in NumPy, in a fixed order: Dr.Jit's parallel atomic adds sum in whatever order its threads
+        # run, and a seeded sample must come out the same twice
+        kept = np.asarray(hit)
+        flat, draws = np.asarray(index)[kept], np.asarray(weight, np.float64)[:, kept]
         for c in range(3):
-            dr.scatter_reduce(dr.ReduceOp.Add, sums[c], weight[c], index, hit)
-            dr.scatter_reduce(dr.ReduceOp.Add, sums[3 + c], dr.square(weight[c]), index, hit)
-        dr.eval(sums)
+            sums[c] += np.bincount(flat, draws[c], minlength=size_flat)
+            sums[3 + c] += np.bincount(flat, np.square(draws[c]), minlength=size_flat)
     shape = (3, len(pixels), texels)
-    mean = np.stack([np.asarray(t, np.float64) for t in sums[:3]]).reshape(shape)
-    squares = np.stack([np.asarray(t, np.float64) for t in sums[3:]]).reshape(shape)
+    mean, squares = sums[:3].reshape(shape), sums[3:].reshape(shape)
     variance = (spp * squares - mean ** 2) / (spp - 1) if spp > 1 else mean ** 2  # of the mean of spp draws
     return mean, variance.clip(min=0)
 
@@ -385,13 +388,15 @@ def without_noise(gram: np.ndarray, column_variance: np.ndarray) -> np.ndarray:
     """T^T T less the recording's noise on its diagonal (E[T^T T] = T-bar^T T-bar + that noise). The estimated
     noise is itself noisy and can leave a direction of slightly negative curvature: the diagonal is then raised
     by the smallest eigenvalue (found by Lanczos iterations, cheap at 2048 texels unlike a full
-    eigendecomposition), so the data term stays convex."""
+    eigendecomposition), so the data term stays convex. Lanczos starts from a fixed vector: ARPACK's own random
+    start changes from call to call, and a seeded sample must come out the same twice."""
     from scipy.sparse.linalg import eigsh
 
     index = np.arange(gram.shape[-1])
+    start = np.ones(gram.shape[-1])
     for c in range(gram.shape[0]):
         gram[c, index, index] -= column_variance[c]
-        lowest = float(eigsh(gram[c], k=1, which="SA", return_eigenvectors=False, tol=1e-6)[0])
+        lowest = float(eigsh(gram[c], k=1, which="SA", return_eigenvectors=False, tol=1e-6, v0=start)[0])
         if lowest < 0:
             gram[c, index, index] -= lowest
     return gram
