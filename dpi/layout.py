@@ -10,9 +10,11 @@ scene's `SceneLayout` the files under `results/{scene}/`:
     init/                              initialisation: envmap.exr, textures, log.json
     {method}/{k}/                      posterior sample k: envmap.exr, textures, trace.json
     {method}/plan.json                 the sample stop rule's decision
+    {method}/env_log_std.exr, albedo_std.exr   per-texel spread across the method's samples
     eval/{method}/{k}.json             metrics of one sample (eval/init/0.json: the initialisation)
     eval/{method}/{k}/{view}.exr       its held-out views re-rendered by the evaluation
     eval/envmaps.png                   every method's env-map samples
+    eval/uncertainty.png               every method's spread maps: where the photos do not tell
     logs/, benchmarks/                 one log and one timing file per job
 
 The Snakemake rules, the `dpi` command, the stages, the report and the benchmarks all ask this
@@ -133,9 +135,17 @@ class SceneLayout:
         """Log of the evaluation job of sample k of a method (of the initialisation for method `init`)."""
         return self.log("eval", method) if method == INIT else self.log("eval", method, str(k))
 
+    def uncertainty(self, method: str) -> dict[str, Path]:
+        """A method's spread maps across its samples (dpi.spread): env log-luminance std, albedo std."""
+        return {"env": self.root / method / "env_log_std.exr", "albedo": self.root / method / "albedo_std.exr"}
+
     @property
     def envmap_figure(self) -> Path:
         return self.root / "eval" / "envmaps.png"
+
+    @property
+    def uncertainty_figure(self) -> Path:
+        return self.root / "eval" / "uncertainty.png"
 
     def log(self, *parts: str) -> Path:
         """A job's log file: logs/{parts}.log."""

@@ -70,9 +70,35 @@ def calibration(samples: list[np.ndarray], truth: np.ndarray) -> float:
     return float(to_truth / max(np.mean(pairs), 1e-30))
 
 
+def normalized_albedo(albedo: np.ndarray) -> np.ndarray:
+    """Albedo divided by its mean: scale-free (light and albedo trade a global factor), for spread across samples."""
+    return albedo / max(float(albedo.mean()), 1e-6)
+
+
+def _std_across(maps: list[np.ndarray]) -> np.ndarray:
+    """Per-element std across maps (ddof 1); needs 2 maps, since one sample says nothing about its spread."""
+    if len(maps) < 2:
+        raise ValueError(f"the spread of samples needs 2 or more, got {len(maps)}")
+    return np.stack(maps).std(axis=0, ddof=1)
+
+
 def log_std_map(samples: list[np.ndarray]) -> np.ndarray:
-    """(H, 2H) per-texel std across samples of the log luminance, each sample divided by its median first:
-    where the photos do not tell the light (the uncertainty map)."""
-    logs = [np.log(np.maximum(luminance(s), LOG_FLOOR * (robust_level(luminance(s)) or 1.0))
-                   / (robust_level(luminance(s)) or 1.0)) for s in samples]
-    return np.stack(logs).std(axis=0, ddof=1) if len(logs) > 1 else np.zeros_like(logs[0])
+    """(H, 2H) per-texel std across env maps of the log luminance, each divided by its median first: where the
+    photos do not tell the light (0.7 is a factor of 2 either way)."""
+    def log_level(env: np.ndarray) -> np.ndarray:
+        level = robust_level(luminance(env)) or 1.0
+        return np.log(np.maximum(luminance(env), LOG_FLOOR * level) / level)
+
+    return _std_across([log_level(s) for s in samples])
+
+
+def albedo_std_map(samples: list[np.ndarray]) -> np.ndarray:
+    """(H, W) per-texel std across albedo textures of their luminance, each divided by its mean: where the
+    photos do not tell the material's colour apart from the light's (in units of the mean albedo)."""
+    return _std_across([luminance(normalized_albedo(a)) for a in samples])
+
+
+def sphere_mean(values: np.ndarray) -> float:
+    """Solid-angle weighted mean of an (H, 2H) map over the sphere (a map's poles hold little of it)."""
+    weights = np.broadcast_to(texel_solid_angles(values.shape[0]), values.shape)
+    return float((weights * values).sum() / weights.sum())

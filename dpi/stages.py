@@ -14,15 +14,16 @@ from dpi import backend
 from dpi.adaptive import AdaptiveConfig
 from dpi.atomic import write_json
 from dpi.capture import complete_capture, read_capture_json
-from dpi.evaluation.figures import envmap_grid
+from dpi.evaluation.figures import envmap_grid, uncertainty_grid
 from dpi.evaluation.sample_metrics import evaluate_sample, render_held_out
 from dpi.evaluation.summary import sample_rows, summarize, write_csv
 from dpi.exposure import MIDDLE_GREY
-from dpi.exr import write_exr
-from dpi.layout import INIT, INIT_TRACE, SAMPLE_TRACE, SceneLayout, view_file
+from dpi.exr import read_exr, write_exr
+from dpi.layout import INIT, INIT_TRACE, SAMPLE_TRACE, SceneLayout, decomposition_files, view_file
 from dpi.preprocess.stages import capture_stage  # noqa: F401  (the first stage of every scene)
 from dpi.prior.sample import load_scene_prior
 from dpi.seeding import seed_for
+from dpi.spread import albedo_std_map, log_std_map
 from dpi.solve.init import path_traced_init
 from dpi.solve.methods import REGISTRY, SampleJob, method_config
 from dpi.solve.optimize import OptimizeConfig
@@ -116,6 +117,21 @@ def envmap_figure_stage(capture_json: str | Path, rows: list[tuple[str, list[str
     truth when it has one, scale-aligned to it."""
     envmap_grid([(method, [Path(p) for p in files]) for method, files in rows], out_png,
                 read_capture_json(capture_json).gt.get("envmap"))
+
+
+def uncertainty_stage(scene_dir: str | Path, rows: list[tuple[str, list[str | Path]]], out_png: str | Path) -> None:
+    """The spread maps of one scene: per (method, its sample folders, 2 or more) the per-texel std of the env
+    maps' log luminance and of the albedo across the samples, as EXRs where dpi.layout says, and their figure."""
+    scene = SceneLayout(Path(scene_dir))
+    figure = []
+    for method, folders in rows:
+        files = [decomposition_files(folder) for folder in folders]
+        env = log_std_map([read_exr(f["env"]) for f in files])
+        albedo = albedo_std_map([read_exr(f["albedo"]) for f in files])
+        write_exr(scene.uncertainty(method)["env"], env)
+        write_exr(scene.uncertainty(method)["albedo"], albedo)
+        figure.append((method, env, albedo))
+    uncertainty_grid(figure, out_png)
 
 
 def summary_stage(eval_jsons: list[str | Path], out_csv: str | Path, samples_csv: str | Path | None = None) -> None:

@@ -82,8 +82,9 @@ def solve_params():
 
 
 def all_figures():
-    """The env-map grid of every scene."""
-    return [LAYOUT.scene(scene).envmap_figure for scene in SCENES]
+    """The env-map grid of every scene, and its uncertainty figure where a method draws 2 or more samples."""
+    return [LAYOUT.scene(scene).envmap_figure for scene in SCENES] + (
+        [LAYOUT.scene(scene).uncertainty_figure for scene in SCENES] if SPREAD_METHODS else [])
 
 
 def adaptive_params(*prefixes):
@@ -121,6 +122,16 @@ def planned_evaluations(wildcards):
         for method in METHODS
         for k in range(first_samples(method), drawn_samples(scene, method))
     ]
+
+
+SPREAD_METHODS = [m for m in METHODS if first_samples(m) >= 2]
+"""methods whose samples have a spread to map: 2 or more, whatever the stop rule decides"""
+
+
+def sample_folders(scene):
+    """Per method with a spread, the folders of the samples it draws: [(method, [folders])]."""
+    return [(m, [LAYOUT.scene(scene).sample_dir(m, k) for k in range(drawn_samples(scene, m))])
+            for m in SPREAD_METHODS]
 
 
 def sample_envmaps(scene):

@@ -63,6 +63,23 @@ rule envmap_figure:
         "../workflow_scripts/envmap_figure.py"
 
 
+rule uncertainty:
+    input:
+        lambda w: [LAYOUT.scene(w.scene).sample_files(m, k)[part] for m, folders in sample_folders(w.scene)
+                   for k in range(len(folders)) for part in ("env", "albedo")],
+        lambda w: sample_plans([w.scene]),
+    output:
+        *[SCENE.uncertainty(m)[part] for m in SPREAD_METHODS for part in ("env", "albedo")],
+        figure=report(SCENE.uncertainty_figure, caption="../report/uncertainty.rst", category="Env maps"),
+    params:
+        scene=lambda w: str(LAYOUT.scene(w.scene).root),
+        rows=lambda w: sample_folders(w.scene),
+    log:
+        SCENE.log("uncertainty"),
+    script:
+        "../workflow_scripts/uncertainty.py"
+
+
 rule report:
     input:
         summary=rules.summary.output.summary,

@@ -91,4 +91,8 @@ def test_summary_says_which_sampler_made_a_row(tmp_path, monkeypatch):
                toy_record(tmp_path, "s", "none", flat)]  # older evaluations have no sampler key
     rows = {r["method"]: r for r in summarize(records)}
     assert rows["dps"]["sampler"] == "proximal" and rows["none"]["sampler"] == ""
+    # the spread columns: two identical samples agree everywhere, one sample has no spread, no truth no calibration
+    assert rows["dps"]["env_log_std"] == 0 and rows["dps"]["albedo_std"] == 0
+    assert rows["dps"]["env_calibration"] == "missing: no gt/envmap.exr"
+    assert rows["none"]["env_log_std"] == "missing: one sample"
     assert [r["sampler"] for r in sample_rows(records, list(rows.values()))] == ["proximal", "proximal", ""]

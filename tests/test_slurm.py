@@ -22,8 +22,8 @@ pytestmark = [pytest.mark.slurm, pytest.mark.slow]
 
 PARTITION = "debug"
 SLURM_LOCAL = REPO / "scripts" / "slurm_local.sh"
-# One method, two samples. The capture is prepared locally; through Slurm go 9 jobs in 5 waves:
-# init; 2 x sample, evaluate_init; 2 x evaluate, envmap_figure; summary; report.
+# One method, two samples. The capture is prepared locally; through Slurm go 10 jobs in 5 waves:
+# init; 2 x sample, evaluate_init; 2 x evaluate, envmap_figure, uncertainty; summary; report.
 SLURM_CONFIG = {
     **TINY_CONFIG,
     "methods": ["none"],
@@ -79,7 +79,7 @@ def test_tiny_workflow_runs_through_slurm(slurm, tmp_path):
 
     # Every job was an sbatch submission, and Slurm ran each of them to completion.
     job_ids = re.findall(r"submitted with SLURM jobid (\d+)", output)
-    assert len(job_ids) == 9, output[-5000:]
+    assert len(job_ids) == 10, output[-5000:]
     listing = subprocess.run(["squeue", "--states=all", "-h", "-o", "%i %T %P"], capture_output=True, text=True,
                              env=slurm, check=True).stdout
     states = {line.split()[0]: line.split()[1:] for line in listing.splitlines()}

@@ -7,8 +7,10 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from dpi.exr import read_exr
 from workflow_helpers import TINY_CONFIG, planned_jobs, snakemake, write_config
 
 pytestmark = pytest.mark.slow
@@ -34,6 +36,10 @@ def test_default_target_runs_end_to_end(workdir):
     assert (workdir / "results" / "report" / "tiny" / "held_out.png").is_file()
     for k in range(2):
         assert (workdir / "results" / "tiny" / "none" / str(k) / "envmap.exr").is_file()
+    spread = read_exr(workdir / "results" / "tiny" / "none" / "env_log_std.exr")
+    assert spread.shape[:2] == read_exr(workdir / "results" / "tiny" / "none" / "0" / "envmap.exr").shape[:2]
+    assert np.isfinite(spread).all() and spread.max() > 0  # two free fits from two seeds differ somewhere
+    assert (workdir / "results" / "report" / "tiny" / "uncertainty.png").is_file()
     assert (workdir / "results" / "tiny" / "logs" / "init.log").is_file()
 
 
@@ -44,14 +50,16 @@ def test_second_run_does_nothing(workdir):
 def test_changing_one_method_reruns_only_its_jobs(workdir, tmp_path):
     changed = {"method_params": {"smoothness": {"iterations": 3, "views_per_step": 1}}}
     out = snakemake(workdir, "-n", "--configfile", str(write_config(tmp_path / "c.yaml", changed)))
-    assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "envmap_figure": 1, "summary": 1, "report": 1, "all": 1}
+    assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "envmap_figure": 1, "uncertainty": 1, "summary": 1, "report": 1,
+                                 "all": 1}
     assert "output: results/tiny/none/" not in out
 
 
 def test_adding_a_sample_runs_only_the_new_one(workdir, tmp_path):
     more = write_config(tmp_path / "more.yaml", {"samples": 3, "adaptive": {"sample_stop": False}})
     out = snakemake(workdir, "-n", "--configfile", str(more))
-    assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "envmap_figure": 1, "summary": 1, "report": 1, "all": 1}
+    assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "envmap_figure": 1, "uncertainty": 1, "summary": 1, "report": 1,
+                                 "all": 1}
     assert "output: results/tiny/none/2/" in out and "output: results/tiny/none/0/" not in out
 
 

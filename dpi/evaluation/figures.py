@@ -67,6 +67,19 @@ def envmap_grid(rows: list[tuple[str, list[Path]]], path: str | Path, reference:
     save_figure(axes[0][0].figure, path)
 
 
+def uncertainty_grid(rows: list[tuple[str, np.ndarray, np.ndarray]], path: str | Path) -> None:
+    """PNG grid: one row per (method, env log-luminance std (H, 2H), albedo std (H, W)); one colour scale per
+    column, shared by the methods, with a colour bar, so a brighter map is a less certain method."""
+    axes = _panels(len(rows), 2, 3.0, 1.7)
+    for column, (title, top) in enumerate([("env log-luminance std", 2.0), ("albedo std / mean", 0.5)]):
+        vmax = min(top, max(max(float(np.percentile(r[1 + column], 99)) for r in rows), 1e-3))
+        for (method, *maps), ax in zip(rows, axes[:, column]):
+            shown = ax.imshow(maps[column], cmap="magma", vmin=0, vmax=vmax, interpolation="nearest")
+            ax.set_title(f"{method}: {title}", fontsize=8)
+        axes[0, column].figure.colorbar(shown, ax=list(axes[:, column]), shrink=0.8)
+    save_figure(axes[0][0].figure, path)
+
+
 def view_strip(images: list[np.ndarray], names: list[str], held_out: list[bool], path: str | Path,
                columns: int = 8) -> None:
     """PNG of linear (H, W, 3) views in rows of `columns`, sRGB-encoded; held-out views framed and titled in red."""

@@ -223,6 +223,15 @@ def scene_section(scene_name: str, scene: SceneLayout, rows: list[dict[str, str]
                          + (", each aligned to the ground truth's (top row) global scale." if reference else
                             "; the capture has no ground truth.")))
 
+    if scene.uncertainty_figure.is_file():
+        path = page.png(scene_name, "uncertainty")
+        shutil.copyfile(scene.uncertainty_figure, path)
+        parts.append(_figure(page.link(path), f"{scene_name} uncertainty",
+                             "Where the photos do not tell: per method with two or more samples, the per-texel std "
+                             "across its samples of the env map's log luminance (each map over its median; 0.7 is a "
+                             "factor of 2 either way) and of the albedo (each over its mean). Bright is uncertain; "
+                             "summary.csv holds their means (env_log_std, albedo_std) and env_calibration."))
+
     path = page.png(scene_name, "textures")
     gt = ground_truth_textures(capture)
     texture_grid(([("ground truth", gt)] if gt else [])

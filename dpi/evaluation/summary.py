@@ -1,5 +1,6 @@
 """The summary over samples, methods and scenes (summary.csv, samples.csv): per (scene, method) the
-means of the per-sample metrics, sigma2_sample of env and albedo, env-map FID per method over all
+means of the per-sample metrics, sigma2_sample of env and albedo, the spread maps' means and the samples'
+calibration against the true map (dpi.spread), env-map FID per method over all
 scenes, and albedo sigma2_invar per (object, method) across the scenes (illuminations) of one object.
 """
 
@@ -17,7 +18,8 @@ import numpy as np
 from dpi.atomic import atomic_path
 from dpi.capture import read_ground_truth
 from dpi.evaluation.metrics import aligned_env, missing, resize_area
-from dpi.spread import normalized_env, sample_variance
+from dpi.spread import (albedo_std_map, calibration, log_std_map, normalized_albedo, normalized_env,
+                         sample_variance, sphere_mean)
 from dpi.evaluation.perceptual import (INCEPTION_WEIGHTS, azimuth_rolls, frechet_distance, inception_features,
                                        missing_weights, pretrained_inception)
 from dpi.exr import read_exr
@@ -27,6 +29,7 @@ from dpi.layout import ENV_FILE, INIT, texture_file
 SUMMARY_METRICS = ("novel_psnr", "novel_ssim", "novel_lpips", "env_psnr", "env_ssim", "env_lpips", "env_niqe",
                    "env_naturalness", "albedo_mse", "sample_seconds")
 SET_METRICS = ("env_fid", "albedo_sigma2_invar")
+SPREAD_METRICS = ("env_log_std", "albedo_std", "env_calibration")
 
 
 def _mean_std(values: list[Any]) -> tuple[Any, Any]:
@@ -57,8 +60,11 @@ def summarize(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
                                "object": recs[0].get("object", scene), "samples": len(recs)}
         for name in SUMMARY_METRICS:
             row[name], row[f"{name}_std"] = _mean_std([r["metrics"].get(name) for r in recs])
-        envs = [normalized_env(read_exr(Path(r["sample_dir"]) / ENV_FILE)) for r in recs]
-        albedos = [_normalized_albedo(read_exr(Path(r["sample_dir"]) / texture_file("albedo"))) for r in recs]
+        raw_envs = [read_exr(Path(r["sample_dir"]) / ENV_FILE) for r in recs]
+        raw_albedos = [read_exr(Path(r["sample_dir"]) / texture_file("albedo")) for r in recs]
+        envs = [normalized_env(e) for e in raw_envs]
+        albedos = [normalized_albedo(a) for a in raw_albedos]
+        row.update(spread_columns(raw_envs, raw_albedos, recs[0].get("gt_envmap")))
         row["env_sigma2_sample"] = sample_variance(envs) if len(recs) > 1 else missing("one sample")
         row["albedo_sigma2_sample"] = sample_variance(albedos) if len(recs) > 1 else missing("one sample")
         row["env_fid"] = fid[method]
@@ -69,6 +75,16 @@ def summarize(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     for row in rows:
         row["albedo_sigma2_invar"] = invar[(row["object"], row["method"])]
     return rows
+
+
+def spread_columns(envs: list[np.ndarray], albedos: list[np.ndarray], truth: str | Path | None) -> dict[str, Any]:
+    """How far a method's samples spread (dpi.spread): the mean of its uncertainty maps over the sphere and the
+    texture, and its calibration against the true map (~1: the truth looks like one more sample)."""
+    if len(envs) < 2:
+        return {name: missing("one sample") for name in SPREAD_METRICS}
+    return {"env_log_std": sphere_mean(log_std_map(envs)), "albedo_std": float(albedo_std_map(albedos).mean()),
+            "env_calibration": calibration(envs, read_ground_truth(truth, "envmap")) if truth
+            else missing("no gt/envmap.exr")}
 
 
 def samplers(records: list[dict[str, Any]]) -> str:
@@ -119,11 +135,6 @@ def sample_rows(records: list[dict[str, Any]], summary: list[dict[str, Any]]) ->
     return [{"scene": r["scene"], "method": r["method"], "sampler": r.get("sampler", ""), "sample": r["sample"],
              **{k: v for k, v in r["metrics"].items() if k != "notes"}, **sets[(r["scene"], r["method"])]}
             for r in records]
-
-
-def _normalized_albedo(albedo: np.ndarray) -> np.ndarray:
-    """Albedo divided by its mean (scale-free, for spread across samples)."""
-    return albedo / max(float(albedo.mean()), 1e-6)
 
 
 def write_csv(path: str | Path, rows: list[dict[str, Any]]) -> None:

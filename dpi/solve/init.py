@@ -1,4 +1,4 @@
-"""Path-traced initialisation (DESIGN step 1): a free env map and materials fitted jointly.
+"""Path-traced initialisation, the first step of every method: a free env map and materials fitted jointly.
 
 Its roughness and metallic seed every posterior method; its albedo is reset by the methods.
 The starting map is uniform, at the level that makes a grey (albedo 0.5) diffuse object match
@@ -48,7 +48,7 @@ def starting_materials(init: Decomposition) -> MaterialTextures:
     cannot place with metal: on the sun study's blob its metallic reaches 0.5 where the sun's
     highlights fall (truth 0). Starting from the median metallic, `dps`'s held-out views gain
     0.4-0.6 dB on the sun study, 0.2 on the demo and 0.07 on the posterior study's ambiguous scenes
-    (README, "Sun recovery"). A mirror's views resolve its materials: there the texture starts."""
+    (docs/studies.md, "the material start"). A mirror's views resolve its materials: there the texture starts."""
     materials = init.materials.detached()
     with torch.no_grad():
         materials.albedo.fill_(START_ALBEDO)

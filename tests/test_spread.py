@@ -1,0 +1,71 @@
+"""The spread of samples (dpi.spread) and its outputs: uncertainty maps, their summary and the calibration."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from dpi.envmap import texel_solid_angles
+from dpi.exr import read_exr, write_exr
+from dpi.layout import SceneLayout, decomposition_files
+from dpi.spread import albedo_std_map, calibration, log_std_map, sphere_mean
+
+H = 8
+
+
+def bright_patch(factor: float) -> np.ndarray:
+    """A uniform (H, 2H) map with a 2x2 patch `factor` times brighter (the median stays 1)."""
+    env = np.ones((H, 2 * H, 3))
+    env[2:4, 3:5] *= factor
+    return env
+
+
+def test_log_std_is_the_log_ratio_where_two_maps_differ_and_ignores_their_scale():
+    spread = log_std_map([bright_patch(4.0), 10.0 * bright_patch(1.0)])
+    assert spread[2:4, 3:5] == pytest.approx(np.full((2, 2), math.log(4.0) / math.sqrt(2)))
+    spread[2:4, 3:5] = 0
+    assert np.abs(spread).max() < 1e-9
+
+
+def test_albedo_std_is_in_units_of_the_mean_albedo():
+    flat = np.full((2, 2, 3), 0.3)
+    pattern = 0.7 * np.array([[0.5, 1.5], [1.5, 0.5]])[..., None] * np.ones(3)  # over its mean: 0.5 / 1.5
+    assert albedo_std_map([flat, pattern]) == pytest.approx(np.full((2, 2), 0.5 / math.sqrt(2)))
+
+
+def test_one_sample_has_no_spread():
+    with pytest.raises(ValueError, match="2 or more"):
+        log_std_map([bright_patch(2.0)])
+
+
+def test_sphere_mean_weights_texels_by_solid_angle():
+    top = np.zeros((H, 2 * H))
+    top[0] = 1.0
+    assert sphere_mean(np.full((H, 2 * H), 0.3)) == pytest.approx(0.3)
+    assert sphere_mean(top) == pytest.approx(float(texel_solid_angles(H)[0, 0] * 2 * H / (4 * math.pi)))
+
+
+def test_calibration_is_a_quarter_when_the_truth_lies_midway_and_one_for_a_fair_draw():
+    truth = bright_patch(1.0)
+    assert calibration([bright_patch(math.e), bright_patch(1 / math.e)], truth) == pytest.approx(0.25)
+    rng = np.random.default_rng(0)
+    draws = [np.exp(rng.normal(0, 0.5, (H, 2 * H, 1))) * np.ones(3) for _ in range(41)]
+    assert calibration(draws[1:], draws[0]) == pytest.approx(1.0, abs=0.1)
+
+
+def test_uncertainty_stage_writes_each_methods_maps_and_figure(tmp_path):
+    from dpi.stages import uncertainty_stage
+
+    scene = SceneLayout(tmp_path / "scene")
+    for k, factor in enumerate((4.0, 1.0)):
+        files = decomposition_files(scene.sample_dir("dps", k))
+        write_exr(files["env"], bright_patch(factor).astype(np.float32))
+        write_exr(files["albedo"], np.full((4, 4, 3), 0.2 * (k + 1), np.float32))
+    uncertainty_stage(scene.root, [("dps", [scene.sample_dir("dps", k) for k in range(2)])],
+                      scene.uncertainty_figure)
+    env = read_exr(scene.uncertainty("dps")["env"])
+    assert env.shape[:2] == (H, 2 * H) and float(env.max()) == pytest.approx(math.log(4.0) / math.sqrt(2), rel=1e-5)
+    assert np.abs(read_exr(scene.uncertainty("dps")["albedo"])).max() < 1e-6  # 0.2 and 0.4: one albedo, two scales
+    assert scene.uncertainty_figure.stat().st_size > 1000
