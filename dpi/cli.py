@@ -166,17 +166,21 @@ def cmd_summary(args: argparse.Namespace) -> None:
 
 
 def cmd_report(args: argparse.Namespace) -> None:
-    """Rules envmap_figure (each scene, over the samples present) and report."""
+    """Rules envmap_figure and uncertainty (each scene, over the samples present) and report."""
     from dpi.evaluation.report import build_report
-    from dpi.stages import envmap_figure_stage
+    from dpi.stages import envmap_figure_stage, uncertainty_stage
 
     pipeline = _pipeline(args)
     layout = pipeline.layout
     for name in pipeline.scenes:
         scene = layout.scene(name)
-        rows = [(m, [files["env"] for k in range(pipeline.samples(m))
-                     if (files := scene.sample_files(m, k))["env"].is_file()]) for m in pipeline.methods]
-        envmap_figure_stage(scene.capture_json, [(m, files) for m, files in rows if files], scene.envmap_figure)
+        present = [(m, [k for k in range(pipeline.samples(m)) if scene.sample_files(m, k)["albedo"].is_file()])
+                   for m in pipeline.methods]
+        envmap_figure_stage(scene.capture_json, [(m, [scene.sample_files(m, k)["env"] for k in ks])
+                                                 for m, ks in present if ks], scene.envmap_figure)
+        spread = [(m, [scene.sample_dir(m, k) for k in ks]) for m, ks in present if len(ks) >= 2]
+        if spread:
+            uncertainty_stage(scene.root, spread, scene.uncertainty_figure)
     build_report(layout, layout.report_html, layout.report_figures)
     print(f"wrote {layout.report_html}")
 

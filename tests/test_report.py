@@ -18,7 +18,7 @@ from dpi.evaluation.metric_table import direction, metric_table
 from dpi.evaluation.report import Page, build_report, quality_section, roughness_section
 from dpi.exr import read_exr, write_exr
 from dpi.layout import INIT, Layout, view_file
-from dpi.stages import capture_stage
+from dpi.stages import capture_stage, uncertainty_stage
 
 METHODS = {INIT: 1, "none": 2, "dps": 2}
 ROUGHNESS = {"glossy": 0.1, "rough": 0.6}
@@ -84,6 +84,8 @@ def results(tmp_path_factory, tiny_capture) -> Layout:
             scene.evaluation(method, 0).write_text(json.dumps(record))
         envmap_grid([(m, [scene.sample_files(m, k)["env"] for k in range(n)]) for m, n in METHODS.items()],
                     scene.envmap_figure)
+        uncertainty_stage(scene.root, [(m, [scene.sample_dir(m, k) for k in range(n)]) for m, n in METHODS.items()
+                                       if n >= 2], scene.uncertainty_figure)
     write_summary(layout.summary, summary_rows())
     return layout
 
@@ -124,7 +126,8 @@ def test_every_image_of_the_report_loads_in_chromium(results, tmp_path):
     alts = {img["alt"] for img in written.images}
     assert {"quality vs diversity", "roughness vs diversity"} <= alts
     for scene in ROUGHNESS:
-        assert {f"{scene} {what}" for what in ("input views", "env maps", "textures", "held-out views")} <= alts
+        assert {f"{scene} {what}" for what in ("input views", "env maps", "uncertainty", "textures",
+                                                     "held-out views")} <= alts
     assert all(not img["src"].startswith(("/", "file:", "http")) for img in written.images)
 
     loaded = Images(chromium_dom(page, tmp_path))
