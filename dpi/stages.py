@@ -15,6 +15,7 @@ from dpi.adaptive import AdaptiveConfig
 from dpi.atomic import write_json
 from dpi.capture import complete_capture, read_capture_json
 from dpi.evaluation.figures import envmap_grid, uncertainty_grid
+from dpi.evaluation.relighting import relight_held_out
 from dpi.evaluation.sample_metrics import evaluate_sample, render_held_out
 from dpi.evaluation.summary import sample_rows, summarize, write_csv
 from dpi.exposure import MIDDLE_GREY
@@ -89,7 +90,8 @@ def evaluate_stage(capture_json: str | Path, sample_dir: str | Path, out_json: s
     """Metrics of one sample against held-out views and ground truth, as JSON, with the scene's object
     (scene.yaml `object`, else the scene), its ground-truth env map (for the summary's set metrics) and the
     capture's exposure. With `views_dir`, the held-out views it rendered go there as {view}.exr, in the units
-    they were compared in (the capture's radiance divided by that exposure), for the report.
+    they were compared in (the capture's radiance divided by that exposure), and its relit views (the truth's
+    too) as dpi.evaluation.relighting names them, for the report.
     Naturalness uses the prior in `prior_checkpoint` (default: the shipped model of the scene's family)."""
     problem = load_problem(capture_json, settings)
     sample = problem.load_decomposition(sample_dir)
@@ -100,10 +102,11 @@ def evaluate_stage(capture_json: str | Path, sample_dir: str | Path, out_json: s
     prior = load_scene_prior(problem.capture.options, prior_checkpoint)
     seed = seed_for(scene, method, k, "eval")
     renders = render_held_out(problem, sample, spp, seed)
-    metrics = evaluate_sample(problem, sample, spp, seed, seconds, prior, renders)
+    relit = relight_held_out(problem, sample, spp, seed)
+    metrics = evaluate_sample(problem, sample, spp, seed, seconds, prior, renders, relit)
     if views_dir is not None:
         Path(views_dir).mkdir(parents=True, exist_ok=True)
-        for name, image in renders.items():
+        for name, image in {**renders, **({} if isinstance(relit, str) else relit)}.items():
             write_exr(view_file(views_dir, name), image)
     gt_envmap = problem.capture.gt.get("envmap")
     write_json(out_json, {"scene": scene, "method": method, "sampler": sampler, "sample": k, "sample_dir": str(sample_dir),

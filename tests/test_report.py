@@ -15,6 +15,7 @@ import pytest
 from dpi.capture import read_capture_json
 from dpi.evaluation.figures import envmap_grid
 from dpi.evaluation.metric_table import direction, metric_table
+from dpi.evaluation.relighting import RELIGHT_MAPS, relit_name
 from dpi.evaluation.report import Page, build_report, quality_section, roughness_section
 from dpi.exr import read_exr, write_exr
 from dpi.layout import INIT, Layout, view_file
@@ -76,8 +77,11 @@ def results(tmp_path_factory, tiny_capture) -> Layout:
                 write_exr(files["roughness"], np.full((8, 8, 1), roughness, np.float32))
                 write_exr(files["metallic"], np.zeros((8, 8, 1), np.float32))
             for view in held_out:
-                write_exr(view_file(scene.evaluation_views(method, 0), view.name),
-                          rng.uniform(0, 0.5, (24, 24, 3)).astype(np.float32))
+                names = [view.name] + [relit_name(light, view.name, truth) for light in RELIGHT_MAPS
+                                       for truth in (False, True)]
+                for name in names:
+                    write_exr(view_file(scene.evaluation_views(method, 0), name),
+                              rng.uniform(0, 0.5, (24, 24, 3)).astype(np.float32))
             record = {"exposure": 2.0, "metrics": {"notes": {"env": "global log-luminance scale alignment"},
                                                    "novel_psnr_views": {v.name: 20.0 for v in held_out}}}
             scene.evaluation(method, 0).parent.mkdir(parents=True, exist_ok=True)
@@ -127,7 +131,7 @@ def test_every_image_of_the_report_loads_in_chromium(results, tmp_path):
     assert {"quality vs diversity", "roughness vs diversity"} <= alts
     for scene in ROUGHNESS:
         assert {f"{scene} {what}" for what in ("input views", "env maps", "uncertainty", "textures",
-                                                     "held-out views")} <= alts
+                                                     "held-out views", "relit views")} <= alts
     assert all(not img["src"].startswith(("/", "file:", "http")) for img in written.images)
 
     loaded = Images(chromium_dom(page, tmp_path))

@@ -80,6 +80,20 @@ def uncertainty_grid(rows: list[tuple[str, np.ndarray, np.ndarray]], path: str |
     save_figure(axes[0][0].figure, path)
 
 
+def relit_grid(rows: list[tuple[str, list[tuple[str, np.ndarray]]]], path: str | Path) -> None:
+    """PNG grid: one row per (light, [(label, linear image)]), the truth first; each row's images share one
+    exposure (the first image's 99th percentile at 0.9), sRGB-encoded."""
+    axes = _panels(len(rows), max(len(images) for _, images in rows), 1.5, 1.7)
+    for (light, images), row in zip(rows, axes):
+        level = max(float(np.percentile(images[0][1], 99)), 1e-6) / 0.9
+        for (label, image), ax in zip(images, row):
+            ax.imshow(np.clip(linear_to_srgb(image / level), 0, 1), interpolation="nearest")
+            ax.set_title(f"{light}: {label}", fontsize=7)
+        for ax in row[len(images):]:
+            ax.axis("off")
+    save_figure(axes[0][0].figure, path)
+
+
 def view_strip(images: list[np.ndarray], names: list[str], held_out: list[bool], path: str | Path,
                columns: int = 8) -> None:
     """PNG of linear (H, W, 3) views in rows of `columns`, sRGB-encoded; held-out views framed and titled in red."""

@@ -20,8 +20,9 @@ import numpy as np
 
 from dpi.atomic import write_text
 from dpi.capture import Capture, capture_warnings, complete_capture, read_capture_json, read_ground_truth
-from dpi.evaluation.figures import (MethodPoint, Rerender, quality_diversity_plot, rerender_grid,
-                                    roughness_diversity_plot, texture_grid, view_strip)
+from dpi.evaluation.figures import (MethodPoint, Rerender, quality_diversity_plot, relit_grid,
+                                    rerender_grid, roughness_diversity_plot, texture_grid, view_strip)
+from dpi.evaluation.relighting import RELIGHT_MAPS, channel_scaled, relit_name
 from dpi.evaluation.metric_table import metric_table, missing_reason, number, read_summary
 from dpi.evaluation.sample_metrics import masked_srgb
 from dpi.exr import read_exr
@@ -248,9 +249,36 @@ def scene_section(scene_name: str, scene: SceneLayout, rows: list[dict[str, str]
                              "Held-out views as the evaluation re-rendered them with each method's sample 0, the "
                              "view's PSNR in the title, and the per-pixel error: mean absolute sRGB difference over "
                              "the foreground (background 0), one colour scale for the figure."))
+        relit = relit_rows(scene, capture, methods)
+        if relit:
+            path = page.png(scene_name, "relit")
+            relit_grid(relit, path)
+            parts.append(_figure(page.link(path), f"{scene_name} relit views",
+                                 f"The first held-out view relit under dpi's relighting maps: the true materials, "
+                                 "then each method's sample 0, each scaled per channel to the truth as "
+                                 "relight_psnr_h / _l / relight_ssim score it; one exposure per row."))
     else:
         parts.append("<p class='note'>No held-out views: nothing to re-render.</p>")
     return "\n".join(parts)
+
+
+def relit_rows(scene: SceneLayout, capture: Capture, methods: list[str]) -> list[tuple[str, list[tuple[str, np.ndarray]]]]:
+    """Per relighting map: the truth's and each method's sample-0 relit first held-out view, as the evaluation
+    wrote them (aligned to the truth per channel), or nothing where the capture has no true materials."""
+    view = capture.held_out_views[0]
+    mask = read_mask(view.mask) if view.mask else None
+    rows = []
+    for light in RELIGHT_MAPS:
+        files = [view_file(scene.evaluation_views(m, 0), relit_name(light, view.name)) for m in methods]
+        truth = view_file(scene.evaluation_views(methods[0], 0), relit_name(light, view.name, truth=True))
+        if not truth.is_file() or not all(f.is_file() for f in files):
+            return []
+        reference = read_exr(truth)
+        fg = np.ones(reference.shape[:2], bool) if mask is None else mask
+        rows.append((light, [(label, image * fg[..., None]) for label, image in
+                             [("truth", reference)] + [(m, channel_scaled(read_exr(f), reference, fg))
+                                                       for m, f in zip(methods, files)]]))
+    return rows
 
 
 def build_report(layout: Layout, out_html: str | Path, figures_dir: str | Path) -> None:

