@@ -52,7 +52,7 @@ def test_changing_one_method_reruns_only_its_jobs(workdir, tmp_path):
     out = snakemake(workdir, "-n", "--configfile", str(write_config(tmp_path / "c.yaml", changed)))
     assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "envmap_figure": 1, "uncertainty": 1, "summary": 1, "report": 1,
                                  "all": 1}
-    assert "output: results/tiny/none/" not in out
+    assert "output: results/tiny/none/0/" not in out and "output: results/tiny/none/1/" not in out
 
 
 def test_adding_a_sample_runs_only_the_new_one(workdir, tmp_path):
