@@ -278,7 +278,7 @@ def material_step(run: DPSRun, state: DPSState, env: torch.Tensor, n: int, k: in
         return None
     state.optimizer.step()
     state.materials.clamp_()
-    return float(loss) / len(views)
+    return float(loss.detach()) / len(views)
 
 
 def annealed_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
