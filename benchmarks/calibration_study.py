@@ -14,7 +14,8 @@ truth over the mean pairwise distance between them (dpi.spread.calibration; ~1 w
 like one more sample, >> 1 when the samples agree on a wrong guess). Then it prints mean +- std per
 material, method and sampler, and the metal / rough ratio of sigma2_sample per object and repeat.
 
-    .venv/bin/python benchmarks/calibration_study.py [--methods ...] [--samplers ...] [--repeats 3] [--samples 4]
+    .venv/bin/python benchmarks/calibration_study.py [--methods ...] [--samplers ...] [--dps NAME:key=value,...]
+        [--repeats 3] [--samples 4]
 
 Samples already drawn are reused; rows already in the CSV are kept and not recomputed.
 """
@@ -69,7 +70,7 @@ def repeat_scene(scene: str, repeat: int) -> str:
 
 def sample_jobs(args: argparse.Namespace, config: dict) -> dict[tuple[str, str, str, int], list[Job]]:
     """(scene, method, sampler, repeat) -> the jobs of its samples (the init: one job)."""
-    variants = dps_variants(config, [])
+    variants = dps_variants(config, args.dps)
     groups: dict[tuple[str, str, str, int], list[Job]] = {}
     for scene, synth in scenes().items():
         if args.scenes and scene not in args.scenes:
@@ -137,7 +138,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--scenes", nargs="*", default=None, choices=list(scenes()))
     parser.add_argument("--methods", nargs="*", default=list(METHODS), choices=list(METHODS))
-    parser.add_argument("--samplers", nargs="*", default=["proximal", "annealed"], help="dps samplers")
+    parser.add_argument("--samplers", nargs="*", default=["proximal", "gibbs"], help="dps samplers (or --dps labels)")
+    parser.add_argument("--dps", nargs="*", default=[], metavar="NAME:key=value,...", help="extra dps variants")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--samples", type=int, default=4)
     parser.add_argument("--jobs", type=int, default=2, help="samples drawn side by side (1 thread each)")

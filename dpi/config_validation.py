@@ -70,14 +70,14 @@ def check_config(config: dict[str, Any], schema_path: str | Path) -> None:
 
 
 def check_transport_size(config: dict[str, Any]) -> None:
-    """dps's annealed sampler records its light transport per texel: the map must not be larger than it can keep."""
+    """dps's gibbs sampler records its light transport per texel: the map must not be larger than it can keep."""
     if "dps" not in config.get("methods", []):
         return
     sampler = method_config("dps", {k: v for k, v in config.get("method_params", {}).get("dps", {}).items()
                                     if k != "samples"}).sampler
     height = settings_from_dict(ProblemSettings, config.get("problem", {})).env_height
-    if sampler == "annealed" and height > MAX_TRANSPORT_HEIGHT:
-        raise ConfigError(f"problem.env_height: dps's annealed sampler records the light transport per texel, up to "
+    if sampler == "gibbs" and height > MAX_TRANSPORT_HEIGHT:
+        raise ConfigError(f"problem.env_height: dps's gibbs sampler records the light transport per texel, up to "
                           f"{MAX_TRANSPORT_HEIGHT} rows; got {height} (use sampler proximal for larger maps)")
 
 

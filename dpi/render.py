@@ -50,12 +50,12 @@ def mesh_plugin(mesh_path: str | Path) -> dict:
     return {"type": suffix[1:], "filename": str(mesh_path), "face_normals": False}
 
 
-def texture_plugin(channels: int, size: int) -> dict:
-    """A linear (raw) bitmap texture placeholder of size x size x channels."""
+def texture_plugin(data: np.ndarray) -> dict:
+    """A linear (raw) bitmap texture of (size, size, channels) values, looked up bilinearly, clamped at the edges."""
     import mitsuba as mi
 
-    return {"type": "bitmap", "bitmap": mi.Bitmap(np.full((size, size, channels), 0.5, np.float32)),
-            "raw": True, "filter_type": "bilinear", "wrap_mode": "clamp"}
+    return {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(data, np.float32)), "raw": True,
+            "filter_type": "bilinear", "wrap_mode": "clamp"}
 
 
 class Renderer:
@@ -83,9 +83,8 @@ class Renderer:
                         "bitmap": mi.Bitmap(np.ones((env_height, 2 * env_height, 3), np.float32))},
             "object": {**mesh_plugin(mesh_path), "bsdf": {
                 "type": "principled",
-                "base_color": texture_plugin(3, texture_size),
-                "roughness": texture_plugin(1, texture_size),
-                "metallic": texture_plugin(1, texture_size),
+                **{name: texture_plugin(np.full((texture_size, texture_size, channels), 0.5))
+                   for name, channels in (("base_color", 3), ("roughness", 1), ("metallic", 1))},
             }},
         }
         for i, cam in enumerate(self.cameras):

@@ -22,6 +22,7 @@ from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import InverseProblem, ProblemSettings
 from dpi.solve.prior_space import prior_to_env
 from dpi.solve.sun import map_energy, sun_env
+from dpi.solve.transport import AlbedoLookup, LightTransport
 from dpi.tonecurve import LogEncoding
 
 
@@ -33,18 +34,20 @@ def log_prior(height: int = 8) -> Prior:
 
 
 class LinearProblem:
-    """An exact, noise-free linear measurement y_v = A_v vec(L) of an env map (stands in for the renderer)."""
+    """An exact, noise-free linear measurement of an env map per channel, y_v = A_v L (stands in for the renderer
+    and, as `transport`, for the recorded light transport: the albedo plays no part)."""
 
     def __init__(self, truth: torch.Tensor, views: int = 3, pixels: int = 40, seed: int = 0):
         generator = torch.Generator().manual_seed(seed)
         self.settings = ProblemSettings(env_height=truth.shape[0], texture_size=4)
-        self.operators = [torch.rand(pixels, truth.numel(), generator=generator) / truth.numel() for _ in range(views)]
-        self.images = [(a @ truth.reshape(-1)).reshape(pixels, 1) for a in self.operators]
-        self.masks = [torch.ones(pixels, 1, dtype=torch.bool) for _ in range(views)]
+        texels = truth.shape[0] * truth.shape[1]
+        self.operators = [torch.rand(pixels, texels, generator=generator) / texels for _ in range(views)]
+        self.images = [a @ truth.reshape(-1, 3) for a in self.operators]
+        self.masks = [torch.ones(pixels, dtype=torch.bool) for _ in range(views)]
         self.train_ids = list(range(views))
 
     def render(self, env, materials, view, seed, spp=None):
-        return (self.operators[view] @ env.reshape(-1)).reshape(-1, 1)
+        return self.operators[view] @ env.reshape(-1, 3)
 
     def view_loss(self, rendered, view):
         return (rendered - self.images[view]).square().mean()
@@ -54,6 +57,18 @@ class LinearProblem:
 
     def sample_views(self, count, generator):
         return list(self.train_ids)
+
+    def transport(self) -> LightTransport:
+        """The measurement as an exact light transport: its offset is A (both halves, every channel), its slope 0."""
+        operator = torch.cat(self.operators)  # (P, N)
+        pixels, texels = operator.shape
+        matrix = torch.zeros(2, 1, 2, 3, pixels, texels)
+        matrix[1] = operator
+        size = self.settings.texture_size
+        lookup = AlbedoLookup(torch.zeros(0, dtype=torch.long), torch.zeros(0, dtype=torch.long), torch.zeros(0),
+                              (pixels, size * size))
+        return LightTransport(matrix, lookup, torch.cat(self.images).double(), self.settings.env_height,
+                              [torch.full((size, size, 1), 0.5)], MaterialTextures.constant(size), pixels, 0.0)
 
 
 class GaussianDenoiser(torch.nn.Module):
@@ -90,6 +105,7 @@ def test_proximal_step_with_an_exact_operator_converges_to_the_data():
     cfg = DPSConfig.from_dict({"steps": 40, "radiance_scale": 1.0, "proximal": {
         "inner_steps": 8, "prox_weight": 0.0, "noise_mix": 0.0, "lr_map": 0.05, "start_noise": 1.0}})
     run, state = start_run(problem, gaussian_prior(height), init, cfg, seed=0)
+    state.extra["transport"] = problem.transport()
     start = relative_residual(problem, run.env(torch.exp(state.log_map), state).detach())
     records = list(posterior_steps(run, state))
     final = prior_to_env(state.x, run.prior, run.scale * float(torch.exp(state.log_exposure)), height)
@@ -114,7 +130,7 @@ def test_guided_sample_fits_the_views_far_better_than_the_prior_alone(problem_an
     problem, init = problem_and_init
     prior = gaussian_prior()
     cfg = DPSConfig.from_dict({"steps": 12, "refine": {"iterations": 5},
-                               "proximal": {"inner_steps": 3, "views_per_step": 2, "lr_map": 0.1}})
+                               "proximal": {"inner_steps": 3, "lr_map": 0.1}})
     guided = dps_sample(problem, prior, init, cfg, seed=3, progress=False).decomposition
     unguided_x = draw_samples(prior, 1, steps=12, seed=3)
     scale = guided.trace.info["radiance_scale"]

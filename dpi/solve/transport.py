@@ -1,20 +1,27 @@
 """The light transport of the training views, recorded once: a data term without path tracing.
 
-With the materials fixed, a rendered pixel is linear in the environment map's texels, I = T L
-(per colour channel). `record_view` traces the paths of Mitsuba's `prb` integrator (camera ray,
-then at every vertex next-event estimation towards the environment and a BSDF-sampled bounce,
-both weighted by multiple importance sampling, up to `max_depth`), but where the integrator
-multiplies a path's throughput by the map's radiance, it records (pixel, texel, throughput)
-instead: the map's bilinear lookup (Mitsuba's own, see `texel_weights`) spreads each contribution
-over its four texels. Next-event directions come from a fixed guide map (the current map with a
-floor), not from the map T will be applied to, so T L is an unbiased render for every L.
+Mitsuba's principled BSDF is affine in its base colour a: f(a) = a (f(1) - f(0)) + f(0), and its
+sampling does not depend on a. So with the roughness and metallic fixed, a pixel's value is
+  I_p = a_p (A_p L) + B_p L          (per colour channel)
+with L the environment map's texels, a_p the albedo the pixel sees (the mean bilinear lookup of the
+texture over the pixel's footprint, `albedo_lookup`), A_p the transport of the light that the first
+surface point's base colour scales and B_p the rest (a dielectric's specular, light seen directly).
+Light that bounces more than once is recorded under the albedo of the recording at its later
+surface points. An image under any map and albedo is then two matrix products (milliseconds), and
+so are its gradients: samplers draw the map and the albedo from it instead of path tracing.
 
-A data term is a sum of squared foreground residuals, so `record_transport` keeps only its normal
-equations, per channel: G = sum_v T_v^T T_v and b = sum_v T_v^T y_v. Then the sum of squares over
-all training views under any map is L^T G L - 2 b^T L + k (milliseconds, memory (texels^2 x 3),
-independent of the pixel count) and its gradient is 2 (G L - b). Each view's T at `spp` paths per pixel is noisy, so G carries the
-variance of T L as a small ridge; `spp` sets it. T depends on the materials: `Transport.stale`
-says when they have moved enough since the recording for a refresh.
+`record_view` traces the paths of Mitsuba's `prb` integrator (camera ray, then at every vertex
+next-event estimation towards the environment and a BSDF-sampled bounce, weighted by multiple
+importance sampling), but where the integrator multiplies a path's throughput by the map's
+radiance it records (pixel, texel, throughput) instead: the map's bilinear lookup (Mitsuba's own,
+`texel_weights`) spreads each contribution over its four texels. The light arriving straight from
+the map at the first surface point is recorded texel by texel (every texel gets a shadow ray from
+each camera sample, so a sun is never missed). Next-event directions come from a guide map (the
+current map with a floor), not from the map T is applied to, so T L is an unbiased render for every L.
+
+Every recording is two independent halves (each from half of the samples). A data term is a sum of
+squares, and the square of one noisy recording overestimates it by the recording's variance, most
+at the brightest texels (a sun): the product of the two halves' residuals does not (E[T1^T T2] = T^T T).
 """
 
 from __future__ import annotations
@@ -26,20 +33,20 @@ import numpy as np
 import torch
 
 from dpi.materials import MaterialTextures
-from dpi.render import SEED_MODULUS
+from dpi.render import SEED_MODULUS, texture_plugin
 from dpi.solve.problem import InverseProblem
 
 MAX_TRANSPORT_HEIGHT = 32
-"""the largest map (rows) whose transport is recorded: its normal equations take (2 H^2)^2 x 3 floats (100 MB at
-32 rows, 1.6 GB at 64) and its direct light one shadow ray per texel per camera sample"""
-DIRECT_SPP = 4
-"""camera samples per pixel of the stratified direct light (every cell of the map gets a shadow ray from each)"""
+"""the largest map (rows) whose transport is recorded: its normal equations take (2 H^2)^2 x 3 floats (25 MB at
+32 rows in float32, 400 MB at 64) and its direct light one shadow ray per texel per camera sample"""
+HALVES = 2
+"""independent recordings of every transport (module notes)"""
 BRIGHT_SHARE = 0.5
 """the brightest texels that hold this share of the guide map's energy get extra direct-light draws ..."""
 BRIGHT_SPP = 16
 """... this many more per pixel (a sun's column of T is most of the image: its noise is most of T's)"""
 FOOTPRINT = 64
-"""points of a pixel's area the direct light is seen through (each texel through one of them)"""
+"""points of a pixel's area the direct light and the albedo lookup are seen through (each texel through one)"""
 CHUNK_LANES = 1 << 20
 """lanes of one Dr.Jit launch of the direct light (camera samples x cells)"""
 GUIDE_FLOOR = 0.25
@@ -49,12 +56,37 @@ chance to be sampled, so T stays unbiased and useful for maps brighter elsewhere
 
 @dataclass
 class TransportSettings:
-    """How the light transport is recorded and kept up to date (method_params.dps.transport)."""
+    """How the light transport is recorded (method_params.dps.<sampler>.transport)."""
 
-    spp: int = 32
-    """paths per pixel of a recording (its noise is the data term's ridge: more is closer, slower)"""
-    refresh_tolerance: float = 0.02
-    """re-record when the materials moved by more than this since the recording (RMS over the textures)"""
+    spp: int = 16
+    """paths per pixel for the light after the first bounce (split between the two halves)"""
+    direct_spp: int = 4
+    """camera samples per pixel of the direct light, each with one shadow ray per texel (split between the halves)"""
+    pixels: int = 3072
+    """most foreground pixels of the training views recorded: beyond it, an even random subset"""
+    roughness_levels: int = 3
+    """besides the materials' own roughness, the transport under this many more: the texture shifted to medians
+    evenly spread over (0, 1) (`roughness_levels`), recorded in the same pass (only the BSDF's values differ)"""
+
+    def __post_init__(self) -> None:
+        for name in ("spp", "direct_spp"):
+            value = getattr(self, name)
+            if value < HALVES or value % HALVES:
+                raise ValueError(f"{name} must be a positive multiple of {HALVES} (the two halves), got {value}")
+        if self.pixels < 1:
+            raise ValueError(f"pixels must be at least 1, got {self.pixels}")
+        if self.roughness_levels < 0:
+            raise ValueError(f"roughness_levels must be at least 0, got {self.roughness_levels}")
+
+
+def roughness_levels(roughness: torch.Tensor, count: int) -> list[torch.Tensor]:
+    """The roughness textures a transport is recorded under: the given one, then `count` copies shifted so that
+    their medians are (i + 1/2) / count (its detail kept, clamped to the valid range)."""
+    from dpi.materials import RANGES
+
+    centre = float(roughness.detach().median())
+    shifted = [(roughness.detach() - centre + (i + 0.5) / count).clamp(*RANGES["roughness"]) for i in range(count)]
+    return [roughness.detach().clone(), *shifted]
 
 
 def texel_weights(directions: np.ndarray, height: int) -> tuple[np.ndarray, np.ndarray]:
@@ -78,23 +110,20 @@ def texel_weights(directions: np.ndarray, height: int) -> tuple[np.ndarray, np.n
     return index, weight
 
 
-@dataclass
-class ViewTransport:
-    """T of one view: a dense (3, foreground pixels, texels) array, and which pixels its rows are."""
-
-    matrix: np.ndarray
-    pixels: np.ndarray
-    """flat indices (row-major in the (h, w) image) of the rows"""
-    shape: tuple[int, int]
-    column_variance: np.ndarray
-    """(3, texels): the sum over the rows of the estimated variance of each entry (its direct light's): the part of
-    E[T^T T] that T's noise adds to its diagonal"""
-
-    def image(self, env: np.ndarray) -> np.ndarray:
-        """The view's (h, w, 3) image under an (H, 2H, 3) map: T L on the foreground, 0 elsewhere."""
-        out = np.zeros((self.shape[0] * self.shape[1], 3))
-        out[self.pixels] = np.einsum("cpn,nc->pc", self.matrix, env.reshape(-1, 3))
-        return out.reshape(*self.shape, 3)
+def texture_weights(uv: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Texel indices (n, 4) into a (size, size) texture and bilinear weights (n, 4) of Mitsuba's bitmap lookup
+    (filter bilinear, wrap clamp) at surface coordinates uv (n, 2): texel centres at (i + 0.5) / size, row
+    index from uv's second coordinate."""
+    x = np.asarray(uv, np.float64) * size - 0.5
+    base = np.floor(x)
+    f = x - base
+    lo = np.clip(base, 0, size - 1).astype(np.int64)
+    hi = np.clip(base + 1, 0, size - 1).astype(np.int64)
+    index = np.stack([lo[:, 1] * size + lo[:, 0], lo[:, 1] * size + hi[:, 0],
+                      hi[:, 1] * size + lo[:, 0], hi[:, 1] * size + hi[:, 0]], axis=1)
+    weight = np.stack([(1 - f[:, 0]) * (1 - f[:, 1]), f[:, 0] * (1 - f[:, 1]),
+                       (1 - f[:, 0]) * f[:, 1], f[:, 0] * f[:, 1]], axis=1)
+    return index, weight
 
 
 def guide_map(env: torch.Tensor) -> np.ndarray:
@@ -103,25 +132,40 @@ def guide_map(env: torch.Tensor) -> np.ndarray:
     return (env + GUIDE_FLOOR * max(float(env.mean()), 1e-12)).astype(np.float32)
 
 
+class Bins:
+    """Contributions to a few entries of a large array, summed by entry in NumPy in a fixed order (Dr.Jit's
+    parallel atomic adds sum in whatever order its threads run, and a seeded sample must come out the same
+    twice): the entries are sorted once, then each weight vector costs one small bincount."""
+
+    def __init__(self, flat: np.ndarray):
+        self.entries, self.inverse = np.unique(flat, return_inverse=True)
+
+    def add(self, target: np.ndarray, weights: np.ndarray) -> None:
+        """target[flat] += weights (target: a flat view)."""
+        target[self.entries] += np.bincount(self.inverse, weights, minlength=len(self.entries))
+
+
 class Accumulator:
-    """Adds (pixel, direction, RGB weight) contributions into a view's dense T through the map's lookup."""
+    """Adds (pixel, direction, half, weights of A and B per roughness level) contributions into a view's dense
+    transports through the map's lookup: `matrix` (2 (slope, offset), levels, HALVES, 3, pixels, texels)."""
 
-    def __init__(self, pixels: np.ndarray, image_size: int, height: int):
-        self.row_of = np.full(image_size, -1, np.int64)
-        self.row_of[pixels] = np.arange(len(pixels))
+    def __init__(self, levels: int, count: int, height: int):
         self.height, self.texels = height, 2 * height * height
-        self.matrix = np.zeros((3, len(pixels), self.texels))
+        self.matrix = np.zeros((2, levels, HALVES, 3, count, self.texels), np.float32)
 
-    def add(self, pixel: np.ndarray, direction: np.ndarray, weight: np.ndarray) -> None:
-        """T[c, pixel, texel] += weight_c x bilinear(texel; direction) for every contribution."""
-        if len(pixel) == 0:
+    def add(self, level: int, row: np.ndarray, half: np.ndarray, direction: np.ndarray, slope: np.ndarray,
+            offset: np.ndarray) -> None:
+        """T[level, half, c, row, texel] += weight_c x bilinear(texel; direction) for every contribution (weights
+        (n, 3))."""
+        if len(row) == 0:
             return
         index, bilinear = texel_weights(direction, self.height)
-        flat = (self.row_of[pixel][:, None] * self.texels + index).reshape(-1)
-        size = self.matrix[0].size
-        for c in range(3):
-            self.matrix[c] += np.bincount(flat, (bilinear * weight[:, c:c + 1]).reshape(-1),
-                                          minlength=size).reshape(self.matrix[c].shape)
+        rows = self.matrix.shape[4]
+        bins = Bins(((half[:, None] * 3 * rows + row[:, None]) * self.texels + index).reshape(-1))
+        for part, weight in enumerate((slope, offset)):
+            block = self.matrix[part, level].reshape(-1)
+            for c in range(3):  # channel c of half h starts at (h * 3 + c) * rows * texels of the block
+                bins.add(block[c * rows * self.texels:], (bilinear * weight[:, c:c + 1]).reshape(-1))
 
 
 def texel_density(direction_y, height: int):
@@ -136,14 +180,6 @@ def texel_density(direction_y, height: int):
     return (1 + edge) / (du * dv * 2 * np.pi ** 2 * dr.maximum(dr.safe_sqrt(1 - dr.square(direction_y)), 1e-4))
 
 
-def camera_rays(mi, sensor, pixel: np.ndarray, jitter: np.ndarray, size: tuple[int, int]):
-    """Primary rays through `pixel` (flat indices) at sub-pixel offsets `jitter` (n, 2) of an (h, w) image."""
-    h, w = size
-    position = mi.Vector2f((pixel % w + jitter[:, 0]) / w, (pixel // w + jitter[:, 1]) / h)
-    ray, _ = sensor.sample_ray(0.0, 0.5, position, mi.Point2f(0.5, 0.5))
-    return ray
-
-
 def tent_inverse(xi):
     """The inverse CDF of the tent 1 - |x| on [-1, 1]: a uniform xi in [0, 1) to a tent-distributed x."""
     import drjit as dr
@@ -151,78 +187,144 @@ def tent_inverse(xi):
     return dr.select(xi < 0.5, dr.sqrt(2 * xi) - 1, 1 - dr.sqrt(2 * (1 - xi)))
 
 
-def record_direct(mi, scene, sensor, pixels: np.ndarray, size: tuple[int, int], height: int, spp: int,
-                  seed: int, rng: np.random.Generator, cells: np.ndarray | None = None
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Light arriving straight from the map at the first surface point, texel by texel: for every texel one
-    direction drawn in proportion to its bilinear tent in (u, v) (Mitsuba's lookup, `texel_weights`; so a sun's
-    texel is never missed and gets its exact share), shadow-tested, weighted against BSDF sampling by the
-    balance heuristic (`record_paths` takes the rest); `spp` camera samples per pixel. The sample's weight is
-    f cos / (its density + the BSDF's), times the tent's area over its density in (u, v), 2 pi^2 sin(theta) |tent|
-    (the first and last rows' tents are halves at the poles: their draws fold back). Returns the (3, pixels,
-    texels) estimate, zero outside `cells` (default all), and its variance estimated from the draws' spread."""
-    import drjit as dr
+@dataclass
+class ViewSetup:
+    """What the recorders of one view share: Mitsuba's scene and sensor, the pixels (flat indices into the
+    (h, w) image) and their footprints, and per roughness level the BSDFs of base colour 0 and 1 (the rest as
+    recorded)."""
 
-    width, texels, ctx = 2 * height, 2 * height * height, mi.BSDFContext()
-    du, dv = 1.0 / width, 1.0 / (height - 1)
-    samples = len(pixels) * spp
-    row = mi.UInt32(np.repeat(np.arange(len(pixels)), spp).astype(np.uint32))
-    pixel = mi.UInt32(np.repeat(pixels, spp).astype(np.uint32))
+    mi: object
+    scene: object
+    sensor: object
+    pixels: np.ndarray
+    size: tuple[int, int]
+    height: int
+    footprint: tuple[np.ndarray, np.ndarray]
+    """(pixels x FOOTPRINT) sub-pixel offsets in x and y, stratified"""
+    levels: list[tuple[object, object]]
+
+    def footprint_position(self, row, point):
+        """Film position of footprint point `point` of pixel row `row` (Dr.Jit arrays)."""
+        import drjit as dr
+
+        mi, h, w = self.mi, *self.size
+        pixel = dr.gather(mi.UInt32, mi.UInt32(self.pixels.astype(np.uint32)), row)
+        index = row * FOOTPRINT + point
+        return mi.Point2f((mi.Float(pixel % w) + dr.gather(mi.Float, mi.Float(self.footprint[0]), index)) / w,
+                          (mi.Float(pixel // w) + dr.gather(mi.Float, mi.Float(self.footprint[1]), index)) / h)
+
+    def first_bounce(self, level: int, si, direction, active):
+        """(f(1) - f(0), f(0), pdf) of the principled BSDF of roughness level `level` at `si` towards world
+        `direction` (cosine included; the sampling density does not depend on the base colour)."""
+        ctx, wo = self.mi.BSDFContext(), si.to_local(direction)
+        dark, bright = self.levels[level]
+        offset, pdf = dark.eval_pdf(ctx, si, wo, active)
+        return bright.eval(ctx, si, wo, active) - offset, offset, pdf
+
+
+def view_setup(problem: InverseProblem, view: int, pixels: np.ndarray, materials: MaterialTextures,
+               roughness: list[torch.Tensor], guide: np.ndarray, rng: np.random.Generator) -> ViewSetup:
+    """The scene under the guide map and `materials` (their roughness samples the paths), and what the recorders
+    of `view` share; `roughness`: the textures of the levels recorded."""
+    renderer = problem.renderer
+    renderer.set_scene(torch.from_numpy(guide), materials.albedo, materials.roughness, materials.metallic)
+    mi = renderer.mi
+    camera = renderer.cameras[view]
+    metallic = texture_plugin(materials.metallic.detach().float().numpy())
+    levels = [tuple(mi.load_dict({"type": "principled", "base_color": {"type": "rgb", "value": value},
+                                  "roughness": texture_plugin(level.detach().float().numpy()), "metallic": metallic})
+                    for value in (0.0, 1.0)) for level in roughness]
     jitter = ((np.arange(FOOTPRINT)[None, :, None] + rng.random((len(pixels), FOOTPRINT, 2)))
               / FOOTPRINT).astype(np.float32)  # stratified in x and y (as Latin hypercube rows), per pixel
     jitter[..., 1] = np.take_along_axis(jitter[..., 1], rng.permuted(np.tile(np.arange(FOOTPRINT), (len(pixels), 1)),
                                                                       axis=1), axis=1)
-    jx, jy = mi.Float(jitter[..., 0].reshape(-1)), mi.Float(jitter[..., 1].reshape(-1))
-    size_flat = len(pixels) * texels
-    sums = np.zeros((6, size_flat))  # per channel: the draws' sum, their sum of squares
-    cells = np.arange(texels) if cells is None else np.asarray(cells)
-    cell_list = mi.UInt32(cells.astype(np.uint32))
-    chunk = max(1, min(len(cells), CHUNK_LANES // max(samples, 1)))
+    return ViewSetup(mi, renderer.scene, renderer.scene.sensors()[view], pixels, (camera.height, camera.width),
+                     renderer.env_height, (jitter[..., 0].reshape(-1), jitter[..., 1].reshape(-1)), levels)
+
+
+def albedo_lookup(setup: ViewSetup, texture_size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each pixel's mean bilinear weights of the albedo texture over the FOOTPRINT points that hit the object:
+    COO (rows, texel indices, weights); a pixel that misses the object everywhere has none."""
+    import drjit as dr
+
+    mi, count = setup.mi, len(setup.pixels) * FOOTPRINT
+    lane = dr.arange(mi.UInt32, count)
+    ray, _ = setup.sensor.sample_ray(0.0, 0.5, setup.footprint_position(lane // FOOTPRINT, lane % FOOTPRINT),
+                                     mi.Point2f(0.5, 0.5))
+    si = setup.scene.ray_intersect(ray)
+    dr.eval(si.uv, si.is_valid())
+    hit = np.asarray(si.is_valid(), bool)
+    uv = np.asarray(si.uv).T[hit]
+    rows = np.repeat(np.arange(len(setup.pixels)), FOOTPRINT)[hit]
+    index, weight = texture_weights(uv, texture_size)
+    hits = np.bincount(rows, minlength=len(setup.pixels))
+    pairs = np.repeat(rows, 4) * texture_size ** 2 + index.reshape(-1)  # (pixel, texel), each pair summed once
+    unique, inverse = np.unique(pairs, return_inverse=True)
+    total = np.bincount(inverse, (weight / hits[rows, None]).reshape(-1))
+    return unique // texture_size ** 2, unique % texture_size ** 2, total
+
+
+def record_direct(setup: ViewSetup, spp: int, seed: int, cells: np.ndarray) -> np.ndarray:
+    """Light arriving straight from the map at the first surface point, texel by texel: for every texel one
+    direction drawn in proportion to its bilinear tent in (u, v) (Mitsuba's lookup, `texel_weights`; so a sun's
+    texel is never missed and gets its exact share), shadow-tested, weighted against each level's BSDF sampling
+    by the balance heuristic (`record_paths` takes the rest); `spp` camera samples per pixel, alternately in the
+    two halves. The sample's weight is f cos / (its density + the BSDF's), times the tent's area over its density
+    in (u, v), 2 pi^2 sin(theta) |tent| (the first and last rows' tents are halves at the poles: their draws fold
+    back). Returns the columns of `cells`: (2 (slope, offset), levels, HALVES, 3, pixels, cells). A launch draws
+    one camera sample of each half for every (pixel, cell) of a chunk of cells, so its lanes fill a dense block:
+    summed by plain array additions, in a fixed order (Dr.Jit's parallel atomic adds sum in whatever order its
+    threads run, and a seeded sample must come out the same twice)."""
+    import drjit as dr
+
+    mi, height = setup.mi, setup.height
+    width = 2 * height
+    du, dv = 1.0 / width, 1.0 / (height - 1)
+    rows = len(setup.pixels)
+    cell_list = mi.UInt32(np.asarray(cells).astype(np.uint32))
+    out = np.zeros((2, len(setup.levels), HALVES, 3, rows, len(cells)), np.float32)
+    chunk = max(1, min(len(cells), CHUNK_LANES // max(HALVES * rows, 1)))
     sampler = mi.load_dict({"type": "independent"})
-    side = max(1, int(spp ** 0.5))
+    per_half = spp // HALVES
+    side = max(1, int(per_half ** 0.5))
     for first in range(0, len(cells), chunk):
         count = min(chunk, len(cells) - first)
-        lane = dr.arange(mi.UInt32, samples * count)
-        h = lane // count
-        cell = dr.gather(mi.UInt32, cell_list, first + lane % count)
-        p = dr.gather(mi.UInt32, pixel, h)
-        # each texel sees the pixel through another of its FOOTPRINT points: an image under a whole map averages
-        # the pixel's area over all of them (a render with FOOTPRINT samples), at one ray per texel
-        footprint = dr.gather(mi.UInt32, row, h) * FOOTPRINT + (cell * 37 + (h % spp) * 11) % FOOTPRINT
-        position = mi.Point2f((mi.Float(p % size[1]) + dr.gather(mi.Float, jx, footprint)) / size[1],
-                              (mi.Float(p // size[1]) + dr.gather(mi.Float, jy, footprint)) / size[0])
-        ray, _ = sensor.sample_ray(0.0, 0.5, position, mi.Point2f(0.5, 0.5))
-        sampler.seed(int(seed + first) % SEED_MODULUS, samples * count)
-        stratum = (h % spp) % (side * side)  # a pixel's camera samples split each tent into side x side strata
-        cell_row, cell_col = cell // width, cell % width
-        xi = (mi.Point2f(mi.Float(stratum % side), mi.Float(stratum // side)) + sampler.next_2d()) / side
-        u = (mi.Float(cell_col) + 0.5 + tent_inverse(xi.x)) * du
-        u -= dr.floor(u)
-        v = dr.abs((mi.Float(cell_row) + tent_inverse(xi.y)) * dv)
-        v = dr.select(v > 1, 2 - v, v)
-        theta, phi = dr.pi * v, 2 * dr.pi * u
-        d = mi.Vector3f(dr.sin(phi) * dr.sin(theta), dr.cos(theta), -dr.cos(phi) * dr.sin(theta))
-        area = du * dv * dr.select((cell_row == 0) | (cell_row == height - 1), 0.5, 1.0)
-        si = scene.ray_intersect(ray)
-        bsdf = si.bsdf(ray)
-        hit = si.is_valid() & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-        value, bsdf_pdf = bsdf.eval_pdf(ctx, si, si.to_local(d), hit)
-        hit &= ~scene.ray_test(si.spawn_ray(d), hit)
-        density = texel_density(d.y, height)
-        weight = value * (density / (density + bsdf_pdf) * area * 2 * dr.pi ** 2 * dr.sin(theta) / spp)
-        index = dr.gather(mi.UInt32, row, h) * texels + cell
-        dr.eval(weight, index, hit)
-        # summed in NumPy, in a fixed order: Dr.Jit's parallel atomic adds sum in whatever order its threads
-        # run, and a seeded sample must come out the same twice
-        kept = np.asarray(hit)
-        flat, draws = np.asarray(index)[kept], np.asarray(weight, np.float64)[:, kept]
-        for c in range(3):
-            sums[c] += np.bincount(flat, draws[c], minlength=size_flat)
-            sums[3 + c] += np.bincount(flat, np.square(draws[c]), minlength=size_flat)
-    shape = (3, len(pixels), texels)
-    mean, squares = sums[:3].reshape(shape), sums[3:].reshape(shape)
-    variance = (spp * squares - mean ** 2) / (spp - 1) if spp > 1 else mean ** 2  # of the mean of spp draws
-    return mean, variance.clip(min=0)
+        for s in range(per_half):  # lanes: (half, pixel row, cell); camera sample j = s HALVES + half
+            lane = dr.arange(mi.UInt32, HALVES * rows * count)
+            cell = dr.gather(mi.UInt32, cell_list, first + lane % count)
+            row = (lane // count) % rows
+            j = (lane // (count * rows)) + s * HALVES
+            # each texel sees the pixel through another of its FOOTPRINT points: an image under a whole map
+            # averages the pixel's area over all of them (a render with FOOTPRINT samples), at one ray per texel
+            ray, _ = setup.sensor.sample_ray(0.0, 0.5, setup.footprint_position(row, (cell * 37 + j * 11) % FOOTPRINT),
+                                             mi.Point2f(0.5, 0.5))
+            sampler.seed(int(seed + first * spp + s) % SEED_MODULUS, HALVES * rows * count)
+            stratum = s % (side * side)  # each half's camera samples split each tent into side x side strata
+            cell_row, cell_col = cell // width, cell % width
+            xi = (mi.Point2f(mi.Float(stratum % side), mi.Float(stratum // side)) + sampler.next_2d()) / side
+            u = (mi.Float(cell_col) + 0.5 + tent_inverse(xi.x)) * du
+            u -= dr.floor(u)
+            v = dr.abs((mi.Float(cell_row) + tent_inverse(xi.y)) * dv)
+            v = dr.select(v > 1, 2 - v, v)
+            theta, phi = dr.pi * v, 2 * dr.pi * u
+            d = mi.Vector3f(dr.sin(phi) * dr.sin(theta), dr.cos(theta), -dr.cos(phi) * dr.sin(theta))
+            area = du * dv * dr.select((cell_row == 0) | (cell_row == height - 1), 0.5, 1.0)
+            si = setup.scene.ray_intersect(ray)
+            hit = si.is_valid() & mi.has_flag(si.bsdf(ray).flags(), mi.BSDFFlags.Smooth)
+            hit &= ~setup.scene.ray_test(si.spawn_ray(d), hit)
+            density = texel_density(d.y, height)
+            scale = dr.select(hit, area * 2 * dr.pi ** 2 * dr.sin(theta) / per_half, 0.0)
+            values = []
+            for level in range(len(setup.levels)):  # each level weighed against its own BSDF sampling
+                slope, offset, bsdf_pdf = setup.first_bounce(level, si, d, hit)
+                weight = scale * density / (density + bsdf_pdf)
+                values.append((slope * weight, offset * weight))
+            dr.eval(*(v for pair in values for v in pair))
+            for level, pair in enumerate(values):
+                for part, value in enumerate(pair):
+                    out[part, level, ..., first:first + count] += np.asarray(value).reshape(3, HALVES, rows, count
+                                                                                           ).transpose(1, 0, 2, 3)
+    return out
 
 
 def bright_texels(guide: np.ndarray, share: float) -> np.ndarray:
@@ -237,86 +339,6 @@ def bright_texels(guide: np.ndarray, share: float) -> np.ndarray:
     return np.sort(order[:count]) if count <= energy.size // 8 else np.zeros(0, np.int64)
 
 
-def record_paths(mi, scene, sensor, pixels: np.ndarray, size: tuple[int, int], height: int, spp: int,
-                 max_depth: int, seed: int, rng: np.random.Generator, accumulator: Accumulator) -> None:
-    """Everything but `record_direct`'s part, along prb's paths (`spp` per pixel): the map seen by the camera,
-    BSDF-sampled rays that escape (after the first surface point weighted against the stratified cells, after
-    later ones against next-event estimation), and next-event estimation from the second point on."""
-    import drjit as dr
-
-    pixel = np.repeat(pixels, spp)
-    n = len(pixel)
-    sampler = mi.load_dict({"type": "independent"})
-    sampler.seed(int(seed) % SEED_MODULUS, n)
-    ray = camera_rays(mi, sensor, pixel, rng.random((n, 2)), size)
-    ctx = mi.BSDFContext()
-    beta = mi.Spectrum(1.0 / spp)
-    active = mi.Bool(True)
-    prev_si = dr.zeros(mi.SurfaceInteraction3f, n)
-    prev_pdf, prev_delta = mi.Float(1.0), mi.Bool(True)
-
-    def keep(mask, direction, weight) -> None:
-        dr.eval(mask, direction, weight)
-        m = np.asarray(mask, bool)
-        accumulator.add(pixel[m], np.asarray(direction).T[m], np.asarray(weight).T[m])
-
-    for depth in range(max_depth):
-        si = scene.ray_intersect(ray, active)
-        escaped = active & ~si.is_valid()
-        if depth == 1:  # against record_direct's texel-by-texel draws
-            mis = dr.select(prev_delta, 1.0, prev_pdf / (prev_pdf + texel_density(ray.d.y, height)))
-        else:
-            ds = mi.DirectionSample3f(scene, si=si, ref=prev_si)
-            mis = mis_weight(prev_pdf, scene.pdf_emitter_direction(prev_si, ds, ~prev_delta))
-        keep(escaped, ray.d, beta * mis)
-        active &= si.is_valid() & (depth + 1 < max_depth)
-        if depth + 1 >= max_depth:
-            break
-        bsdf = si.bsdf(ray)
-        if depth >= 1:
-            active_em = active & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-            ds, _ = scene.sample_emitter_direction(si, sampler.next_2d(), False, active_em)
-            active_em &= ds.pdf != 0.0
-            active_em &= ~scene.ray_test(si.spawn_ray(ds.d), active_em)
-            value, bsdf_pdf = bsdf.eval_pdf(ctx, si, si.to_local(ds.d), active_em)
-            keep(active_em, ds.d, beta * value * mis_weight(ds.pdf, bsdf_pdf) / ds.pdf)
-        sample, weight = bsdf.sample(ctx, si, sampler.next_1d(), sampler.next_2d(), active)
-        ray = si.spawn_ray(si.to_world(sample.wo))
-        beta *= weight
-        prev_si = dr.detach(si, True)
-        prev_pdf = sample.pdf
-        prev_delta = mi.has_flag(sample.sampled_type, mi.BSDFFlags.Delta)
-        active &= dr.max(beta) != 0
-        dr.eval(ray, beta, prev_si, prev_pdf, prev_delta, active)
-
-
-def record_view(problem: InverseProblem, view: int, materials: MaterialTextures, guide: np.ndarray, spp: int,
-                seed: int, direct_spp: int | None = None) -> ViewTransport:
-    """T of one view's foreground pixels (module notes): `direct_spp` camera samples per pixel for the light
-    arriving straight from the map, `spp` paths per pixel for the rest; seeded."""
-    renderer = problem.renderer
-    renderer.set_scene(torch.from_numpy(guide), materials.albedo, materials.roughness, materials.metallic)
-    mi, scene, height = renderer.mi, renderer.scene, renderer.env_height
-    camera = renderer.cameras[view]
-    size = (camera.height, camera.width)
-    pixels = np.flatnonzero(problem.masks[view].numpy().reshape(-1))
-    sensor = scene.sensors()[view]
-    rng = np.random.default_rng(seed)
-    accumulator = Accumulator(pixels, size[0] * size[1], height)
-    direct_spp = direct_spp or DIRECT_SPP
-    direct, variance = record_direct(mi, scene, sensor, pixels, size, height, direct_spp, seed * 7 + 1, rng)
-    bright = bright_texels(guide, BRIGHT_SHARE)
-    if len(bright):  # the texels that carry most of the light get BRIGHT_SPP draws more
-        extra, extra_variance = record_direct(mi, scene, sensor, pixels, size, height, BRIGHT_SPP, seed * 7 + 2, rng,
-                                              bright)
-        a, b = direct_spp / (direct_spp + BRIGHT_SPP), BRIGHT_SPP / (direct_spp + BRIGHT_SPP)
-        direct[:, :, bright] = a * direct[:, :, bright] + b * extra[:, :, bright]
-        variance[:, :, bright] = a ** 2 * variance[:, :, bright] + b ** 2 * extra_variance[:, :, bright]
-    accumulator.matrix += direct
-    record_paths(mi, scene, sensor, pixels, size, height, spp, renderer.settings.max_depth, seed, rng, accumulator)
-    return ViewTransport(accumulator.matrix, pixels, size, variance.sum(axis=1))
-
-
 def mis_weight(pdf_a, pdf_b):
     """The power heuristic, as Mitsuba's integrators weigh two sampling techniques."""
     import drjit as dr
@@ -325,105 +347,327 @@ def mis_weight(pdf_a, pdf_b):
     return dr.detach(dr.select(pdf_a > 0, a2 / (a2 + b2), 0))
 
 
+def record_paths(setup: ViewSetup, accumulator: Accumulator, level: int, spp: int, max_depth: int, seed: int,
+                 rng: np.random.Generator) -> None:
+    """Everything but `record_direct`'s part, along prb's paths (`spp` per pixel, alternately in the two halves):
+    the map seen by the camera, BSDF-sampled rays that escape (after the first surface point weighted against the
+    texel-by-texel draws, after later ones against next-event estimation), and next-event estimation from the
+    second point on. The first surface point's BSDF weight is split into its base colour's slope and offset.
+    The scene's roughness must be the level's (its BSDF samples the paths)."""
+    import drjit as dr
+
+    mi, height = setup.mi, setup.height
+    rows = np.repeat(np.arange(len(setup.pixels)), spp)
+    half = np.tile(np.arange(spp) % HALVES, len(setup.pixels))
+    n = len(rows)
+    sampler = mi.load_dict({"type": "independent"})
+    sampler.seed(int(seed) % SEED_MODULUS, n)
+    pixel = setup.pixels[rows]
+    w = setup.size[1]
+    position = mi.Point2f(((pixel % w + rng.random(n)) / w).astype(np.float32),
+                          ((pixel // w + rng.random(n)) / setup.size[0]).astype(np.float32))
+    ray, _ = setup.sensor.sample_ray(0.0, 0.5, position, mi.Point2f(0.5, 0.5))
+    ctx = mi.BSDFContext()
+    beta_slope, beta_offset = dr.zeros(mi.Spectrum, n), dr.full(mi.Spectrum, HALVES / spp, n)
+    active = mi.Bool(True)
+    prev_si = dr.zeros(mi.SurfaceInteraction3f, n)
+    prev_pdf, prev_delta = mi.Float(1.0), mi.Bool(True)
+
+    def keep(mask, direction, weight) -> None:
+        dr.eval(mask, direction, beta_slope, beta_offset, weight)
+        m = np.asarray(mask, bool)
+        scale = np.asarray(weight, np.float64).T[m]
+        accumulator.add(level, rows[m], half[m], np.asarray(direction).T[m], np.asarray(beta_slope).T[m] * scale,
+                        np.asarray(beta_offset).T[m] * scale)
+
+    for depth in range(max_depth):
+        si = setup.scene.ray_intersect(ray, active)
+        escaped = active & ~si.is_valid()
+        if depth == 1:  # against record_direct's texel-by-texel draws
+            mis = dr.select(prev_delta, 1.0, prev_pdf / (prev_pdf + texel_density(ray.d.y, height)))
+        else:
+            ds = mi.DirectionSample3f(setup.scene, si=si, ref=prev_si)
+            mis = mis_weight(prev_pdf, setup.scene.pdf_emitter_direction(prev_si, ds, ~prev_delta))
+        keep(escaped, ray.d, mi.Spectrum(mis))
+        active &= si.is_valid() & (depth + 1 < max_depth)
+        if depth + 1 >= max_depth:
+            break
+        bsdf = si.bsdf(ray)
+        if depth >= 1:
+            active_em = active & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
+            ds, _ = setup.scene.sample_emitter_direction(si, sampler.next_2d(), False, active_em)
+            active_em &= ds.pdf != 0.0
+            active_em &= ~setup.scene.ray_test(si.spawn_ray(ds.d), active_em)
+            value, bsdf_pdf = bsdf.eval_pdf(ctx, si, si.to_local(ds.d), active_em)
+            keep(active_em, ds.d, value * mis_weight(ds.pdf, bsdf_pdf) / ds.pdf)
+        sample, weight = bsdf.sample(ctx, si, sampler.next_1d(), sampler.next_2d(), active)
+        direction = si.to_world(sample.wo)
+        if depth == 0:  # the first point's base colour: f(a) / pdf = a (f(1) - f(0)) / pdf + f(0) / pdf
+            slope, offset, _ = setup.first_bounce(level, si, direction, active)
+            pdf = dr.select(sample.pdf > 0, sample.pdf, 1.0)
+            beta_slope, beta_offset = beta_offset * slope / pdf, beta_offset * offset / pdf
+        else:
+            beta_slope, beta_offset = beta_slope * weight, beta_offset * weight
+        ray = si.spawn_ray(direction)
+        prev_si = dr.detach(si, True)
+        prev_pdf = sample.pdf
+        prev_delta = mi.has_flag(sample.sampled_type, mi.BSDFFlags.Delta)
+        active &= (dr.max(beta_slope) != 0) | (dr.max(beta_offset) != 0)
+        dr.eval(ray, beta_slope, beta_offset, prev_si, prev_pdf, prev_delta, active)
+
+
 @dataclass
-class Transport:
-    """The data term's normal equations over the training views under fixed materials (module notes)."""
+class ViewTransport:
+    """The recording of one view's pixels: slope A and offset B (2, levels, HALVES, 3, pixels, texels), and each
+    pixel's albedo lookup (COO rows, texel indices, weights)."""
+
+    matrix: np.ndarray
+    pixels: np.ndarray
+    """flat indices (row-major in the (h, w) image) of the rows"""
+    shape: tuple[int, int]
+    lookup: tuple[np.ndarray, np.ndarray, np.ndarray]
+
+    def image(self, env: np.ndarray, albedo: np.ndarray, level: int = 0) -> np.ndarray:
+        """The view's (h, w, 3) image under an (H, 2H, 3) map, an (R, R, 3) albedo and a roughness level:
+        a_p (A L) + B L on the recorded pixels (both halves' mean), 0 elsewhere."""
+        rows, index, weight = self.lookup
+        seen = np.zeros((len(self.pixels), 3))
+        np.add.at(seen, rows, weight[:, None] * albedo.reshape(-1, 3)[index])
+        light = env.reshape(-1, 3)
+        value = seen * np.einsum("hcpn,nc->pc", self.matrix[0, level], light) / HALVES \
+            + np.einsum("hcpn,nc->pc", self.matrix[1, level], light) / HALVES
+        out = np.zeros((self.shape[0] * self.shape[1], 3))
+        out[self.pixels] = value
+        return out.reshape(*self.shape, 3)
+
+
+def record_view(problem: InverseProblem, view: int, materials: MaterialTextures, guide: np.ndarray,
+                settings: TransportSettings, seed: int, pixels: np.ndarray | None = None) -> ViewTransport:
+    """The transport of `pixels` (default: the view's foreground) under `materials` and the roughness levels
+    (module notes); seeded."""
+    if pixels is None:
+        pixels = np.flatnonzero(problem.masks[view].numpy().reshape(-1))
+    rng = np.random.default_rng(seed)
+    levels = roughness_levels(materials.roughness, settings.roughness_levels)
+    setup = view_setup(problem, view, pixels, materials, levels, guide, rng)
+    accumulator = Accumulator(len(levels), len(pixels), setup.height)
+    accumulator.matrix = record_direct(setup, settings.direct_spp, seed * 7 + 1, np.arange(accumulator.texels))
+    bright = bright_texels(guide, BRIGHT_SHARE)
+    if len(bright):  # the texels that carry most of the light get BRIGHT_SPP draws more, the two estimates mixed
+        extra = record_direct(setup, BRIGHT_SPP, seed * 7 + 2, bright)
+        share = settings.direct_spp / (settings.direct_spp + BRIGHT_SPP)
+        accumulator.matrix[..., bright] = share * accumulator.matrix[..., bright] + (1 - share) * extra
+    for level, roughness in enumerate(levels):  # the paths as each level's BSDF samples them
+        problem.renderer.set_scene(torch.from_numpy(guide), materials.albedo, roughness, materials.metallic)
+        record_paths(setup, accumulator, level, settings.spp, problem.renderer.settings.max_depth, seed, rng)
+    return ViewTransport(accumulator.matrix, pixels, setup.size, albedo_lookup(setup, problem.settings.texture_size))
+
+
+def transport_pixels(problem: InverseProblem, limit: int, rng: np.random.Generator) -> dict[int, np.ndarray]:
+    """Training view -> the foreground pixels recorded (flat indices): all of them up to `limit` in total, else
+    an even random subset of each view's."""
+    foreground = {v: np.flatnonzero(problem.masks[v].numpy().reshape(-1)) for v in problem.train_ids}
+    total = sum(len(p) for p in foreground.values())
+    if total <= limit:
+        return foreground
+    share = limit / total
+    return {v: np.sort(rng.choice(p, max(1, int(round(share * len(p)))), replace=False)) for v, p in foreground.items()}
+
+
+def apply_light(matrix: torch.Tensor, light: torch.Tensor) -> torch.Tensor:
+    """(..., 3, P, N) transports times a (3, N) map, per channel: (..., 3, P) (a batch of matrix-vector products
+    over contiguous blocks, at memory speed)."""
+    batch = matrix.reshape(-1, 3, *matrix.shape[-2:])
+    vectors = light.to(matrix.dtype).expand(batch.shape[0], 3, -1).reshape(-1, matrix.shape[-1], 1)
+    out = torch.bmm(batch.reshape(-1, *matrix.shape[-2:]), vectors)
+    return out.reshape(*matrix.shape[:-1])
+
+
+@dataclass
+class AlbedoLookup:
+    """The albedo each recorded pixel sees, as a sparse (pixels, texels) matrix of bilinear weights in COO form:
+    `apply` maps a texture to the pixels, `adjoint` back."""
+
+    rows: torch.Tensor
+    texels: torch.Tensor
+    weights: torch.Tensor
+    shape: tuple[int, int]
+
+    def apply(self, texture: torch.Tensor) -> torch.Tensor:
+        """(texels, C) -> (pixels, C) (differentiable)."""
+        out = torch.zeros(self.shape[0], texture.shape[1], dtype=texture.dtype)
+        return out.index_add(0, self.rows, self.weights.to(texture.dtype)[:, None] * texture[self.texels])
+
+    def adjoint(self, values: torch.Tensor) -> torch.Tensor:
+        """(pixels, C) -> (texels, C): the transpose of `apply`."""
+        out = torch.zeros(self.shape[1], values.shape[1], dtype=values.dtype)
+        return out.index_add(0, self.texels, self.weights.to(values.dtype)[:, None] * values[self.rows])
+
+    def squared(self) -> "AlbedoLookup":
+        """The matrix of squared weights (for the diagonal of W^T D W)."""
+        return AlbedoLookup(self.rows, self.texels, self.weights.square(), self.shape)
+
+
+@dataclass
+class NormalEquations:
+    """A sum of squared residuals as a quadratic form in the map: sum_p (M_p L - y_p)^2 = L^T G L - 2 b^T L + k
+    per channel, G (3, N, N), b (3, N), over `count` residuals (pixels x channels)."""
 
     gram: torch.Tensor
-    """(3, N, N) per channel sum_v T_v^T T_v, N = H x 2H texels (row-major)"""
     rhs: torch.Tensor
-    """(3, N) per channel sum_v T_v^T y_v"""
     constant: float
-    """sum_v y_v^T y_v: the sum of squares of a black map"""
-    pixels: int
-    """foreground pixels of the views (each with 3 channels)"""
-    height: int
-    views: list[int]
-    materials: MaterialTextures
-    """the materials T was recorded with"""
-    seconds: float
-    """wall time of the recording"""
-    entries: int
-    """non-zeros of the views' T (all channels), before the normal equations"""
-    column_variance: torch.Tensor
-    """(3, N) the recording's noise: per texel, the summed variance of its entries (`ViewTransport`)"""
+    count: int
 
-    @property
-    def nbytes(self) -> int:
-        """Memory the data term keeps."""
-        return self.gram.element_size() * self.gram.numel() + self.rhs.element_size() * self.rhs.numel()
+    def apply(self, x: torch.Tensor) -> torch.Tensor:
+        """G x per channel, x (3, N)."""
+        return torch.bmm(self.gram, x[:, :, None].to(self.gram.dtype))[..., 0]
 
     def sum_squares(self, env: torch.Tensor, rhs: torch.Tensor | None = None) -> torch.Tensor:
-        """Sum of squared foreground residuals of the views under an (H, 2H, 3) map (differentiable, float64);
-        `rhs` replaces b (a perturbed data term)."""
+        """Sum of squared residuals under an (H, 2H, 3) map (differentiable); `rhs` replaces b (a perturbed
+        data term)."""
         flat = env.reshape(-1, 3).T.to(self.gram.dtype)
-        quadratic = (flat * torch.einsum("cij,cj->ci", self.gram, flat)).sum()
+        quadratic = (flat * self.apply(flat)).sum()
         return quadratic - 2 * ((self.rhs if rhs is None else rhs) * flat).sum() + self.constant
 
     def mean_squares(self, env: torch.Tensor) -> torch.Tensor:
-        """Mean squared foreground residual per pixel and channel over the views (differentiable)."""
-        return (self.sum_squares(env) / (3 * self.pixels)).clamp_min(0).to(env.dtype)
+        """Mean squared residual per pixel and channel (differentiable, at least 0)."""
+        return (self.sum_squares(env) / self.count).clamp_min(0).to(env.dtype)
 
     def exposure(self, env: torch.Tensor) -> float:
-        """The least-squares global scale c of the map against the views (c L fits best)."""
+        """The least-squares global scale c of the map (c L fits best; 1 when none is positive)."""
         flat = env.detach().reshape(-1, 3).T.to(self.gram.dtype)
-        den = float((flat * torch.einsum("cij,cj->ci", self.gram, flat)).sum())
+        den = float((flat * self.apply(flat)).sum())
         num = float((self.rhs * flat).sum())
         return num / den if den > 0 and num > 0 else 1.0
 
-    def noise(self, env: torch.Tensor) -> float:
-        """The recording's own noise in an image under an (H, 2H, 3) map: the variance of T L per pixel and channel
-        (its direct light's, from the spread of its draws), which a fit to this T cannot tell from the data."""
-        flat = env.detach().reshape(-1, 3).T.to(self.column_variance.dtype)
-        return float((self.column_variance * flat.square()).sum()) / (3 * self.pixels)
 
-    def stale(self, materials: MaterialTextures, tolerance: float) -> bool:
-        """Whether the materials moved by more than `tolerance` (RMS over all texels) since the recording."""
-        change = torch.cat([(a.detach() - b).reshape(-1) for (_, a), (_, b) in zip(materials.items(),
-                                                                                    self.materials.items())])
-        return float(change.square().mean().sqrt()) > tolerance
+def convex(gram: torch.Tensor) -> torch.Tensor:
+    """The product of two halves' transports is symmetric but not always positive semidefinite (its noise can
+    leave a direction of slightly negative curvature): raise the diagonal by the smallest eigenvalue where it is
+    negative, so the data term stays convex."""
+    lowest = torch.linalg.eigvalsh(gram)[:, 0].clamp(max=0)
+    return gram - lowest[:, None, None] * torch.eye(gram.shape[-1], dtype=gram.dtype)
 
 
-def without_noise(gram: np.ndarray, column_variance: np.ndarray) -> np.ndarray:
-    """T^T T less the recording's noise on its diagonal (E[T^T T] = T-bar^T T-bar + that noise). The estimated
-    noise is itself noisy and can leave a direction of slightly negative curvature: the diagonal is then raised
-    by the smallest eigenvalue (found by Lanczos iterations, cheap at 2048 texels unlike a full
-    eigendecomposition), so the data term stays convex. Lanczos starts from a fixed vector: ARPACK's own random
-    start changes from call to call, and a seeded sample must come out the same twice."""
-    from scipy.sparse.linalg import eigsh
+@dataclass
+class LightTransport:
+    """The training views' transport at the recorded pixels (module notes), per roughness level: slope A and
+    offset B, (2, levels, HALVES, 3, P, N) float32; the albedo each pixel sees (a sparse (P, R^2) lookup); the
+    views' values (P, 3); the levels' roughness textures and the materials it was recorded with."""
 
-    index = np.arange(gram.shape[-1])
-    start = np.ones(gram.shape[-1])
-    for c in range(gram.shape[0]):
-        gram[c, index, index] -= column_variance[c]
-        lowest = float(eigsh(gram[c], k=1, which="SA", return_eigenvectors=False, tol=1e-6, v0=start)[0])
-        if lowest < 0:
-            gram[c, index, index] -= lowest
-    return gram
+    matrix: torch.Tensor
+    lookup: AlbedoLookup
+    observed: torch.Tensor
+    height: int
+    roughness: list[torch.Tensor]
+    """the roughness texture of each level (level 0: the materials')"""
+    materials: MaterialTextures
+    foreground: int
+    """foreground pixels of the training views (the recorded ones are all of them or a subset)"""
+    seconds: float
+    """wall time of the recording"""
+
+    @property
+    def slope(self) -> torch.Tensor:
+        """A: (levels, HALVES, 3, P, N)."""
+        return self.matrix[0]
+
+    @property
+    def offset(self) -> torch.Tensor:
+        """B: (levels, HALVES, 3, P, N)."""
+        return self.matrix[1]
+
+    @property
+    def pixels(self) -> int:
+        """Recorded pixels."""
+        return self.observed.shape[0]
+
+    @property
+    def weight(self) -> float:
+        """Foreground pixels per recorded pixel: a data term over the subset, times this, stands for all."""
+        return self.foreground / self.pixels
+
+    @property
+    def nbytes(self) -> int:
+        """Memory the recording keeps."""
+        return sum(t.element_size() * t.numel() for t in (self.matrix, self.observed, self.lookup.rows,
+                                                          self.lookup.texels, self.lookup.weights))
+
+    def seen_albedo(self, albedo: torch.Tensor) -> torch.Tensor:
+        """(P, 3) the albedo each recorded pixel sees, from an (R, R, 3) texture (differentiable)."""
+        return self.lookup.apply(albedo.reshape(-1, 3))
+
+    def halves(self, env: torch.Tensor, albedo: torch.Tensor, level: int | slice = 0) -> torch.Tensor:
+        """(..., HALVES, P, 3) each half's image of the recorded pixels under a map, an albedo and a roughness
+        level (a slice: several, leading dimension; differentiable)."""
+        light = env.reshape(-1, 3).T
+        a = self.seen_albedo(albedo).T.to(self.slope.dtype)
+        return (a * apply_light(self.slope[level], light) + apply_light(self.offset[level], light)).transpose(-1, -2)
+
+    def image(self, env: torch.Tensor, albedo: torch.Tensor, level: int = 0) -> torch.Tensor:
+        """(P, 3) the recorded pixels' image under a map, an albedo and a roughness level: the halves' mean
+        (differentiable)."""
+        return self.halves(env, albedo, level).mean(0)
+
+    def sum_squares(self, env: torch.Tensor, albedo: torch.Tensor, level: int = 0) -> torch.Tensor:
+        """Sum over the recorded pixels of the squared residual, without the recording's noise: the product of
+        the two halves' residuals (unbiased; module notes). Differentiable."""
+        first, second = self.halves(env, albedo, level) - self.observed.to(self.slope.dtype)
+        return (first * second).sum()
+
+    def level_sum_squares(self, env: torch.Tensor, albedo: torch.Tensor) -> torch.Tensor:
+        """(levels,) `sum_squares` under each roughness level."""
+        with torch.no_grad():
+            residual = self.halves(env, albedo, slice(None)) - self.observed.to(self.slope.dtype)
+            return (residual[:, 0] * residual[:, 1]).sum(dim=(1, 2)).double()
+
+    def light_equations(self, albedo: torch.Tensor, level: int = 0) -> NormalEquations:
+        """The data term as a quadratic form in the map under a fixed albedo and roughness level:
+        G = sym(M1^T M2) (kept convex), b = mean(M)^T y, M_h = a_p A_h + B_h per channel; over the recorded
+        pixels."""
+        a = self.seen_albedo(albedo.detach()).T[:, :, None].to(self.slope.dtype)
+        rows = a * self.slope[level] + self.offset[level]  # (HALVES, 3, P, N)
+        cross = rows[0].transpose(1, 2) @ rows[1]
+        gram = convex((0.5 * (cross + cross.transpose(1, 2))).double())
+        y = self.observed.T.to(rows.dtype)
+        rhs = (rows.sum(0).transpose(1, 2) @ y[:, :, None])[..., 0] / HALVES
+        return NormalEquations(gram, rhs.double(), float(self.observed.double().square().sum()), 3 * self.pixels)
+
+    def albedo_terms(self, env: torch.Tensor, level: int = 0) -> tuple[torch.Tensor, torch.Tensor, float]:
+        """The data term in the albedo each pixel sees under a fixed map and roughness level:
+        sum_p c_p a_p^2 - 2 l_p a_p + k, per pixel and channel (P, 3) each: c the product of the halves' A L (at
+        least 0), l from the products of the halves' residuals; and the constant k (unbiased, as `sum_squares`)."""
+        light = env.detach().reshape(-1, 3).T
+        scaled = apply_light(self.slope[level], light).transpose(1, 2).double()
+        rest = apply_light(self.offset[level], light).transpose(1, 2).double() - self.observed.double()
+        curvature = (scaled[0] * scaled[1]).clamp_min(0)
+        linear = -0.5 * (scaled[0] * rest[1] + scaled[1] * rest[0])
+        return curvature, linear, float((rest[0] * rest[1]).sum())
 
 
-def record_transport(problem: InverseProblem, materials: MaterialTextures, env: torch.Tensor, spp: int, seed: int,
-                     views: list[int] | None = None, direct_spp: int | None = None) -> Transport:
-    """The normal equations of the data term over `views` (the training views) under `materials`, with
-    next-event directions guided by `env` (module notes)."""
+def record_transport(problem: InverseProblem, materials: MaterialTextures, env: torch.Tensor,
+                     settings: TransportSettings, seed: int) -> LightTransport:
+    """The light transport of the training views' foreground pixels (at most settings.pixels of them) under
+    `materials` and the roughness levels, with next-event directions guided by `env` (module notes)."""
     start = time.perf_counter()
-    views = list(problem.train_ids if views is None else views)
-    height = problem.settings.env_height
-    texels = 2 * height * height
-    gram = np.zeros((3, texels, texels))
-    rhs = np.zeros((3, texels))
-    constant, entries, pixels = 0.0, 0, 0
-    column_variance = np.zeros((3, texels))
+    rng = np.random.default_rng(seed)
+    chosen = transport_pixels(problem, settings.pixels, rng)
     guide = guide_map(env)
-    for j, v in enumerate(views):
-        t = record_view(problem, v, materials, guide, spp, seed * 1009 + j, direct_spp)
-        y = problem.images[v].reshape(-1, 3).double().numpy()[t.pixels]
-        gram += t.matrix.transpose(0, 2, 1) @ t.matrix
-        column_variance += t.column_variance
-        rhs += np.einsum("cpi,pc->ci", t.matrix, y)
-        entries += int(np.count_nonzero(t.matrix))
-        constant += float(np.square(y).sum())
-        pixels += len(t.pixels)
-    gram = without_noise(gram, column_variance)
-    return Transport(torch.from_numpy(gram), torch.from_numpy(rhs), constant, pixels, height, views,
-                     materials.detached(), time.perf_counter() - start, entries, torch.from_numpy(column_variance))
+    matrices, observed, rows, cols, weights = [], [], [], [], []
+    first = 0
+    for j, (v, pixels) in enumerate(chosen.items()):
+        t = record_view(problem, v, materials, guide, settings, seed * 1009 + j, pixels)
+        matrices.append(torch.from_numpy(t.matrix))
+        observed.append(problem.images[v].reshape(-1, 3)[torch.from_numpy(pixels)].double())
+        rows.append(t.lookup[0] + first)
+        cols.append(t.lookup[1])
+        weights.append(t.lookup[2])
+        first += len(pixels)
+    size = problem.settings.texture_size
+    lookup = AlbedoLookup(torch.from_numpy(np.concatenate(rows)), torch.from_numpy(np.concatenate(cols)),
+                          torch.from_numpy(np.concatenate(weights)), (first, size * size))
+    return LightTransport(torch.cat(matrices, dim=4), lookup, torch.cat(observed),
+                          problem.settings.env_height, roughness_levels(materials.roughness, settings.roughness_levels),
+                          materials.detached(),
+                          sum(int(problem.masks[v].sum()) for v in problem.train_ids), time.perf_counter() - start)
+

@@ -13,7 +13,7 @@ from typing import Any, Callable
 
 from dpi.materials import MaterialRates
 from dpi.settings import SettingsError, check_keys, check_values, settings_from_dict
-from dpi.solve.dps.annealed import AnnealedSettings, annealed_step
+from dpi.solve.dps.gibbs import GibbsSettings, gibbs_step
 from dpi.solve.dps.paper import PaperSettings, paper_step
 from dpi.solve.dps.proximal import ProximalSettings, proximal_step
 from dpi.solve.dps.refine import RefineSettings
@@ -32,7 +32,7 @@ class Sampler:
 
 
 SAMPLERS: dict[str, Sampler] = {"proximal": Sampler(ProximalSettings, proximal_step),
-                                "annealed": Sampler(AnnealedSettings, annealed_step),
+                                "gibbs": Sampler(GibbsSettings, gibbs_step),
                                 "paper": Sampler(PaperSettings, paper_step)}
 """dps's samplers by name (the `sampler` setting and its section's key); the first is the default"""
 
@@ -51,7 +51,8 @@ MOVED: dict[str, str] = {
     **{f"sun_{key}": f"sun.{key}" for key in ("radius_deg", "min_roughness", "min_share", "share", "prior_weight")},
 }
 """flat keys of the settings before they were grouped -> where they are now"""
-REMOVED = ("map_update", "warm_start", "refine_env", "refine_gain_order", "lr_sun", "lr_sun_uv", "refine_lr_env")
+REMOVED = ("map_update", "warm_start", "refine_env", "refine_gain_order", "lr_sun", "lr_sun_uv", "refine_lr_env",
+           "annealed")
 """flat keys of variants that lost their study (docs/studies.md)"""
 
 
@@ -60,8 +61,8 @@ class DPSConfig(MaterialRates):
     """Settings of the `dps` method (defaults: the CPU preset); the textures' rates: MaterialRates."""
 
     sampler: str = next(iter(SAMPLERS))
-    """how a reverse step uses the data: proximal (x0-space data steps), annealed (posterior draws with the
-    recorded light transport) or paper (the reference's gradient guidance)"""
+    """how a reverse step uses the data: proximal (x0-space data steps), gibbs (draws of map, albedo and noise on
+    the recorded light transport) or paper (the reference's gradient guidance)"""
     steps: int = 100
     """reverse-diffusion steps (respaced from the prior's 1000; the paper uses 1000)"""
     radiance_scale: float | None = None
@@ -69,7 +70,7 @@ class DPSConfig(MaterialRates):
     strip_frames: int = 8
     """x0_hat snapshots kept for the progress strip"""
     proximal: ProximalSettings = field(default_factory=ProximalSettings)
-    annealed: AnnealedSettings = field(default_factory=AnnealedSettings)
+    gibbs: GibbsSettings = field(default_factory=GibbsSettings)
     paper: PaperSettings = field(default_factory=PaperSettings)
     sun: SunSettings = field(default_factory=SunSettings)
     refine: RefineSettings = field(default_factory=RefineSettings)

@@ -143,9 +143,9 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
     trace.info["log_exposure"] = float(state.log_exposure)
     if "transport" in state.extra:
         transport = state.extra["transport"]
-        trace.info["transport"] = {"recordings": refreshes, "spp": cfg.sampler_settings.transport_spp,
-                                   "seconds_last": round(transport.seconds, 3), "bytes": transport.nbytes,
-                                   "entries_last": transport.entries}
+        trace.info["transport"] = {"recordings": refreshes, "seconds": round(transport.seconds, 3),
+                                   "pixels": transport.pixels, "foreground": transport.foreground,
+                                   "bytes": transport.nbytes}
     if run.sun:
         trace.info["sun"] = sun_summary(state.sun_uv.detach(), run.sun_irradiance(state).detach(), env)
     env, materials, refine_trace = refine(problem, env, state.materials, cfg.refine, cfg, seed + 1, progress)

@@ -25,6 +25,8 @@ RHO_SCHEDULES = ("linear", "step", "constant")
 class PaperSettings(SamplerSettings):
     """The paper's guidance (method_params.dps.paper): one view per step from pure noise, as the reference."""
 
+    views_per_step: int = 1
+    """training views rendered per step"""
     guidance_bound: float = 0.1
     """max-abs of the rendering-loss gradient after rescaling"""
     rho_start: float = 0.1

@@ -28,8 +28,6 @@ from dpi.solve.sun import sun_env
 class SamplerSettings:
     """What every sampler's settings have (each sampler's subclass sets its own defaults)."""
 
-    views_per_step: int = 1
-    """training views rendered per data term"""
     start_noise: float = 1.0
     """noise level the reverse diffusion starts from, as a fraction of the schedule: 1 starts from pure noise;
     less starts from the init map noised to that level (SDEdit) and runs that fraction of the steps"""
@@ -90,7 +88,7 @@ class DPSRun:
         return self.scale * torch.exp(state.log_exposure + state.sun_log)
 
     def views(self, generator: torch.Generator) -> list[int]:
-        """Training views of one data term (the sampler's views_per_step)."""
+        """Training views of one rendered data term (the sampler's views_per_step)."""
         return self.problem.sample_views(self.sampler.views_per_step, generator)
 
     def render_seed(self, n: int, k: int = 0) -> int:

@@ -1,0 +1,386 @@
+"""The gibbs sampler: the map, the albedo and the views' noise drawn in turn on the recorded light transport.
+
+The views are affine in the albedo and linear in the map under fixed roughness and metallic
+(dpi.solve.transport), so with the transport recorded once per sample (under the starting
+materials) a reverse step needs no path tracing. Each step, at noise level abar_t:
+1. x0_hat by Tweedie from the randomly rolled network;
+2. from `material_start` of the steps on, every `material_every` steps, a draw of the albedo given the
+   map: the views are Gaussian in it, its prior is a smooth field around grey (std `albedo_std`,
+   precision (I + `albedo_smoothness` x the texture grid's Laplacian) / albedo_std^2), and the draw is
+   randomise-then-optimise (data and prior perturbed, conjugate gradients), clamped to [0, 1];
+3. the views' noise: the mean squared residual of the current map and albedo over the recorded pixels,
+   times noise_scale^2. The transport, the fixed roughness and a map of 2 H^2 texels do not explain the
+   views exactly; a sampler that took only the cameras' noise as noise would be sure of a wrong answer;
+4. a draw of the clean map z given x0_hat and all the views, as decoupled annealing (DAPS, Zhang et al.
+   2024) draws it: its prior N(x0_hat, r_t^2 Q^-1), with r_t^2 the variance of x0 given x_t under a
+   Gaussian prior of std `prior_std` and Q = I + `smoothness` x the map's Laplacian (the views correct
+   x0_hat by a smooth field), times the views' likelihood through the transport with a global exposure
+   solved exactly; randomise-then-optimise (prior mean and data perturbed) by Gauss-Newton with
+   conjugate gradients on the map's log radiance, warm-started from the previous draw;
+5. the re-noising x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) eps with fresh noise.
+Where the views are silent the draw keeps its prior spread, so samples differ there as the prior's
+maps do; where they speak, they agree. The sample starts from pure noise at `start_noise` of the
+schedule. There is no parametric sun: a sun enters a sample only where the views ask for one. The
+refinement (dpi.solve.dps.refine) then path-traces the materials under the drawn map.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import torch
+
+from dpi.solve.dps.proximal import recentre_
+from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerSettings, finite, network_step
+from dpi.solve.dps.data_term import TransportSampling, current_level, sample_transport, set_level
+from dpi.solve.init import START_ALBEDO
+from dpi.solve.prior_space import resample_env
+from dpi.solve.transport import LightTransport, NormalEquations
+
+DARK_FLOOR = 1e-6
+"""radiance floor (times the prior's median) before the logarithm"""
+NOISE_FLOOR = 1e-6
+"""lowest noise variance, times the views' mean squared radiance (a map and albedo that fit exactly)"""
+
+
+@dataclass
+class GibbsSettings(TransportSampling, SamplerSettings):
+    """The gibbs sampler (method_params.dps.gibbs)."""
+
+    start_noise: float = 0.8
+    """starts from pure noise at 0.8 of the schedule (x_t there is all but noise; above it the network's x0_hat
+    saturates), so every sample explores the prior on its own"""
+    noise_scale: float = 1.0
+    """likelihood temperature: the views' noise is the current residual times this (larger: wider spread)"""
+    prior_std: float = 0.5
+    """std of a prior-space map around its mean, for r_t (the prior's own spread)"""
+    smoothness: float = 4.0
+    """the map's deviation from x0_hat is a smooth field: its prior precision is (I + smoothness x the grid's
+    Laplacian) / r_t^2, so the views correct x0_hat over about sqrt(smoothness) texels, not texel by texel"""
+    solver_iterations: int = 2
+    """Gauss-Newton iterations of each draw of the map (warm-started from the previous draw)"""
+    material_start: float = 0.0
+    """fraction of the steps before the roughness and the albedo are drawn"""
+    material_every: int = 4
+    """reverse steps between two draws of the albedo (each rebuilds the map's normal equations)"""
+    albedo_anneal: float = 1.0
+    """the albedo's draws weigh the views by abar_t to this power (0: fully from the first draw on): early draws
+    follow the albedo's prior, so each sample settles the light/albedo trade-off from its own start"""
+    albedo_std: float = 0.25
+    """prior std of the albedo texture's mean level around grey (per channel)"""
+    albedo_smoothness: float = 4.0
+    """neighbouring albedo texels differ by about albedo_std / sqrt(albedo_smoothness) under the prior (AlbedoPrior)"""
+
+
+def posterior_variance(abar: float, prior_std: float) -> float:
+    """Var(x0 | x_t) per texel under a Gaussian prior of std `prior_std` at noise level abar."""
+    s2 = prior_std ** 2
+    return s2 * (1.0 - abar) / (1.0 - abar + abar * s2)
+
+
+def negative_laplacian(x: torch.Tensor, wrap: bool = True) -> torch.Tensor:
+    """(C, H, W) -> 4 x minus its four neighbours on the grid (columns wrap when `wrap`, as a map's azimuth does;
+    other edges reflect): the graph Laplacian whose quadratic form sums the squared differences of neighbours."""
+    up = torch.cat([x[:, :1], x[:, :-1]], dim=1)
+    down = torch.cat([x[:, 1:], x[:, -1:]], dim=1)
+    if wrap:
+        left, right = torch.roll(x, 1, dims=2), torch.roll(x, -1, dims=2)
+    else:
+        left, right = torch.cat([x[:, :, :1], x[:, :, :-1]], dim=2), torch.cat([x[:, :, 1:], x[:, :, -1:]], dim=2)
+    return 4 * x - up - down - left - right
+
+
+def smooth_noise(shape: tuple[int, int, int], smoothness: float, wrap: bool, generator: torch.Generator,
+                 mass: float = 1.0) -> torch.Tensor:
+    """A draw of N(0, mass I + smoothness x the grid's Laplacian) (C, H, W): sqrt(mass) eps_0 + sqrt(smoothness)
+    D^T eps_1, with D the difference along each edge of the grid (`negative_laplacian`'s edges), eps white noise."""
+    c, h, w = shape
+    out = math.sqrt(mass) * torch.randn(shape, generator=generator, dtype=torch.float64)
+    polar = torch.randn(c, h - 1, w, generator=generator, dtype=torch.float64) * math.sqrt(smoothness)
+    out[:, 1:] += polar
+    out[:, :-1] -= polar
+    azimuth = torch.randn(c, h, w if wrap else w - 1, generator=generator, dtype=torch.float64) * math.sqrt(smoothness)
+    if wrap:
+        out += torch.roll(azimuth, 1, dims=2) - azimuth
+    else:
+        out[:, :, 1:] += azimuth
+        out[:, :, :-1] -= azimuth
+    return out
+
+
+def conjugate_gradients(apply: Callable[[torch.Tensor], torch.Tensor], rhs: torch.Tensor, diagonal: torch.Tensor,
+                        iterations: int, tolerance: float = 1e-6) -> torch.Tensor:
+    """Solve apply(x) = rhs per row (a batch of symmetric positive definite systems) by conjugate gradients
+    with a Jacobi preconditioner (`diagonal`), from x = 0."""
+    x = torch.zeros_like(rhs)
+    r = rhs.clone()
+    z = r / diagonal
+    d = z.clone()
+    rz = (r * z).sum(-1, keepdim=True)
+    goal = tolerance ** 2 * (rhs * rhs).sum(-1, keepdim=True)
+    for _ in range(iterations):
+        q = apply(d)
+        step = rz / (d * q).sum(-1, keepdim=True).clamp_min(1e-300)
+        x = x + step * d
+        r = r - step * q
+        if bool(((r * r).sum(-1, keepdim=True) <= goal).all()):
+            break
+        z = r / diagonal
+        rz_next = (r * z).sum(-1, keepdim=True)
+        d = z + rz_next / rz.clamp_min(1e-300) * d
+        rz = rz_next
+    return x
+
+
+@dataclass(frozen=True)
+class Resampling:
+    """`resample_env` on one channel as sparse matrices (it is linear): A (N_env, N_prior), A^T, and (A o A)^T."""
+
+    forward: torch.Tensor
+    adjoint: torch.Tensor
+    adjoint_squared: torch.Tensor
+
+    @classmethod
+    def between(cls, prior_height: int, env_height: int) -> "Resampling":
+        """The matrices from the prior's resolution to the problem's, built by resampling unit maps."""
+        units = torch.eye(2 * prior_height ** 2, dtype=torch.float64).reshape(-1, 1, prior_height, 2 * prior_height)
+        columns = resample_env(units.reshape(-1, prior_height, 2 * prior_height)[None], env_height)
+        a = columns.reshape(-1, units.shape[0])  # (N_env, N_prior): texel i of the map from prior texel j
+        return cls(a.to_sparse(), a.T.contiguous().to_sparse(), a.square().T.contiguous().to_sparse())
+
+    def apply(self, x: torch.Tensor) -> torch.Tensor:
+        """(3, N_prior) -> (3, N_env)."""
+        return (self.forward @ x.T).T
+
+    def transpose(self, y: torch.Tensor) -> torch.Tensor:
+        """(3, N_env) -> (3, N_prior)."""
+        return (self.adjoint @ y.T).T
+
+
+def prior_coordinates(encoding: Any, log_map: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The prior-space map z(l) of log radiance l (unclipped) and its elementwise slope dz/dl."""
+    l = log_map.detach().requires_grad_(True)
+    z = encoding.log_to_prior(l)
+    (slope,) = torch.autograd.grad(z.sum(), l)
+    return z.detach(), slope
+
+
+RANGE_STD = 0.02
+"""the prior's maps lie inside the encoding's range [-1, 1]: a draw beyond it pays (excess / RANGE_STD)^2 / 2"""
+MAX_LOG_STEP = 3.0
+"""largest change of a texel's log radiance in one Gauss-Newton iteration (a trust region)"""
+CG_ITERATIONS = 20
+ALBEDO_CG_ITERATIONS = 40
+BACKTRACKS = 6
+
+
+def gram_factor(equations: NormalEquations) -> torch.Tensor:
+    """(3, N, N) a factor F with F F^T = G (+ a jitter of 1e-9 its mean diagonal), for the data perturbation."""
+    gram = equations.gram
+    jitter = 1e-9 * gram.diagonal(dim1=1, dim2=2).mean(dim=1).clamp_min(1e-30)
+    return torch.linalg.cholesky(gram + jitter[:, None, None] * torch.eye(gram.shape[-1], dtype=gram.dtype))
+
+
+def map_draw(run: DPSRun, state: DPSState, equations: NormalEquations, x0_hat: torch.Tensor, variance: float,
+             sigma2: float) -> float:
+    """Randomise-then-optimise draw of the map's log radiance l (state.log_map, in place) and log-exposure
+    (module notes, step 4): Gauss-Newton on l (conjugate gradients) with the exposure solved exactly before each
+    iteration; `sigma2` is the noise variance of one residual of `equations`. Returns the draw's prior term."""
+    settings: GibbsSettings = run.sampler
+    gen, encoding = state.generator, run.prior.encoding
+    shape = x0_hat.shape[-2:]
+
+    def smooth(x: torch.Tensor) -> torch.Tensor:  # Q x = x + smoothness (minus the Laplacian) x, per channel
+        return x + settings.smoothness * negative_laplacian(x.reshape(3, *shape)).reshape(3, -1)
+
+    if "resampling" not in state.extra:
+        state.extra["resampling"] = Resampling.between(run.prior.height, run.problem.settings.env_height)
+    if "gram_factor" not in state.extra:
+        state.extra["gram_factor"] = gram_factor(equations)
+    resampling: Resampling = state.extra["resampling"]
+    # the prior's mean perturbed by a draw of N(0, r_t^2 Q^-1), written as Q^-1 (its precision's square root x eps)
+    target = x0_hat.reshape(3, -1).double()
+    prior_push = math.sqrt(variance) * smooth_noise((3, *shape), settings.smoothness, True, gen).reshape(3, -1)
+    noise = torch.randn(equations.rhs.shape, generator=gen, dtype=torch.float64)
+    rhs = equations.rhs + math.sqrt(sigma2) * torch.bmm(state.extra["gram_factor"], noise[:, :, None])[..., 0]
+    jacobi = resampling.adjoint_squared @ equations.gram.diagonal(dim1=1, dim2=2).T / sigma2  # (N_prior, 3): diag A^T H A
+    l = state.log_map.detach().reshape(3, -1).double().clone()  # from the previous draw
+    log_exposure = float(state.log_exposure)
+
+    def objective(l: torch.Tensor, log_exposure: float) -> tuple[float, float]:
+        """The perturbed posterior's negative log (data / 2 sigma^2 + prior + range) and its prior term."""
+        env = math.exp(log_exposure) * resampling.apply(run.scale * torch.exp(l))
+        sse = float(equations.sum_squares(env.T, rhs))
+        z, _ = prior_coordinates(encoding, l)
+        prior = (float(((z - target) * smooth(z - target)).sum()) - 2 * float((prior_push * (z - target)).sum())) \
+            / (2 * variance)
+        beyond = float(((z.abs() - 1).clamp_min(0) / RANGE_STD).square().sum()) / 2
+        return sse / (2 * sigma2) + prior + beyond, prior
+
+    for _ in range(settings.solver_iterations):
+        unit = run.scale * torch.exp(l)
+        mapped = resampling.apply(unit)
+        curvature = float((mapped * equations.apply(mapped)).sum())
+        projection = float((rhs * mapped).sum())
+        if curvature > 0 and projection > 0:
+            log_exposure = math.log(projection / curvature)
+        u = math.exp(log_exposure) * unit
+        residual = equations.apply(resampling.apply(u)) / sigma2 - rhs / sigma2
+        z, slope = prior_coordinates(encoding, l)
+        outside = (z.abs() - 1).clamp_min(0) * z.sign()
+        gradient = u * resampling.transpose(residual) + slope * ((smooth(z - target) - prior_push) / variance
+                                                                 + outside / RANGE_STD ** 2)
+        precision = slope.square() * (outside != 0) / RANGE_STD ** 2
+
+        def hessian(x: torch.Tensor) -> torch.Tensor:
+            return (precision * x + slope * smooth(slope * x) / variance
+                    + u * resampling.transpose(equations.apply(resampling.apply(u * x)) / sigma2))
+
+        diagonal = precision + slope.square() * (1 + 4 * settings.smoothness) / variance + u.square() * jacobi.T
+        step = conjugate_gradients(hessian, -gradient, diagonal, CG_ITERATIONS)
+        step = step.clamp(-MAX_LOG_STEP, MAX_LOG_STEP)
+        current = objective(l, log_exposure)[0]
+        for _ in range(BACKTRACKS):  # Gauss-Newton overshoots where exp bends: halve the step until it helps
+            if objective(l + step, log_exposure)[0] < current:
+                l = l + step
+                break
+            step = step / 2
+    _, prior = objective(l, log_exposure)
+    if finite(l) and math.isfinite(log_exposure):
+        with torch.no_grad():
+            state.log_map.copy_(l.reshape(x0_hat.shape).float())
+            state.log_exposure.fill_(log_exposure + recentre_(state.log_map, run.prior.median_target))
+    return prior
+
+
+def albedo_draw(settings: GibbsSettings, transport: LightTransport, env: torch.Tensor, albedo: torch.Tensor,
+                level: int, sigma2: float, generator: torch.Generator) -> torch.Tensor:
+    """Randomise-then-optimise draw of the (R, R, 3) albedo given the map (module notes, step 2): the views'
+    quadratic in the albedo each pixel sees (`LightTransport.albedo_terms`, through the sparse lookup), weighted
+    for the pixels not recorded, plus the prior, each perturbed by a draw of its own noise; conjugate gradients
+    from the current albedo, then clamped to [0, 1]."""
+    curvature, linear, _ = transport.albedo_terms(env, level)
+    lookup, size = transport.lookup, albedo.shape[0]
+    precision = transport.weight / sigma2
+    observed = linear + (curvature * sigma2 / transport.weight).sqrt() * torch.randn(
+        linear.shape, generator=generator, dtype=torch.float64)
+    current = albedo.detach().double().reshape(-1, 3).T
+    prior, push = albedo_prior(settings, size, generator)
+
+    def hessian(x: torch.Tensor) -> torch.Tensor:
+        return lookup.adjoint(lookup.apply(x.T) * curvature * precision).T + prior(x)
+
+    mean = torch.full_like(current, START_ALBEDO)
+    gradient = lookup.adjoint((lookup.apply(current.T) * curvature - observed) * precision).T \
+        + prior(current - mean) - push
+    diagonal = lookup.squared().adjoint(curvature * precision).T + prior.diagonal
+    step = conjugate_gradients(hessian, -gradient, diagonal, ALBEDO_CG_ITERATIONS)
+    return (current + step).T.reshape(size, size, 3).clamp(0, 1).float()
+
+
+@dataclass(frozen=True)
+class AlbedoPrior:
+    """The albedo's Gaussian prior as its precision (I / R^2 + albedo_smoothness x the texture grid's Laplacian) /
+    albedo_std^2 per channel: the texture's mean level has std albedo_std around grey, the light's colour and
+    balance are free to trade with it, and neighbouring texels differ by about albedo_std / sqrt(smoothness)."""
+
+    size: int
+    std: float
+    smoothness: float
+
+    def __call__(self, x: torch.Tensor) -> torch.Tensor:
+        """The precision times x (3, R^2)."""
+        grid = negative_laplacian(x.reshape(3, self.size, self.size), wrap=False).reshape(3, -1)
+        return (x / self.size ** 2 + self.smoothness * grid) / self.std ** 2
+
+    @property
+    def diagonal(self) -> float:
+        """The precision's largest diagonal entry (for the preconditioner)."""
+        return (1 / self.size ** 2 + 4 * self.smoothness) / self.std ** 2
+
+
+def albedo_prior(settings: GibbsSettings, size: int, generator: torch.Generator) -> tuple[AlbedoPrior, torch.Tensor]:
+    """The albedo's prior and a draw of N(0, its precision) (3, R^2), the perturbation of a randomise-then-optimise
+    draw."""
+    prior = AlbedoPrior(size, settings.albedo_std, settings.albedo_smoothness)
+    noise = smooth_noise((3, size, size), settings.albedo_smoothness, False, generator, mass=1 / size ** 2)
+    return prior, noise.reshape(3, -1) / settings.albedo_std
+
+
+def residual_variance(transport: LightTransport, env: torch.Tensor, albedo: torch.Tensor, floor: float,
+                      level: int) -> float:
+    """The mean squared residual per recorded pixel and channel of a map, an albedo and a roughness level
+    (unbiased: the halves' product), at least `floor`."""
+    with torch.no_grad():
+        return max(float(transport.sum_squares(env, albedo, level)) / (3 * transport.pixels), floor)
+
+
+def level_draw(transport: LightTransport, env: torch.Tensor, albedo: torch.Tensor, sigma2: float,
+               generator: torch.Generator) -> int:
+    """A draw of the roughness level given the map and the albedo: each level's views likelihood (the residual
+    over the recorded pixels, weighted for the rest, under noise variance sigma2), a uniform prior."""
+    log_p = -transport.level_sum_squares(env, albedo) * transport.weight / (2 * sigma2)
+    p = torch.softmax(log_p - log_p.max(), dim=0)
+    return int(torch.multinomial(p.float(), 1, generator=generator))
+
+
+def albedo_phase(run: DPSRun, n: int) -> bool:
+    """Whether step n draws the albedo: every material_every steps from material_start on."""
+    settings: GibbsSettings = run.sampler
+    first = math.ceil(settings.material_start * run.num_steps)
+    return n >= first and (n - first) % settings.material_every == 0
+
+
+def gibbs_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
+    """x0_hat, (every few steps) a draw of the albedo, the views' noise, a draw of the map given x0_hat and all
+    the views, and its re-noising to the next level with fresh noise (module notes)."""
+    settings: GibbsSettings = run.sampler
+    laps, i, gen = Laps(), run.index(n), state.generator
+    encoding = run.prior.encoding
+    with torch.no_grad():
+        p = network_step(run, state.x, i, gen)
+    laps.lap("network")
+    record: dict[str, Any] = {"step": n, "t": int(run.diffusion.timestep_map[i])}
+    if not finite(p["x0"]):
+        return {**record, "skipped": "non-finite network output", **laps.record()}  # keep x_t
+    x0_hat = p["x0"]
+    state.snapshots.append(x0_hat[0])
+    if n == 0:
+        with torch.no_grad():
+            state.log_map.copy_(torch.log(encoding.to_radiance(x0_hat).clamp_min(DARK_FLOOR * run.prior.median_target)))
+    env = run.env(torch.exp(state.log_map), state).detach()
+    transport, recorded = sample_transport(run, state)
+    level = current_level(transport, state.materials.roughness)
+    laps.lap("transport")
+    floor = NOISE_FLOOR * run.data_norm
+    drew_albedo = albedo_phase(run, n)
+    if drew_albedo:  # the roughness level, then the albedo, from the views tempered by abar_t (module notes)
+        temper = float(run.diffusion.alphas_cumprod[i]) ** settings.albedo_anneal
+        sigma2 = residual_variance(transport, env, state.materials.albedo, floor, level) * settings.noise_scale ** 2
+        level = level_draw(transport, env, state.materials.albedo, sigma2 / temper, gen)
+        albedo = albedo_draw(settings, transport, env, state.materials.albedo, level, sigma2 / temper, gen)
+        set_level(state, transport, level)
+        if finite(albedo):
+            with torch.no_grad():
+                state.materials.albedo.copy_(albedo)
+        state.extra.pop("equations", None)
+    laps.lap("albedo")
+    if "equations" not in state.extra:
+        state.extra["equations"] = transport.light_equations(state.materials.albedo, level)
+        state.extra.pop("gram_factor", None)
+    equations: NormalEquations = state.extra["equations"]
+    laps.lap("equations")
+    with torch.no_grad():  # the residual of the map and albedo so far (the normal equations give it at no cost)
+        sigma2 = max(float(equations.sum_squares(env)) / equations.count, floor) * settings.noise_scale ** 2
+    abar = float(run.diffusion.alphas_cumprod[i])
+    abar_prev = float(run.diffusion.alphas_cumprod_prev[i])
+    variance = posterior_variance(abar, settings.prior_std)
+    prior = map_draw(run, state, equations, x0_hat, variance, sigma2 / transport.weight)
+    laps.lap("draw")
+    with torch.no_grad():
+        z = encoding.to_prior(torch.exp(state.log_map))
+        state.x = abar_prev ** 0.5 * z + (1.0 - abar_prev) ** 0.5 * torch.randn(z.shape, generator=gen)
+    return {**record, "loss": sigma2 / settings.noise_scale ** 2, "prior": prior, "r2": variance,
+            "refresh": recorded, "albedo": drew_albedo, "roughness_level": level, "log_exposure": float(state.log_exposure), **laps.record()}
