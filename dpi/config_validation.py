@@ -35,7 +35,6 @@ from dpi.settings import SettingsError, check_keys, settings_from_dict
 from dpi.solve.methods import METHODS, method_config
 from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import ProblemSettings
-from dpi.solve.transport import MAX_TRANSPORT_HEIGHT
 from dpi.synth.capture import SynthConfig
 
 def preprocess_settings() -> dict[str, Callable[[dict], Any]]:
@@ -66,19 +65,6 @@ def check_config(config: dict[str, Any], schema_path: str | Path) -> None:
     for name, preset in config.get("presets", {}).items():
         check_against(preset, partial, f"presets.{name}")
     check_against(config, schema, "")
-    check_transport_size(config)
-
-
-def check_transport_size(config: dict[str, Any]) -> None:
-    """dps's gibbs sampler records its light transport per texel: the map must not be larger than it can keep."""
-    if "dps" not in config.get("methods", []):
-        return
-    sampler = method_config("dps", {k: v for k, v in config.get("method_params", {}).get("dps", {}).items()
-                                    if k != "samples"}).sampler
-    height = settings_from_dict(ProblemSettings, config.get("problem", {})).env_height
-    if sampler == "gibbs" and height > MAX_TRANSPORT_HEIGHT:
-        raise ConfigError(f"problem.env_height: dps's gibbs sampler records the light transport per texel, up to "
-                          f"{MAX_TRANSPORT_HEIGHT} rows; got {height} (use sampler proximal for larger maps)")
 
 
 def check_against(config: dict[str, Any], schema: dict[str, Any], prefix: str) -> None:

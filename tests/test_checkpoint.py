@@ -1,6 +1,7 @@
 """Resume files: a loop cut off after k steps and rerun continues to the result of an uninterrupted run;
 another run's file or a broken one is ignored; the file is gone once the run is done."""
 
+import importlib
 from contextlib import contextmanager
 
 import pytest
@@ -34,9 +35,10 @@ def problem_and_init(tiny_capture):
 
 
 @contextmanager
-def cut_after(monkeypatch, problem: InverseProblem, method: str, steps: int):
-    """Make `problem.<method>` (called once per loop step) raise Interrupted in step `steps`."""
-    real, calls = getattr(problem, method), []
+def cut_after(monkeypatch, owner, method: str, steps: int):
+    """Make `owner.<method>` (a problem's or a module's, called once per loop step) raise Interrupted in step
+    `steps`."""
+    real, calls = getattr(owner, method), []
 
     def counted(*args, **kwargs):
         calls.append(1)
@@ -45,7 +47,7 @@ def cut_after(monkeypatch, problem: InverseProblem, method: str, steps: int):
         return real(*args, **kwargs)
 
     with monkeypatch.context() as patch, pytest.raises(Interrupted):
-        patch.setattr(problem, method, counted)
+        patch.setattr(owner, method, counted)
         yield
 
 
@@ -86,14 +88,14 @@ def test_cut_fit_continues_to_the_uninterrupted_result(problem_and_init, tmp_pat
     assert_same_fit(resumed, run_fit(problem, init, env_model, seed=4))
 
 
-@pytest.mark.parametrize("sampler,call,per_step", [("paper", "residual_norm", 1), ("proximal", "render", 2)])
-def test_cut_dps_sample_continues_to_the_uninterrupted_result(problem_and_init, tmp_path, monkeypatch, sampler, call,
-                                                              per_step):
+@pytest.mark.parametrize("sampler", ["paper", "proximal", "gibbs"])
+def test_cut_dps_sample_continues_to_the_uninterrupted_result(problem_and_init, tmp_path, monkeypatch, sampler):
     problem, init = problem_and_init
     cfg = DPSConfig.from_dict({"sampler": sampler, "steps": 4, "strip_frames": 3, "refine": {"iterations": 1},
-                               "proximal": {"start_noise": 1.0, "views_per_step": 1, "inner_steps": 2}})
+                               sampler: {"start_noise": 1.0}})
     resume = tmp_path / ".resume.pt"
-    with cut_after(monkeypatch, problem, call, steps=3 * per_step):
+    module = importlib.import_module(f"dpi.solve.dps.{sampler}")  # its step calls the network once
+    with cut_after(monkeypatch, module, "network_step", steps=3):
         dps_sample(problem, tiny_prior(), init, cfg, seed=1, progress=False, checkpoint=resume, checkpoint_every=2)
     assert resume.is_file()
 

@@ -37,8 +37,8 @@ from dpi.render import SEED_MODULUS, texture_plugin
 from dpi.solve.problem import InverseProblem
 
 MAX_TRANSPORT_HEIGHT = 32
-"""the largest map (rows) whose transport is recorded: its normal equations take (2 H^2)^2 x 3 floats (25 MB at
-32 rows in float32, 400 MB at 64) and its direct light one shadow ray per texel per camera sample"""
+"""the largest map (rows) a transport takes (the shipped priors' size): its normal equations take (2 H^2)^2 x 3
+floats (100 MB at 32 rows, 1.6 GB at 64) and its direct light one shadow ray per texel per camera sample"""
 HALVES = 2
 """independent recordings of every transport (module notes)"""
 BRIGHT_SHARE = 0.5
@@ -223,9 +223,9 @@ class ViewSetup:
 
 
 def view_setup(problem: InverseProblem, view: int, pixels: np.ndarray, materials: MaterialTextures,
-               roughness: list[torch.Tensor], guide: np.ndarray, rng: np.random.Generator) -> ViewSetup:
+               roughness: list[torch.Tensor], guide: np.ndarray, height: int, rng: np.random.Generator) -> ViewSetup:
     """The scene under the guide map and `materials` (their roughness samples the paths), and what the recorders
-    of `view` share; `roughness`: the textures of the levels recorded."""
+    of `view` share; `roughness`: the textures of the levels recorded; `height`: the rows of the maps T takes."""
     renderer = problem.renderer
     renderer.set_scene(torch.from_numpy(guide), materials.albedo, materials.roughness, materials.metallic)
     mi = renderer.mi
@@ -239,7 +239,7 @@ def view_setup(problem: InverseProblem, view: int, pixels: np.ndarray, materials
     jitter[..., 1] = np.take_along_axis(jitter[..., 1], rng.permuted(np.tile(np.arange(FOOTPRINT), (len(pixels), 1)),
                                                                       axis=1), axis=1)
     return ViewSetup(mi, renderer.scene, renderer.scene.sensors()[view], pixels, (camera.height, camera.width),
-                     renderer.env_height, (jitter[..., 0].reshape(-1), jitter[..., 1].reshape(-1)), levels)
+                     height, (jitter[..., 0].reshape(-1), jitter[..., 1].reshape(-1)), levels)
 
 
 def albedo_lookup(setup: ViewSetup, texture_size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -442,17 +442,18 @@ class ViewTransport:
 
 
 def record_view(problem: InverseProblem, view: int, materials: MaterialTextures, guide: np.ndarray,
-                settings: TransportSettings, seed: int, pixels: np.ndarray | None = None) -> ViewTransport:
+                settings: TransportSettings, seed: int, pixels: np.ndarray | None = None,
+                height: int | None = None) -> ViewTransport:
     """The transport of `pixels` (default: the view's foreground) under `materials` and the roughness levels
-    (module notes); seeded."""
+    (module notes) for maps of `height` rows (default the problem's; the guide is at the problem's); seeded."""
     if pixels is None:
         pixels = np.flatnonzero(problem.masks[view].numpy().reshape(-1))
     rng = np.random.default_rng(seed)
     levels = roughness_levels(materials.roughness, settings.roughness_levels)
-    setup = view_setup(problem, view, pixels, materials, levels, guide, rng)
+    setup = view_setup(problem, view, pixels, materials, levels, guide, height or problem.settings.env_height, rng)
     accumulator = Accumulator(len(levels), len(pixels), setup.height)
     accumulator.matrix = record_direct(setup, settings.direct_spp, seed * 7 + 1, np.arange(accumulator.texels))
-    bright = bright_texels(guide, BRIGHT_SHARE)
+    bright = bright_texels(resize_map(guide, setup.height), BRIGHT_SHARE)
     if len(bright):  # the texels that carry most of the light get BRIGHT_SPP draws more, the two estimates mixed
         extra = record_direct(setup, BRIGHT_SPP, seed * 7 + 2, bright)
         share = settings.direct_spp / (settings.direct_spp + BRIGHT_SPP)
@@ -645,18 +646,33 @@ class LightTransport:
         return curvature, linear, float((rest[0] * rest[1]).sum())
 
 
+def transport_height(env_height: int) -> int:
+    """The rows of the maps a transport takes: the problem's map, at most MAX_TRANSPORT_HEIGHT (a finer map is
+    sampled at that size and upsampled; its finer detail is the path-traced refinement's)."""
+    return min(env_height, MAX_TRANSPORT_HEIGHT)
+
+
+def resize_map(env: np.ndarray, height: int) -> np.ndarray:
+    """An (H, 2H, 3) map area-resampled to `height` rows (itself when it has them)."""
+    from dpi.images import resize
+
+    return env if env.shape[0] == height else resize(torch.from_numpy(env), height, 2 * height).numpy()
+
+
 def record_transport(problem: InverseProblem, materials: MaterialTextures, env: torch.Tensor,
                      settings: TransportSettings, seed: int) -> LightTransport:
     """The light transport of the training views' foreground pixels (at most settings.pixels of them) under
-    `materials` and the roughness levels, with next-event directions guided by `env` (module notes)."""
+    `materials` and the roughness levels, for maps of `transport_height` rows, with next-event directions guided
+    by `env` (the problem's size; module notes)."""
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
     chosen = transport_pixels(problem, settings.pixels, rng)
     guide = guide_map(env)
+    height = transport_height(problem.settings.env_height)
     matrices, observed, rows, cols, weights = [], [], [], [], []
     first = 0
     for j, (v, pixels) in enumerate(chosen.items()):
-        t = record_view(problem, v, materials, guide, settings, seed * 1009 + j, pixels)
+        t = record_view(problem, v, materials, guide, settings, seed * 1009 + j, pixels, height)
         matrices.append(torch.from_numpy(t.matrix))
         observed.append(problem.images[v].reshape(-1, 3)[torch.from_numpy(pixels)].double())
         rows.append(t.lookup[0] + first)
@@ -666,8 +682,7 @@ def record_transport(problem: InverseProblem, materials: MaterialTextures, env: 
     size = problem.settings.texture_size
     lookup = AlbedoLookup(torch.from_numpy(np.concatenate(rows)), torch.from_numpy(np.concatenate(cols)),
                           torch.from_numpy(np.concatenate(weights)), (first, size * size))
-    return LightTransport(torch.cat(matrices, dim=4), lookup, torch.cat(observed),
-                          problem.settings.env_height, roughness_levels(materials.roughness, settings.roughness_levels),
+    return LightTransport(torch.cat(matrices, dim=4), lookup, torch.cat(observed), height, roughness_levels(materials.roughness, settings.roughness_levels),
                           materials.detached(),
                           sum(int(problem.masks[v].sum()) for v in problem.train_ids), time.perf_counter() - start)
 

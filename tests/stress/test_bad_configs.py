@@ -59,9 +59,6 @@ BAD = {  # case: (patch of config.yaml, the message's start)
                    "method_params.dps.steps: must be an integer, got 'ten'"),
     "rho_schedule cubic": ({"method_params": {"dps": {"paper": {"rho_schedule": "cubic"}}}},
                            "method_params.dps.paper.rho_schedule: must be one of linear, step, constant, got 'cubic'"),
-    "annealed on a map too large for its transport": (
-        {"method_params": {"dps": {"sampler": "annealed"}}, "problem": {"env_height": 64}},
-        "problem.env_height: dps's annealed sampler records the light transport per texel, up to 32 rows; got 64"),
     "dps flat key of before the sections": ({"method_params": {"dps": {"inner_steps": 3}}},
                                             "method_params.dps.inner_steps: moved to proximal.inner_steps"),
     "negative learning rate": ({"method_params": {"dps": {"lr_albedo": -0.1}}},

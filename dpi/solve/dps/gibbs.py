@@ -196,7 +196,8 @@ def map_draw(run: DPSRun, state: DPSState, equations: NormalEquations, x0_hat: t
         return x + settings.smoothness * negative_laplacian(x.reshape(3, *shape)).reshape(3, -1)
 
     if "resampling" not in state.extra:
-        state.extra["resampling"] = Resampling.between(run.prior.height, run.problem.settings.env_height)
+        height = math.isqrt(equations.rhs.shape[1] // 2)  # the equations' map: H x 2H texels
+        state.extra["resampling"] = Resampling.between(run.prior.height, height)
     if "gram_factor" not in state.extra:
         state.extra["gram_factor"] = gram_factor(equations)
     resampling: Resampling = state.extra["resampling"]
@@ -350,8 +351,8 @@ def gibbs_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     if n == 0:
         with torch.no_grad():
             state.log_map.copy_(torch.log(encoding.to_radiance(x0_hat).clamp_min(DARK_FLOOR * run.prior.median_target)))
-    env = run.env(torch.exp(state.log_map), state).detach()
     transport, recorded = sample_transport(run, state)
+    env = run.env(torch.exp(state.log_map), state, transport.height).detach()
     level = current_level(transport, state.materials.roughness)
     laps.lap("transport")
     floor = NOISE_FLOOR * run.data_norm

@@ -117,7 +117,8 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     level = current_level(transport, state.materials.roughness)
     laps.lap("transport")
     if materials_move and (n - math.ceil(settings.material_start * run.num_steps)) % settings.level_every == 0:
-        level = best_level(transport, run.env(torch.exp(state.log_map), state), state.materials.albedo)
+        level = best_level(transport, run.env(torch.exp(state.log_map), state, transport.height),
+                           state.materials.albedo)
         set_level(state, transport, level)
     if n == 0:
         floor = DARK_FLOOR * run.prior.median_target
@@ -125,7 +126,7 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
             state.log_map.copy_(torch.log(encoding.to_radiance(x0_hat).clamp_min(floor)))
     losses, skipped = [], 0
     for _ in range(settings.inner_steps):
-        env = run.env(torch.exp(state.log_map), state)
+        env = run.env(torch.exp(state.log_map), state, transport.height)
         c = exposure_fit(transport, env, state.materials.albedo, level)
         state.log_exposure += math.log(c)
         data = relative_data_loss(run, transport, c * env, state.materials.albedo, level)

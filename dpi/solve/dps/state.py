@@ -75,11 +75,11 @@ class DPSRun:
         """Schedule index of executed step n (the first executed step is the noisiest)."""
         return self.first_index - n
 
-    def env(self, radiance: torch.Tensor, state: "DPSState") -> torch.Tensor:
-        """Prior-resolution normalised radiance (1, 3, h, 2h) -> scene env map (H, 2H, 3) at the problem's
-        height, times the state's exposure, plus its sun (splatted at the problem's height, so it stays a
-        point of light where the prior's resolution would blur it)."""
-        height = self.problem.settings.env_height
+    def env(self, radiance: torch.Tensor, state: "DPSState", height: int | None = None) -> torch.Tensor:
+        """Prior-resolution normalised radiance (1, 3, h, 2h) -> scene env map (H, 2H, 3) at `height` rows
+        (default the problem's), times the state's exposure, plus its sun (splatted at that height, so it stays
+        a point of light where the prior's resolution would blur it)."""
+        height = height or self.problem.settings.env_height
         env = self.scale * torch.exp(state.log_exposure) * resample_env(radiance, height)
         return env + sun_env(state.sun_uv, self.sun_irradiance(state), height) if self.sun else env
 
