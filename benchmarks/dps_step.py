@@ -1,22 +1,24 @@
-"""Time the parts of one dps step on the demo and count Dr.Jit kernel compilations per step.
+"""Time the parts of one dps step and of a whole sample on the demo, and count Dr.Jit kernel compilations.
 
 At the default setting (64 x 64 images, 16 spp, env 16 x 32, textures 64, the demo's prior) it runs
 `dpi.solve.dps.posterior_steps` (the loop `dps_sample` runs, not a copy of it) for each sampler and
 reads each step's timings from its record:
   network            eps_theta on the randomly rolled x_t (paper: with the autograd graph)
-  transport          annealed: recording the light transport again (only when the materials moved)
-  draw               annealed: the conditional draw of the map on the recorded transport
-  render             the data term's renders, forward and backward (proximal: all inner updates;
-                     annealed: the materials' steps)
-  network_backward   paper only: the gradient back through x0_hat and the UNet to x_t
+  transport          proximal, gibbs: recording the light transport (the first step only; not in the table)
+  data               proximal: the data updates on the recorded transport
+  albedo, equations  gibbs: the draws of roughness level and albedo, and the map's normal equations after them
+  draw               gibbs: the draw of the map
+  render             paper: the data term's render, forward and backward
+  network_backward   paper: the gradient back through x0_hat and the UNet to x_t
   rest               the reverse step, Adam and bookkeeping
 Dr.Jit's kernel history (JitFlag.KernelHistory) says, per step, how many kernels were launched and
 whether each came from the in-memory cache, the on-disk cache (~/.drjit) or was compiled fresh.
 Then the same steps with the Mitsuba scene rebuilt before every step (a new Renderer, as a naive
 loop would do) against the scene built once and updated in place, as dps uses it. Warm-up steps
-(and one render of every training view) are not timed. Last, the data term over all training views
-with its gradient w.r.t. the map: path traced against the recorded light transport, and the cost of
-one recording.
+(and one render of every training view) are not timed. Then the data term over all training views
+with its gradient w.r.t. the map and the albedo: path traced against the recorded light transport,
+and the cost of one recording. Last, whole samples side by side: each sampler's sample and a `none`
+sample at the default preset, with the sample's time split into its parts.
 
 With 2 threads on a machine whose cores are busy with other work, torch's OpenMP threads spin-wait
 (libgomp's default) and the network can run tens of times slower; compare with
@@ -30,6 +32,7 @@ from __future__ import annotations
 import argparse
 import os
 import time
+from dataclasses import replace
 from typing import Any, Iterator
 
 import numpy as np
@@ -42,19 +45,21 @@ from dpi.layout import INIT
 from dpi.materials import MaterialTextures
 from dpi.prior.sample import load_scene_prior
 from dpi.render import Renderer, RenderSettings
-from dpi.solve.dps import SAMPLERS, DPSConfig, posterior_steps, start_run
+from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, start_run
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.state import DPSRun
 from dpi.solve.problem import InverseProblem, ProblemSettings
-from dpi.solve.transport import DIRECT_SPP
 
 PARTS = {"network": "network forward (UNet, random roll)",
-         "transport": "light transport recording (annealed)",
-         "draw": "conditional draw on the transport (annealed)",
-         "render": "render forward + backward",
-         "network_backward": "network backward (UNet to x_t)", "rest": "reverse step, Adam and the rest",
+         "data": "data updates on the transport (proximal)",
+         "albedo": "level and albedo draws (gibbs)",
+         "equations": "the map's normal equations (gibbs)",
+         "draw": "draw of the map (gibbs)",
+         "render": "render forward + backward (paper)",
+         "network_backward": "network backward (paper)", "rest": "reverse step, Adam and the rest",
          "total": "whole step"}
-TIMED = ("network", "transport", "draw", "render", "network_backward")
+TIMED = ("network", "transport", "data", "albedo", "equations", "draw", "render", "network_backward")
+"""the parts a step's record times (seconds_<part>); the transport's recording (first step) is not a step's cost"""
 """the parts a step's record times (seconds_<part>)"""
 
 
@@ -77,8 +82,7 @@ def make_run(sampler: str, threads: int, seed: int) -> tuple[DPSRun, Iterator[di
     problem = InverseProblem(capture, ProblemSettings(env_height=base.env_height, texture_size=base.texture_size),
                              RenderSettings(spp=base.spp, threads=threads))
     init = problem.load_decomposition(PIPELINE.layout.scene(DEMO).sample_dir(INIT))
-    cfg = DPSConfig.from_dict({"sampler": sampler, "steps": base.steps,
-                               sampler: {"views_per_step": base.views_per_step}})
+    cfg = DPSConfig.from_dict({"sampler": sampler, "steps": base.steps})
     run, state = start_run(problem, load_scene_prior(capture.options, PIPELINE.prior_checkpoint(DEMO)), init, cfg, seed)
     return run, posterior_steps(run, state)
 
@@ -98,7 +102,7 @@ def timed_steps(run: DPSRun, steps: Iterator[dict[str, Any]], count: int, rebuil
             rebuild_renderer(run.problem)
         record = next(steps)
         parts = {part: 1e3 * record.get(f"seconds_{part}", 0.0) for part in TIMED}
-        total = 1e3 * record["seconds"]
+        total = 1e3 * record["seconds"] - parts.pop("transport")
         costs.append({**parts, "rest": total - sum(parts.values()), "total": total, **kernel_counts()})
     return costs
 
@@ -116,30 +120,57 @@ def warm_up(run: DPSRun, steps: Iterator[dict[str, Any]], count: int) -> dict[st
     return counts
 
 
-def data_term_costs(problem: InverseProblem, init: Decomposition, spp: int, repeats: int) -> None:
-    """Print the data term over all training views, evaluated with its gradient w.r.t. the map: path traced
-    against the recorded light transport (dpi.solve.transport), and what one recording costs."""
+def data_term_costs(problem: InverseProblem, init: Decomposition, repeats: int) -> None:
+    """Print the data term over all training views, evaluated with its gradient w.r.t. the map and the albedo:
+    path traced against the recorded light transport (dpi.solve.transport), and what one recording costs."""
     from dpi.solve.transport import record_transport
 
     materials, views = init.materials, problem.train_ids
+    settings = DPSConfig().proximal.transport
     start = time.perf_counter()
-    transport = record_transport(problem, materials, init.env, spp, seed=1)
+    transport = record_transport(problem, materials, init.env, settings, seed=1)
     recording = time.perf_counter() - start
     costs = {}
-    for name, loss in (("render", lambda env: problem.data_loss(env, materials, views, seed=3)),
-                       ("transport", lambda env: transport.sum_squares(env))):
-        loss(init.env.clone().requires_grad_(True)).backward()  # warm-up (kernels, allocations)
+    for name, loss in (("render", lambda env, albedo: problem.data_loss(env, replace(materials, albedo=albedo), views,
+                                                                         seed=3)),
+                       ("transport", lambda env, albedo: transport.sum_squares(env, albedo))):
+        loss(init.env.clone().requires_grad_(True), materials.albedo.clone().requires_grad_(True)).backward()  # warm
         start = time.perf_counter()
         for _ in range(repeats):
-            leaf = init.env.clone().requires_grad_(True)
-            loss(leaf).backward()
+            loss(init.env.clone().requires_grad_(True), materials.albedo.clone().requires_grad_(True)).backward()
         costs[name] = 1e3 * (time.perf_counter() - start) / repeats
-    print(f"\ndata term over all {len(views)} training views, loss and gradient w.r.t. the map ({repeats} repeats):")
+    print(f"\ndata term over all {len(views)} training views, loss and gradient w.r.t. map and albedo "
+          f"({repeats} repeats):")
     print(f"  path traced ({problem.renderer.settings.spp} spp): {costs['render']:.1f} ms")
-    print(f"  recorded transport: {costs['transport']:.2f} ms ({costs['render'] / costs['transport']:.0f}x faster); "
-          f"one recording ({spp} paths + {DIRECT_SPP} direct samples per pixel) {1e3 * recording:.0f} ms "
-          f"(= {recording / (1e-3 * costs['render']):.1f} path-traced evaluations), "
-          f"{transport.nbytes / 2**20:.1f} MB")
+    print(f"  recorded transport ({transport.pixels} of {transport.foreground} foreground pixels, "
+          f"{len(transport.roughness)} roughness levels): {costs['transport']:.2f} ms "
+          f"({costs['render'] / costs['transport']:.0f}x faster); one recording ({settings.spp} paths + "
+          f"{settings.direct_spp} direct samples per pixel) {1e3 * recording:.0f} ms "
+          f"(= {recording / (1e-3 * costs['render']):.1f} path-traced evaluations), {transport.nbytes / 2**20:.0f} MB")
+
+
+def sample_split(samplers: list[str], threads: int, seed: int) -> None:
+    """Whole samples at the default preset, one after the other: each sampler's and a `none` sample; seconds per
+    part (the transport's recording, the network, the data steps, the refinement) and in all."""
+    from dpi.solve.classic import classic_sample
+
+    run, _ = make_run(samplers[0], threads, seed)
+    problem, init, prior = run.problem, run.init, run.prior
+    print(f"\nwhole samples side by side ({threads} threads; seconds):")
+    print(f"{'method':<14} {'total':>7} {'transport':>10} {'network':>8} {'data':>7} {'refine':>7}")
+    for sampler in samplers:
+        cfg = PIPELINE.method_settings("dps")
+        cfg.sampler = sampler
+        start = time.perf_counter()
+        trace = dps_sample(problem, prior, init, cfg, seed, progress=False).decomposition.trace
+        total = time.perf_counter() - start
+        parts = {k: sum(s.get(f"seconds_{k}", 0.0) for s in trace.steps) for k in TIMED}
+        data = sum(v for k, v in parts.items() if k not in ("network", "transport"))
+        print(f"{'dps ' + sampler:<14} {total:>7.1f} {parts['transport']:>10.1f} {parts['network']:>8.1f} "
+              f"{data:>7.1f} {trace.info['refine']['seconds']:>7.1f}")
+    start = time.perf_counter()
+    classic_sample(problem, "none", init, PIPELINE.method_settings("none"), seed, progress=False)
+    print(f"{'none':<14} {time.perf_counter() - start:>7.1f}")
 
 
 def stats(costs: list[dict[str, float]], name: str) -> tuple[float, float]:
@@ -185,8 +216,7 @@ def main() -> None:
     policy = os.environ.get("OMP_WAIT_POLICY", "unset")
     base = preset_setting()
     print(f"dps step on the demo: {base.resolution}x{base.resolution} images, {base.spp} spp, env {base.env_height}x"
-          f"{2 * base.env_height}, textures {base.texture_size}, {base.views_per_step} view(s) per data term, "
-          f"{args.threads} threads, OMP_WAIT_POLICY={policy}")
+          f"{2 * base.env_height}, textures {base.texture_size}, {args.threads} threads, OMP_WAIT_POLICY={policy}")
     for sampler in args.samplers:
         run, steps = make_run(sampler, args.threads, args.seed)
         first = kernel_counts()
@@ -197,7 +227,8 @@ def main() -> None:
               f"({len(run.problem.train_ids)} views + {args.warmup} steps) {warm['kernels']} kernels, "
               f"{warm['compiled']} compiled, {warm['disk_hits']} from disk")
         report(sampler, reused, rebuilt)
-    data_term_costs(run.problem, run.init, DPSConfig().annealed.transport_spp, args.repeats)
+    data_term_costs(run.problem, run.init, args.repeats)
+    sample_split([s for s in args.samplers if s != "paper"] or args.samplers, args.threads, args.seed)
 
 
 if __name__ == "__main__":

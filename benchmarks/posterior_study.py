@@ -19,7 +19,6 @@ std per group, method and sampler. `--dps NAME:key=value,...` adds a dps variant
 from __future__ import annotations
 
 import argparse
-import copy
 import csv
 import json
 import multiprocessing
@@ -250,24 +249,37 @@ def main() -> None:
     print("\n".join(summary(rows)))
 
 
-def run_study(jobs: list[Job], out: Path, columns: tuple[str, ...], score: Any, workers: int) -> list[dict]:
+def job_key(job: Job) -> tuple:
+    """What tells a study's samples apart: scene, method, sampler, seed (a row's fields of the same names)."""
+    return job.scene, job.method, job.sampler, job.seed
+
+
+def row_key(row: dict[str, Any]) -> tuple:
+    """`job_key` of a CSV row."""
+    return row["scene"], row["method"], row["sampler"], int(row["seed"])
+
+
+def run_study(jobs: list[Job], out: Path, columns: tuple[str, ...], score: Any, workers: int,
+              keys: tuple[Any, Any] = (job_key, row_key), text: tuple[str, ...] = TEXT_COLUMNS) -> list[dict]:
     """Prepare every scene, draw and score the jobs whose rows `out` lacks (`score(job)` gives the row,
-    appended as it comes), and return the rows of these jobs' (scene, method, sampler)."""
+    appended as it comes), and return the rows of these jobs (`keys`: a job's and a row's key, equal when the
+    row is the job's; `text`: the CSV's text columns)."""
+    of_job, of_row = keys
     scenes = list({(j.root, j.scene): j for j in jobs}.values())
     # spawn, not fork: a forked child cannot use a GPU (cuda_ad_rgb) its parent already opened
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=max(1, min(workers, len(scenes))), mp_context=context) as pool:
         list(pool.map(prepare_job, scenes))
-    done = {(r["scene"], r["method"], r["sampler"], int(r["seed"])) for r in read_rows(out)}
-    todo = [j for j in jobs if j.rerun or (j.scene, j.method, j.sampler, j.seed) not in done]
+    done = {of_row(r) for r in read_rows(out, text)}
+    todo = [j for j in jobs if j.rerun or of_job(j) not in done]
     print(f"{len(todo)} samples to draw and score ({len(done)} rows already in {out})", flush=True)
     with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
         for row in pool.map(score, todo):
             append_row(out, row, columns)
             print("  ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items()),
                   flush=True)
-    wanted = {(j.scene, j.method, j.sampler) for j in jobs}
-    return [r for r in read_rows(out) if (r["scene"], r["method"], r["sampler"]) in wanted]
+    wanted = {of_job(j) for j in jobs}
+    return [r for r in read_rows(out, text) if of_row(r) in wanted]
 
 
 if __name__ == "__main__":

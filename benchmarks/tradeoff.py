@@ -3,7 +3,7 @@
 On the demo object (the demo's synthetic capture; other image resolutions are rendered into
 results/benchmarks/captures), starting from one path-traced initialisation (resampled to each
 env-map and texture size), one knob at a time is varied around the base setting: diffusion steps,
-render spp, image resolution, views per step, env-map height, texture size and material refinement
+render spp, image resolution, pixels of the recorded light transport, env-map height, texture size and material refinement
 iterations; then the quality presets of dpi's config. Prints seconds per sample and the errors,
 marks the Pareto front (time vs env PSNR, albedo MSE and view PSNR), and writes the table (CSV)
 and a plot.
@@ -44,14 +44,14 @@ class Setting:
     steps: int
     spp: int
     resolution: int
-    views_per_step: int
+    transport_pixels: int
     env_height: int
     texture_size: int
     refine_iterations: int
 
 
 SWEEPS = {"steps": [25, 50, 100, 250, 1000], "spp": [4, 16, 64], "resolution": [32, 64],
-          "views_per_step": [1, 2, 4], "env_height": [8, 16, 32], "texture_size": [32, 64, 128],
+          "transport_pixels": [1024, 2048, 4096], "env_height": [8, 16, 32], "texture_size": [32, 64, 128],
           "refine_iterations": [50, 100, 200]}
 
 
@@ -60,7 +60,7 @@ def preset_setting(name: str | None = None) -> Setting:
     pipeline = PIPELINE if name is None else Pipeline(resolve_config({"preset": name}))
     dps, solve = pipeline.method_settings("dps"), pipeline.solve_settings()
     return Setting(steps=dps.steps, spp=solve.render.spp, resolution=pipeline.synth_settings(DEMO).width,
-                   views_per_step=dps.sampler_settings.views_per_step, env_height=solve.problem.env_height,
+                   transport_pixels=dps.sampler_settings.transport_pixels, env_height=solve.problem.env_height,
                    texture_size=solve.problem.texture_size, refine_iterations=dps.refine.iterations)
 
 
@@ -83,7 +83,7 @@ def run(setting: Setting, init_dir: Path, prior, threads: int, seed: int) -> dic
     init = problem.load_decomposition(init_dir)
     base = PIPELINE.method_settings("dps")
     cfg = replace(base, steps=setting.steps, refine=replace(base.refine, iterations=setting.refine_iterations),
-                  **{base.sampler: replace(base.sampler_settings, views_per_step=setting.views_per_step)})
+                  **{base.sampler: replace(base.sampler_settings, transport_pixels=setting.transport_pixels)})
     start = time.perf_counter()
     result = dps_sample(problem, prior, init, cfg, seed=seed, progress=False).decomposition
     seconds = time.perf_counter() - start

@@ -1,0 +1,125 @@
+"""Resolution study (issue 32): what a finer env map buys a glossy and a rough object, and what it costs.
+
+Scenes: a mirror-like metal torus (roughness 0.05, `glossy`) and a rough dielectric blob (0.85,
+`rough`) under Mitsuba's sunsky with a low sun, rendered from a 256-row map, 12 views of 96 px on a
+150 deg arc (3 held out): a mirror's views must have the pixels to show a map's detail. Per map
+height (`--heights`, default 16 32 64 128), texture size and seed: the workflow's init at that size
+and one `dps` sample of config.yaml's sampler, through the posterior study's jobs, scored by the
+workflow's evaluation: held-out view PSNR, env PSNR (against the truth resampled to the sample's
+size), relit held-out views (`relight_psnr_h`), and the sample's seconds.
+
+    .venv/bin/python benchmarks/resolution_study.py [--heights 16 32 64 128] [--textures 64] [--seeds 0 1 2]
+
+Rows go to benchmarks/results/resolution_study.csv (rows already there are not rerun), then it prints
+mean +- std per group, height and texture size.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from posterior_study import ROOT, Job, mean_std_cells, run_study, study_layout
+
+WORK = ROOT / "results" / "benchmarks" / "resolution_study"
+CSV = ROOT / "benchmarks" / "results" / "resolution_study.csv"
+COLUMNS = ("scene", "group", "env_height", "texture_size", "seed", "novel_psnr", "env_psnr", "relight_psnr_h",
+           "seconds")
+TEXT = ("scene", "group")
+CAPTURE = {"views": 12, "held_out_every": 4, "width": 96, "height": 96, "spp": 128, "env_height": 256,
+           "texture_size": 128, "arc_deg": 150.0, "elevations_deg": (15.0, 40.0), "environment": "sunsky",
+           "sun_elevation_deg": 12.0, "sun_azimuth_deg": 200.0, "prior": "outdoor"}
+SCENES = {"torus_glossy": ("glossy", {**CAPTURE, "shape": "bumpy_torus", "seed": 3, "roughness": 0.05,
+                                      "roughness_variation": 0.0, "metallic": 1.0}),
+          "blob_rough": ("rough", {**CAPTURE, "shape": "blob", "seed": 0, "roughness": 0.85,
+                                   "roughness_variation": 0.05, "metallic": 0.0})}
+
+
+def size_config(height: int, texture: int) -> dict[str, Any]:
+    """The workflow's resolved config at a map height and texture size."""
+    from dpi.pipeline import resolve_config
+
+    return resolve_config({"problem": {"env_height": height, "texture_size": texture}})
+
+
+def size_root(height: int, texture: int) -> Path:
+    """One size's study folder; its captures/ is the shared one (the captures do not depend on the size)."""
+    root = WORK / f"h{height}_t{texture}"
+    (root / "results").mkdir(parents=True, exist_ok=True)
+    link = root / "captures"
+    if not link.exists():
+        link.symlink_to(WORK / "captures", target_is_directory=True)
+    return root
+
+
+def score(job: Job) -> dict[str, Any]:
+    """Draw and evaluate one sample (the posterior study's job); its row."""
+    from posterior_study import run_job
+
+    row = run_job(job)
+    metrics = json.loads(job.layout.scene(job.scene).evaluation(job.label, job.seed).read_text())["metrics"]
+    problem = job.config["problem"]
+    return {**row, "env_height": problem["env_height"], "texture_size": problem["texture_size"],
+            "relight_psnr_h": metrics["relight_psnr_h"]}
+
+
+def job_key(job: Job) -> tuple:
+    """What tells the study's samples apart: scene, map height, texture size, seed."""
+    problem = job.config["problem"]
+    return job.scene, problem["env_height"], problem["texture_size"], job.seed
+
+
+def row_key(row: dict[str, Any]) -> tuple:
+    """`job_key` of a CSV row."""
+    return row["scene"], int(row["env_height"]), int(row["texture_size"]), int(row["seed"])
+
+
+def summary(rows: list[dict[str, Any]]) -> list[str]:
+    """Mean +- std per group, height and texture size."""
+    lines = [f"{'group':<7} {'height':>6} {'texture':>7} {'n':>3} {'view PSNR':>15} {'env PSNR':>15} "
+             f"{'relight PSNR-H':>15} {'seconds':>13}"]
+    for key in sorted({(r["group"], int(r["env_height"]), int(r["texture_size"])) for r in rows}):
+        sel = [r for r in rows if (r["group"], int(r["env_height"]), int(r["texture_size"])) == key]
+        cells = mean_std_cells(sel, (("novel_psnr", ".2f"), ("env_psnr", ".2f"), ("relight_psnr_h", ".2f"),
+                                     ("seconds", ".1f")))
+        lines.append(f"{key[0]:<7} {key[1]:>6} {key[2]:>7} {len(sel):>3} " + " ".join(f"{c:>15}" for c in cells))
+    return lines
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--heights", nargs="*", type=int, default=[16, 32, 64, 128])
+    parser.add_argument("--textures", nargs="*", type=int, default=[64])
+    parser.add_argument("--seeds", nargs="*", type=int, default=[0, 1, 2])
+    parser.add_argument("--jobs", type=int, default=2, help="samples drawn side by side (1 thread each)")
+    parser.add_argument("--out", type=Path, default=CSV)
+    args = parser.parse_args()
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+    from dpi.synth.capture import SynthConfig, make_synthetic_capture
+
+    layout = study_layout(WORK)
+    for scene, (_, synth) in SCENES.items():  # the shared captures first, one at a time
+        if not layout.synth_marker(scene).exists():
+            make_synthetic_capture(layout.capture_dir(scene), SynthConfig.from_dict(synth), threads=2, progress=False)
+    jobs = []
+    for height in args.heights:
+        for texture in args.textures:
+            config = size_config(height, texture)
+            for scene, (group, synth) in SCENES.items():
+                jobs.extend(Job(size_root(height, texture), scene, group, synth, "dps", "", seed, {}, config)
+                            for seed in args.seeds)
+    rows = run_study(jobs, args.out, COLUMNS, score, args.jobs, (job_key, row_key), TEXT)
+    print("\n".join(summary(rows)))
+    from dpi.pipeline import Pipeline
+
+    print(f"(dps sampler {Pipeline(size_config(16, 64)).method_settings('dps').sampler}; "
+          f"{np.mean([r['seconds'] for r in rows]):.0f} s a sample on average)")
+
+
+if __name__ == "__main__":
+    main()
