@@ -26,6 +26,7 @@ at the brightest texels (a sun): the product of the two halves' residuals does n
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -66,7 +67,7 @@ class TransportSettings:
     """most foreground pixels of the training views recorded: beyond it, an even random subset"""
     roughness_levels: int = 3
     """besides the materials' own roughness, the transport under this many more: the texture shifted to medians
-    evenly spread over (0, 1) (`roughness_levels`), recorded in the same pass (only the BSDF's values differ)"""
+    from a mirror's to a matte's (`roughness_levels`), recorded in the same pass (only the BSDF's values differ)"""
 
     def __post_init__(self) -> None:
         for name in ("spp", "direct_spp"):
@@ -79,14 +80,21 @@ class TransportSettings:
             raise ValueError(f"roughness_levels must be at least 0, got {self.roughness_levels}")
 
 
+ROUGHNESS_RANGE = (0.05, 0.9)
+"""the medians the roughness levels span, evenly in log GGX alpha (alpha = roughness^2: a lobe's width), from a
+mirror to a matte surface"""
+
+
 def roughness_levels(roughness: torch.Tensor, count: int) -> list[torch.Tensor]:
     """The roughness textures a transport is recorded under: the given one, then `count` copies shifted so that
-    their medians are (i + 1/2) / count (its detail kept, clamped to the valid range)."""
+    their medians spread evenly in log alpha over ROUGHNESS_RANGE (its detail kept, clamped to the valid range)."""
     from dpi.materials import RANGES
 
     centre = float(roughness.detach().median())
-    shifted = [(roughness.detach() - centre + (i + 0.5) / count).clamp(*RANGES["roughness"]) for i in range(count)]
-    return [roughness.detach().clone(), *shifted]
+    low, high = (math.log(r ** 2) for r in ROUGHNESS_RANGE)
+    medians = [math.exp((low + (high - low) * i / max(count - 1, 1)) / 2) for i in range(count)]
+    return [roughness.detach().clone(), *((roughness.detach() - centre + m).clamp(*RANGES["roughness"])
+                                          for m in medians)]
 
 
 def texel_weights(directions: np.ndarray, height: int) -> tuple[np.ndarray, np.ndarray]:
@@ -612,9 +620,16 @@ class LightTransport:
 
     def sum_squares(self, env: torch.Tensor, albedo: torch.Tensor, level: int = 0) -> torch.Tensor:
         """Sum over the recorded pixels of the squared residual, without the recording's noise: the product of
-        the two halves' residuals (unbiased; module notes). Differentiable."""
+        the two halves' residuals (unbiased; module notes). A value to compare, not a loss to descend: it is not
+        bounded below (halves that disagree make it negative), so `fit_loss` is the one to optimise."""
         first, second = self.halves(env, albedo, level) - self.observed.to(self.slope.dtype)
         return (first * second).sum()
+
+    def fit_loss(self, env: torch.Tensor, albedo: torch.Tensor, level: int = 0) -> torch.Tensor:
+        """Sum over the recorded pixels of the squared residual of the halves' mean image (differentiable): convex,
+        and above `sum_squares` by the recording's variance (an optimiser following the halves' product would
+        pull them apart, into the recording's noise)."""
+        return (self.image(env, albedo, level) - self.observed.to(self.slope.dtype)).square().sum()
 
     def level_sum_squares(self, env: torch.Tensor, albedo: torch.Tensor) -> torch.Tensor:
         """(levels,) `sum_squares` under each roughness level."""

@@ -60,6 +60,9 @@ class ProximalSettings(TransportSampling, SamplerSettings):
     """fraction of the steps before the materials start to move"""
     level_every: int = 4
     """steps between two choices of the roughness level (once the materials move)"""
+    roughness_levels: int = 0
+    """roughness levels recorded besides the init's: none by default (a map fitted under the init's roughness fits
+    it best; the refinement moves the roughness, docs/studies.md)"""
 
     models_sun = True
 
@@ -93,7 +96,7 @@ def relative_data_loss(run: DPSRun, transport: LightTransport, env: torch.Tensor
                        level: int) -> torch.Tensor:
     """Mean squared residual per pixel and channel over the mean squared foreground radiance: ~1 / SNR
     (differentiable in the map and the albedo)."""
-    return transport.sum_squares(env, albedo, level) / (3 * transport.pixels * run.data_norm)
+    return transport.fit_loss(env, albedo, level) / (3 * transport.pixels * run.data_norm)
 
 
 def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
