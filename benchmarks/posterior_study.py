@@ -37,8 +37,9 @@ from dpi.layout import Layout
 ROOT = Path(__file__).resolve().parent.parent
 WORK = ROOT / "results" / "benchmarks" / "posterior_study"
 CSV = ROOT / "benchmarks" / "results" / "posterior_study.csv"
-COLUMNS = ("scene", "group", "method", "sampler", "seed", "novel_psnr", "env_psnr", "env_ssim", "albedo_mse",
-           "seconds")
+METRICS = ("novel_psnr", "env_psnr", "env_ssim", "albedo_mse", "relight_psnr_h", "relight_psnr_l", "relight_ssim")
+"""the workflow's sample metrics a study row keeps"""
+COLUMNS = ("scene", "group", "method", "sampler", "seed", *METRICS, "seconds")
 SIZE = {"views": 8, "held_out_every": 4, "width": 32, "height": 32, "spp": 128, "env_height": 32,
         "texture_size": 32}
 AMBIGUOUS = {**SIZE, "roughness": 0.7, "roughness_variation": 0.1, "metallic": 0.0, "arc_deg": 150.0,
@@ -146,7 +147,7 @@ def run_job(job: Job) -> dict[str, Any]:
                    job.config["evaluate"]["spp"], settings)
     metrics = json.loads(out.read_text())["metrics"]
     return {"scene": job.scene, "group": job.group, "method": job.method, "sampler": job.sampler,
-            "seed": job.seed, **{k: metrics[k] for k in ("novel_psnr", "env_psnr", "env_ssim", "albedo_mse")},
+            "seed": job.seed, **{k: metrics[k] for k in METRICS},
             "seconds": metrics["sample_seconds"]}
 
 
@@ -193,7 +194,15 @@ def read_rows(path: Path, text: tuple[str, ...] = TEXT_COLUMNS) -> list[dict[str
     if not path.exists():
         return []
     with open(path, newline="") as f:
-        return [{k: (v if k in text else float(v)) for k, v in row.items()} for row in csv.DictReader(f)]
+        return [{k: (v if k in text else number(v)) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+def number(value: str) -> float | str:
+    """A CSV cell as a number, or as it is when it is none (a metric reported `missing: <reason>`)."""
+    try:
+        return float(value)
+    except ValueError:
+        return value
 
 
 def append_row(path: Path, row: dict[str, Any], columns: tuple[str, ...] = COLUMNS) -> None:
@@ -217,17 +226,18 @@ def mean_std_cells(rows: list[dict[str, Any]], metrics: tuple[tuple[str, str], .
 
 
 def summary(rows: list[dict[str, Any]]) -> list[str]:
-    """Mean +- std per group, method and sampler over scenes and seeds."""
-    lines = [f"{'group':<10} {'method':<12} {'sampler':<12} {'n':>3} {'view PSNR':>13} {'env PSNR':>13} "
-             f"{'env SSIM':>13} {'albedo MSE':>17} {'seconds':>11}"]
+    """Mean +- std per group, method and sampler over scenes and seeds (a relighting cell only where every row has
+    the metric: rows of studies before it have none)."""
+    shown = (("novel_psnr", ".2f"), ("env_psnr", ".2f"), ("env_ssim", ".3f"), ("albedo_mse", ".4f"),
+             ("relight_psnr_h", ".2f"), ("relight_psnr_l", ".2f"), ("seconds", ".1f"))
+    lines = [f"{'group':<10} {'method':<12} {'sampler':<12} {'n':>3} " + " ".join(f"{name:>17}" for name, _ in shown)]
     keys = sorted({(r["group"], r["method"], r["sampler"]) for r in rows},
                   key=lambda k: (k[0], METHODS.index(k[1]) if k[1] in METHODS else 99, k[2]))
     for group, method, sampler in keys:
         sel = [r for r in rows if (r["group"], r["method"], r["sampler"]) == (group, method, sampler)]
-        cells = mean_std_cells(sel, (("novel_psnr", ".2f"), ("env_psnr", ".2f"), ("env_ssim", ".3f"),
-                                     ("albedo_mse", ".4f"), ("seconds", ".1f")))
-        lines.append(f"{group:<10} {method:<12} {sampler:<12} {len(sel):>3} {cells[0]:>13} {cells[1]:>13} "
-                     f"{cells[2]:>13} {cells[3]:>17} {cells[4]:>11}")
+        cells = [mean_std_cells(sel, ((name, fmt),))[0] if all(isinstance(r.get(name), float) for r in sel) else "-"
+                 for name, fmt in shown]
+        lines.append(f"{group:<10} {method:<12} {sampler:<12} {len(sel):>3} " + " ".join(f"{c:>17}" for c in cells))
     return lines
 
 

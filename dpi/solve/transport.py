@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import torch
@@ -613,10 +614,17 @@ class LightTransport:
         a = self.seen_albedo(albedo).T.to(self.slope.dtype)
         return (a * apply_light(self.slope[level], light) + apply_light(self.offset[level], light)).transpose(-1, -2)
 
+    @cached_property
+    def mean(self) -> torch.Tensor:
+        """The halves' mean transport: (2, levels, 3, P, N) (slope, offset), kept once asked for."""
+        return self.matrix.mean(dim=2)
+
     def image(self, env: torch.Tensor, albedo: torch.Tensor, level: int = 0) -> torch.Tensor:
         """(P, 3) the recorded pixels' image under a map, an albedo and a roughness level: the halves' mean
         (differentiable)."""
-        return self.halves(env, albedo, level).mean(0)
+        light = env.reshape(-1, 3).T
+        a = self.seen_albedo(albedo).T.to(self.matrix.dtype)
+        return (a * apply_light(self.mean[0, level], light) + apply_light(self.mean[1, level], light)).T
 
     def sum_squares(self, env: torch.Tensor, albedo: torch.Tensor, level: int = 0) -> torch.Tensor:
         """Sum over the recorded pixels of the squared residual, without the recording's noise: the product of
