@@ -1,7 +1,7 @@
 """`dps`'s settings, grouped by concern, and its samplers by name.
 
 method_params.dps holds the shared keys (sampler, steps, the material rates, ...) and one section per
-concern: each sampler's own settings (`proximal`, `paper`), the parametric `sun`, the `refine`ment.
+concern: each sampler's own settings (`proximal`, `gibbs`, `paper`), the parametric `sun`, the `refine`ment.
 A sampler owns its settings dataclass and its defaults; only the chosen sampler's section is used.
 """
 
@@ -42,17 +42,16 @@ SECTIONS: dict[str, Callable[[Any], Any]] = {**{name: s.settings.from_dict for n
 """method_params.dps keys that hold a settings section, and the builder of its dataclass from its entry"""
 
 MOVED: dict[str, str] = {
-    **{key: f"proximal.{key}" for key in ("inner_steps", "lr_map", "prox_weight", "noise_mix", "material_start",
-                                          "spp")},
+    **{key: f"proximal.{key}" for key in ("inner_steps", "lr_map", "prox_weight", "noise_mix", "material_start")},
     **{key: f"paper.{key}" for key in ("guidance_bound", "rho_start", "rho_end", "rho_schedule", "rho_switch")},
-    "views_per_step": "<sampler>.views_per_step", "start_noise": "<sampler>.start_noise",
+    "views_per_step": "paper.views_per_step", "start_noise": "<sampler>.start_noise",
     "refine_iterations": "refine.iterations", "refine_views_per_step": "refine.views_per_step",
     "refine_lr_gain": "refine.lr_gain", "refine_lr_texels": "refine.lr_texels",
     **{f"sun_{key}": f"sun.{key}" for key in ("radius_deg", "min_roughness", "min_share", "share", "prior_weight")},
 }
 """flat keys of the settings before they were grouped -> where they are now"""
 REMOVED = ("map_update", "warm_start", "refine_env", "refine_gain_order", "lr_sun", "lr_sun_uv", "refine_lr_env",
-           "annealed")
+           "annealed", "spp")
 """flat keys of variants that lost their study (docs/studies.md)"""
 
 
