@@ -6,7 +6,9 @@ Scenes: a mirror-like metal torus (roughness 0.05, `glossy`) and a rough dielect
 height (`--heights`, default 16 32 64 128), texture size and seed: the workflow's init at that size
 and one `dps` sample of config.yaml's sampler, through the posterior study's jobs, scored by the
 workflow's evaluation: held-out view PSNR, env PSNR (against the truth resampled to the sample's
-size), relit held-out views (`relight_psnr_h`), and the sample's seconds.
+size), relit held-out views (`relight_psnr_h`), and the sample's seconds. Then the truth at each
+size: the held-out view PSNR of the true materials under the true map resampled to each height (what
+the size shows at best; a fitted map can beat it at 16 rows, where resampling blurs the sun).
 
     .venv/bin/python benchmarks/resolution_study.py [--heights 16 32 64 128] [--textures 64] [--seeds 0 1 2]
 
@@ -23,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 from posterior_study import ROOT, Job, mean_std_cells, run_study, study_layout
 
 WORK = ROOT / "results" / "benchmarks" / "resolution_study"
@@ -90,6 +93,23 @@ def summary(rows: list[dict[str, Any]]) -> list[str]:
     return lines
 
 
+def truth_at_size(capture_json: Path, gt_dir: Path, height: int, texture: int) -> float:
+    """Held-out view PSNR of the true materials under the true map resampled to `height` rows."""
+    from dpi.evaluation.sample_metrics import novel_view_metrics, render_held_out
+    from dpi.relight import prepare_envmap
+    from dpi.solve.decomposition import Decomposition
+    from dpi.solve.problem import SolveSettings
+    from dpi.stages import load_problem
+
+    config = size_config(height, texture)
+    problem = load_problem(capture_json, SolveSettings.from_config(config, 2))
+    truth = Decomposition.load(gt_dir, texture)
+    env = torch.from_numpy(prepare_envmap(truth.env.numpy(), height))
+    renders = render_held_out(problem, problem.to_solver_units(Decomposition(env, truth.materials)),
+                              config["evaluate"]["spp"], 0)
+    return novel_view_metrics(problem, renders)["novel_psnr"]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--heights", nargs="*", type=int, default=[16, 32, 64, 128])
@@ -115,6 +135,12 @@ def main() -> None:
                             for seed in args.seeds)
     rows = run_study(jobs, args.out, COLUMNS, score, args.jobs, (job_key, row_key), TEXT)
     print("\n".join(summary(rows)))
+    print("truth at each size: held-out view PSNR [dB] of the true materials under the true map resampled")
+    for scene, (group, _) in SCENES.items():
+        truth = layout.capture_dir(scene) / "gt"
+        cells = [f"{h}: {truth_at_size(study_layout(size_root(h, t)).scene(scene).capture_json, truth, h, t):.2f}"
+                 for h in args.heights for t in args.textures]
+        print(f"{scene:<13} {group:<7} " + "  ".join(cells))
     from dpi.pipeline import Pipeline
 
     print(f"(dps sampler {Pipeline(size_config(16, 64)).method_settings('dps').sampler}; "
