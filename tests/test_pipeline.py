@@ -34,7 +34,7 @@ def test_layers_defaults_then_local_config_then_files_then_preset(tmp_path):
     assert defaults.config["render"]["spp"] == defaults.config["presets"]["default"]["render"]["spp"]
     (tmp_path / "config.yaml").write_text(yaml.safe_dump({"render": {"spp": 3}, "problem": {"texture_size": 8}}))
     local = resolve_config()
-    assert local["render"]["spp"] == 3 and local["problem"] == {"env_height": 16, "texture_size": 8, "resolution": 96}
+    assert local["render"]["spp"] == 3 and local["problem"] == {"env_height": 128, "texture_size": 8, "resolution": 96}
     later = resolve_config({"problem": {"texture_size": 4}}, {"preset": "draft", "render": {"max_depth": 2}})
     assert later["problem"]["texture_size"] == 4 and later["render"] == {"spp": 3, "max_depth": 2}
     assert later["init"]["iterations"] == later["presets"]["draft"]["init"]["iterations"]  # unset: the preset's
