@@ -1,6 +1,6 @@
 """Time the parts of one dps step and of a whole sample on the demo, and count Dr.Jit kernel compilations.
 
-At the default setting (64 x 64 images, 16 spp, env 16 x 32, textures 64, the demo's prior) it runs
+At the default preset (64 x 64 images, 16 spp, its env map and textures, the demo's prior) it runs
 `dpi.solve.dps.posterior_steps` (the loop `dps_sample` runs, not a copy of it) for each sampler and
 reads each step's timings from its record:
   network            eps_theta on the randomly rolled x_t (paper: with the autograd graph)
@@ -24,7 +24,7 @@ With 2 threads on a machine whose cores are busy with other work, torch's OpenMP
 (libgomp's default) and the network can run tens of times slower; compare with
 OMP_WAIT_POLICY=PASSIVE in the environment (the header line says which was set).
 
-    .venv/bin/python benchmarks/dps_step.py [--samplers proximal annealed paper] [--steps 20] [--rebuilt-steps 6] [--threads 2]
+    .venv/bin/python benchmarks/dps_step.py [--samplers proximal gibbs paper] [--steps 20] [--rebuilt-steps 6] [--threads 2]
 """
 
 from __future__ import annotations

@@ -35,7 +35,6 @@ def test_killed_sample_job_reruns_cleanly(tmp_path):
     snakemake(tmp_path, "results/tiny/init/log.json")
     sample_dir = tmp_path / "results" / "tiny" / "none" / "0"
     incomplete = tmp_path / ".snakemake" / "incomplete"
-    job_log = tmp_path / "results" / "tiny" / "logs" / "none" / "0.log"
 
     cmd = [str(SNAKEMAKE), "-s", str(REPO / "Snakefile"), "--directory", str(tmp_path), "--cores", "1", TARGET]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,

@@ -254,7 +254,7 @@ def scene_section(scene_name: str, scene: SceneLayout, rows: list[dict[str, str]
             path = page.png(scene_name, "relit")
             relit_grid(relit, path)
             parts.append(_figure(page.link(path), f"{scene_name} relit views",
-                                 f"The first held-out view relit under dpi's relighting maps: the true materials, "
+                                 "The first held-out view relit under dpi's relighting maps: the true materials, "
                                  "then each method's sample 0, each scaled per channel to the truth as "
                                  "relight_psnr_h / _l / relight_ssim score it; one exposure per row."))
     else:

@@ -10,7 +10,6 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import yaml
 from capture_helpers import make_capture
 from workflow_helpers import REPO, SNAKEMAKE, TINY_CONFIG, write_config
 

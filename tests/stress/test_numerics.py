@@ -1,6 +1,5 @@
 """Numerical stress: extreme HDR, black and saturated inputs, material extremes, scene scale, NaN renders."""
 
-import numpy as np
 import pytest
 import torch
 

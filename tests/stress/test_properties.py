@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 
 from dpi.cameras import Camera, look_at, read_transforms, write_transforms
 from dpi.envmap import direction_to_texel, directions_from_angles, texel_directions
-from dpi.tonecurve import TONE_CURVES, LogEncoding, ToneCurve
+from dpi.tonecurve import TONE_CURVES, LogEncoding
 
 finite = st.floats(min_value=-50, max_value=50, allow_nan=False)
 
