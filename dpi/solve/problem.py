@@ -18,7 +18,7 @@ import torch
 
 from dpi.capture import Capture
 from dpi.exposure import MIDDLE_GREY, capture_exposure
-from dpi.images import read_image, read_mask
+from dpi.images import read_image, read_mask, resize
 from dpi.layout import SAMPLE_TRACE
 from dpi.materials import MaterialTextures
 from dpi.render import Renderer, RenderSettings
@@ -101,8 +101,11 @@ class InverseProblem:
         return decomposition.scaled(self.exposure)
 
     def load_decomposition(self, folder: str | Path) -> Decomposition:
-        """A decomposition folder (scene radiance) in normalised units, textures at the problem's size."""
-        return self.to_solver_units(Decomposition.load(folder, self.settings.texture_size))
+        """A decomposition folder (scene radiance) in normalised units, its map and textures at the problem's
+        size (an init of another size, e.g. one written before `env_height` changed, is resampled)."""
+        loaded = Decomposition.load(folder, self.settings.texture_size)
+        h = self.settings.env_height
+        return self.to_solver_units(Decomposition(resize(loaded.env, h, 2 * h), loaded.materials, loaded.trace))
 
     def save_decomposition(self, decomposition: Decomposition, folder: str | Path,
                            trace_name: str = SAMPLE_TRACE) -> None:
