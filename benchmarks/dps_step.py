@@ -122,7 +122,9 @@ def warm_up(run: DPSRun, steps: Iterator[dict[str, Any]], count: int) -> dict[st
 
 def data_term_costs(problem: InverseProblem, init: Decomposition, repeats: int) -> None:
     """Print the data term over all training views, evaluated with its gradient w.r.t. the map and the albedo:
-    path traced against the recorded light transport (dpi.solve.transport), and what one recording costs."""
+    path traced against the recorded light transport (dpi.solve.transport; a map finer than it area-sampled to
+its rows), and what one recording costs."""
+    from dpi.images import resize
     from dpi.solve.transport import record_transport
 
     materials, views = init.materials, problem.train_ids
@@ -133,7 +135,8 @@ def data_term_costs(problem: InverseProblem, init: Decomposition, repeats: int) 
     costs = {}
     for name, loss in (("render", lambda env, albedo: problem.data_loss(env, replace(materials, albedo=albedo), views,
                                                                          seed=3)),
-                       ("transport", lambda env, albedo: transport.sum_squares(env, albedo))):
+                       ("transport", lambda env, albedo: transport.sum_squares(
+                           resize(env, transport.height, 2 * transport.height), albedo))):
         loss(init.env.clone().requires_grad_(True), materials.albedo.clone().requires_grad_(True)).backward()  # warm
         start = time.perf_counter()
         for _ in range(repeats):
