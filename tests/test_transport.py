@@ -200,3 +200,17 @@ def test_pixels_beyond_the_limit_are_an_even_subset_and_weigh_for_the_rest(probl
         assert len(chosen[v]) == pytest.approx(len(everything[v]) / 4, abs=1)
     with pytest.raises(ValueError, match="direct_spp must be a positive multiple of 2"):
         TransportSettings(direct_spp=3)
+
+
+def test_proximal_records_roughness_levels_only_for_a_glossy_init():
+    from dpi.materials import MaterialTextures
+    from dpi.solve.decomposition import Decomposition
+    from dpi.solve.dps.proximal import ProximalSettings
+
+    settings = ProximalSettings()
+    env = torch.ones(4, 8, 3)
+    glossy = Decomposition(env, MaterialTextures.constant(8, roughness=0.1))
+    rough = Decomposition(env, MaterialTextures.constant(8, roughness=0.8))
+    assert settings.transport_for(glossy).roughness_levels == settings.glossy_roughness_levels == 3
+    assert settings.transport_for(rough).roughness_levels == settings.roughness_levels == 0
+    assert settings.transport_for(rough).pixels == settings.transport_pixels

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import torch
 
+from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.init import starting_materials
 from dpi.solve.transport import LightTransport, TransportSettings, record_transport
@@ -37,13 +38,17 @@ class TransportSampling:
         return TransportSettings(self.transport_spp, self.transport_direct_spp, self.transport_pixels,
                                  self.roughness_levels)
 
+    def transport_for(self, init: Decomposition) -> TransportSettings:
+        """The recording's settings for a sample starting from `init` (a sampler may adapt them to it)."""
+        return self.transport
+
 
 def sample_transport(run: DPSRun, state: DPSState) -> tuple[LightTransport, bool]:
     """The sample's transport, recorded at the first call (module notes); and whether this call recorded it."""
     recorded = "transport" not in state.extra
     if recorded:
         state.extra["transport"] = record_transport(run.problem, starting_materials(run.init), run.init.env,
-                                                    run.sampler.transport, run.render_seed(0, 97))
+                                                    run.sampler.transport_for(run.init), run.render_seed(0, 97))
     return state.extra["transport"], recorded
 
 
