@@ -33,7 +33,7 @@ from typing import Any, Callable
 import torch
 
 from dpi.solve.dps.proximal import recentre_
-from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerSettings, finite, network_step
+from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerSettings, finite, predict_x0
 from dpi.solve.dps.data_term import TransportSampling, current_level, sample_transport, set_level
 from dpi.solve.init import START_ALBEDO
 from dpi.solve.prior_space import resample_env
@@ -340,14 +340,9 @@ def gibbs_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     settings: GibbsSettings = run.sampler
     laps, i, gen = Laps(), run.index(n), state.generator
     encoding = run.prior.encoding
-    with torch.no_grad():
-        p = network_step(run, state.x, i, gen)
-    laps.lap("network")
-    record: dict[str, Any] = {"step": n, "t": int(run.diffusion.timestep_map[i])}
-    if not finite(p["x0"]):
-        return {**record, "skipped": "non-finite network output", **laps.record()}  # keep x_t
-    x0_hat = p["x0"]
-    state.snapshots.append(x0_hat[0])
+    record, x0_hat = predict_x0(run, state, n, laps)
+    if x0_hat is None:
+        return record
     if n == 0:
         with torch.no_grad():
             state.log_map.copy_(torch.log(encoding.to_radiance(x0_hat).clamp_min(DARK_FLOOR * run.prior.median_target)))

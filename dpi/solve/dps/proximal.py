@@ -32,7 +32,7 @@ import torch
 from dpi.images import luminance
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.data_term import TransportSampling, current_level, sample_transport, set_level
-from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerSettings, finite, network_step
+from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerSettings, finite, predict_x0
 from dpi.solve.init import is_glossy
 from dpi.solve.optimize import all_finite
 from dpi.solve.transport import LightTransport, TransportSettings
@@ -114,14 +114,9 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     settings: ProximalSettings = run.sampler
     laps, i, gen = Laps(), run.index(n), state.generator
     encoding = run.prior.encoding
-    with torch.no_grad():
-        p = network_step(run, state.x, i, gen)
-    laps.lap("network")
-    record: dict[str, Any] = {"step": n, "t": int(run.diffusion.timestep_map[i])}
-    if not finite(p["x0"]):
-        return {**record, "skipped": "non-finite network output", **laps.record()}  # keep x_t
-    x0_hat = p["x0"]
-    state.snapshots.append(x0_hat[0])
+    record, x0_hat = predict_x0(run, state, n, laps)
+    if x0_hat is None:
+        return record
     abar = float(run.diffusion.alphas_cumprod[i])
     abar_prev = float(run.diffusion.alphas_cumprod_prev[i])
     prox_weight = settings.prox_weight * abar / (1.0 - abar)

@@ -149,6 +149,21 @@ def network_step(run: DPSRun, x: torch.Tensor, i: int, generator: torch.Generato
     return p_mean_variance(run.diffusion, output, x, t)
 
 
+def predict_x0(run: DPSRun, state: DPSState, n: int, laps: Laps) -> tuple[dict[str, Any], torch.Tensor | None]:
+    """Step n's network prediction without a graph (the samplers that need no backward through it): the step's
+    record and x0_hat, kept in the snapshots; or, for a non-finite output, the record saying the step was
+    skipped and None (x_t is kept)."""
+    i = run.index(n)
+    with torch.no_grad():
+        p = network_step(run, state.x, i, state.generator)
+    laps.lap("network")
+    record: dict[str, Any] = {"step": n, "t": int(run.diffusion.timestep_map[i])}
+    if not finite(p["x0"]):
+        return {**record, "skipped": "non-finite network output", **laps.record()}, None
+    state.snapshots.append(p["x0"][0])
+    return record, p["x0"]
+
+
 def finite(*tensors: torch.Tensor) -> bool:
     """True when every tensor is free of NaN/Inf."""
     return all(bool(torch.isfinite(t).all()) for t in tensors)
