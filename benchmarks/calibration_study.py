@@ -146,7 +146,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=CSV)
     args = parser.parse_args()
 
-    config = workflow_config()
+    config = workflow_config(env_height=16)
     groups = sample_jobs(args, config)
     text = TEXT_COLUMNS + ("object", "light")
     done = {(r["scene"], r["method"], r["sampler"], int(r["repeat"])) for r in read_rows(args.out, text)}

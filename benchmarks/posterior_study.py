@@ -101,11 +101,17 @@ def study_layout(root: Path) -> Layout:
     return Layout(root / "results", root / "captures")
 
 
-def workflow_config() -> dict[str, Any]:
-    """The workflow's resolved config (defaults and preset), at the study's map and texture sizes."""
+STUDY_TEXTURES = 32
+"""texture size of the study problems: the views are 32 px, so the default's 64 would not be seen"""
+
+
+def workflow_config(env_height: int | None = None) -> dict[str, Any]:
+    """The workflow's resolved config (defaults and preset) with the study's texture size, the map at the preset's
+    size (or `env_height` rows: the calibration and sun studies' tables were drawn at 16)."""
     from dpi.pipeline import resolve_config
 
-    return resolve_config({"problem": {"env_height": 16, "texture_size": 32}})
+    sizes = {"texture_size": STUDY_TEXTURES, **({"env_height": env_height} if env_height else {})}
+    return resolve_config({"problem": sizes})
 
 
 def prepare_scene(root: Path, scene: str, synth: dict, config: dict, threads: int) -> None:

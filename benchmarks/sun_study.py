@@ -131,7 +131,7 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--out", type=Path, default=CSV)
     args = parser.parse_args()
-    config = workflow_config()
+    config = workflow_config(env_height=16)
     dps = {k: v for k, v in config["method_params"].get("dps", {}).items() if k != "samples"}
     samplers = [spec.partition(":")[0] for spec in args.dps] or [DPSConfig.from_dict(dps).sampler]
     study = argparse.Namespace(scenes=args.scenes, methods=args.methods, samplers=samplers, seeds=args.seeds,
