@@ -62,6 +62,14 @@ def test_settings_are_grouped_and_the_flat_keys_name_their_new_place():
         DPSConfig.from_dict({"refine": 3})
 
 
+def test_a_glossy_init_refines_longer():
+    from dpi.materials import MaterialTextures
+
+    settings = DPSConfig.from_dict({"refine": {"iterations": 50, "glossy_factor": 2.0}}).refine
+    assert settings.for_init(MaterialTextures.constant(8, roughness=0.1)).iterations == 100
+    assert settings.for_init(MaterialTextures.constant(8, roughness=0.8)) is settings
+
+
 def test_guidance_is_scaled_to_its_bound():
     g = torch.tensor([0.5, -0.25])
     assert torch.allclose(scale_to_bound(g, 0.1), torch.tensor([0.1, -0.05]))

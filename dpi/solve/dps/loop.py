@@ -148,7 +148,8 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
                                    "bytes": transport.nbytes}
     if run.sun:
         trace.info["sun"] = sun_summary(state.sun_uv.detach(), run.sun_irradiance(state).detach(), env)
-    env, materials, refine_trace = refine(problem, env, state.materials, cfg.refine, cfg, seed + 1, progress)
+    env, materials, refine_trace = refine(problem, env, state.materials, cfg.refine.for_init(init.materials), cfg,
+                                          seed + 1, progress)
     trace.info["refine"] = refine_trace.summary()
     trace.nan_skips += refine_trace.nan_skips
     if store:

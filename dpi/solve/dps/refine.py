@@ -8,12 +8,13 @@ dpi.solve.smooth_gain) and a per-texel polish moving at `lr_texels`, at most abo
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import torch
 
 from dpi.materials import MaterialRates, MaterialTextures
 from dpi.solve.optimize import OptimizeConfig, fit_env_model
+from dpi.solve.init import is_glossy
 from dpi.solve.problem import InverseProblem
 from dpi.solve.smooth_gain import SmoothGain
 from dpi.solve.trace import Trace
@@ -34,6 +35,16 @@ class RefineSettings:
     """Adam rate of the gain's spherical-harmonic coefficients"""
     lr_texels: float = 0.005
     """Adam rate of the per-texel log polish: at most 1 over 200 iterations, so the sample keeps its detail"""
+    glossy_factor: float = 2.0
+    """a glossy init (dpi.solve.init.is_glossy) refines this many times longer: the loop does not move the
+    roughness a mirror's views hinge on (posterior study's glossy scene, 100 against 50 iterations: views
+    +0.5 dB; rough scenes tie at 50, docs/studies.md "Refinement length")"""
+
+    def for_init(self, materials: MaterialTextures) -> RefineSettings:
+        """These settings for a sample whose init has `materials`: `glossy_factor` times longer on a glossy one."""
+        if not is_glossy(materials):
+            return self
+        return replace(self, iterations=round(self.iterations * self.glossy_factor))
 
     def optimize(self, rates: MaterialRates) -> OptimizeConfig:
         """The joint fit's settings: the gain's rate for the map's parameters, `rates` for the textures."""
