@@ -214,3 +214,4 @@ def test_proximal_records_roughness_levels_only_for_a_glossy_init():
     assert settings.transport_for(glossy).roughness_levels == settings.glossy_roughness_levels == 3
     assert settings.transport_for(rough).roughness_levels == settings.roughness_levels == 0
     assert settings.transport_for(rough).pixels == settings.transport_pixels
+    assert (settings.transport_for(rough).max_height, settings.transport_for(glossy).max_height) == (16, 32)

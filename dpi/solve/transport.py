@@ -39,8 +39,9 @@ from dpi.render import SEED_MODULUS, texture_plugin
 from dpi.solve.problem import InverseProblem
 
 MAX_TRANSPORT_HEIGHT = 32
-"""the largest map (rows) a transport takes (the shipped priors' size): its normal equations take (2 H^2)^2 x 3
-floats (100 MB at 32 rows, 1.6 GB at 64) and its direct light one shadow ray per texel per camera sample"""
+"""the largest map (rows) a transport takes by default (the shipped priors' size): its normal equations take
+(2 H^2)^2 x 3 floats (100 MB at 32 rows, 1.6 GB at 64) and its direct light one shadow ray per texel per camera
+sample, so its recording and products grow with the texels (4x from 16 to 32 rows)"""
 HALVES = 2
 """independent recordings of every transport (module notes)"""
 BRIGHT_SHARE = 0.5
@@ -69,6 +70,8 @@ class TransportSettings:
     roughness_levels: int = 3
     """besides the materials' own roughness, the transport under this many more: the texture shifted to medians
     from a mirror's to a matte's (`roughness_levels`), recorded in the same pass (only the BSDF's values differ)"""
+    max_height: int = MAX_TRANSPORT_HEIGHT
+    """most rows of the maps the transport takes (`transport_height`)"""
 
     def __post_init__(self) -> None:
         for name in ("spp", "direct_spp"):
@@ -79,6 +82,8 @@ class TransportSettings:
             raise ValueError(f"pixels must be at least 1, got {self.pixels}")
         if self.roughness_levels < 0:
             raise ValueError(f"roughness_levels must be at least 0, got {self.roughness_levels}")
+        if self.max_height < 1:
+            raise ValueError(f"max_height must be at least 1, got {self.max_height}")
 
 
 ROUGHNESS_RANGE = (0.05, 0.9)
@@ -669,10 +674,10 @@ class LightTransport:
         return curvature, linear, float((rest[0] * rest[1]).sum())
 
 
-def transport_height(env_height: int) -> int:
-    """The rows of the maps a transport takes: the problem's map, at most MAX_TRANSPORT_HEIGHT (a finer map is
-    sampled at that size and upsampled; its finer detail is the path-traced refinement's)."""
-    return min(env_height, MAX_TRANSPORT_HEIGHT)
+def transport_height(env_height: int, max_height: int = MAX_TRANSPORT_HEIGHT) -> int:
+    """The rows of the maps a transport takes: the problem's map, at most `max_height` (a finer map is sampled at
+    that size and upsampled; its finer detail is the path-traced refinement's)."""
+    return min(env_height, max_height)
 
 
 def resize_map(env: np.ndarray, height: int) -> np.ndarray:
@@ -691,7 +696,7 @@ def record_transport(problem: InverseProblem, materials: MaterialTextures, env: 
     rng = np.random.default_rng(seed)
     chosen = transport_pixels(problem, settings.pixels, rng)
     guide = guide_map(env)
-    height = transport_height(problem.settings.env_height)
+    height = transport_height(problem.settings.env_height, settings.max_height)
     matrices, observed, rows, cols, weights = [], [], [], [], []
     first = 0
     for j, (v, pixels) in enumerate(chosen.items()):

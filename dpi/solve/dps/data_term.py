@@ -16,7 +16,7 @@ import torch
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.init import starting_materials
-from dpi.solve.transport import LightTransport, TransportSettings, record_transport
+from dpi.solve.transport import MAX_TRANSPORT_HEIGHT, LightTransport, TransportSettings, record_transport
 
 
 @dataclass
@@ -31,12 +31,14 @@ class TransportSampling:
     """most foreground pixels of the training views recorded (beyond it an even random subset)"""
     roughness_levels: int = 3
     """roughness levels recorded besides the init's (dpi.solve.transport.roughness_levels)"""
+    transport_height: int = MAX_TRANSPORT_HEIGHT
+    """most rows of the maps the recording takes (a finer map is sampled at that size)"""
 
     @property
     def transport(self) -> TransportSettings:
         """The recording's settings."""
         return TransportSettings(self.transport_spp, self.transport_direct_spp, self.transport_pixels,
-                                 self.roughness_levels)
+                                 self.roughness_levels, self.transport_height)
 
     def transport_for(self, init: Decomposition) -> TransportSettings:
         """The recording's settings for a sample starting from `init` (a sampler may adapt them to it)."""

@@ -68,11 +68,18 @@ class ProximalSettings(TransportSampling, SamplerSettings):
     glossy_roughness_levels: int = 3
     """roughness levels recorded besides the init's when the init is glossy (dpi.solve.init.is_glossy): a mirror's
     fit moves with its roughness (posterior study's glossy scene: views +0.5 dB, albedo MSE -7 %)"""
+    transport_height: int = 16
+    """most rows of the recorded maps on a rough object: its views fix the light's low frequencies only, and the
+    recording's cost grows with the texels (docs/studies.md "The transport's map size")"""
+    glossy_transport_height: int = 32
+    """most rows of the recorded maps when the init is glossy: a mirror's views resolve the light's detail"""
 
     def transport_for(self, init: Decomposition) -> TransportSettings:
-        """The recording's settings for a sample starting from `init`: more levels on a glossy object."""
-        levels = self.glossy_roughness_levels if is_glossy(init.materials) else self.roughness_levels
-        return replace(self.transport, roughness_levels=levels)
+        """The recording's settings for a sample starting from `init`: more levels and rows on a glossy object."""
+        if is_glossy(init.materials):
+            return replace(self.transport, roughness_levels=self.glossy_roughness_levels,
+                           max_height=self.glossy_transport_height)
+        return replace(self.transport, roughness_levels=self.roughness_levels)
 
     models_sun = True
 
