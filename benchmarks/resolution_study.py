@@ -130,8 +130,9 @@ def main() -> None:
     for height in args.heights:
         for texture in args.textures:
             config = size_config(height, texture)
+            dps = {k: v for k, v in config["method_params"].get("dps", {}).items() if k != "samples"}
             for scene, (group, synth) in SCENES.items():
-                jobs.extend(Job(size_root(height, texture), scene, group, synth, "dps", "", seed, {}, config)
+                jobs.extend(Job(size_root(height, texture), scene, group, synth, "dps", "", seed, dps, config)
                             for seed in args.seeds)
     rows = run_study(jobs, args.out, COLUMNS, score, args.jobs, (job_key, row_key), TEXT)
     print("\n".join(summary(rows)))
