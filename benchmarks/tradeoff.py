@@ -51,8 +51,8 @@ class Setting:
 
 
 SWEEPS = {"steps": [25, 50, 100, 250, 1000], "spp": [4, 16, 64], "resolution": [32, 64],
-          "transport_pixels": [1024, 2048, 4096], "env_height": [8, 16, 32], "texture_size": [32, 64, 128],
-          "refine_iterations": [50, 100, 200]}
+          "transport_pixels": [1024, 2048, 4096], "env_height": [16, 32, 64], "texture_size": [32, 64, 128],
+          "refine_iterations": [25, 100, 200]}
 
 
 def preset_setting(name: str | None = None) -> Setting:
