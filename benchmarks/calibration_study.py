@@ -36,6 +36,7 @@ from posterior_study import (
     Job,
     append_row,
     dps_variants,
+    job_settings,
     mean_std_cells,
     prepare_job,
     read_rows,
@@ -81,7 +82,7 @@ def sample_jobs(args: argparse.Namespace, config: dict) -> dict[tuple[str, str, 
                 labels = {s: variants[s] for s in args.samplers} if method == "dps" else \
                     {"": config["method_params"].get(method, {})}
                 for sampler, cfg in labels.items():
-                    cfg = {k: v for k, v in cfg.items() if k != "samples"}
+                    cfg = job_settings(cfg)
                     seeds = [0] if method == "init" else [1000 * repeat + k for k in range(args.samples)]
                     groups[(scene, method, sampler, repeat)] = [
                         Job(WORK, name, "calibration", own, method, sampler, s, cfg, config) for s in seeds]

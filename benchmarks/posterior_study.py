@@ -157,6 +157,11 @@ def run_job(job: Job) -> dict[str, Any]:
             "seconds": metrics["sample_seconds"]}
 
 
+def job_settings(settings: dict) -> dict:
+    """A method's settings as one sample job takes them: without the workflow's sample count."""
+    return {k: v for k, v in settings.items() if k != "samples"}
+
+
 def dps_variants(config: dict, extra: list[str]) -> dict[str, dict]:
     """dps settings per sampler label: each built-in sampler, plus `NAME:key=value,...` variants (a dotted key
     names a section's setting: `proximal.inner_steps=4`)."""
@@ -188,7 +193,7 @@ def jobs_for(args: argparse.Namespace, config: dict, root: Path = WORK,
             labels = {v: cfg for v, cfg in variants.items() if v in (args.samplers or variants)} \
                 if method == "dps" else {"": config["method_params"].get(method, {})}
             for sampler, cfg in labels.items():
-                cfg = {k: v for k, v in cfg.items() if k != "samples"}
+                cfg = job_settings(cfg)
                 seeds = [0] if method == "init" else args.seeds
                 group, synth = scenes[scene]
                 jobs.extend(Job(root, scene, group, synth, method, sampler, s, cfg, config, args.rerun) for s in seeds)

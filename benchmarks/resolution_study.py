@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from posterior_study import ROOT, Job, mean_std_cells, run_study, study_layout
+from posterior_study import ROOT, Job, job_settings, mean_std_cells, run_study, study_layout
 
 WORK = ROOT / "results" / "benchmarks" / "resolution_study"
 CSV = ROOT / "benchmarks" / "results" / "resolution_study.csv"
@@ -130,7 +130,7 @@ def main() -> None:
     for height in args.heights:
         for texture in args.textures:
             config = size_config(height, texture)
-            dps = {k: v for k, v in config["method_params"].get("dps", {}).items() if k != "samples"}
+            dps = job_settings(config["method_params"].get("dps", {}))
             for scene, (group, synth) in SCENES.items():
                 jobs.extend(Job(size_root(height, texture), scene, group, synth, "dps", "", seed, dps, config)
                             for seed in args.seeds)

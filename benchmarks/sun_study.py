@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from posterior_study import ROOT, SIZE, Job, jobs_for, mean_std_cells, run_job, run_study, workflow_config
+from posterior_study import ROOT, SIZE, Job, job_settings, jobs_for, mean_std_cells, run_job, run_study, workflow_config
 
 from dpi.capture import load_capture
 from dpi.envmap import texel_directions, top_energy_share
@@ -132,7 +132,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=CSV)
     args = parser.parse_args()
     config = workflow_config(env_height=16)
-    dps = {k: v for k, v in config["method_params"].get("dps", {}).items() if k != "samples"}
+    dps = job_settings(config["method_params"].get("dps", {}))
     samplers = [spec.partition(":")[0] for spec in args.dps] or [DPSConfig.from_dict(dps).sampler]
     study = argparse.Namespace(scenes=args.scenes, methods=args.methods, samplers=samplers, seeds=args.seeds,
                                dps=args.dps, rerun=False)

@@ -38,7 +38,7 @@ class RefineSettings:
     glossy_factor: float = 2.0
     """a glossy init (dpi.solve.init.is_glossy) refines this many times longer: the loop does not move the
     roughness a mirror's views hinge on (posterior study's glossy scene, 100 against 50 iterations: views
-    +0.5 dB; rough scenes tie at 50, docs/studies.md "Refinement length")"""
+    +0.5 dB; rough scenes tie at 50, docs/studies.md "the refinement's length")"""
 
     def for_init(self, materials: MaterialTextures) -> RefineSettings:
         """These settings for a sample whose init has `materials`: `glossy_factor` times longer on a glossy one."""
