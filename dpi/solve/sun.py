@@ -65,9 +65,22 @@ def extract_sun(env: torch.Tensor, radius_deg: float = 25.0) -> SunExtraction:
     return SunExtraction(env - excess, uv, irradiance, share)
 
 
-def sun_env(uv: torch.Tensor, irradiance: torch.Tensor, height: int) -> torch.Tensor:
+def sun_env(uv: torch.Tensor, irradiance: torch.Tensor, height: int, splat_height: int | None = None) -> torch.Tensor:
     """(H, 2H, 3) map of a sun of `irradiance` (3,) at `uv` (2,): bilinear weights on the four nearest
-    texel centres (wrapping in azimuth, clamped at the poles), scaled so the energy is `irradiance`."""
+    texel centres (wrapping in azimuth, clamped at the poles), scaled so the energy is `irradiance`. With a
+    `splat_height` below `height` the sun is splatted at that size and spread over the finer texels it covers
+    (the angular size the data term that fitted it saw: a point sun on a 128-row map is a 1.4 deg speck)."""
+    coarse = min(height, splat_height or height)
+    weights = splat_weights(uv, coarse, irradiance.dtype)
+    if coarse < height:
+        weights = torch.nn.functional.interpolate(weights[None, None], size=(height, 2 * height), mode="nearest")[0, 0]
+    energy = (weights * solid_angles(height, irradiance.dtype)).sum()
+    return (weights / energy)[..., None] * irradiance
+
+
+def splat_weights(uv: torch.Tensor, height: int, dtype: torch.dtype) -> torch.Tensor:
+    """(H, 2H) bilinear weights of map coordinates `uv` on the four nearest texel centres (wrapping in azimuth,
+    clamped at the poles)."""
     width = 2 * height
     x = torch.remainder(uv[0], 1.0) * width - 0.5
     y = (uv[1] * height - 0.5).clamp(0.0, height - 1.0)
@@ -75,13 +88,11 @@ def sun_env(uv: torch.Tensor, irradiance: torch.Tensor, height: int) -> torch.Te
     fx, fy = x - x0, y - y0
     cols = [int(x0) % width, (int(x0) + 1) % width]
     rows = [int(y0), min(int(y0) + 1, height - 1)]
-    weights = torch.zeros(height, width, dtype=irradiance.dtype)
-    weights = weights.index_put((torch.tensor([rows[0], rows[0], rows[1], rows[1]]),
-                                 torch.tensor([cols[0], cols[1], cols[0], cols[1]])),
-                                torch.stack([(1 - fy) * (1 - fx), (1 - fy) * fx, fy * (1 - fx), fy * fx]),
-                                accumulate=True)
-    energy = (weights * solid_angles(height, irradiance.dtype)).sum()
-    return (weights / energy)[..., None] * irradiance
+    weights = torch.zeros(height, width, dtype=dtype)
+    return weights.index_put((torch.tensor([rows[0], rows[0], rows[1], rows[1]]),
+                              torch.tensor([cols[0], cols[1], cols[0], cols[1]])),
+                             torch.stack([(1 - fy) * (1 - fx), (1 - fy) * fx, fy * (1 - fx), fy * fx]).to(dtype),
+                             accumulate=True)
 
 
 def sun_direction_of(uv: torch.Tensor) -> np.ndarray:

@@ -33,14 +33,12 @@ from typing import Any, Callable
 import torch
 
 from dpi.solve.dps.proximal import recentre_
-from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerSettings, finite, predict_x0
+from dpi.solve.dps.state import DARK_FLOOR, DPSRun, DPSState, Laps, SamplerSettings, finite, predict_x0
 from dpi.solve.dps.data_term import TransportSampling, current_level, sample_transport, set_level
 from dpi.solve.init import START_ALBEDO
 from dpi.solve.prior_space import resample_env
 from dpi.solve.transport import LightTransport, NormalEquations
 
-DARK_FLOOR = 1e-6
-"""radiance floor (times the prior's median) before the logarithm"""
 NOISE_FLOOR = 1e-6
 """lowest noise variance, times the views' mean squared radiance (a map and albedo that fit exactly)"""
 

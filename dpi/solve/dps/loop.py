@@ -139,7 +139,8 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
                                          state.snapshots))
     bar.close()
     with torch.no_grad():
-        env = run.env(prior.encoding.to_radiance(state.x.clamp(-1, 1)), state)
+        fitted_at = state.extra["transport"].height if "transport" in state.extra else None
+        env = run.env(prior.encoding.to_radiance(state.x.clamp(-1, 1)), state, sun_height=fitted_at)
     trace.info["log_exposure"] = float(state.log_exposure)
     if "transport" in state.extra:
         transport = state.extra["transport"]

@@ -7,7 +7,8 @@ with z(l) the map in prior space and R the training views' recorded light transp
 (dpi.solve.dps.data_term): every step sees all the views, without path tracing. The views are linear
 in the map, so the global exposure is solved exactly: c is the least-squares scale of the image, and
 s += ln c. l starts from x0_hat at the first step and from the previous step's l after that (the
-data fit accumulates). Then re-noise:
+data fit accumulates), or with `restart` from each step's x0_hat (DiffPIR's proximal point: where
+the views are silent the map is the prior's draw, not the start's guess). Then re-noise:
 x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) (sqrt(1 - zeta) eps_hat + sqrt(zeta) eps) with
 eps_hat recomputed from z, so samples stay diverse. The proximal weight grows as the noise falls
 (DiffPIR's rho_t ~ 1 / sigma_t^2), so late steps keep what the data put into x_t early. The
@@ -32,7 +33,7 @@ import torch
 from dpi.images import luminance
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.data_term import TransportSampling, current_level, sample_transport, set_level
-from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerSettings, finite, predict_x0
+from dpi.solve.dps.state import DARK_FLOOR, DPSRun, DPSState, Laps, SamplerSettings, finite, predict_x0
 from dpi.solve.init import is_glossy
 from dpi.solve.optimize import all_finite
 from dpi.solve.transport import LightTransport, TransportSettings
@@ -40,8 +41,6 @@ from dpi.solve.sun import share_penalty, wrap_uv_
 
 MAX_EXPOSURE_STEP = 3.0
 """largest change of the log-exposure in one data update"""
-DARK_FLOOR = 1e-6
-"""radiance floor (times the prior's median) before the logarithm (the paper's curve reaches 0)"""
 
 
 @dataclass
@@ -73,6 +72,9 @@ class ProximalSettings(TransportSampling, SamplerSettings):
     recording's cost grows with the texels (docs/studies.md "The transport's map size")"""
     glossy_transport_height: int = 32
     """most rows of the recorded maps when the init is glossy: a mirror's views resolve the light's detail"""
+    restart: bool = False
+    """each step's data updates start from that step's x0_hat (DiffPIR's proximal point: where the views are
+    silent the map is the prior's); False: from the previous step's fit, which keeps the start's guess there"""
 
     def transport_for(self, init: Decomposition) -> TransportSettings:
         """The recording's settings for a sample starting from `init`: more levels and rows on a glossy object."""
@@ -135,7 +137,7 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
         level = best_level(transport, run.env(torch.exp(state.log_map), state, transport.height),
                            state.materials.albedo)
         set_level(state, transport, level)
-    if n == 0:
+    if n == 0 or settings.restart:
         floor = DARK_FLOOR * run.prior.median_target
         with torch.no_grad():
             state.log_map.copy_(torch.log(encoding.to_radiance(x0_hat).clamp_min(floor)))

@@ -44,6 +44,10 @@ class SamplerSettings:
         return settings
 
 
+DARK_FLOOR = 1e-6
+"""radiance floor (times the prior's median) before the logarithm (the paper's curve reaches 0)"""
+
+
 @dataclass
 class DPSRun:
     """What stays fixed during one posterior sample."""
@@ -75,13 +79,15 @@ class DPSRun:
         """Schedule index of executed step n (the first executed step is the noisiest)."""
         return self.first_index - n
 
-    def env(self, radiance: torch.Tensor, state: "DPSState", height: int | None = None) -> torch.Tensor:
+    def env(self, radiance: torch.Tensor, state: "DPSState", height: int | None = None,
+            sun_height: int | None = None) -> torch.Tensor:
         """Prior-resolution normalised radiance (1, 3, h, 2h) -> scene env map (H, 2H, 3) at `height` rows
-        (default the problem's), times the state's exposure, plus its sun (splatted at that height, so it stays
-        a point of light where the prior's resolution would blur it)."""
+        (default the problem's), times the state's exposure, plus its sun (splatted at that height, or at
+        `sun_height` when lower: so it stays a point of light where the prior's resolution would blur it, no
+        smaller than the data term that fitted it saw it)."""
         height = height or self.problem.settings.env_height
         env = self.scale * torch.exp(state.log_exposure) * resample_env(radiance, height)
-        return env + sun_env(state.sun_uv, self.sun_irradiance(state), height) if self.sun else env
+        return env + sun_env(state.sun_uv, self.sun_irradiance(state), height, sun_height) if self.sun else env
 
     def sun_irradiance(self, state: "DPSState") -> torch.Tensor:
         """(3,) the state's sun in scene radiance units (its log irradiance is in the prior's, times the exposure)."""
