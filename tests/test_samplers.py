@@ -114,6 +114,25 @@ def test_proximal_step_with_an_exact_operator_converges_to_the_data():
     assert records[-1]["loss"] < 0.01 * records[0]["loss"]
 
 
+
+@pytest.mark.parametrize("restart", [False, True])
+def test_restart_starts_each_steps_fit_from_x0_hat(restart):
+    """With `restart` a step's data updates start from its x0_hat (with no update the map is x0_hat exactly);
+    without, from the previous step's map."""
+    height = 8
+    problem = LinearProblem(torch.ones(height, 2 * height, 3))
+    init = Decomposition(torch.ones(height, 2 * height, 3), MaterialTextures.constant(4))
+    cfg = DPSConfig.from_dict({"steps": 10, "radiance_scale": 1.0,
+                               "proximal": {"inner_steps": 1, "lr_map": 1e-12, "restart": restart}})
+    run, state = start_run(problem, gaussian_prior(height), init, cfg, seed=0)
+    state.extra["transport"] = problem.transport()
+    steps = posterior_steps(run, state)
+    next(steps)
+    with torch.no_grad():
+        state.log_map.fill_(3.0)
+    record = next(steps)
+    assert (record["prox"] < 1e-8) == restart
+
 @pytest.fixture(scope="module")
 def problem_and_init(tiny_capture):
     problem = InverseProblem(load_capture(tiny_capture), ProblemSettings(env_height=4, texture_size=8),
