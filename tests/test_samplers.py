@@ -114,7 +114,6 @@ def test_proximal_step_with_an_exact_operator_converges_to_the_data():
     assert records[-1]["loss"] < 0.01 * records[0]["loss"]
 
 
-
 @pytest.mark.parametrize("restart", [False, True])
 def test_restart_starts_each_steps_fit_from_x0_hat(restart):
     """With `restart` a step's data updates start from its x0_hat (with no update the map is x0_hat exactly);
@@ -132,6 +131,7 @@ def test_restart_starts_each_steps_fit_from_x0_hat(restart):
         state.log_map.fill_(3.0)
     record = next(steps)
     assert (record["prox"] < 1e-8) == restart
+
 
 @pytest.fixture(scope="module")
 def problem_and_init(tiny_capture):

@@ -21,7 +21,6 @@ def test_splat_carries_its_irradiance_anywhere_on_the_map(uv):
     assert int((env.sum(-1) > 0).sum()) <= 4
 
 
-
 @pytest.mark.parametrize("uv", [(0.3, 0.27), (0.995, 0.5), (0.6, 0.99)])
 def test_a_sun_splatted_coarser_covers_the_coarse_texels_with_its_energy(uv):
     irradiance = torch.tensor([1.0, 2.0, 3.0])
@@ -31,6 +30,7 @@ def test_a_sun_splatted_coarser_covers_the_coarse_texels_with_its_energy(uv):
     lit = torch.nn.functional.interpolate((coarse.sum(-1) > 0).float()[None, None], size=(16, 32))[0, 0] > 0
     assert torch.equal(fine.sum(-1) > 0, lit)
     torch.testing.assert_close(sun_env(torch.tensor(uv), irradiance, 4, splat_height=16), coarse)
+
 
 def test_splat_gradient_in_the_sun_position_matches_finite_differences():
     weights = torch.rand(8, 16, generator=torch.Generator().manual_seed(0))

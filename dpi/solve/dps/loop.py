@@ -138,12 +138,12 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
             store.save(LoopState.capture(n, state.tensors(), state.optimizer, state.generator, trace,
                                          state.snapshots))
     bar.close()
-    with torch.no_grad():
-        fitted_at = state.extra["transport"].height if "transport" in state.extra else None
-        env = run.env(prior.encoding.to_radiance(state.x.clamp(-1, 1)), state, sun_height=fitted_at)
+    transport = state.extra.get("transport")
+    with torch.no_grad():  # a fitted sun at the size the transport saw it
+        env = run.env(prior.encoding.to_radiance(state.x.clamp(-1, 1)), state,
+                      sun_height=transport.height if transport is not None else None)
     trace.info["log_exposure"] = float(state.log_exposure)
-    if "transport" in state.extra:
-        transport = state.extra["transport"]
+    if transport is not None:
         trace.info["transport"] = {"recordings": refreshes, "seconds": round(transport.seconds, 3),
                                    "pixels": transport.pixels, "foreground": transport.foreground,
                                    "bytes": transport.nbytes}
