@@ -51,6 +51,7 @@ from dpi.solve.dps.state import DPSRun
 from dpi.solve.problem import InverseProblem, ProblemSettings
 
 PARTS = {"network": "network forward (UNet, random roll)",
+         "solve": "Gauss-Newton solve of the map on the transport (proximal)",
          "data": "data updates on the transport (proximal)",
          "albedo": "level and albedo draws (gibbs)",
          "equations": "the map's normal equations (gibbs)",
@@ -58,9 +59,8 @@ PARTS = {"network": "network forward (UNet, random roll)",
          "render": "render forward + backward (paper)",
          "network_backward": "network backward (paper)", "rest": "reverse step, Adam and the rest",
          "total": "whole step"}
-TIMED = ("network", "transport", "data", "albedo", "equations", "draw", "render", "network_backward")
+TIMED = ("network", "transport", "solve", "data", "albedo", "equations", "draw", "render", "network_backward")
 """the parts a step's record times (seconds_<part>); the transport's recording (first step) is not a step's cost"""
-"""the parts a step's record times (seconds_<part>)"""
 
 
 def kernel_counts() -> dict[str, float]:

@@ -151,6 +151,23 @@ def test_normal_equations_of_the_map_give_the_data_term_and_its_gradient(transpo
                                atol=1e-4 * float(analytic.abs().max()))
 
 
+def test_image_equations_are_the_fit_loss_and_its_gradient_without_the_gram(transport):
+    albedo, env = random_albedo(10), random_map(10).double()
+    equations = transport.image_equations(albedo, level=1)
+    fit = float(transport.fit_loss(env, albedo, level=1))
+    assert float(equations.sum_squares(env)) == pytest.approx(fit, rel=1e-4)
+    flat = env.reshape(-1, 3).T
+    leaf = env.clone().requires_grad_(True)
+    transport.fit_loss(leaf, albedo, level=1).backward()
+    np.testing.assert_allclose(leaf.grad.reshape(-1, 3).T.numpy(),
+                               (2 * (equations.apply(flat) - equations.rhs)).numpy(), rtol=1e-3,
+                               atol=1e-4 * float(leaf.grad.abs().max()))
+    units = torch.eye(flat.shape[1], dtype=torch.float64)[:5]  # the diagonal: e_i^T G e_i
+    for i, unit in enumerate(units):
+        assert float(equations.apply(unit.expand(3, -1))[0, i]) == pytest.approx(
+            float(equations.diagonal()[0, i]), rel=1e-4)
+
+
 def test_albedo_terms_are_the_data_term_as_a_quadratic_in_the_seen_albedo(transport):
     env, albedo = random_map(9), random_albedo(9)
     curvature, linear, constant = transport.albedo_terms(env)
@@ -202,7 +219,7 @@ def test_pixels_beyond_the_limit_are_an_even_subset_and_weigh_for_the_rest(probl
         TransportSettings(direct_spp=3)
 
 
-def test_proximal_records_roughness_levels_only_for_a_glossy_init():
+def test_proximal_adapts_its_recording_and_its_solve_to_a_glossy_init():
     from dpi.materials import MaterialTextures
     from dpi.solve.decomposition import Decomposition
     from dpi.solve.dps.proximal import ProximalSettings
@@ -215,3 +232,4 @@ def test_proximal_records_roughness_levels_only_for_a_glossy_init():
     assert settings.transport_for(rough).roughness_levels == settings.roughness_levels == 0
     assert settings.transport_for(rough).pixels == settings.transport_pixels
     assert (settings.transport_for(rough).max_height, settings.transport_for(glossy).max_height) == (16, 32)
+    assert (settings.solve_iterations(rough), settings.solve_iterations(glossy)) == (1, 0)

@@ -28,15 +28,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import torch
 
-from dpi.solve.dps.proximal import recentre_
+from dpi.solve.dps.map_solve import MapPrior, conjugate_gradients, negative_laplacian, solve_map
 from dpi.solve.dps.state import DARK_FLOOR, DPSRun, DPSState, Laps, SamplerSettings, finite, predict_x0
 from dpi.solve.dps.data_term import TransportSampling, current_level, sample_transport, set_level
 from dpi.solve.init import START_ALBEDO
-from dpi.solve.prior_space import resample_env
 from dpi.solve.transport import LightTransport, NormalEquations
 
 NOISE_FLOOR = 1e-6
@@ -78,18 +77,6 @@ def posterior_variance(abar: float, prior_std: float) -> float:
     return s2 * (1.0 - abar) / (1.0 - abar + abar * s2)
 
 
-def negative_laplacian(x: torch.Tensor, wrap: bool = True) -> torch.Tensor:
-    """(C, H, W) -> 4 x minus its four neighbours on the grid (columns wrap when `wrap`, as a map's azimuth does;
-    other edges reflect): the graph Laplacian whose quadratic form sums the squared differences of neighbours."""
-    up = torch.cat([x[:, :1], x[:, :-1]], dim=1)
-    down = torch.cat([x[:, 1:], x[:, -1:]], dim=1)
-    if wrap:
-        left, right = torch.roll(x, 1, dims=2), torch.roll(x, -1, dims=2)
-    else:
-        left, right = torch.cat([x[:, :, :1], x[:, :, :-1]], dim=2), torch.cat([x[:, :, 1:], x[:, :, -1:]], dim=2)
-    return 4 * x - up - down - left - right
-
-
 def smooth_noise(shape: tuple[int, int, int], smoothness: float, wrap: bool, generator: torch.Generator,
                  mass: float = 1.0) -> torch.Tensor:
     """A draw of N(0, mass I + smoothness x the grid's Laplacian) (C, H, W): sqrt(mass) eps_0 + sqrt(smoothness)
@@ -108,70 +95,7 @@ def smooth_noise(shape: tuple[int, int, int], smoothness: float, wrap: bool, gen
     return out
 
 
-def conjugate_gradients(apply: Callable[[torch.Tensor], torch.Tensor], rhs: torch.Tensor, diagonal: torch.Tensor,
-                        iterations: int, tolerance: float = 1e-6) -> torch.Tensor:
-    """Solve apply(x) = rhs per row (a batch of symmetric positive definite systems) by conjugate gradients
-    with a Jacobi preconditioner (`diagonal`), from x = 0."""
-    x = torch.zeros_like(rhs)
-    r = rhs.clone()
-    z = r / diagonal
-    d = z.clone()
-    rz = (r * z).sum(-1, keepdim=True)
-    goal = tolerance ** 2 * (rhs * rhs).sum(-1, keepdim=True)
-    for _ in range(iterations):
-        q = apply(d)
-        step = rz / (d * q).sum(-1, keepdim=True).clamp_min(1e-300)
-        x = x + step * d
-        r = r - step * q
-        if bool(((r * r).sum(-1, keepdim=True) <= goal).all()):
-            break
-        z = r / diagonal
-        rz_next = (r * z).sum(-1, keepdim=True)
-        d = z + rz_next / rz.clamp_min(1e-300) * d
-        rz = rz_next
-    return x
-
-
-@dataclass(frozen=True)
-class Resampling:
-    """`resample_env` on one channel as sparse matrices (it is linear): A (N_env, N_prior), A^T, and (A o A)^T."""
-
-    forward: torch.Tensor
-    adjoint: torch.Tensor
-    adjoint_squared: torch.Tensor
-
-    @classmethod
-    def between(cls, prior_height: int, env_height: int) -> "Resampling":
-        """The matrices from the prior's resolution to the problem's, built by resampling unit maps."""
-        units = torch.eye(2 * prior_height ** 2, dtype=torch.float64).reshape(-1, 1, prior_height, 2 * prior_height)
-        columns = resample_env(units.reshape(-1, prior_height, 2 * prior_height)[None], env_height)
-        a = columns.reshape(-1, units.shape[0])  # (N_env, N_prior): texel i of the map from prior texel j
-        return cls(a.to_sparse(), a.T.contiguous().to_sparse(), a.square().T.contiguous().to_sparse())
-
-    def apply(self, x: torch.Tensor) -> torch.Tensor:
-        """(3, N_prior) -> (3, N_env)."""
-        return (self.forward @ x.T).T
-
-    def transpose(self, y: torch.Tensor) -> torch.Tensor:
-        """(3, N_env) -> (3, N_prior)."""
-        return (self.adjoint @ y.T).T
-
-
-def prior_coordinates(encoding: Any, log_map: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """The prior-space map z(l) of log radiance l (unclipped) and its elementwise slope dz/dl."""
-    l = log_map.detach().requires_grad_(True)
-    z = encoding.log_to_prior(l)
-    (slope,) = torch.autograd.grad(z.sum(), l)
-    return z.detach(), slope
-
-
-RANGE_STD = 0.02
-"""the prior's maps lie inside the encoding's range [-1, 1]: a draw beyond it pays (excess / RANGE_STD)^2 / 2"""
-MAX_LOG_STEP = 3.0
-"""largest change of a texel's log radiance in one Gauss-Newton iteration (a trust region)"""
-CG_ITERATIONS = 20
 ALBEDO_CG_ITERATIONS = 40
-BACKTRACKS = 6
 
 
 def gram_factor(equations: NormalEquations) -> torch.Tensor:
@@ -183,75 +107,19 @@ def gram_factor(equations: NormalEquations) -> torch.Tensor:
 
 def map_draw(run: DPSRun, state: DPSState, equations: NormalEquations, x0_hat: torch.Tensor, variance: float,
              sigma2: float) -> float:
-    """Randomise-then-optimise draw of the map's log radiance l (state.log_map, in place) and log-exposure
-    (module notes, step 4): Gauss-Newton on l (conjugate gradients) with the exposure solved exactly before each
-    iteration; `sigma2` is the noise variance of one residual of `equations`. Returns the draw's prior term."""
+    """Randomise-then-optimise draw of the map's log radiance (state.log_map, in place, from the previous draw)
+    and log-exposure (module notes, step 4): the prior's mean perturbed by a draw of N(0, r_t^2 Q^-1) (written
+    as Q^-1 times its precision's square root x eps), the data by one of the views' noise, then `solve_map`;
+    `sigma2` is the noise variance of one residual of `equations`. Returns the draw's prior term."""
     settings: GibbsSettings = run.sampler
-    gen, encoding = state.generator, run.prior.encoding
-    shape = x0_hat.shape[-2:]
-
-    def smooth(x: torch.Tensor) -> torch.Tensor:  # Q x = x + smoothness (minus the Laplacian) x, per channel
-        return x + settings.smoothness * negative_laplacian(x.reshape(3, *shape)).reshape(3, -1)
-
-    if "resampling" not in state.extra:
-        height = math.isqrt(equations.rhs.shape[1] // 2)  # the equations' map: H x 2H texels
-        state.extra["resampling"] = Resampling.between(run.prior.height, height)
+    gen = state.generator
     if "gram_factor" not in state.extra:
         state.extra["gram_factor"] = gram_factor(equations)
-    resampling: Resampling = state.extra["resampling"]
-    # the prior's mean perturbed by a draw of N(0, r_t^2 Q^-1), written as Q^-1 (its precision's square root x eps)
-    target = x0_hat.reshape(3, -1).double()
-    prior_push = math.sqrt(variance) * smooth_noise((3, *shape), settings.smoothness, True, gen).reshape(3, -1)
+    push = math.sqrt(variance) * smooth_noise((3, *x0_hat.shape[-2:]), settings.smoothness, True, gen).reshape(3, -1)
     noise = torch.randn(equations.rhs.shape, generator=gen, dtype=torch.float64)
     rhs = equations.rhs + math.sqrt(sigma2) * torch.bmm(state.extra["gram_factor"], noise[:, :, None])[..., 0]
-    jacobi = resampling.adjoint_squared @ equations.gram.diagonal(dim1=1, dim2=2).T / sigma2  # (N_prior, 3): diag A^T H A
-    l = state.log_map.detach().reshape(3, -1).double().clone()  # from the previous draw
-    log_exposure = float(state.log_exposure)
-
-    def objective(l: torch.Tensor, log_exposure: float) -> tuple[float, float]:
-        """The perturbed posterior's negative log (data / 2 sigma^2 + prior + range) and its prior term."""
-        env = math.exp(log_exposure) * resampling.apply(run.scale * torch.exp(l))
-        sse = float(equations.sum_squares(env.T, rhs))
-        z, _ = prior_coordinates(encoding, l)
-        prior = (float(((z - target) * smooth(z - target)).sum()) - 2 * float((prior_push * (z - target)).sum())) \
-            / (2 * variance)
-        beyond = float(((z.abs() - 1).clamp_min(0) / RANGE_STD).square().sum()) / 2
-        return sse / (2 * sigma2) + prior + beyond, prior
-
-    for _ in range(settings.solver_iterations):
-        unit = run.scale * torch.exp(l)
-        mapped = resampling.apply(unit)
-        curvature = float((mapped * equations.apply(mapped)).sum())
-        projection = float((rhs * mapped).sum())
-        if curvature > 0 and projection > 0:
-            log_exposure = math.log(projection / curvature)
-        u = math.exp(log_exposure) * unit
-        residual = equations.apply(resampling.apply(u)) / sigma2 - rhs / sigma2
-        z, slope = prior_coordinates(encoding, l)
-        outside = (z.abs() - 1).clamp_min(0) * z.sign()
-        gradient = u * resampling.transpose(residual) + slope * ((smooth(z - target) - prior_push) / variance
-                                                                 + outside / RANGE_STD ** 2)
-        precision = slope.square() * (outside != 0) / RANGE_STD ** 2
-
-        def hessian(x: torch.Tensor) -> torch.Tensor:
-            return (precision * x + slope * smooth(slope * x) / variance
-                    + u * resampling.transpose(equations.apply(resampling.apply(u * x)) / sigma2))
-
-        diagonal = precision + slope.square() * (1 + 4 * settings.smoothness) / variance + u.square() * jacobi.T
-        step = conjugate_gradients(hessian, -gradient, diagonal, CG_ITERATIONS)
-        step = step.clamp(-MAX_LOG_STEP, MAX_LOG_STEP)
-        current = objective(l, log_exposure)[0]
-        for _ in range(BACKTRACKS):  # Gauss-Newton overshoots where exp bends: halve the step until it helps
-            if objective(l + step, log_exposure)[0] < current:
-                l = l + step
-                break
-            step = step / 2
-    _, prior = objective(l, log_exposure)
-    if finite(l) and math.isfinite(log_exposure):
-        with torch.no_grad():
-            state.log_map.copy_(l.reshape(x0_hat.shape).float())
-            state.log_exposure.fill_(log_exposure + recentre_(state.log_map, run.prior.median_target))
-    return prior
+    return solve_map(run, state, equations, MapPrior(x0_hat, variance, settings.smoothness, push), sigma2,
+                     settings.solver_iterations, rhs)
 
 
 def albedo_draw(settings: GibbsSettings, transport: LightTransport, env: torch.Tensor, albedo: torch.Tensor,

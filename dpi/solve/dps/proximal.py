@@ -1,14 +1,19 @@
 """The proximal sampler (the DiffPIR / DDS family: Zhu et al. 2023, Chung et al. 2024): data steps on x0.
 
-The data term acts on x0, not x_t, and needs no backward pass through the network.
-`inner_steps` Adam steps on the map's log radiance l (prior resolution) and the albedo against
+The data term acts on x0, not x_t, and needs no backward pass through the network. Each step
+minimises, over the map's log radiance l (prior resolution), the exposure and the albedo,
   ||y - c R(exp(l + s), a)||^2 / ||y||^2  +  prox_weight abar_t / (1 - abar_t) ||z(l) - x0_hat||^2
 with z(l) the map in prior space and R the training views' recorded light transport
 (dpi.solve.dps.data_term): every step sees all the views, without path tracing. The views are linear
 in the map, so the global exposure is solved exactly: c is the least-squares scale of the image, and
-s += ln c. l starts from x0_hat at the first step and from the previous step's l after that (the
-data fit accumulates), or with `restart` from each step's x0_hat (DiffPIR's proximal point: where
-the views are silent the map is the prior's draw, not the start's guess). Then re-noise:
+s += ln c. First `map_solve` Gauss-Newton iterations on l (dpi.solve.dps.map_solve, the albedo held)
+solve the step's proximal problem: the texels the views see take what they say, the others x0_hat,
+so where the views are silent each sample keeps its own prior draw (the samples' spread follows what
+the views leave open); then `inner_steps` Adam steps move map, albedo and sun together. l starts from
+the previous step's l (or with `restart` from each step's x0_hat). With `map_solve: 0` the Adam steps
+alone do not reach the views from x0_hat at a small prox_weight; at 0.5 they accumulate the fit from
+the first step's x0_hat, and where the views are silent every sample keeps that start's guess (the
+variant before the solve: docs/studies.md "Calibration study"). Then re-noise:
 x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) (sqrt(1 - zeta) eps_hat + sqrt(zeta) eps) with
 eps_hat recomputed from z, so samples stay diverse. The proximal weight grows as the noise falls
 (DiffPIR's rho_t ~ 1 / sigma_t^2), so late steps keep what the data put into x_t early. The
@@ -30,17 +35,21 @@ from typing import Any
 
 import torch
 
-from dpi.images import luminance
 from dpi.solve.decomposition import Decomposition
+from dpi.solve.dps.map_solve import MapPrior, solve_map
 from dpi.solve.dps.data_term import TransportSampling, current_level, sample_transport, set_level
-from dpi.solve.dps.state import DARK_FLOOR, DPSRun, DPSState, Laps, SamplerSettings, finite, predict_x0
+from dpi.solve.dps.state import (DARK_FLOOR, DPSRun, DPSState, Laps, SamplerSettings, finite, predict_x0,
+                                recentre_)
 from dpi.solve.init import is_glossy
 from dpi.solve.optimize import all_finite
 from dpi.solve.transport import LightTransport, TransportSettings
-from dpi.solve.sun import share_penalty, wrap_uv_
+from dpi.solve.sun import share_penalty, sun_env, wrap_uv_
 
 MAX_EXPOSURE_STEP = 3.0
 """largest change of the log-exposure in one data update"""
+GRAM_EVERY = 4
+"""reverse steps a formed G of the views' normal equations serves the map's solve (the albedo moves little
+between; the solve's gradient and objective use the current one)"""
 
 
 @dataclass
@@ -53,8 +62,8 @@ class ProximalSettings(TransportSampling, SamplerSettings):
     """joint data updates of map, materials and exposure per reverse step"""
     lr_map: float = 0.05
     """Adam rate of the map's log radiance per data update"""
-    prox_weight: float = 0.5
-    """weight of ||z - x0_hat||^2 per unit abar_t / (1 - abar_t)"""
+    prox_weight: float = 0.05
+    """weight of ||z - x0_hat||^2 per unit abar_t / (1 - abar_t) (0.5 without `map_solve`)"""
     noise_mix: float = 0.5
     """share zeta of fresh noise in the re-noising (0: deterministic DDIM, 1: all fresh)"""
     material_start: float = 0.3
@@ -75,6 +84,16 @@ class ProximalSettings(TransportSampling, SamplerSettings):
     restart: bool = False
     """each step's data updates start from that step's x0_hat (DiffPIR's proximal point: where the views are
     silent the map is the prior's); False: from the previous step's fit, which keeps the start's guess there"""
+    map_solve: int = 1
+    """Gauss-Newton iterations on the step's map (the same loss, all the views, dpi.solve.dps.map_solve) before
+    its Adam updates: the map reaches the views from x0_hat, which a few Adam steps do not (0: Adam only)"""
+    glossy_map_solve: int = 0
+    """Gauss-Newton iterations when the init is glossy: none (a mirror's views pin the light down where they
+    reflect it, and its finer transport makes the solve ten times dearer)"""
+
+    def solve_iterations(self, init: Decomposition) -> int:
+        """Gauss-Newton iterations of a step's map for a sample starting from `init`."""
+        return self.glossy_map_solve if is_glossy(init.materials) else self.map_solve
 
     def transport_for(self, init: Decomposition) -> TransportSettings:
         """The recording's settings for a sample starting from `init`: more levels and rows on a glossy object."""
@@ -101,21 +120,30 @@ def best_level(transport: LightTransport, env: torch.Tensor, albedo: torch.Tenso
     return int(torch.argmin(transport.level_sum_squares(env.detach(), albedo.detach())))
 
 
-def recentre_(log_map: torch.Tensor, median_target: float) -> float:
-    """Shift the map's log radiance so its median luminance is the prior's (in place); returns the shift
-    for the exposure to take over. Map level and exposure are one degree of freedom: without this the
-    level drifts and the encoded map saturates."""
-    with torch.no_grad():
-        shift = float(torch.log(luminance(torch.exp(log_map[0]).permute(1, 2, 0)).median() / median_target))
-        log_map -= shift
-    return shift
-
-
 def relative_data_loss(run: DPSRun, transport: LightTransport, env: torch.Tensor, albedo: torch.Tensor,
                        level: int) -> torch.Tensor:
     """Mean squared residual per pixel and channel over the mean squared foreground radiance: ~1 / SNR
     (differentiable in the map and the albedo)."""
     return transport.fit_loss(env, albedo, level) / (3 * transport.pixels * run.data_norm)
+
+
+def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_hat: torch.Tensor, level: int,
+                   prox_weight: float, n: int, iterations: int) -> None:
+    """Step n's map and exposure by Gauss-Newton `iterations` on the step's loss (its data and
+    proximal terms; the materials and the sun held): its data sum / (3 P norm) is sum / (2 sigma2), prox_weight x
+    the mean is sum / (2 r^2). The Gauss-Newton matrix comes from a G formed every GRAM_EVERY steps."""
+    equations = transport.image_equations(state.materials.albedo, level)
+    built = state.extra.get("gram")
+    if built is None or built[0] != level or n - built[1] >= GRAM_EVERY:
+        built = state.extra["gram"] = (level, n, equations.dense())
+    sigma2 = 1.5 * transport.pixels * run.data_norm
+    variance = x0_hat.numel() / (2 * max(prox_weight, 1e-12))
+    extra = None
+    if run.sun:
+        per_exposure = run.sun_irradiance(state).detach() / torch.exp(state.log_exposure)
+        extra = sun_env(state.sun_uv.detach(), per_exposure, transport.height).reshape(-1, 3).T
+    solve_map(run, state, equations, MapPrior(x0_hat, variance), sigma2, iterations, extra=extra,
+              curvature=built[2])
 
 
 def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
@@ -141,6 +169,10 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
         floor = DARK_FLOOR * run.prior.median_target
         with torch.no_grad():
             state.log_map.copy_(torch.log(encoding.to_radiance(x0_hat).clamp_min(floor)))
+    iterations = settings.solve_iterations(run.init)
+    if iterations:
+        solve_step_map(run, state, transport, x0_hat, level, prox_weight, n, iterations)
+    laps.lap("solve")
     losses, skipped = [], 0
     for _ in range(settings.inner_steps):
         env = run.env(torch.exp(state.log_map), state, transport.height)

@@ -13,6 +13,7 @@ from typing import Any
 
 import torch
 
+from dpi.images import luminance
 from dpi.materials import MaterialRates, MaterialTextures
 from dpi.prior.diffusion import Diffusion, model_output_with_random_roll, model_timesteps, p_mean_variance
 from dpi.prior.sample import Prior
@@ -46,6 +47,16 @@ class SamplerSettings:
 
 DARK_FLOOR = 1e-6
 """radiance floor (times the prior's median) before the logarithm (the paper's curve reaches 0)"""
+
+
+def recentre_(log_map: torch.Tensor, median_target: float) -> float:
+    """Shift the map's log radiance so its median luminance is the prior's (in place); returns the shift
+    for the exposure to take over. Map level and exposure are one degree of freedom: without this the
+    level drifts and the encoded map saturates."""
+    with torch.no_grad():
+        shift = float(torch.log(luminance(torch.exp(log_map[0]).permute(1, 2, 0)).median() / median_target))
+        log_map -= shift
+    return shift
 
 
 @dataclass

@@ -1,0 +1,189 @@
+"""The map's log radiance given x0_hat and the views: Gauss-Newton with conjugate gradients on the transport.
+
+Both transport samplers solve, at a reverse step, for the map's normalised log radiance l (prior resolution)
+and the global log-exposure e:
+  min  ||M (e^e (R s e^l + S)) - y||^2 / (2 sigma2) + (z(l) - t)^T Q (z(l) - t) / (2 r^2) - p^T (z(l) - t) / r^2
+with M the views' transport under fixed materials (normal equations, dense or matrix-free), R the resampling from
+the prior's grid to the transport's, s the radiance scale, S a fixed extra light (a parametric sun, per unit of
+exposure), z the prior-space map, t its target (x0_hat), Q = I + smoothness x the grid's Laplacian and p an
+optional perturbation (a randomise-then-optimise draw: `gibbs`). The exposure is solved exactly before every
+Gauss-Newton iteration; each iteration's step is clamped to a trust region and halved until the objective falls.
+`proximal` solves it without perturbation: its data steps then reach the views from x0_hat in one or two
+iterations, where a few Adam steps do not.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import torch
+
+from dpi.solve.dps.state import DPSRun, DPSState, finite, recentre_
+from dpi.solve.prior_space import resample_env
+from dpi.solve.transport import NormalEquations
+
+RANGE_STD = 0.02
+"""the prior's maps lie inside the encoding's range [-1, 1]: a solution beyond it pays (excess / RANGE_STD)^2 / 2"""
+MAX_LOG_STEP = 3.0
+"""largest change of a texel's log radiance in one Gauss-Newton iteration (a trust region)"""
+CG_ITERATIONS = 20
+BACKTRACKS = 6
+
+
+def negative_laplacian(x: torch.Tensor, wrap: bool = True) -> torch.Tensor:
+    """(C, H, W) -> 4 x minus its four neighbours on the grid (columns wrap when `wrap`, as a map's azimuth does;
+    other edges reflect): the graph Laplacian whose quadratic form sums the squared differences of neighbours."""
+    up = torch.cat([x[:, :1], x[:, :-1]], dim=1)
+    down = torch.cat([x[:, 1:], x[:, -1:]], dim=1)
+    if wrap:
+        left, right = torch.roll(x, 1, dims=2), torch.roll(x, -1, dims=2)
+    else:
+        left, right = torch.cat([x[:, :, :1], x[:, :, :-1]], dim=2), torch.cat([x[:, :, 1:], x[:, :, -1:]], dim=2)
+    return 4 * x - up - down - left - right
+
+
+def conjugate_gradients(apply: Callable[[torch.Tensor], torch.Tensor], rhs: torch.Tensor, diagonal: torch.Tensor,
+                        iterations: int, tolerance: float = 1e-6) -> torch.Tensor:
+    """Solve apply(x) = rhs per row (a batch of symmetric positive definite systems) by conjugate gradients
+    with a Jacobi preconditioner (`diagonal`), from x = 0."""
+    x = torch.zeros_like(rhs)
+    r = rhs.clone()
+    z = r / diagonal
+    d = z.clone()
+    rz = (r * z).sum(-1, keepdim=True)
+    goal = tolerance ** 2 * (rhs * rhs).sum(-1, keepdim=True)
+    for _ in range(iterations):
+        q = apply(d)
+        step = rz / (d * q).sum(-1, keepdim=True).clamp_min(1e-300)
+        x = x + step * d
+        r = r - step * q
+        if bool(((r * r).sum(-1, keepdim=True) <= goal).all()):
+            break
+        z = r / diagonal
+        rz_next = (r * z).sum(-1, keepdim=True)
+        d = z + rz_next / rz.clamp_min(1e-300) * d
+        rz = rz_next
+    return x
+
+
+@dataclass(frozen=True)
+class Resampling:
+    """`resample_env` on one channel as sparse matrices (it is linear): A (N_env, N_prior), A^T, and (A o A)^T."""
+
+    forward: torch.Tensor
+    adjoint: torch.Tensor
+    adjoint_squared: torch.Tensor
+    height: int
+    """rows of the map it resamples to"""
+
+    @classmethod
+    def between(cls, prior_height: int, env_height: int) -> "Resampling":
+        """The matrices from the prior's resolution to the problem's, built by resampling unit maps."""
+        units = torch.eye(2 * prior_height ** 2, dtype=torch.float64).reshape(-1, 1, prior_height, 2 * prior_height)
+        columns = resample_env(units.reshape(-1, prior_height, 2 * prior_height)[None], env_height)
+        a = columns.reshape(-1, units.shape[0])  # (N_env, N_prior): texel i of the map from prior texel j
+        return cls(a.to_sparse(), a.T.contiguous().to_sparse(), a.square().T.contiguous().to_sparse(), env_height)
+
+    def apply(self, x: torch.Tensor) -> torch.Tensor:
+        """(3, N_prior) -> (3, N_env)."""
+        return (self.forward @ x.T).T
+
+    def transpose(self, y: torch.Tensor) -> torch.Tensor:
+        """(3, N_env) -> (3, N_prior)."""
+        return (self.adjoint @ y.T).T
+
+
+def prior_coordinates(encoding: Any, log_map: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The prior-space map z(l) of log radiance l (unclipped) and its elementwise slope dz/dl."""
+    l = log_map.detach().requires_grad_(True)
+    z = encoding.log_to_prior(l)
+    (slope,) = torch.autograd.grad(z.sum(), l)
+    return z.detach(), slope
+
+
+@dataclass(frozen=True)
+class MapPrior:
+    """The map's prior around its target in prior space: variance r^2, smoothness of Q, optional push p (3, N)."""
+
+    target: torch.Tensor
+    variance: float
+    smoothness: float = 0.0
+    push: torch.Tensor | None = None
+
+
+def solve_map(run: DPSRun, state: DPSState, equations: NormalEquations, prior: MapPrior, sigma2: float,
+              iterations: int, rhs: torch.Tensor | None = None, extra: torch.Tensor | None = None,
+              curvature: NormalEquations | None = None) -> float:
+    """Gauss-Newton on the map's log radiance (state.log_map, from its current value, in place) and the
+    log-exposure (module notes); `rhs` replaces the equations' b (a perturbed data term), `extra` (3, N) is S,
+    `curvature` (default: the equations) gives the Gauss-Newton matrix's products (a cheaper, nearby G: the
+    gradient, the objective and the exposure stay exact). The map is re-centred after (the shift moves into
+    the exposure; the sun's log irradiance keeps its light). Returns the solution's prior term."""
+    encoding = run.prior.encoding
+    shape = state.log_map.shape[-2:]
+    rhs = equations.rhs if rhs is None else rhs
+    push = 0.0 if prior.push is None else prior.push
+    target, variance = prior.target.reshape(3, -1).double(), prior.variance
+
+    def smooth(x: torch.Tensor) -> torch.Tensor:  # Q x per channel
+        return x + prior.smoothness * negative_laplacian(x.reshape(3, *shape)).reshape(3, -1)
+
+    resampling = state.extra.get("resampling")
+    height = math.isqrt(equations.rhs.shape[1] // 2)  # the equations' map: H x 2H texels
+    if resampling is None or resampling.height != height:
+        resampling = state.extra["resampling"] = Resampling.between(run.prior.height, height)
+    fixed = 0.0 if extra is None else extra.double()
+    curvature = curvature or equations
+    jacobi = (resampling.adjoint_squared @ curvature.diagonal().T).T / sigma2  # diag of A^T G A, roughly
+    l = state.log_map.detach().reshape(3, -1).double().clone()
+    log_exposure = float(state.log_exposure)
+
+    def light(l: torch.Tensor) -> torch.Tensor:
+        return resampling.apply(run.scale * torch.exp(l)) + fixed
+
+    def objective(l: torch.Tensor, log_exposure: float) -> tuple[float, float]:
+        """The negative log (data / 2 sigma^2 + prior + range) and its prior term."""
+        sse = float(equations.sum_squares(math.exp(log_exposure) * light(l).T, rhs))
+        z, _ = prior_coordinates(encoding, l)
+        d = z - target
+        value = (float((d * smooth(d)).sum()) - 2 * float((push * d).sum())) / (2 * variance)
+        beyond = float(((z.abs() - 1).clamp_min(0) / RANGE_STD).square().sum()) / 2
+        return sse / (2 * sigma2) + value + beyond, value
+
+    for _ in range(iterations):
+        mapped = light(l)
+        energy = equations.energy(mapped)
+        projection = float((rhs * mapped).sum())
+        if energy > 0 and projection > 0:
+            log_exposure = math.log(projection / energy)
+        u = math.exp(log_exposure) * run.scale * torch.exp(l)
+        residual = (equations.apply(math.exp(log_exposure) * mapped) - rhs) / sigma2
+        z, slope = prior_coordinates(encoding, l)
+        outside = (z.abs() - 1).clamp_min(0) * z.sign()
+        gradient = u * resampling.transpose(residual) + slope * ((smooth(z - target) - push) / variance
+                                                                 + outside / RANGE_STD ** 2)
+        precision = slope.square() * (outside != 0) / RANGE_STD ** 2
+
+        def hessian(x: torch.Tensor) -> torch.Tensor:
+            return (precision * x + slope * smooth(slope * x) / variance
+                    + u * resampling.transpose(curvature.apply(resampling.apply(u * x)) / sigma2))
+
+        diagonal = precision + slope.square() * (1 + 4 * prior.smoothness) / variance + u.square() * jacobi
+        step = conjugate_gradients(hessian, -gradient, diagonal, CG_ITERATIONS)
+        step = step.clamp(-MAX_LOG_STEP, MAX_LOG_STEP)
+        current = objective(l, log_exposure)[0]
+        for _ in range(BACKTRACKS):  # Gauss-Newton overshoots where exp bends: halve the step until it helps
+            if objective(l + step, log_exposure)[0] < current:
+                l = l + step
+                break
+            step = step / 2
+    _, value = objective(l, log_exposure)
+    if finite(l) and math.isfinite(log_exposure):
+        with torch.no_grad():  # the sun's light is e^e S: its log irradiance stays, but for the re-centring
+            state.log_map.copy_(l.reshape(state.log_map.shape).float())
+            shift = recentre_(state.log_map, run.prior.median_target)
+            state.log_exposure.fill_(log_exposure + shift)
+            state.sun_log -= shift
+    return value
