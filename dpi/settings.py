@@ -97,6 +97,7 @@ FIELD_BOUNDS: dict[str, Bound] = {
     "material_start": Bound(0, 1),
     "prox_weight": Bound(0),
     "inner_steps": Bound(1),
+    "*map_solve": Bound(0),
 }
 """valid ranges of numeric settings by field-name pattern (fnmatch); the first matching pattern applies"""
 

@@ -147,7 +147,8 @@ def test_a_solved_map_fits_what_the_views_see_and_is_x0_hat_elsewhere(restart):
         [torch.ones(int(seen.sum()), dtype=torch.bool)], [0]
     init = Decomposition(torch.ones(height, 2 * height, 3), MaterialTextures.constant(4))
     cfg = DPSConfig.from_dict({"steps": 10, "radiance_scale": 1.0, "proximal": {
-        "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6, "restart": restart}})
+        "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6, "solve_smoothness": 0.0,
+        "restart": restart}})
     run, state = start_run(problem, gaussian_prior(height), init, cfg, seed=0)
     state.extra["transport"] = problem.transport()
     steps = posterior_steps(run, state)

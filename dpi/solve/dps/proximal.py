@@ -6,15 +6,14 @@ minimises, over the map's log radiance l (prior resolution), the exposure and th
 with z(l) the map in prior space and R the training views' recorded light transport
 (dpi.solve.dps.data_term): every step sees all the views, without path tracing. The views are linear
 in the map, so the global exposure is solved exactly: c is the least-squares scale of the image, and
-s += ln c. First `map_solve` Gauss-Newton iterations on l (dpi.solve.dps.map_solve, the albedo held)
-solve the step's proximal problem: the texels the views see take what they say, the others x0_hat,
-so where the views are silent each sample keeps its own prior draw (the samples' spread follows what
-the views leave open); then `inner_steps` Adam steps move map, albedo and sun together. l starts from
-the previous step's l (or with `restart` from each step's x0_hat). With `map_solve: 0` the Adam steps
-alone do not reach the views from x0_hat at a small prox_weight; at 0.5 they accumulate the fit from
-the first step's x0_hat, and where the views are silent every sample keeps that start's guess (the
-variant before the solve: docs/studies.md "Calibration study"). Then re-noise:
-x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) (sqrt(1 - zeta) eps_hat + sqrt(zeta) eps) with
+s += ln c. `inner_steps` Adam steps move map, albedo and sun together; l starts from x0_hat at the
+first step and from the previous step's l after that (the data fit accumulates, and where the views
+are silent every sample keeps that first guess), or with `restart` from each step's x0_hat. With
+`map_solve` Gauss-Newton iterations on l (dpi.solve.dps.map_solve, the albedo held) first solve the
+step's proximal problem, the correction of x0_hat a smooth field: the texels the views see take what
+they say, the others x0_hat, so the samples' spread follows what the views leave open (at
+prox_weight 0.05; Adam steps alone do not reach the views from x0_hat at so small a weight).
+Then re-noise: x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) (sqrt(1 - zeta) eps_hat + sqrt(zeta) eps) with
 eps_hat recomputed from z, so samples stay diverse. The proximal weight grows as the noise falls
 (DiffPIR's rho_t ~ 1 / sigma_t^2), so late steps keep what the data put into x_t early. The
 materials move only after `material_start` of the steps: while x0_hat is still a blur, free albedo
@@ -62,8 +61,8 @@ class ProximalSettings(TransportSampling, SamplerSettings):
     """joint data updates of map, materials and exposure per reverse step"""
     lr_map: float = 0.05
     """Adam rate of the map's log radiance per data update"""
-    prox_weight: float = 0.05
-    """weight of ||z - x0_hat||^2 per unit abar_t / (1 - abar_t) (0.5 without `map_solve`)"""
+    prox_weight: float = 0.5
+    """weight of ||z - x0_hat||^2 per unit abar_t / (1 - abar_t) (0.05 with `map_solve`: calibration study)"""
     noise_mix: float = 0.5
     """share zeta of fresh noise in the re-noising (0: deterministic DDIM, 1: all fresh)"""
     material_start: float = 0.3
@@ -84,9 +83,15 @@ class ProximalSettings(TransportSampling, SamplerSettings):
     restart: bool = False
     """each step's data updates start from that step's x0_hat (DiffPIR's proximal point: where the views are
     silent the map is the prior's); False: from the previous step's fit, which keeps the start's guess there"""
-    map_solve: int = 1
+    map_solve: int = 0
     """Gauss-Newton iterations on the step's map (the same loss, all the views, dpi.solve.dps.map_solve) before
-    its Adam updates: the map reaches the views from x0_hat, which a few Adam steps do not (0: Adam only)"""
+    its Adam updates: the map reaches the views from x0_hat, which a few Adam steps do not (0: Adam only; 1 with
+    prox_weight 0.05 gives calibrated samples on rough objects: calibration study, label `solve`)"""
+    solve_smoothness: float = 4.0
+    """the solve corrects x0_hat by a smooth field: its proximal term is (z - x0_hat)^T Q (z - x0_hat) with
+    Q = I + this x the grid's Laplacian (0: texel by texel; then the views, which see the map at the
+    transport's rows, push light into single texels of the prior's finer grid: log-space steps grow with a
+    texel's radiance)"""
     glossy_map_solve: int = 0
     """Gauss-Newton iterations when the init is glossy: none (a mirror's views pin the light down where they
     reflect it, and its finer transport makes the solve ten times dearer)"""
@@ -142,7 +147,8 @@ def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_h
     if run.sun:
         per_exposure = run.sun_irradiance(state).detach() / torch.exp(state.log_exposure)
         extra = sun_env(state.sun_uv.detach(), per_exposure, transport.height).reshape(-1, 3).T
-    solve_map(run, state, equations, MapPrior(x0_hat, variance), sigma2, iterations, extra=extra,
+    prior = MapPrior(x0_hat, variance, run.sampler.solve_smoothness)
+    solve_map(run, state, equations, prior, sigma2, iterations, extra=extra,
               curvature=built[2])
 
 
