@@ -114,22 +114,28 @@ def test_proximal_step_with_an_exact_operator_converges_to_the_data():
     assert records[-1]["loss"] < 0.01 * records[0]["loss"]
 
 
-@pytest.mark.parametrize("restart", [False, True])
-def test_restart_starts_each_steps_fit_from_x0_hat(restart):
-    """With `restart` a step's data updates start from its x0_hat (with no update the map is x0_hat exactly);
-    without, from the previous step's map."""
-    height = 8
-    problem = LinearProblem(torch.ones(height, 2 * height, 3))
+def second_step_after_a_moved_map(problem: LinearProblem, proximal: dict):
+    """A proximal sample's run and state after two steps, its map set far from x0_hat in between; and the second
+    step's record."""
+    height = problem.settings.env_height
     init = Decomposition(torch.ones(height, 2 * height, 3), MaterialTextures.constant(4))
-    cfg = DPSConfig.from_dict({"steps": 10, "radiance_scale": 1.0,
-                               "proximal": {"inner_steps": 1, "lr_map": 1e-12, "map_solve": 0, "restart": restart}})
+    cfg = DPSConfig.from_dict({"steps": 10, "radiance_scale": 1.0, "proximal": proximal})
     run, state = start_run(problem, gaussian_prior(height), init, cfg, seed=0)
     state.extra["transport"] = problem.transport()
     steps = posterior_steps(run, state)
     next(steps)
     with torch.no_grad():
         state.log_map.fill_(3.0)
-    record = next(steps)
+    return run, state, next(steps)
+
+
+@pytest.mark.parametrize("restart", [False, True])
+def test_restart_starts_each_steps_fit_from_x0_hat(restart):
+    """With `restart` a step's data updates start from its x0_hat (with no update the map is x0_hat exactly);
+    without, from the previous step's map."""
+    problem = LinearProblem(torch.ones(8, 16, 3))
+    _, _, record = second_step_after_a_moved_map(
+        problem, {"inner_steps": 1, "lr_map": 1e-12, "map_solve": 0, "restart": restart})
     assert (record["prox"] < 1e-8) == restart
 
 
@@ -145,17 +151,9 @@ def test_a_solved_map_fits_what_the_views_see_and_is_x0_hat_elsewhere(restart):
     problem.operators = [torch.eye(2 * height * height)[torch.nonzero(seen.reshape(-1))[:, 0]]]
     problem.images, problem.masks, problem.train_ids = [problem.operators[0] @ truth.reshape(-1, 3)], \
         [torch.ones(int(seen.sum()), dtype=torch.bool)], [0]
-    init = Decomposition(torch.ones(height, 2 * height, 3), MaterialTextures.constant(4))
-    cfg = DPSConfig.from_dict({"steps": 10, "radiance_scale": 1.0, "proximal": {
+    run, state, _ = second_step_after_a_moved_map(problem, {
         "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6, "solve_smoothness": 0.0,
-        "restart": restart}})
-    run, state = start_run(problem, gaussian_prior(height), init, cfg, seed=0)
-    state.extra["transport"] = problem.transport()
-    steps = posterior_steps(run, state)
-    next(steps)
-    with torch.no_grad():
-        state.log_map.fill_(3.0)
-    next(steps)
+        "restart": restart})
     env = run.env(torch.exp(state.log_map), state).detach()
     np.testing.assert_allclose(env[seen].numpy(), truth[seen].numpy(), rtol=3e-2)
     x0_hat = run.prior.encoding.to_radiance(state.snapshots[-1]).permute(1, 2, 0)

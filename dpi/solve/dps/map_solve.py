@@ -135,7 +135,7 @@ def solve_map(run: DPSRun, state: DPSState, equations: NormalEquations, prior: M
     if resampling is None or resampling.height != height:
         resampling = state.extra["resampling"] = Resampling.between(run.prior.height, height)
     fixed = 0.0 if extra is None else extra.double()
-    curvature = curvature or equations
+    curvature = equations if curvature is None else curvature
     jacobi = (resampling.adjoint_squared @ curvature.diagonal().T).T / sigma2  # diag of A^T G A, roughly
     l = state.log_map.detach().reshape(3, -1).double().clone()
     log_exposure = float(state.log_exposure)

@@ -13,7 +13,8 @@ are silent every sample keeps that first guess), or with `restart` from each ste
 step's proximal problem, the correction of x0_hat a smooth field: the texels the views see take what
 they say, the others x0_hat, so the samples' spread follows what the views leave open (at
 prox_weight 0.05; Adam steps alone do not reach the views from x0_hat at so small a weight).
-Then re-noise: x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) (sqrt(1 - zeta) eps_hat + sqrt(zeta) eps) with
+Then re-noise:
+x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) (sqrt(1 - zeta) eps_hat + sqrt(zeta) eps) with
 eps_hat recomputed from z, so samples stay diverse. The proximal weight grows as the noise falls
 (DiffPIR's rho_t ~ 1 / sigma_t^2), so late steps keep what the data put into x_t early. The
 materials move only after `material_start` of the steps: while x0_hat is still a blur, free albedo
@@ -125,31 +126,35 @@ def best_level(transport: LightTransport, env: torch.Tensor, albedo: torch.Tenso
     return int(torch.argmin(transport.level_sum_squares(env.detach(), albedo.detach())))
 
 
+def data_unit(run: DPSRun, transport: LightTransport) -> float:
+    """The relative data term's divisor: residuals (pixels x channels) times the views' mean squared radiance."""
+    return 3 * transport.pixels * run.data_norm
+
+
 def relative_data_loss(run: DPSRun, transport: LightTransport, env: torch.Tensor, albedo: torch.Tensor,
                        level: int) -> torch.Tensor:
     """Mean squared residual per pixel and channel over the mean squared foreground radiance: ~1 / SNR
     (differentiable in the map and the albedo)."""
-    return transport.fit_loss(env, albedo, level) / (3 * transport.pixels * run.data_norm)
+    return transport.fit_loss(env, albedo, level) / data_unit(run, transport)
 
 
 def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_hat: torch.Tensor, level: int,
                    prox_weight: float, n: int, iterations: int) -> None:
     """Step n's map and exposure by Gauss-Newton `iterations` on the step's loss (its data and
-    proximal terms; the materials and the sun held): its data sum / (3 P norm) is sum / (2 sigma2), prox_weight x
+    proximal terms; the materials and the sun held): its data sum / data_unit is sum / (2 sigma2), prox_weight x
     the mean is sum / (2 r^2). The Gauss-Newton matrix comes from a G formed every GRAM_EVERY steps."""
     equations = transport.image_equations(state.materials.albedo, level)
     built = state.extra.get("gram")
     if built is None or built[0] != level or n - built[1] >= GRAM_EVERY:
         built = state.extra["gram"] = (level, n, equations.dense())
-    sigma2 = 1.5 * transport.pixels * run.data_norm
+    sigma2 = data_unit(run, transport) / 2
     variance = x0_hat.numel() / (2 * max(prox_weight, 1e-12))
     extra = None
     if run.sun:
         per_exposure = run.sun_irradiance(state).detach() / torch.exp(state.log_exposure)
         extra = sun_env(state.sun_uv.detach(), per_exposure, transport.height).reshape(-1, 3).T
     prior = MapPrior(x0_hat, variance, run.sampler.solve_smoothness)
-    solve_map(run, state, equations, prior, sigma2, iterations, extra=extra,
-              curvature=built[2])
+    solve_map(run, state, equations, prior, sigma2, iterations, extra=extra, curvature=built[2])
 
 
 def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
