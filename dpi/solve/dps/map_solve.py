@@ -115,12 +115,14 @@ class MapPrior:
 
 def solve_map(run: DPSRun, state: DPSState, equations: NormalEquations, prior: MapPrior, sigma2: float,
               iterations: int, rhs: torch.Tensor | None = None, extra: torch.Tensor | None = None,
-              curvature: NormalEquations | None = None) -> float:
+              curvature: NormalEquations | None = None, basis: Resampling | None = None) -> float:
     """Gauss-Newton on the map's log radiance (state.log_map, from its current value, in place) and the
     log-exposure (module notes); `rhs` replaces the equations' b (a perturbed data term), `extra` (3, N) is S,
     `curvature` (default: the equations) gives the Gauss-Newton matrix's products (a cheaper, nearby G: the
-    gradient, the objective and the exposure stay exact). The map is re-centred after (the shift moves into
-    the exposure; the sun's log irradiance keeps its light). Returns the solution's prior term."""
+    gradient, the objective and the exposure stay exact), `basis` (default: every texel) the coarser grid the
+    change of l lives on, upsampled onto the prior's (l = l_start + B v: the finer detail stays the start's).
+    The map is re-centred after (the shift moves into the exposure; the sun's log irradiance keeps its light).
+    Returns the solution's prior term."""
     encoding = run.prior.encoding
     shape = state.log_map.shape[-2:]
     rhs = equations.rhs if rhs is None else rhs
@@ -137,7 +139,12 @@ def solve_map(run: DPSRun, state: DPSState, equations: NormalEquations, prior: M
     fixed = 0.0 if extra is None else extra.double()
     curvature = equations if curvature is None else curvature
     jacobi = (resampling.adjoint_squared @ curvature.diagonal().T).T / sigma2  # diag of A^T G A, roughly
-    l = state.log_map.detach().reshape(3, -1).double().clone()
+    start = state.log_map.detach().reshape(3, -1).double().clone()
+    up = (lambda v: v) if basis is None else basis.apply
+    down = (lambda g: g) if basis is None else basis.transpose
+    down_squared = (lambda d: d) if basis is None else (lambda d: (basis.adjoint_squared @ d.T).T)
+    v = torch.zeros_like(start if basis is None else down(start))
+    l = start
     log_exposure = float(state.log_exposure)
 
     def light(l: torch.Tensor) -> torch.Tensor:
@@ -167,16 +174,19 @@ def solve_map(run: DPSRun, state: DPSState, equations: NormalEquations, prior: M
         precision = slope.square() * (outside != 0) / RANGE_STD ** 2
 
         def hessian(x: torch.Tensor) -> torch.Tensor:
-            return (precision * x + slope * smooth(slope * x) / variance
-                    + u * resampling.transpose(curvature.apply(resampling.apply(u * x)) / sigma2))
+            x = up(x)
+            return down(precision * x + slope * smooth(slope * x) / variance
+                        + u * resampling.transpose(curvature.apply(resampling.apply(u * x)) / sigma2))
 
-        diagonal = precision + slope.square() * (1 + 4 * prior.smoothness) / variance + u.square() * jacobi
-        step = conjugate_gradients(hessian, -gradient, diagonal, CG_ITERATIONS)
+        diagonal = down_squared(precision + slope.square() * (1 + 4 * prior.smoothness) / variance
+                                + u.square() * jacobi)
+        step = conjugate_gradients(hessian, -down(gradient), diagonal, CG_ITERATIONS)
         step = step.clamp(-MAX_LOG_STEP, MAX_LOG_STEP)
         current = objective(l, log_exposure)[0]
         for _ in range(BACKTRACKS):  # Gauss-Newton overshoots where exp bends: halve the step until it helps
-            if objective(l + step, log_exposure)[0] < current:
-                l = l + step
+            if objective(start + up(v + step), log_exposure)[0] < current:
+                v = v + step
+                l = start + up(v)
                 break
             step = step / 2
     _, value = objective(l, log_exposure)

@@ -36,7 +36,7 @@ from typing import Any
 import torch
 
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.dps.map_solve import MapPrior, solve_map
+from dpi.solve.dps.map_solve import MapPrior, Resampling, solve_map
 from dpi.solve.dps.data_term import TransportSampling, current_level, sample_transport, set_level
 from dpi.solve.dps.state import (DARK_FLOOR, DPSRun, DPSState, Laps, SamplerSettings, finite, predict_x0,
                                 recentre_)
@@ -93,6 +93,10 @@ class ProximalSettings(TransportSampling, SamplerSettings):
     Q = I + this x the grid's Laplacian (0: texel by texel; then the views, which see the map at the
     transport's rows, push light into single texels of the prior's finer grid: log-space steps grow with a
     texel's radiance)"""
+    solve_coarse: bool = False
+    """the solve's correction of x0_hat lives on the transport's grid, upsampled onto the prior's: the map is
+    x0_hat's fine detail times a field as fine as the views' light transport sees (False: on every texel of the
+    prior's grid, smoothed by `solve_smoothness`)"""
     glossy_map_solve: int = 0
     """Gauss-Newton iterations when the init is glossy: none (a mirror's views pin the light down where they
     reflect it, and its finer transport makes the solve ten times dearer)"""
@@ -154,7 +158,24 @@ def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_h
         per_exposure = run.sun_irradiance(state).detach() / torch.exp(state.log_exposure)
         extra = sun_env(state.sun_uv.detach(), per_exposure, transport.height).reshape(-1, 3).T
     prior = MapPrior(x0_hat, variance, run.sampler.solve_smoothness)
-    solve_map(run, state, equations, prior, sigma2, iterations, extra=extra, curvature=built[2])
+    basis = None
+    if run.sampler.solve_coarse:
+        basis = coarse_correction_(run, state, x0_hat, transport.height)
+    solve_map(run, state, equations, prior, sigma2, iterations, extra=extra, curvature=built[2], basis=basis)
+
+
+def coarse_correction_(run: DPSRun, state: DPSState, x0_hat: torch.Tensor, height: int) -> Resampling:
+    """Replace the map by x0_hat's log radiance plus the previous map's difference from it on the coarse grid of
+    `height` rows (resampled there and back); returns that grid's upsampling onto the prior's (the solve's basis)."""
+    key = ("coarse", height)
+    if key not in state.extra:
+        state.extra[key] = (Resampling.between(run.prior.height, height), Resampling.between(height, run.prior.height))
+    down, up = state.extra[key]
+    with torch.no_grad():
+        base = torch.log(run.prior.encoding.to_radiance(x0_hat).clamp_min(DARK_FLOOR * run.prior.median_target))
+        change = up.apply(down.apply((state.log_map - base).reshape(3, -1).double())).float()
+        state.log_map.copy_(base + change.reshape(base.shape))
+    return up
 
 
 def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
