@@ -17,6 +17,7 @@ from dpi.prior.unet import SMALL_CONFIGS, UNetModel
 from dpi.render import RenderSettings
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, start_run
+from dpi.solve.dps.map_solve import Resampling
 from dpi.solve.init import path_traced_init
 from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import InverseProblem, ProblemSettings
@@ -114,13 +115,13 @@ def test_proximal_step_with_an_exact_operator_converges_to_the_data():
     assert records[-1]["loss"] < 0.01 * records[0]["loss"]
 
 
-def second_step_after_a_moved_map(problem: LinearProblem, proximal: dict):
+def second_step_after_a_moved_map(problem: LinearProblem, proximal: dict, prior_height: int | None = None):
     """A proximal sample's run and state after two steps, its map set far from x0_hat in between; and the second
-    step's record."""
+    step's record (the prior's maps as fine as the problem's unless `prior_height`)."""
     height = problem.settings.env_height
     init = Decomposition(torch.ones(height, 2 * height, 3), MaterialTextures.constant(4))
     cfg = DPSConfig.from_dict({"steps": 10, "radiance_scale": 1.0, "proximal": proximal})
-    run, state = start_run(problem, gaussian_prior(height), init, cfg, seed=0)
+    run, state = start_run(problem, gaussian_prior(prior_height or height), init, cfg, seed=0)
     state.extra["transport"] = problem.transport()
     steps = posterior_steps(run, state)
     next(steps)
@@ -159,6 +160,29 @@ def test_a_solved_map_fits_what_the_views_see_and_is_x0_hat_elsewhere(restart):
     x0_hat = run.prior.encoding.to_radiance(state.snapshots[-1]).permute(1, 2, 0)
     ratio = torch.log(env[~seen] / x0_hat[~seen])  # x0_hat up to the map's level, which the exposure holds
     assert float(ratio.std()) < 1e-3
+
+
+def test_a_coarse_solve_fits_the_views_by_a_field_on_the_transports_grid():
+    """With `solve_coarse` the solved map is x0_hat (8 rows) times a field upsampled from the transport's 4 rows:
+    the views (half the coarse texels) are fitted, and log(map / x0_hat) lies in the upsampling's range."""
+    height = 4
+    truth = torch.exp(torch.randn(height, 2 * height, 3, generator=torch.Generator().manual_seed(2)))
+    problem = LinearProblem(truth)
+    seen = torch.zeros(height, 2 * height, dtype=torch.bool)
+    seen[: height // 2] = True
+    problem.operators = [torch.eye(2 * height * height)[torch.nonzero(seen.reshape(-1))[:, 0]]]
+    problem.images, problem.masks, problem.train_ids = [problem.operators[0] @ truth.reshape(-1, 3)], \
+        [torch.ones(int(seen.sum()), dtype=torch.bool)], [0]
+    run, state, _ = second_step_after_a_moved_map(problem, {
+        "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6, "solve_smoothness": 0.0,
+        "solve_coarse": True}, prior_height=2 * height)
+    env = run.env(torch.exp(state.log_map), state).detach()
+    np.testing.assert_allclose(env[seen].numpy(), truth[seen].numpy(), rtol=3e-2)
+    x0_hat = run.prior.encoding.to_radiance(state.snapshots[-1])
+    change = (state.log_map - torch.log(x0_hat)).detach().reshape(3, -1).double()
+    up = Resampling.between(height, 2 * height).forward.to_dense()  # (8 x 16 texels, 4 x 8)
+    fitted = up @ torch.linalg.lstsq(up, change.T).solution
+    assert float((fitted - change.T).abs().max()) < 1e-4 < float(change.std())
 
 
 @pytest.fixture(scope="module")
