@@ -115,12 +115,11 @@ class MapPrior:
 
 def solve_map(run: DPSRun, state: DPSState, equations: NormalEquations, prior: MapPrior, sigma2: float,
               iterations: int, rhs: torch.Tensor | None = None, extra: torch.Tensor | None = None,
-              curvature: NormalEquations | None = None, basis: Resampling | None = None) -> float:
+              basis: Resampling | None = None, cg_iterations: int = CG_ITERATIONS) -> float:
     """Gauss-Newton on the map's log radiance (state.log_map, from its current value, in place) and the
     log-exposure (module notes); `rhs` replaces the equations' b (a perturbed data term), `extra` (3, N) is S,
-    `curvature` (default: the equations) gives the Gauss-Newton matrix's products (a cheaper, nearby G: the
-    gradient, the objective and the exposure stay exact), `basis` (default: every texel) the coarser grid the
-    change of l lives on, upsampled onto the prior's (l = l_start + B v: the finer detail stays the start's).
+    `basis` (default: every texel) the coarser grid the change of l lives on, upsampled onto the prior's
+    (l = l_start + B v: the finer detail stays the start's); `cg_iterations` bound each step's solve.
     The map is re-centred after (the shift moves into the exposure; the sun's log irradiance keeps its light).
     Returns the solution's prior term."""
     encoding = run.prior.encoding
@@ -137,8 +136,7 @@ def solve_map(run: DPSRun, state: DPSState, equations: NormalEquations, prior: M
     if resampling is None or resampling.height != height:
         resampling = state.extra["resampling"] = Resampling.between(run.prior.height, height)
     fixed = 0.0 if extra is None else extra.double()
-    curvature = equations if curvature is None else curvature
-    jacobi = (resampling.adjoint_squared @ curvature.diagonal().T).T / sigma2  # diag of A^T G A, roughly
+    jacobi = (resampling.adjoint_squared @ equations.diagonal().T).T / sigma2  # diag of A^T G A, roughly
     start = state.log_map.detach().reshape(3, -1).double().clone()
     up = (lambda v: v) if basis is None else basis.apply
     down = (lambda g: g) if basis is None else basis.transpose
@@ -176,11 +174,11 @@ def solve_map(run: DPSRun, state: DPSState, equations: NormalEquations, prior: M
         def hessian(x: torch.Tensor) -> torch.Tensor:
             x = up(x)
             return down(precision * x + slope * smooth(slope * x) / variance
-                        + u * resampling.transpose(curvature.apply(resampling.apply(u * x)) / sigma2))
+                        + u * resampling.transpose(equations.apply(resampling.apply(u * x)) / sigma2))
 
         diagonal = down_squared(precision + slope.square() * (1 + 4 * prior.smoothness) / variance
                                 + u.square() * jacobi)
-        step = conjugate_gradients(hessian, -down(gradient), diagonal, CG_ITERATIONS)
+        step = conjugate_gradients(hessian, -down(gradient), diagonal, cg_iterations)
         step = step.clamp(-MAX_LOG_STEP, MAX_LOG_STEP)
         current = objective(l, log_exposure)[0]
         for _ in range(BACKTRACKS):  # Gauss-Newton overshoots where exp bends: halve the step until it helps
