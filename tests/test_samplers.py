@@ -153,7 +153,7 @@ def test_a_solved_map_fits_what_the_views_see_and_is_x0_hat_elsewhere(restart):
     problem.images, problem.masks, problem.train_ids = [problem.operators[0] @ truth.reshape(-1, 3)], \
         [torch.ones(int(seen.sum()), dtype=torch.bool)], [0]
     run, state, _ = second_step_after_a_moved_map(problem, {
-        "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6, "solve_smoothness": 0.0,
+        "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6,
         "restart": restart})
     env = run.env(torch.exp(state.log_map), state).detach()
     np.testing.assert_allclose(env[seen].numpy(), truth[seen].numpy(), rtol=3e-2)
@@ -162,8 +162,8 @@ def test_a_solved_map_fits_what_the_views_see_and_is_x0_hat_elsewhere(restart):
     assert float(ratio.std()) < 1e-3
 
 
-def test_a_coarse_solve_fits_the_views_by_a_field_on_the_transports_grid():
-    """With `solve_coarse` the solved map is x0_hat (8 rows) times a field upsampled from the transport's 4 rows:
+def test_a_solve_fits_the_views_by_a_field_on_the_transports_grid():
+    """The solved map is x0_hat (8 rows) times a field upsampled from the transport's 4 rows:
     the views (half the coarse texels) are fitted, and log(map / x0_hat) lies in the upsampling's range."""
     height = 4
     truth = torch.exp(torch.randn(height, 2 * height, 3, generator=torch.Generator().manual_seed(2)))
@@ -174,8 +174,7 @@ def test_a_coarse_solve_fits_the_views_by_a_field_on_the_transports_grid():
     problem.images, problem.masks, problem.train_ids = [problem.operators[0] @ truth.reshape(-1, 3)], \
         [torch.ones(int(seen.sum()), dtype=torch.bool)], [0]
     run, state, _ = second_step_after_a_moved_map(problem, {
-        "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6, "solve_smoothness": 0.0,
-        "solve_coarse": True}, prior_height=2 * height)
+        "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6}, prior_height=2 * height)
     env = run.env(torch.exp(state.log_map), state).detach()
     np.testing.assert_allclose(env[seen].numpy(), truth[seen].numpy(), rtol=3e-2)
     x0_hat = run.prior.encoding.to_radiance(state.snapshots[-1])

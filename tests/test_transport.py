@@ -232,5 +232,5 @@ def test_proximal_adapts_its_recording_and_its_solve_to_a_glossy_init():
     assert settings.transport_for(rough).roughness_levels == settings.roughness_levels == 0
     assert settings.transport_for(rough).pixels == settings.transport_pixels
     assert (settings.transport_for(rough).max_height, settings.transport_for(glossy).max_height) == (16, 32)
-    solving = ProximalSettings(map_solve=1)
-    assert (solving.solve_iterations(rough), solving.solve_iterations(glossy)) == (1, 0)
+    assert (settings.solve_iterations(rough), settings.solve_iterations(glossy)) == (1, 0)
+    assert (settings.updates(rough), settings.updates(glossy)) == (1, 2)

@@ -6,13 +6,14 @@ minimises, over the map's log radiance l (prior resolution), the exposure and th
 with z(l) the map in prior space and R the training views' recorded light transport
 (dpi.solve.dps.data_term): every step sees all the views, without path tracing. The views are linear
 in the map, so the global exposure is solved exactly: c is the least-squares scale of the image, and
-s += ln c. `inner_steps` Adam steps move map, albedo and sun together; l starts from x0_hat at the
-first step and from the previous step's l after that (the data fit accumulates, and where the views
-are silent every sample keeps that first guess), or with `restart` from each step's x0_hat. With
-`map_solve` Gauss-Newton iterations on l (dpi.solve.dps.map_solve, the albedo held) first solve the
-step's proximal problem, the correction of x0_hat a smooth field: the texels the views see take what
-they say, the others x0_hat, so the samples' spread follows what the views leave open (at
-prox_weight 0.05; Adam steps alone do not reach the views from x0_hat at so small a weight).
+s += ln c. Each step first solves for l (`map_solve` Gauss-Newton iterations, dpi.solve.dps.map_solve,
+materials and sun held): l is x0_hat's log radiance plus a correction on the transport's coarser grid,
+so the views fix what they see at the resolution they see it, x0_hat keeps the finer detail and, where
+the views are silent, the light (each sample its own draw: its spread follows what the views leave
+open; a few Adam steps from x0_hat do not reach the views). Then `inner_steps` Adam steps move map,
+albedo and sun together. On a glossy init there is no solve (a mirror's views pin its light down;
+`glossy_inner_steps` updates); l starts from x0_hat at the first step and from the previous step's l
+after that, or with `restart` from each step's x0_hat.
 Then re-noise:
 x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) (sqrt(1 - zeta) eps_hat + sqrt(zeta) eps) with
 eps_hat recomputed from z, so samples stay diverse. The proximal weight grows as the noise falls
@@ -61,8 +62,10 @@ class ProximalSettings(TransportSampling, SamplerSettings):
 
     start_noise: float = 0.4
     """starts from the init map noised to 0.4 of the schedule (SDEdit; SamplerSettings)"""
-    inner_steps: int = 2
-    """joint data updates of map, materials and exposure per reverse step"""
+    inner_steps: int = 1
+    """joint data updates of map, materials and exposure per reverse step, after the map's solve"""
+    glossy_inner_steps: int = 2
+    """the same when the init is glossy (no solve there: the updates alone move the map)"""
     lr_map: float = 0.05
     """Adam rate of the map's log radiance per data update"""
     prox_weight: float = 0.5
@@ -87,26 +90,22 @@ class ProximalSettings(TransportSampling, SamplerSettings):
     restart: bool = False
     """each step's data updates start from that step's x0_hat (DiffPIR's proximal point: where the views are
     silent the map is the prior's); False: from the previous step's fit, which keeps the start's guess there"""
-    map_solve: int = 0
+    map_solve: int = 1
     """Gauss-Newton iterations on the step's map (the same loss, all the views, dpi.solve.dps.map_solve) before
-    its Adam updates: the map reaches the views from x0_hat, which a few Adam steps do not (0: Adam only; 1 with
-    prox_weight 0.05 gives calibrated samples on rough objects: calibration study, label `solve`)"""
-    solve_smoothness: float = 4.0
-    """the solve corrects x0_hat by a smooth field: its proximal term is (z - x0_hat)^T Q (z - x0_hat) with
-    Q = I + this x the grid's Laplacian (0: texel by texel; then the views, which see the map at the
-    transport's rows, push light into single texels of the prior's finer grid: log-space steps grow with a
-    texel's radiance)"""
-    solve_coarse: bool = False
-    """the solve's correction of x0_hat lives on the transport's grid, upsampled onto the prior's: the map is
-    x0_hat's fine detail times a field as fine as the views' light transport sees (False: on every texel of the
-    prior's grid, smoothed by `solve_smoothness`)"""
+    its data updates: the map reaches the views from x0_hat, which a few Adam steps do not, by a correction of
+    x0_hat on the transport's grid (finer detail stays x0_hat's; 0: Adam only, the sampler before 2026-11-25)"""
     glossy_map_solve: int = 0
     """Gauss-Newton iterations when the init is glossy: none (a mirror's views pin the light down where they
-    reflect it, and its finer transport makes the solve ten times dearer)"""
+    reflect it; the solve lost 2.8 dB of env PSNR on the calibration study's metal, and its finer transport
+    makes it ten times dearer)"""
 
     def solve_iterations(self, init: Decomposition) -> int:
         """Gauss-Newton iterations of a step's map for a sample starting from `init`."""
         return self.glossy_map_solve if is_glossy(init.materials) else self.map_solve
+
+    def updates(self, init: Decomposition) -> int:
+        """Data updates per step for a sample starting from `init`."""
+        return self.glossy_inner_steps if is_glossy(init.materials) else self.inner_steps
 
     def transport_for(self, init: Decomposition) -> TransportSettings:
         """The recording's settings for a sample starting from `init`: more levels and rows on a glossy object."""
@@ -160,11 +159,8 @@ def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_h
     if run.sun:
         per_exposure = run.sun_irradiance(state).detach() / torch.exp(state.log_exposure)
         extra = sun_env(state.sun_uv.detach(), per_exposure, transport.height).reshape(-1, 3).T
-    prior = MapPrior(x0_hat, variance, run.sampler.solve_smoothness)
-    basis = None
-    if run.sampler.solve_coarse:
-        basis = coarse_correction_(run, state, x0_hat, transport.height)
-    solve_map(run, state, built[2], prior, sigma2, iterations, extra=extra, basis=basis,
+    basis = coarse_correction_(run, state, x0_hat, transport.height)
+    solve_map(run, state, built[2], MapPrior(x0_hat, variance), sigma2, iterations, extra=extra, basis=basis,
               cg_iterations=SOLVE_CG_ITERATIONS)
 
 
@@ -210,7 +206,7 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
         solve_step_map(run, state, transport, x0_hat, level, prox_weight, n, iterations)
     laps.lap("solve")
     losses, skipped = [], 0
-    for _ in range(settings.inner_steps):
+    for _ in range(settings.updates(run.init)):
         env = run.env(torch.exp(state.log_map), state, transport.height)
         c = exposure_fit(transport, env, state.materials.albedo, level)
         state.log_exposure += math.log(c)
