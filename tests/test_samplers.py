@@ -140,18 +140,23 @@ def test_restart_starts_each_steps_fit_from_x0_hat(restart):
     assert (record["prox"] < 1e-8) == restart
 
 
-@pytest.mark.parametrize("restart", [False, True])
-def test_a_solved_map_fits_what_the_views_see_and_is_x0_hat_elsewhere(restart):
-    """With `map_solve` a step's map solves its loss (a weak proximal term): the texels the views see take the
-    truth (in one step, from x0_hat), the others x0_hat, whatever the previous step's map was."""
-    height = 8
-    truth = torch.exp(torch.randn(height, 2 * height, 3, generator=torch.Generator().manual_seed(1)))
+def half_seen_problem(height: int, seed: int) -> tuple[torch.Tensor, LinearProblem, torch.Tensor]:
+    """A random true map of `height` rows, one view that sees its upper half texel by texel, and that half."""
+    truth = torch.exp(torch.randn(height, 2 * height, 3, generator=torch.Generator().manual_seed(seed)))
     problem = LinearProblem(truth)
     seen = torch.zeros(height, 2 * height, dtype=torch.bool)
     seen[: height // 2] = True
     problem.operators = [torch.eye(2 * height * height)[torch.nonzero(seen.reshape(-1))[:, 0]]]
     problem.images, problem.masks, problem.train_ids = [problem.operators[0] @ truth.reshape(-1, 3)], \
         [torch.ones(int(seen.sum()), dtype=torch.bool)], [0]
+    return truth, problem, seen
+
+
+@pytest.mark.parametrize("restart", [False, True])
+def test_a_solved_map_fits_what_the_views_see_and_is_x0_hat_elsewhere(restart):
+    """With `map_solve` a step's map solves its loss (a weak proximal term): the texels the views see take the
+    truth (in one step, from x0_hat), the others x0_hat, whatever the previous step's map was."""
+    truth, problem, seen = half_seen_problem(8, seed=1)
     run, state, _ = second_step_after_a_moved_map(problem, {
         "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6,
         "restart": restart})
@@ -166,13 +171,7 @@ def test_a_solve_fits_the_views_by_a_field_on_the_transports_grid():
     """The solved map is x0_hat (8 rows) times a field upsampled from the transport's 4 rows:
     the views (half the coarse texels) are fitted, and log(map / x0_hat) lies in the upsampling's range."""
     height = 4
-    truth = torch.exp(torch.randn(height, 2 * height, 3, generator=torch.Generator().manual_seed(2)))
-    problem = LinearProblem(truth)
-    seen = torch.zeros(height, 2 * height, dtype=torch.bool)
-    seen[: height // 2] = True
-    problem.operators = [torch.eye(2 * height * height)[torch.nonzero(seen.reshape(-1))[:, 0]]]
-    problem.images, problem.masks, problem.train_ids = [problem.operators[0] @ truth.reshape(-1, 3)], \
-        [torch.ones(int(seen.sum()), dtype=torch.bool)], [0]
+    truth, problem, seen = half_seen_problem(height, seed=2)
     run, state, _ = second_step_after_a_moved_map(problem, {
         "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6}, prior_height=2 * height)
     env = run.env(torch.exp(state.log_map), state).detach()

@@ -151,7 +151,7 @@ def test_normal_equations_of_the_map_give_the_data_term_and_its_gradient(transpo
                                atol=1e-4 * float(analytic.abs().max()))
 
 
-def test_image_equations_are_the_fit_loss_and_its_gradient_without_the_gram(transport):
+def test_image_equations_are_the_fit_loss_and_its_gradient(transport):
     albedo, env = random_albedo(10), random_map(10).double()
     equations = transport.image_equations(albedo, level=1)
     fit = float(transport.fit_loss(env, albedo, level=1))

@@ -564,45 +564,6 @@ class NormalEquations:
         return num / den if den > 0 and num > 0 else 1.0
 
 
-class ImageEquations(NormalEquations):
-    """The normal equations of the halves' mean transport M_p = a_p A_p + B_p (what `LightTransport.fit_loss`
-    sums) without forming G: G x = M^T (M x), two products over the recorded pixels. `dense` forms G, whose
-    products are ten times cheaper, for a solver to reuse while the albedo stays near this one."""
-
-    def __init__(self, matrix: torch.Tensor, observed: torch.Tensor):
-        """matrix M (3, P, N) float32 (one level's mean under an albedo); observed (3, P)."""
-        self.matrix, self.observed = matrix, observed.double()
-        super().__init__(torch.empty(0), self.adjoint(observed), float(self.observed.square().sum()),
-                         observed.numel())
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """M x: (3, N) -> (3, P)."""
-        return apply_light(self.matrix, x).double()
-
-    def adjoint(self, values: torch.Tensor) -> torch.Tensor:
-        """M^T r: (3, P) -> (3, N)."""
-        return (self.matrix.transpose(1, 2) @ values.to(self.matrix.dtype)[:, :, None])[..., 0].double()
-
-    def apply(self, x: torch.Tensor) -> torch.Tensor:
-        return self.adjoint(self.forward(x))
-
-    def energy(self, x: torch.Tensor) -> float:
-        return float(self.forward(x).square().sum())
-
-    def sum_squares(self, env: torch.Tensor, rhs: torch.Tensor | None = None) -> torch.Tensor:
-        if rhs is not None:
-            return super().sum_squares(env, rhs)
-        return (self.forward(env.reshape(-1, 3).T) - self.observed).square().sum()  # one product, not two
-
-    def diagonal(self) -> torch.Tensor:
-        return self.matrix.double().square().sum(dim=1)
-
-    def dense(self) -> NormalEquations:
-        """The same equations with G formed."""
-        return NormalEquations((self.matrix.transpose(1, 2) @ self.matrix).double(), self.rhs, self.constant,
-                               self.count)
-
-
 def convex(gram: torch.Tensor) -> torch.Tensor:
     """The product of two halves' transports is symmetric but not always positive semidefinite (its noise can
     leave a direction of slightly negative curvature): raise the diagonal by the smallest eigenvalue where it is
@@ -709,10 +670,15 @@ class LightTransport:
         rhs = (rows.sum(0).transpose(1, 2) @ y[:, :, None])[..., 0] / HALVES
         return NormalEquations(gram, rhs.double(), float(self.observed.double().square().sum()), 3 * self.pixels)
 
-    def image_equations(self, albedo: torch.Tensor, level: int = 0) -> ImageEquations:
-        """`fit_loss` as normal equations in the map under a fixed albedo and roughness level (matrix-free)."""
+    def image_equations(self, albedo: torch.Tensor, level: int = 0) -> NormalEquations:
+        """`fit_loss` as normal equations in the map under a fixed albedo and roughness level: of the halves'
+        mean transport M_p = a_p A_p + B_p, G = M^T M and b = M^T y."""
         a = self.seen_albedo(albedo.detach()).T[:, :, None].to(self.slope.dtype)
-        return ImageEquations(a * self.mean[0, level] + self.mean[1, level], self.observed.T)
+        matrix = a * self.mean[0, level] + self.mean[1, level]  # (3, P, N)
+        observed = self.observed.T
+        rhs = (matrix.transpose(1, 2) @ observed.to(matrix.dtype)[:, :, None])[..., 0].double()
+        return NormalEquations((matrix.transpose(1, 2) @ matrix).double(), rhs,
+                               float(observed.double().square().sum()), observed.numel())
 
     def albedo_terms(self, env: torch.Tensor, level: int = 0) -> tuple[torch.Tensor, torch.Tensor, float]:
         """The data term in the albedo each pixel sees under a fixed map and roughness level:

@@ -33,7 +33,7 @@ from typing import Any
 import torch
 
 from dpi.solve.dps.map_solve import MapPrior, conjugate_gradients, negative_laplacian, solve_map
-from dpi.solve.dps.state import DARK_FLOOR, DPSRun, DPSState, Laps, SamplerSettings, finite, predict_x0
+from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerSettings, finite, log_radiance, predict_x0
 from dpi.solve.dps.data_term import TransportSampling, current_level, sample_transport, set_level
 from dpi.solve.init import START_ALBEDO
 from dpi.solve.transport import LightTransport, NormalEquations
@@ -211,7 +211,7 @@ def gibbs_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
         return record
     if n == 0:
         with torch.no_grad():
-            state.log_map.copy_(torch.log(encoding.to_radiance(x0_hat).clamp_min(DARK_FLOOR * run.prior.median_target)))
+            state.log_map.copy_(log_radiance(run, x0_hat))
     transport, recorded = sample_transport(run, state)
     env = run.env(torch.exp(state.log_map), state, transport.height).detach()
     level = current_level(transport, state.materials.roughness)

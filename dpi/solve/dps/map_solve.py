@@ -75,8 +75,6 @@ class Resampling:
     forward: torch.Tensor
     adjoint: torch.Tensor
     adjoint_squared: torch.Tensor
-    height: int
-    """rows of the map it resamples to"""
 
     @classmethod
     def between(cls, prior_height: int, env_height: int) -> "Resampling":
@@ -84,7 +82,7 @@ class Resampling:
         units = torch.eye(2 * prior_height ** 2, dtype=torch.float64).reshape(-1, 1, prior_height, 2 * prior_height)
         columns = resample_env(units.reshape(-1, prior_height, 2 * prior_height)[None], env_height)
         a = columns.reshape(-1, units.shape[0])  # (N_env, N_prior): texel i of the map from prior texel j
-        return cls(a.to_sparse(), a.T.contiguous().to_sparse(), a.square().T.contiguous().to_sparse(), env_height)
+        return cls(a.to_sparse(), a.T.contiguous().to_sparse(), a.square().T.contiguous().to_sparse())
 
     def apply(self, x: torch.Tensor) -> torch.Tensor:
         """(3, N_prior) -> (3, N_env)."""
@@ -93,6 +91,14 @@ class Resampling:
     def transpose(self, y: torch.Tensor) -> torch.Tensor:
         """(3, N_env) -> (3, N_prior)."""
         return (self.adjoint @ y.T).T
+
+
+def cached_resampling(state: DPSState, from_height: int, to_height: int) -> Resampling:
+    """`Resampling.between` the two grids, built once per sample (kept in state.extra)."""
+    key = ("resampling", from_height, to_height)
+    if key not in state.extra:
+        state.extra[key] = Resampling.between(from_height, to_height)
+    return state.extra[key]
 
 
 def prior_coordinates(encoding: Any, log_map: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -131,17 +137,15 @@ def solve_map(run: DPSRun, state: DPSState, equations: NormalEquations, prior: M
     def smooth(x: torch.Tensor) -> torch.Tensor:  # Q x per channel
         return x + prior.smoothness * negative_laplacian(x.reshape(3, *shape)).reshape(3, -1)
 
-    resampling = state.extra.get("resampling")
     height = math.isqrt(equations.rhs.shape[1] // 2)  # the equations' map: H x 2H texels
-    if resampling is None or resampling.height != height:
-        resampling = state.extra["resampling"] = Resampling.between(run.prior.height, height)
+    resampling = cached_resampling(state, run.prior.height, height)
     fixed = 0.0 if extra is None else extra.double()
     jacobi = (resampling.adjoint_squared @ equations.diagonal().T).T / sigma2  # diag of A^T G A, roughly
     start = state.log_map.detach().reshape(3, -1).double().clone()
     up = (lambda v: v) if basis is None else basis.apply
     down = (lambda g: g) if basis is None else basis.transpose
     down_squared = (lambda d: d) if basis is None else (lambda d: (basis.adjoint_squared @ d.T).T)
-    v = torch.zeros_like(start if basis is None else down(start))
+    v = torch.zeros(3, start.shape[1] if basis is None else basis.forward.shape[1], dtype=start.dtype)
     l = start
     log_exposure = float(state.log_exposure)
 

@@ -37,9 +37,9 @@ from typing import Any
 import torch
 
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.dps.map_solve import MapPrior, Resampling, solve_map
+from dpi.solve.dps.map_solve import MapPrior, Resampling, cached_resampling, solve_map
 from dpi.solve.dps.data_term import TransportSampling, current_level, sample_transport, set_level
-from dpi.solve.dps.state import (DARK_FLOOR, DPSRun, DPSState, Laps, SamplerSettings, finite, predict_x0,
+from dpi.solve.dps.state import (DPSRun, DPSState, Laps, SamplerSettings, finite, log_radiance, predict_x0,
                                 recentre_)
 from dpi.solve.init import is_glossy
 from dpi.solve.optimize import all_finite
@@ -69,7 +69,7 @@ class ProximalSettings(TransportSampling, SamplerSettings):
     lr_map: float = 0.05
     """Adam rate of the map's log radiance per data update"""
     prox_weight: float = 0.5
-    """weight of ||z - x0_hat||^2 per unit abar_t / (1 - abar_t) (0.05 with `map_solve`: calibration study)"""
+    """weight of ||z - x0_hat||^2 per unit abar_t / (1 - abar_t)"""
     noise_mix: float = 0.5
     """share zeta of fresh noise in the re-noising (0: deterministic DDIM, 1: all fresh)"""
     material_start: float = 0.3
@@ -152,7 +152,7 @@ def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_h
     little in between; the data updates after the solve see the current one)."""
     built = state.extra.get("gram")
     if built is None or built[0] != level or n - built[1] >= GRAM_EVERY:
-        built = state.extra["gram"] = (level, n, transport.image_equations(state.materials.albedo, level).dense())
+        built = state.extra["gram"] = (level, n, transport.image_equations(state.materials.albedo, level))
     sigma2 = data_unit(run, transport) / 2
     variance = x0_hat.numel() / (2 * max(prox_weight, 1e-12))
     extra = None
@@ -167,12 +167,9 @@ def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_h
 def coarse_correction_(run: DPSRun, state: DPSState, x0_hat: torch.Tensor, height: int) -> Resampling:
     """Replace the map by x0_hat's log radiance plus the previous map's difference from it on the coarse grid of
     `height` rows (resampled there and back); returns that grid's upsampling onto the prior's (the solve's basis)."""
-    key = ("coarse", height)
-    if key not in state.extra:
-        state.extra[key] = (Resampling.between(run.prior.height, height), Resampling.between(height, run.prior.height))
-    down, up = state.extra[key]
+    down, up = cached_resampling(state, run.prior.height, height), cached_resampling(state, height, run.prior.height)
     with torch.no_grad():
-        base = torch.log(run.prior.encoding.to_radiance(x0_hat).clamp_min(DARK_FLOOR * run.prior.median_target))
+        base = log_radiance(run, x0_hat)
         change = up.apply(down.apply((state.log_map - base).reshape(3, -1).double())).float()
         state.log_map.copy_(base + change.reshape(base.shape))
     return up
@@ -198,9 +195,8 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
                            state.materials.albedo)
         set_level(state, transport, level)
     if n == 0 or settings.restart:
-        floor = DARK_FLOOR * run.prior.median_target
         with torch.no_grad():
-            state.log_map.copy_(torch.log(encoding.to_radiance(x0_hat).clamp_min(floor)))
+            state.log_map.copy_(log_radiance(run, x0_hat))
     iterations = settings.solve_iterations(run.init)
     if iterations:
         solve_step_map(run, state, transport, x0_hat, level, prox_weight, n, iterations)

@@ -159,6 +159,11 @@ class Laps:
                 **{f"seconds_{k}": round(v, 4) for k, v in self.seconds.items()}}
 
 
+def log_radiance(run: DPSRun, x0: torch.Tensor) -> torch.Tensor:
+    """A prior-space map's normalised log radiance, dark texels floored at DARK_FLOOR x the prior's median."""
+    return torch.log(run.prior.encoding.to_radiance(x0).clamp_min(DARK_FLOOR * run.prior.median_target))
+
+
 def network_step(run: DPSRun, x: torch.Tensor, i: int, generator: torch.Generator) -> dict[str, torch.Tensor]:
     """p_mean_variance of the randomly rolled network output at schedule index i (x0 clamped to [-1, 1])."""
     t = torch.full((1,), i, dtype=torch.long)
