@@ -32,7 +32,8 @@ from typing import Any
 
 import torch
 
-from dpi.solve.dps.map_solve import MapPrior, conjugate_gradients, negative_laplacian, solve_map
+from dpi.solve.dps.map_solve import (MapPrior, conjugate_gradients, gram_factor, negative_laplacian, perturbed_rhs,
+                                     solve_map)
 from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerSettings, finite, log_radiance, predict_x0
 from dpi.solve.dps.data_term import TransportSampling, current_level, sample_transport, set_level
 from dpi.solve.init import START_ALBEDO
@@ -98,13 +99,6 @@ def smooth_noise(shape: tuple[int, int, int], smoothness: float, wrap: bool, gen
 ALBEDO_CG_ITERATIONS = 40
 
 
-def gram_factor(equations: NormalEquations) -> torch.Tensor:
-    """(3, N, N) a factor F with F F^T = G (+ a jitter of 1e-9 its mean diagonal), for the data perturbation."""
-    gram = equations.gram
-    jitter = 1e-9 * gram.diagonal(dim1=1, dim2=2).mean(dim=1).clamp_min(1e-30)
-    return torch.linalg.cholesky(gram + jitter[:, None, None] * torch.eye(gram.shape[-1], dtype=gram.dtype))
-
-
 def map_draw(run: DPSRun, state: DPSState, equations: NormalEquations, x0_hat: torch.Tensor, variance: float,
              sigma2: float) -> float:
     """Randomise-then-optimise draw of the map's log radiance (state.log_map, in place, from the previous draw)
@@ -116,8 +110,7 @@ def map_draw(run: DPSRun, state: DPSState, equations: NormalEquations, x0_hat: t
     if "gram_factor" not in state.extra:
         state.extra["gram_factor"] = gram_factor(equations)
     push = math.sqrt(variance) * smooth_noise((3, *x0_hat.shape[-2:]), settings.smoothness, True, gen).reshape(3, -1)
-    noise = torch.randn(equations.rhs.shape, generator=gen, dtype=torch.float64)
-    rhs = equations.rhs + math.sqrt(sigma2) * torch.bmm(state.extra["gram_factor"], noise[:, :, None])[..., 0]
+    rhs = perturbed_rhs(equations, state.extra["gram_factor"], sigma2, gen)
     return solve_map(run, state, equations, MapPrior(x0_hat, variance, settings.smoothness, push), sigma2,
                      settings.solver_iterations, rhs)
 
