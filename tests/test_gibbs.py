@@ -12,8 +12,8 @@ import torch
 from dpi.materials import MaterialTextures
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import DPSConfig, start_run
-from dpi.solve.dps.gibbs import AlbedoPrior, albedo_draw, level_draw, map_draw, posterior_variance, smooth_noise
-from dpi.solve.dps.map_solve import Resampling, conjugate_gradients, negative_laplacian
+from dpi.solve.dps.gibbs import AlbedoPrior, albedo_draw, level_draw, map_draw, smooth_noise
+from dpi.solve.dps.map_solve import Resampling, conjugate_gradients, negative_laplacian, posterior_variance
 from dpi.solve.prior_space import resample_env
 from dpi.solve.transport import AlbedoLookup, LightTransport, NormalEquations
 from test_samplers import LinearProblem, gaussian_prior

@@ -32,7 +32,7 @@ from typing import Any
 
 import torch
 
-from dpi.solve.dps.map_solve import (MapPrior, conjugate_gradients, gram_factor, negative_laplacian, perturbed_rhs,
+from dpi.solve.dps.map_solve import (PRIOR_STD, MapPrior, conjugate_gradients, negative_laplacian, posterior_variance,
                                      solve_map)
 from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerSettings, finite, log_radiance, predict_x0
 from dpi.solve.dps.data_term import TransportSampling, current_level, sample_transport, set_level
@@ -52,7 +52,7 @@ class GibbsSettings(TransportSampling, SamplerSettings):
     saturates), so every sample explores the prior on its own"""
     noise_scale: float = 1.0
     """likelihood temperature: the views' noise is the current residual times this (larger: wider spread)"""
-    prior_std: float = 0.5
+    prior_std: float = PRIOR_STD
     """std of a prior-space map around its mean, for r_t (the prior's own spread)"""
     smoothness: float = 4.0
     """the map's deviation from x0_hat is a smooth field: its prior precision is (I + smoothness x the grid's
@@ -70,12 +70,6 @@ class GibbsSettings(TransportSampling, SamplerSettings):
     """prior std of the albedo texture's mean level around grey (per channel)"""
     albedo_smoothness: float = 4.0
     """neighbouring albedo texels differ by about albedo_std / sqrt(albedo_smoothness) under the prior (AlbedoPrior)"""
-
-
-def posterior_variance(abar: float, prior_std: float) -> float:
-    """Var(x0 | x_t) per texel under a Gaussian prior of std `prior_std` at noise level abar."""
-    s2 = prior_std ** 2
-    return s2 * (1.0 - abar) / (1.0 - abar + abar * s2)
 
 
 def smooth_noise(shape: tuple[int, int, int], smoothness: float, wrap: bool, generator: torch.Generator,
@@ -99,6 +93,13 @@ def smooth_noise(shape: tuple[int, int, int], smoothness: float, wrap: bool, gen
 ALBEDO_CG_ITERATIONS = 40
 
 
+def gram_factor(equations: NormalEquations) -> torch.Tensor:
+    """(3, N, N) a factor F with F F^T = G (+ a jitter of 1e-9 its mean diagonal), for the data perturbation."""
+    gram = equations.gram
+    jitter = 1e-9 * gram.diagonal(dim1=1, dim2=2).mean(dim=1).clamp_min(1e-30)
+    return torch.linalg.cholesky(gram + jitter[:, None, None] * torch.eye(gram.shape[-1], dtype=gram.dtype))
+
+
 def map_draw(run: DPSRun, state: DPSState, equations: NormalEquations, x0_hat: torch.Tensor, variance: float,
              sigma2: float) -> float:
     """Randomise-then-optimise draw of the map's log radiance (state.log_map, in place, from the previous draw)
@@ -110,7 +111,8 @@ def map_draw(run: DPSRun, state: DPSState, equations: NormalEquations, x0_hat: t
     if "gram_factor" not in state.extra:
         state.extra["gram_factor"] = gram_factor(equations)
     push = math.sqrt(variance) * smooth_noise((3, *x0_hat.shape[-2:]), settings.smoothness, True, gen).reshape(3, -1)
-    rhs = perturbed_rhs(equations, state.extra["gram_factor"], sigma2, gen)
+    noise = torch.randn(equations.rhs.shape, generator=gen, dtype=torch.float64)
+    rhs = equations.rhs + math.sqrt(sigma2) * torch.bmm(state.extra["gram_factor"], noise[:, :, None])[..., 0]
     return solve_map(run, state, equations, MapPrior(x0_hat, variance, settings.smoothness, push), sigma2,
                      settings.solver_iterations, rhs)
 

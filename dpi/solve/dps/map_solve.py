@@ -29,6 +29,8 @@ RANGE_STD = 0.02
 MAX_LOG_STEP = 3.0
 """largest change of a texel's log radiance in one Gauss-Newton iteration (a trust region)"""
 CG_ITERATIONS = 20
+PRIOR_STD = 0.5
+"""std of a prior-space map's texel around its mean under the priors (their maps span [-1, 1]), for r_t"""
 BACKTRACKS = 6
 
 
@@ -101,19 +103,10 @@ def cached_resampling(state: DPSState, from_height: int, to_height: int) -> Resa
     return state.extra[key]
 
 
-def gram_factor(equations: NormalEquations) -> torch.Tensor:
-    """(3, N, N) a factor F with F F^T = G (+ a jitter of 1e-9 its mean diagonal), for the data perturbation."""
-    gram = equations.gram
-    jitter = 1e-9 * gram.diagonal(dim1=1, dim2=2).mean(dim=1).clamp_min(1e-30)
-    return torch.linalg.cholesky(gram + jitter[:, None, None] * torch.eye(gram.shape[-1], dtype=gram.dtype))
-
-
-def perturbed_rhs(equations: NormalEquations, factor: torch.Tensor, sigma2: float,
-                  generator: torch.Generator) -> torch.Tensor:
-    """b of the equations with the views perturbed by noise of variance `sigma2` per residual: M^T (y + e) =
-    b + sqrt(sigma2) F eps (F = `gram_factor`), the data half of a randomise-then-optimise draw."""
-    noise = torch.randn(equations.rhs.shape, generator=generator, dtype=torch.float64)
-    return equations.rhs + math.sqrt(sigma2) * torch.bmm(factor, noise[:, :, None])[..., 0]
+def posterior_variance(abar: float, prior_std: float) -> float:
+    """Var(x0 | x_t) per texel under a Gaussian prior of std `prior_std` at noise level abar."""
+    s2 = prior_std ** 2
+    return s2 * (1.0 - abar) / (1.0 - abar + abar * s2)
 
 
 def prior_coordinates(encoding: Any, log_map: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

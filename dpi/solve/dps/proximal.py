@@ -37,7 +37,7 @@ from typing import Any
 import torch
 
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.dps.map_solve import (MapPrior, Resampling, cached_resampling, gram_factor, perturbed_rhs,
+from dpi.solve.dps.map_solve import (PRIOR_STD, MapPrior, Resampling, cached_resampling, posterior_variance,
                                      solve_map)
 from dpi.solve.dps.data_term import TransportSampling, current_level, sample_transport, set_level
 from dpi.solve.dps.state import (DPSRun, DPSState, Laps, SamplerSettings, finite, log_radiance, predict_x0,
@@ -96,10 +96,10 @@ class ProximalSettings(TransportSampling, SamplerSettings):
     its data updates: the map reaches the views from x0_hat, which a few Adam steps do not, by a correction of
     x0_hat on the transport's grid (finer detail stays x0_hat's; 0: Adam only, the sampler before 2026-11-25)"""
     perturb: float = 0.0
-    """randomise-then-optimise scale of the map's solve: x0_hat and the views are perturbed by perturb x their
-    noise under the solve's loss read as a likelihood whose noise is the current residual (1: a draw of that
-    posterior, linearised; 0: its mode, the sampler before 2026-11-26). Where the views are silent the
-    samples then spread as the prior allows, instead of sharing x0_hat's guess"""
+    """the solve's target is x0_hat plus a coarse field drawn with perturb x the prior's std of x0 given x_t (r_t
+    of DAPS, Zhang et al. 2024, for a prior of std PRIOR_STD): where the views are silent each sample's map then
+    moves as the prior allows instead of keeping x0_hat's guess; where they speak, the solve pulls it back
+    (0: the target is x0_hat, the sampler before 2026-11-26)"""
     glossy_map_solve: int = 0
     """Gauss-Newton iterations when the init is glossy: none (a mirror's views pin the light down where they
     reflect it; the solve lost 2.8 dB of env PSNR on the calibration study's metal, and its finer transport
@@ -155,14 +155,12 @@ def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_h
     """Step n's map and exposure by Gauss-Newton `iterations` on the step's loss (its data and
     proximal terms; the materials and the sun held): its data sum / data_unit is sum / (2 sigma2), prox_weight x
     the mean is sum / (2 r^2). The views' normal equations are formed every GRAM_EVERY steps (the albedo moves
-    little in between; the data updates after the solve see the current one). With `perturb` the solve is a
-    randomise-then-optimise draw: x0_hat and the views perturbed at the temperature that makes the data term's
-    noise perturb^2 x the current mean squared residual."""
+    little in between; the data updates after the solve see the current one). With `perturb` the target is pushed
+    by a coarse random field (ProximalSettings.perturb)."""
     settings: ProximalSettings = run.sampler
     built = state.extra.get("gram")
     if built is None or built[0] != level or n - built[1] >= GRAM_EVERY:
         built = state.extra["gram"] = (level, n, transport.image_equations(state.materials.albedo, level))
-        state.extra.pop("gram_factor", None)
     equations = built[2]
     sigma2 = data_unit(run, transport) / 2
     variance = x0_hat.numel() / (2 * max(prox_weight, 1e-12))
@@ -171,19 +169,13 @@ def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_h
         per_exposure = run.sun_irradiance(state).detach() / torch.exp(state.log_exposure)
         extra = sun_env(state.sun_uv.detach(), per_exposure, transport.height).reshape(-1, 3).T
     basis = coarse_correction_(run, state, x0_hat, transport.height)
-    prior, rhs = MapPrior(x0_hat, variance), None
-    if settings.perturb:
-        with torch.no_grad():
-            env = run.env(torch.exp(state.log_map), state, transport.height)
-            noise = max(float(equations.sum_squares(env)) / equations.count, 1e-12 * run.data_norm)
-        temperature = settings.perturb ** 2 * noise / sigma2
-        if "gram_factor" not in state.extra:
-            state.extra["gram_factor"] = gram_factor(equations)
-        eta = torch.randn(3, math.prod(x0_hat.shape[-2:]), generator=state.generator, dtype=torch.float64)
-        push = math.sqrt(temperature * variance) * eta
-        prior = MapPrior(x0_hat, variance, push=push)
-        rhs = perturbed_rhs(equations, state.extra["gram_factor"], temperature * sigma2, state.generator)
-    solve_map(run, state, equations, prior, sigma2, iterations, rhs=rhs, extra=extra, basis=basis,
+    prior = MapPrior(x0_hat, variance)
+    if settings.perturb:  # x0_hat's coarse part shifted by a draw of the prior's uncertainty about x0 at this step
+        abar = float(run.diffusion.alphas_cumprod[run.index(n)])
+        eta = torch.randn(3, basis.forward.shape[1], generator=state.generator, dtype=torch.float64)
+        std = settings.perturb * math.sqrt(posterior_variance(abar, PRIOR_STD))
+        prior = MapPrior(x0_hat, variance, push=std * basis.apply(eta))
+    solve_map(run, state, equations, prior, sigma2, iterations, extra=extra, basis=basis,
               cg_iterations=SOLVE_CG_ITERATIONS)
 
 
