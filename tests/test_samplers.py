@@ -4,6 +4,7 @@ the prior alone, every sampler plugs into the one loop, and the sample stage run
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -17,7 +18,7 @@ from dpi.prior.unet import SMALL_CONFIGS, UNetModel
 from dpi.render import RenderSettings
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, start_run
-from dpi.solve.dps.map_solve import Resampling
+from dpi.solve.dps.map_solve import PRIOR_STD, Resampling, posterior_variance
 from dpi.solve.init import path_traced_init
 from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import InverseProblem, ProblemSettings
@@ -165,6 +166,22 @@ def test_a_solved_map_fits_what_the_views_see_and_is_x0_hat_elsewhere(restart):
     x0_hat = run.prior.encoding.to_radiance(state.snapshots[-1]).permute(1, 2, 0)
     ratio = torch.log(env[~seen] / x0_hat[~seen])  # x0_hat up to the map's level, which the exposure holds
     assert float(ratio.std()) < 1e-3
+
+
+def test_a_perturbed_solve_moves_the_silent_texels_by_the_priors_uncertainty():
+    """With `perturb` the solve's target is x0_hat plus a random field of std perturb x r_t (prior space): the
+    texels the views see still take the truth, the silent ones leave x0_hat by that std."""
+    truth, problem, seen = half_seen_problem(8, seed=1)
+    perturb = 0.5
+    run, state, _ = second_step_after_a_moved_map(problem, {
+        "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6, "perturb": perturb})
+    env = run.env(torch.exp(state.log_map), state).detach()
+    np.testing.assert_allclose(env[seen].numpy(), truth[seen].numpy(), rtol=3e-2)
+    z = run.prior.encoding.to_prior(torch.exp(state.log_map)).detach().reshape(3, *seen.shape).permute(1, 2, 0)
+    change = (z - state.snapshots[-1].reshape(3, *seen.shape).permute(1, 2, 0))[~seen]  # up to the map's level, which the exposure holds
+    abar = float(run.diffusion.alphas_cumprod[run.index(1)])
+    expected = perturb * math.sqrt(posterior_variance(abar, PRIOR_STD))
+    assert float(change.std()) == pytest.approx(expected, rel=0.2)
 
 
 def test_a_solve_fits_the_views_by_a_field_on_the_transports_grid():
