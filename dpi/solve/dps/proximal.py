@@ -100,6 +100,8 @@ class ProximalSettings(TransportSampling, SamplerSettings):
     of DAPS, Zhang et al. 2024, for a prior of std PRIOR_STD): where the views are silent each sample's map then
     moves as the prior allows instead of keeping x0_hat's guess; where they speak, the solve pulls it back
     (0: the target is x0_hat, the sampler before 2026-11-26)"""
+    perturb_height: int = 16
+    """rows of the grid the push is drawn on (white there, upsampled onto the prior's; at most the transport's)"""
     glossy_map_solve: int = 0
     """Gauss-Newton iterations when the init is glossy: none (a mirror's views pin the light down where they
     reflect it; the solve lost 2.8 dB of env PSNR on the calibration study's metal, and its finer transport
@@ -172,9 +174,11 @@ def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_h
     prior = MapPrior(x0_hat, variance)
     if settings.perturb:  # x0_hat's coarse part shifted by a draw of the prior's uncertainty about x0 at this step
         abar = float(run.diffusion.alphas_cumprod[run.index(n)])
-        eta = torch.randn(3, basis.forward.shape[1], generator=state.generator, dtype=torch.float64)
+        height = min(settings.perturb_height, transport.height)
+        field = cached_resampling(state, height, run.prior.height)
+        eta = torch.randn(3, field.forward.shape[1], generator=state.generator, dtype=torch.float64)
         std = settings.perturb * math.sqrt(posterior_variance(abar, PRIOR_STD))
-        prior = MapPrior(x0_hat, variance, push=std * basis.apply(eta))
+        prior = MapPrior(x0_hat, variance, push=std * field.apply(eta))
     solve_map(run, state, equations, prior, sigma2, iterations, extra=extra, basis=basis,
               cg_iterations=SOLVE_CG_ITERATIONS)
 
