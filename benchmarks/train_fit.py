@@ -7,6 +7,7 @@ and compares the foreground mean squared error with the init's (same renders, sa
 prints per method and sampler: the samples, the mean ratio to the init's MSE, and how many exceed it.
 
     .venv/bin/python benchmarks/train_fit.py results/benchmarks/calibration_study [--spp 64] [--out CSV]
+        [--methods none dps_proximal]
 """
 
 from __future__ import annotations
@@ -41,6 +42,8 @@ def main() -> None:
     parser.add_argument("--spp", type=int, default=64)
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--out", type=Path, default=None, help="CSV of every sample's MSE and its init's")
+    parser.add_argument("--methods", nargs="*", default=None,
+                        help="method folders to score (e.g. none dps_proximal; default: all)")
     args = parser.parse_args()
 
     from posterior_study import study_layout, workflow_config
@@ -54,7 +57,8 @@ def main() -> None:
         problem = load_problem(capture_json, SolveSettings.from_config(config, threads=args.threads))
         init = training_mse(problem, problem.load_decomposition(files.sample_dir(INIT)), args.spp)
         for method_dir in sorted(p for p in capture_json.parent.iterdir() if p.is_dir() and p.name not in
-                                 (INIT, "eval", "logs", "benchmarks", "working")):
+                                 (INIT, "eval", "logs", "benchmarks", "working")
+                                 and (args.methods is None or p.name in args.methods)):
             for sample in sorted(p for p in method_dir.iterdir() if (p / "envmap.exr").is_file()):
                 mse = training_mse(problem, problem.load_decomposition(sample), args.spp)
                 rows.append({"scene": scene, "method": method_dir.name, "sample": sample.name, "mse": mse,

@@ -155,11 +155,11 @@ def half_seen_problem(height: int, seed: int) -> tuple[torch.Tensor, LinearProbl
 
 @pytest.mark.parametrize("restart", [False, True])
 def test_a_solved_map_fits_what_the_views_see_and_is_x0_hat_elsewhere(restart):
-    """With `map_solve` a step's map solves its loss (a weak proximal term): the texels the views see take the
-    truth (in one step, from x0_hat), the others x0_hat, whatever the previous step's map was."""
+    """With `map_solve` (and no `perturb`) a step's map solves its loss (a weak proximal term): the texels the views
+    see take the truth (in one step, from x0_hat), the others x0_hat, whatever the previous step's map was."""
     truth, problem, seen = half_seen_problem(8, seed=1)
     run, state, _ = second_step_after_a_moved_map(problem, {
-        "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6,
+        "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6, "perturb": 0,
         "restart": restart})
     env = run.env(torch.exp(state.log_map), state).detach()
     np.testing.assert_allclose(env[seen].numpy(), truth[seen].numpy(), rtol=3e-2)
@@ -174,7 +174,8 @@ def test_a_perturbed_solve_moves_the_silent_texels_by_the_priors_uncertainty():
     truth, problem, seen = half_seen_problem(8, seed=1)
     perturb = 0.5
     run, state, _ = second_step_after_a_moved_map(problem, {
-        "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6, "perturb": perturb})
+        "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6, "perturb": perturb,
+        "perturb_height": 8})
     env = run.env(torch.exp(state.log_map), state).detach()
     np.testing.assert_allclose(env[seen].numpy(), truth[seen].numpy(), rtol=3e-2)
     z = run.prior.encoding.to_prior(torch.exp(state.log_map)).detach().reshape(3, *seen.shape).permute(1, 2, 0)
@@ -190,7 +191,8 @@ def test_a_solve_fits_the_views_by_a_field_on_the_transports_grid():
     height = 4
     truth, problem, seen = half_seen_problem(height, seed=2)
     run, state, _ = second_step_after_a_moved_map(problem, {
-        "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6}, prior_height=2 * height)
+        "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6, "perturb": 0},
+        prior_height=2 * height)
     env = run.env(torch.exp(state.log_map), state).detach()
     np.testing.assert_allclose(env[seen].numpy(), truth[seen].numpy(), rtol=3e-2)
     x0_hat = run.prior.encoding.to_radiance(state.snapshots[-1])

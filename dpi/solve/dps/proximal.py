@@ -8,9 +8,11 @@ with z(l) the map in prior space and R the training views' recorded light transp
 in the map, so the global exposure is solved exactly: c is the least-squares scale of the image, and
 s += ln c. Each step first solves for l (`map_solve` Gauss-Newton iterations, dpi.solve.dps.map_solve,
 materials and sun held): l is x0_hat's log radiance plus a correction on the transport's coarser grid,
-so the views fix what they see at the resolution they see it, x0_hat keeps the finer detail and, where
-the views are silent, the light (each sample its own draw: its spread follows what the views leave
-open; a few Adam steps from x0_hat do not reach the views). Then `inner_steps` Adam steps move map,
+so the views fix what they see at the resolution they see it and x0_hat keeps the finer detail (a few Adam
+steps from x0_hat do not reach the views). The solve's target is x0_hat pushed by a smooth random field as
+large as the prior's uncertainty about x0 at that step (`perturb`, as DAPS draws x0): where the views are
+silent each sample keeps its own push, where they speak the solve pulls it back, so the samples' spread
+follows what the views leave open. Then `inner_steps` Adam steps move map,
 albedo and sun together. On a glossy init there is no solve (a mirror's views pin its light down;
 `glossy_inner_steps` updates); l starts from x0_hat at the first step and from the previous step's l
 after that, or with `restart` from each step's x0_hat.
@@ -95,13 +97,16 @@ class ProximalSettings(TransportSampling, SamplerSettings):
     """Gauss-Newton iterations on the step's map (the same loss, all the views, dpi.solve.dps.map_solve) before
     its data updates: the map reaches the views from x0_hat, which a few Adam steps do not, by a correction of
     x0_hat on the transport's grid (finer detail stays x0_hat's; 0: Adam only, the sampler before 2026-11-25)"""
-    perturb: float = 0.0
-    """the solve's target is x0_hat plus a coarse field drawn with perturb x the prior's std of x0 given x_t (r_t
-    of DAPS, Zhang et al. 2024, for a prior of std PRIOR_STD): where the views are silent each sample's map then
-    moves as the prior allows instead of keeping x0_hat's guess; where they speak, the solve pulls it back
-    (0: the target is x0_hat, the sampler before 2026-11-26)"""
-    perturb_height: int = 16
-    """rows of the grid the push is drawn on (white there, upsampled onto the prior's; at most the transport's)"""
+    perturb: float = 0.5
+    """the solve's target is x0_hat plus a smooth random field of perturb x the prior's std of x0 given x_t (r_t of
+    DAPS, Zhang et al. 2024, for a prior of std PRIOR_STD): where the views are silent each sample's map moves as
+    the prior allows instead of keeping x0_hat's guess, where they speak the solve pulls it back (calibration
+    study, rough: calibration 1.66 against 4.22 at 0, env PSNR 16.90 against 17.27 dB; 0: the target is x0_hat,
+    `unperturbed` in the studies)"""
+    perturb_height: int = 4
+    """rows of the grid the push is white on (upsampled onto the prior's): a smooth field moves the light's broad
+    balance, which the views of a rough object leave open (a white 16-row field cost more env PSNR for the same
+    calibration, docs/studies.md)"""
     glossy_map_solve: int = 0
     """Gauss-Newton iterations when the init is glossy: none (a mirror's views pin the light down where they
     reflect it; the solve lost 2.8 dB of env PSNR on the calibration study's metal, and its finer transport
