@@ -12,10 +12,10 @@ so the views fix what they see at the resolution they see it and x0_hat keeps th
 steps from x0_hat do not reach the views). The solve's target is x0_hat pushed by a smooth random field as
 large as the prior's uncertainty about x0 at that step (`perturb`, as DAPS draws x0): where the views are
 silent each sample keeps its own push, where they speak the solve pulls it back, so the samples' spread
-follows what the views leave open. Then `inner_steps` Adam steps move map,
-albedo and sun together. On a glossy init there is no solve (a mirror's views pin its light down;
-`glossy_inner_steps` updates); l starts from x0_hat at the first step and from the previous step's l
-after that, or with `restart` from each step's x0_hat.
+follows what the views leave open. Then `inner_steps` Adam steps move map, albedo and sun together. On a
+glossy init there is no solve (a mirror's views pin its light down; `glossy_inner_steps` updates); l
+starts from x0_hat at the first step and from the previous step's l after that, or with `restart` from
+each step's x0_hat.
 Then re-noise:
 x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) (sqrt(1 - zeta) eps_hat + sqrt(zeta) eps) with
 eps_hat recomputed from z, so samples stay diverse. The proximal weight grows as the noise falls
