@@ -101,12 +101,12 @@ class ProximalSettings(TransportSampling, SamplerSettings):
     """the solve's target is x0_hat plus a smooth random field of perturb x the prior's std of x0 given x_t (r_t of
     DAPS, Zhang et al. 2024, for a prior of std PRIOR_STD): where the views are silent each sample's map moves as
     the prior allows instead of keeping x0_hat's guess, where they speak the solve pulls it back (calibration
-    study, rough: calibration 1.66 against 4.22 at 0, env PSNR 16.90 against 17.27 dB; 0: the target is x0_hat,
+    study, rough: calibration 1.33 against 4.22 at 0, env PSNR 16.42 against 17.27 dB; 0: the target is x0_hat,
     `unperturbed` in the studies)"""
-    perturb_height: int = 4
-    """rows of the grid the push is white on (upsampled onto the prior's): a smooth field moves the light's broad
-    balance, which the views of a rough object leave open (a white 16-row field cost more env PSNR for the same
-    calibration, docs/studies.md)"""
+    perturb_height: int = 2
+    """rows of the grid the push is white on (upsampled onto the prior's): a field as broad as the light's balance
+    between sky and ground, sides and colour, which the views of a rough object leave open (at 4 and 16 rows the
+    samples spread less per dB of env PSNR they lose, docs/studies.md)"""
     glossy_map_solve: int = 0
     """Gauss-Newton iterations when the init is glossy: none (a mirror's views pin the light down where they
     reflect it; the solve lost 2.8 dB of env PSNR on the calibration study's metal, and its finer transport
