@@ -98,6 +98,8 @@ FIELD_BOUNDS: dict[str, Bound] = {
     "prox_weight": Bound(0),
     "inner_steps": Bound(1),
     "*map_solve": Bound(0),
+    "perturb": Bound(0),
+    "perturb_height": Bound(1),
 }
 """valid ranges of numeric settings by field-name pattern (fnmatch); the first matching pattern applies"""
 

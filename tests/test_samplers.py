@@ -17,8 +17,10 @@ from dpi.prior.sample import Prior, draw_samples
 from dpi.prior.unet import SMALL_CONFIGS, UNetModel
 from dpi.render import RenderSettings
 from dpi.solve.decomposition import Decomposition
+from dpi.settings import SettingsError, settings_from_dict
 from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, start_run
 from dpi.solve.dps.map_solve import PRIOR_STD, Resampling, posterior_variance
+from dpi.solve.dps.proximal import ProximalSettings
 from dpi.solve.init import path_traced_init
 from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import InverseProblem, ProblemSettings
@@ -183,6 +185,13 @@ def test_a_perturbed_solve_moves_the_silent_texels_by_the_priors_uncertainty():
     abar = float(run.diffusion.alphas_cumprod[run.index(1)])
     expected = perturb * math.sqrt(posterior_variance(abar, PRIOR_STD))
     assert float(change.std()) == pytest.approx(expected, rel=0.2)
+
+
+@pytest.mark.parametrize("values,message", [({"perturb": -0.1}, "perturb: must be >= 0, got -0.1"),
+                                            ({"perturb_height": 0}, "perturb_height: must be >= 1, got 0")])
+def test_the_push_settings_are_bounded(values, message):
+    with pytest.raises(SettingsError, match=f"^{message}$"):
+        settings_from_dict(ProximalSettings, values)
 
 
 def test_a_solve_fits_the_views_by_a_field_on_the_transports_grid():
