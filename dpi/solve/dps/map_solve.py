@@ -3,13 +3,14 @@
 Both transport samplers solve, at a reverse step, for the map's normalised log radiance l (prior resolution)
 and the global log-exposure e:
   min  ||M (e^e (R s e^l + S)) - y||^2 / (2 sigma2) + (z(l) - t)^T Q (z(l) - t) / (2 r^2) - p^T (z(l) - t) / r^2
-with M the views' transport under fixed materials (normal equations, dense or matrix-free), R the resampling from
+with M the views' transport under fixed materials (as normal equations), R the resampling from
 the prior's grid to the transport's, s the radiance scale, S a fixed extra light (a parametric sun, per unit of
 exposure), z the prior-space map, t its target (x0_hat), Q = I + smoothness x the grid's Laplacian and p an
-optional perturbation (a randomise-then-optimise draw: `gibbs`). The exposure is solved exactly before every
-Gauss-Newton iteration; each iteration's step is clamped to a trust region and halved until the objective falls.
-`proximal` solves it without perturbation: its data steps then reach the views from x0_hat in one or two
-iterations, where a few Adam steps do not.
+optional perturbation (`gibbs`: a randomise-then-optimise draw, prior and data perturbed; `proximal`: the
+prior's mean pushed by a coarse random field, Q = I, the data as recorded). The exposure is solved exactly
+before every Gauss-Newton iteration; each iteration's step is clamped to a trust region and halved until the
+objective falls. With a `basis` the change of l lives on a coarser grid (`proximal`: the transport's); its
+data steps then reach the views from x0_hat in one or two iterations, where a few Adam steps do not.
 """
 
 from __future__ import annotations
