@@ -1,7 +1,7 @@
 """Env-map diversity of `dps` samples against material roughness (the paper's Fig. 9), over repeats.
 
-Renders one object at each roughness under the same procedural sky; each repeat has its own capture
-noise, init and sample seed stream and draws `--samples` dps samples with the shipped outdoor prior
+Renders one object at each roughness under the same natural light (dpi.studies.SweepSettings); each
+repeat has its own capture noise, init and sample seed stream and draws `--samples` dps samples with the shipped outdoor prior
 (dps at its defaults, `--steps` respaced steps). Rows (roughness, metallic, repeat, env_sigma2_sample)
 go to benchmarks/results/roughness_study.csv, the plot beside it; it prints mean +- std per roughness.
 

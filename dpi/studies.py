@@ -1,7 +1,8 @@
 """Small studies of the method's behaviour, shared by benchmarks and tests.
 
 `roughness_point` reproduces the shape of the paper's Fig. 9: one object rendered with materials
-from mirror-like to diffuse under the same sky; `dps` samples of a mirror-like object agree on the
+from mirror-like to diffuse under the same natural light (a procedural outdoor map with buildings and
+a sun, which no prior saw); `dps` samples of a mirror-like object agree on the
 illumination (it is seen in reflections), while a diffuse object leaves it ambiguous, so the
 env-map spread across samples (sigma2_sample) grows with roughness.
 """
@@ -12,6 +13,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from dpi.capture import load_capture
+from dpi.pipeline import resolve_config
 from dpi.spread import normalized_env, sample_variance
 from dpi.prior.sample import Prior
 from dpi.render import RenderSettings
@@ -25,13 +27,17 @@ from dpi.synth.capture import SynthConfig, make_synthetic_capture
 
 @dataclass
 class SweepSettings:
-    """Sizes of one roughness-sweep run."""
+    """Sizes of one roughness-sweep run: small views and map (32 rows), the workflow's render and init.
+
+    The light is a natural map, not Mitsuba's sun-and-sky: a mirror of a featureless sky shows little
+    more than a rough object does, and an init of one leaves the mirror's roughness near 0.5."""
 
     synth: SynthConfig = field(default_factory=lambda: SynthConfig(views=8, held_out_every=0, width=32, height=32,
-                                                                   spp=64))
-    problem: ProblemSettings = field(default_factory=lambda: ProblemSettings(env_height=16, texture_size=32))
-    render: RenderSettings = field(default_factory=lambda: RenderSettings(spp=8))
-    init: OptimizeConfig = field(default_factory=lambda: OptimizeConfig(iterations=60))
+                                                                   spp=64, environment="outdoor",
+                                                                   environment_seed=31))
+    problem: ProblemSettings = field(default_factory=lambda: ProblemSettings(texture_size=32))
+    render: RenderSettings = field(default_factory=RenderSettings)
+    init: OptimizeConfig = field(default_factory=lambda: OptimizeConfig.from_dict(resolve_config()["init"]))
     dps: DPSConfig = field(default_factory=lambda: DPSConfig(steps=50, refine=RefineSettings(iterations=20)))
     samples: int = 3
 
