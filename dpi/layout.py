@@ -11,6 +11,7 @@ scene's `SceneLayout` the files under `results/{scene}/`:
     {method}/{k}/                      posterior sample k: envmap.exr, textures, trace.json
     {method}/plan.json                 the sample stop rule's decision
     {method}/env_log_std.exr, albedo_std.exr   per-texel spread across the method's samples
+    {method}/env_mean.exr              the samples' geometric mean map (median luminance 1)
     eval/{method}/{k}.json             metrics of one sample (eval/init/0.json: the initialisation)
     eval/{method}/{k}/{view}.exr       its held-out views re-rendered by the evaluation
     eval/envmaps.png                   every method's env-map samples
@@ -136,8 +137,10 @@ class SceneLayout:
         return self.log("eval", method) if method == INIT else self.log("eval", method, str(k))
 
     def uncertainty(self, method: str) -> dict[str, Path]:
-        """A method's spread maps across its samples (dpi.spread): env log-luminance std, albedo std."""
-        return {"env": self.root / method / "env_log_std.exr", "albedo": self.root / method / "albedo_std.exr"}
+        """A method's maps across its samples (dpi.spread): env log-luminance std, albedo std, and the env maps'
+        geometric mean (what they share)."""
+        return {"env": self.root / method / "env_log_std.exr", "albedo": self.root / method / "albedo_std.exr",
+                "env_mean": self.root / method / "env_mean.exr"}
 
     @property
     def envmap_figure(self) -> Path:

@@ -24,7 +24,7 @@ from dpi.layout import INIT, INIT_TRACE, SAMPLE_TRACE, SceneLayout, decompositio
 from dpi.preprocess.stages import capture_stage  # noqa: F401  (the first stage of every scene)
 from dpi.prior.sample import load_scene_prior
 from dpi.seeding import seed_for
-from dpi.spread import albedo_std_map, log_std_map
+from dpi.spread import albedo_std_map, log_std_map, mean_log_map
 from dpi.solve.init import path_traced_init
 from dpi.solve.methods import REGISTRY, SampleJob, method_config
 from dpi.solve.optimize import OptimizeConfig
@@ -124,15 +124,18 @@ def envmap_figure_stage(capture_json: str | Path, rows: list[tuple[str, list[str
 
 def uncertainty_stage(scene_dir: str | Path, rows: list[tuple[str, list[str | Path]]], out_png: str | Path) -> None:
     """The spread maps of one scene: per (method, its sample folders, 2 or more) the per-texel std of the env
-    maps' log luminance and of the albedo across the samples, as EXRs where dpi.layout says, and their figure."""
+    maps' log luminance and of the albedo across the samples and the env maps' geometric mean, as EXRs where
+    dpi.layout says, and the spread's figure."""
     scene = SceneLayout(Path(scene_dir))
     figure = []
     for method, folders in rows:
         files = [decomposition_files(folder) for folder in folders]
-        env = log_std_map([read_exr(f["env"]) for f in files])
+        envs = [read_exr(f["env"]) for f in files]
+        env = log_std_map(envs)
         albedo = albedo_std_map([read_exr(f["albedo"]) for f in files])
         write_exr(scene.uncertainty(method)["env"], env)
         write_exr(scene.uncertainty(method)["albedo"], albedo)
+        write_exr(scene.uncertainty(method)["env_mean"], mean_log_map(envs))
         figure.append((method, env, albedo))
     uncertainty_grid(figure, out_png)
 

@@ -69,7 +69,7 @@ rule uncertainty:
                    for k in range(len(folders)) for part in ("env", "albedo")],
         lambda w: sample_plans([w.scene]),
     output:
-        *[SCENE.uncertainty(m)[part] for m in SPREAD_METHODS for part in ("env", "albedo")],
+        *[path for m in SPREAD_METHODS for path in SCENE.uncertainty(m).values()],
         figure=report(SCENE.uncertainty_figure, caption="../report/uncertainty.rst", category="Env maps"),
     params:
         scene=lambda w: str(LAYOUT.scene(w.scene).root),

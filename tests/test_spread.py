@@ -10,7 +10,7 @@ import pytest
 from dpi.envmap import texel_solid_angles
 from dpi.exr import read_exr, write_exr
 from dpi.layout import SceneLayout, decomposition_files
-from dpi.spread import albedo_std_map, calibration, log_std_map, sphere_mean
+from dpi.spread import albedo_std_map, calibration, log_std_map, mean_log_map, sphere_mean
 
 H = 8
 
@@ -55,6 +55,26 @@ def test_calibration_is_a_quarter_when_the_truth_lies_midway_and_one_for_a_fair_
     assert calibration(draws[1:], draws[0]) == pytest.approx(1.0, abs=0.1)
 
 
+def test_mean_map_is_the_geometric_mean_after_each_maps_scale():
+    assert mean_log_map([bright_patch(4.0), 10.0 * bright_patch(1.0)]) == pytest.approx(bright_patch(2.0))
+    assert mean_log_map([bright_patch(math.e), bright_patch(1 / math.e)]) == pytest.approx(bright_patch(1.0))
+
+
+def test_mean_maps_scores_are_the_truths_when_the_samples_straddle_it(tmp_path):
+    from dpi.evaluation.metrics import env_metrics
+    from dpi.evaluation.summary import spread_columns
+
+    truth = bright_patch(3.0)
+    write_exr(tmp_path / "truth.exr", truth.astype(np.float32))
+    albedos = [np.full((2, 2, 3), 0.5)] * 2
+    columns = spread_columns([truth * bright_patch(2.0), 5.0 * truth / bright_patch(2.0)], albedos,
+                             tmp_path / "truth.exr")
+    exact = env_metrics(truth, truth)
+    assert columns["env_mean_psnr"] == pytest.approx(exact["env_psnr"])
+    assert columns["env_mean_ssim"] == pytest.approx(exact["env_ssim"])
+    assert spread_columns([truth, truth], albedos, None)["env_mean_psnr"] == "missing: no gt/envmap.exr"
+
+
 def test_uncertainty_stage_writes_each_methods_maps_and_figure(tmp_path):
     from dpi.stages import uncertainty_stage
 
@@ -68,4 +88,5 @@ def test_uncertainty_stage_writes_each_methods_maps_and_figure(tmp_path):
     env = read_exr(scene.uncertainty("dps")["env"])
     assert env.shape[:2] == (H, 2 * H) and float(env.max()) == pytest.approx(math.log(4.0) / math.sqrt(2), rel=1e-5)
     assert np.abs(read_exr(scene.uncertainty("dps")["albedo"])).max() < 1e-6  # 0.2 and 0.4: one albedo, two scales
+    assert read_exr(scene.uncertainty("dps")["env_mean"]) == pytest.approx(bright_patch(2.0), rel=1e-5)
     assert scene.uncertainty_figure.stat().st_size > 1000

@@ -39,6 +39,9 @@ def test_default_target_runs_end_to_end(workdir):
     spread = read_exr(workdir / "results" / "tiny" / "none" / "env_log_std.exr")
     assert spread.shape[:2] == read_exr(workdir / "results" / "tiny" / "none" / "0" / "envmap.exr").shape[:2]
     assert np.isfinite(spread).all() and spread.max() > 0  # two free fits from two seeds differ somewhere
+    mean = read_exr(workdir / "results" / "tiny" / "none" / "env_mean.exr")
+    assert mean.shape == read_exr(workdir / "results" / "tiny" / "none" / "0" / "envmap.exr").shape
+    assert np.isfinite(mean).all() and mean.min() > 0
     assert (workdir / "results" / "report" / "tiny" / "uncertainty.png").is_file()
     assert (workdir / "results" / "tiny" / "logs" / "init.log").is_file()
 

@@ -231,7 +231,8 @@ def scene_section(scene_name: str, scene: SceneLayout, rows: list[dict[str, str]
                              "Where the photos do not tell: per method with two or more samples, the per-texel std "
                              "across its samples of the env map's log luminance (each map over its median; 0.7 is a "
                              "factor of 2 either way) and of the albedo (each over its mean). Bright is uncertain; "
-                             "summary.csv holds their means (env_log_std, albedo_std) and env_calibration."))
+                             "summary.csv holds their means (env_log_std, albedo_std), env_calibration and the scores of the "
+                             "samples' geometric mean map (env_mean_psnr, env_mean_ssim; {method}/env_mean.exr)."))
 
     path = page.png(scene_name, "textures")
     gt = ground_truth_textures(capture)

@@ -17,8 +17,8 @@ import numpy as np
 
 from dpi.atomic import atomic_path
 from dpi.capture import read_ground_truth
-from dpi.evaluation.metrics import aligned_env, missing, resize_area
-from dpi.spread import (albedo_std_map, calibration, log_std_map, normalized_albedo, normalized_env,
+from dpi.evaluation.metrics import aligned_env, env_metrics, missing, resize_area
+from dpi.spread import (albedo_std_map, calibration, log_std_map, mean_log_map, normalized_albedo, normalized_env,
                          sample_variance, sphere_mean)
 from dpi.evaluation.relighting import RELIGHT_METRICS
 from dpi.evaluation.perceptual import (INCEPTION_WEIGHTS, azimuth_rolls, frechet_distance, inception_features,
@@ -30,7 +30,7 @@ from dpi.layout import ENV_FILE, INIT, texture_file
 SUMMARY_METRICS = ("novel_psnr", "novel_ssim", "novel_lpips", "env_psnr", "env_ssim", "env_lpips", "env_niqe",
                    "env_naturalness", "albedo_mse", *RELIGHT_METRICS, "sample_seconds")
 SET_METRICS = ("env_fid", "albedo_sigma2_invar")
-SPREAD_METRICS = ("env_log_std", "albedo_std", "env_calibration")
+SPREAD_METRICS = ("env_log_std", "albedo_std", "env_calibration", "env_mean_psnr", "env_mean_ssim")
 
 
 def _mean_std(values: list[Any]) -> tuple[Any, Any]:
@@ -80,12 +80,17 @@ def summarize(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 def spread_columns(envs: list[np.ndarray], albedos: list[np.ndarray], truth: str | Path | None) -> dict[str, Any]:
     """How far a method's samples spread (dpi.spread): the mean of its uncertainty maps over the sphere and the
-    texture, and its calibration against the true map (~1: the truth looks like one more sample)."""
+    texture, its calibration against the true map (~1: the truth looks like one more sample), and the env
+    PSNR / SSIM of the samples' geometric mean map (what they agree on)."""
     if len(envs) < 2:
         return {name: missing("one sample") for name in SPREAD_METRICS}
-    return {"env_log_std": sphere_mean(log_std_map(envs)), "albedo_std": float(albedo_std_map(albedos).mean()),
-            "env_calibration": calibration(envs, read_ground_truth(truth, "envmap")) if truth
-            else missing("no gt/envmap.exr")}
+    spread = {"env_log_std": sphere_mean(log_std_map(envs)), "albedo_std": float(albedo_std_map(albedos).mean())}
+    if not truth:
+        return {**spread, **{name: missing("no gt/envmap.exr") for name in SPREAD_METRICS if name not in spread}}
+    reference = read_ground_truth(truth, "envmap")
+    mean = env_metrics(mean_log_map(envs), reference)
+    return {**spread, "env_calibration": calibration(envs, reference), "env_mean_psnr": mean["env_psnr"],
+            "env_mean_ssim": mean["env_ssim"]}
 
 
 def samplers(records: list[dict[str, Any]]) -> str:
