@@ -131,12 +131,12 @@ def uncertainty_stage(scene_dir: str | Path, rows: list[tuple[str, list[str | Pa
     for method, folders in rows:
         files = [decomposition_files(folder) for folder in folders]
         envs = [read_exr(f["env"]) for f in files]
-        env = log_std_map(envs)
+        mean, env = mean_log_map(envs), log_std_map(envs)
         albedo = albedo_std_map([read_exr(f["albedo"]) for f in files])
         write_exr(scene.uncertainty(method)["env"], env)
         write_exr(scene.uncertainty(method)["albedo"], albedo)
-        write_exr(scene.uncertainty(method)["env_mean"], mean_log_map(envs))
-        figure.append((method, env, albedo))
+        write_exr(scene.uncertainty(method)["env_mean"], mean)
+        figure.append((method, mean, env, albedo))
     uncertainty_grid(figure, out_png)
 
 

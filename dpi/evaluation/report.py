@@ -228,7 +228,8 @@ def scene_section(scene_name: str, scene: SceneLayout, rows: list[dict[str, str]
         path = page.png(scene_name, "uncertainty")
         shutil.copyfile(scene.uncertainty_figure, path)
         parts.append(_figure(page.link(path), f"{scene_name} uncertainty",
-                             "Where the photos do not tell: per method with two or more samples, the per-texel std "
+                             "What the samples agree on and where the photos do not tell: per method with two or more "
+                             "samples, the geometric mean of its maps, then the per-texel std "
                              "across its samples of the env map's log luminance (each map over its median; 0.7 is a "
                              "factor of 2 either way) and of the albedo (each over its mean). Bright is uncertain; "
                              "summary.csv holds their means (env_log_std, albedo_std), env_calibration and the scores of the "
