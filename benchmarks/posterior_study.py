@@ -262,10 +262,12 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=2, help="samples drawn side by side (1 thread each)")
     parser.add_argument("--out", type=Path, default=CSV, help="study CSV (rows already there are not rerun)")
     parser.add_argument("--rerun", action="store_true", help="redo rows already in the CSV (their samples too)")
+    parser.add_argument("--work", type=Path, default=WORK,
+                        help="study folder: captures, inits and samples (another folder: other inits, dev studies)")
     args = parser.parse_args()
 
     config = workflow_config()
-    jobs = jobs_for(args, config)
+    jobs = jobs_for(args, config, args.work)
     rows = run_study(jobs, args.out, COLUMNS, run_job, args.jobs)
     print("\n".join(summary(rows)))
 
