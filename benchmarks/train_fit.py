@@ -23,10 +23,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from dpi.capture import read_ground_truth
-from dpi.evaluation.relighting import ground_truth_materials
-from dpi.images import resize
-from dpi.layout import INIT
+from dpi.layout import INIT, TEXTURE_NAMES
 from dpi.solve.decomposition import Decomposition
 from dpi.stages import SolveSettings, load_problem
 
@@ -44,13 +41,11 @@ def training_mse(problem, decomposition, spp: int) -> float:
 
 
 def truth(problem) -> Decomposition | None:
-    """The capture's ground truth at the problem's sizes in its units, or None without a complete gt/."""
-    materials = ground_truth_materials(problem.capture.gt, problem.settings.texture_size)
-    if "envmap" not in problem.capture.gt or isinstance(materials, str):
+    """The capture's ground truth (gt/, a decomposition folder) at the problem's sizes in its units, or None
+    without a complete gt/."""
+    if not {"envmap", *TEXTURE_NAMES} <= set(problem.capture.gt):
         return None
-    h = problem.settings.env_height
-    env = torch.from_numpy(np.ascontiguousarray(read_ground_truth(problem.capture.gt["envmap"], "envmap"))).float()
-    return problem.to_solver_units(Decomposition(resize(env, h, 2 * h), materials))
+    return problem.load_decomposition(Path(problem.capture.gt["envmap"]).parent)
 
 
 def main() -> None:

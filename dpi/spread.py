@@ -15,9 +15,15 @@ from dpi.exposure import robust_level
 from dpi.images import luminance, resize, tonemap
 
 
+def median_level(env: np.ndarray) -> float:
+    """An env map's median (positive) luminance, 1 for a black map: the scale that comparisons across samples
+    divide out."""
+    return robust_level(luminance(env)) or 1.0
+
+
 def normalized_env(env: np.ndarray) -> np.ndarray:
     """Env map divided by its median (positive) luminance, tone-mapped: scale-free, for spread across samples."""
-    return tonemap(env / (robust_level(luminance(env)) or 1.0))
+    return tonemap(env / median_level(env))
 
 
 def sample_variance(samples: list[np.ndarray]) -> float:
@@ -34,8 +40,7 @@ LOG_FLOOR = 1e-4
 def log_radiance(env: np.ndarray, height: int) -> np.ndarray:
     """(height, 2 height, 3) log radiance of a map, area-resampled to `height`, floored at LOG_FLOOR x its median."""
     env = resize(torch.from_numpy(np.ascontiguousarray(env, np.float32)), height, 2 * height).double().numpy()
-    floor = LOG_FLOOR * (robust_level(luminance(env)) or 1.0)
-    return np.log(np.maximum(env, floor))
+    return np.log(np.maximum(env, LOG_FLOOR * median_level(env)))
 
 
 def aligned_log_maps(samples: list[np.ndarray], truth: np.ndarray) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
@@ -74,11 +79,7 @@ def mean_log_map(samples: list[np.ndarray]) -> np.ndarray:
     """(H, 2H, 3) geometric mean of env maps, each divided by its median luminance first (at median ~1): what
     the samples share, their mean in log radiance. Of calibrated samples each as far from the truth as from
     another, it is nearer the truth than any one of them (README, Outputs)."""
-    def log_map(env: np.ndarray) -> np.ndarray:
-        level = robust_level(luminance(env)) or 1.0
-        return np.log(np.maximum(env / level, LOG_FLOOR))
-
-    return np.exp(np.mean([log_map(s) for s in samples], axis=0))
+    return np.exp(np.mean([np.log(np.maximum(s / median_level(s), LOG_FLOOR)) for s in samples], axis=0))
 
 
 def normalized_albedo(albedo: np.ndarray) -> np.ndarray:
@@ -96,11 +97,7 @@ def _std_across(maps: list[np.ndarray]) -> np.ndarray:
 def log_std_map(samples: list[np.ndarray]) -> np.ndarray:
     """(H, 2H) per-texel std across env maps of the log luminance, each divided by its median first: where the
     photos do not tell the light (0.7 is a factor of 2 either way)."""
-    def log_level(env: np.ndarray) -> np.ndarray:
-        level = robust_level(luminance(env)) or 1.0
-        return np.log(np.maximum(luminance(env), LOG_FLOOR * level) / level)
-
-    return _std_across([log_level(s) for s in samples])
+    return _std_across([np.log(np.maximum(luminance(s) / median_level(s), LOG_FLOOR)) for s in samples])
 
 
 def albedo_std_map(samples: list[np.ndarray]) -> np.ndarray:
