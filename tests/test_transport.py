@@ -1,6 +1,6 @@
 """The recorded light transport: Mitsuba's envmap and bitmap lookups exactly, images under other maps, albedos
 and roughness levels against the path tracer, its gradients against Dr.Jit's, the two halves' unbiased data
-term, the normal equations of map and albedo against it, and dps's projection of a map on it."""
+term, and the normal equations of map and albedo against it."""
 
 from __future__ import annotations
 
@@ -12,9 +12,8 @@ from dpi.capture import load_capture
 from dpi.materials import MaterialTextures
 from dpi.render import RenderSettings, texture_plugin
 from dpi.solve.problem import InverseProblem, ProblemSettings
-from dpi.solve.dps.projection import ProjectSettings, nonnegative_quadratic, project_map
-from dpi.solve.transport import (TransportSettings, guide_map, lookup_upsample, record_transport, record_view,
-                                 roughness_levels, texel_weights, texture_weights, transport_pixels)
+from dpi.solve.transport import (TransportSettings, guide_map, record_transport, record_view, roughness_levels,
+                                 texel_weights, texture_weights, transport_pixels)
 
 HEIGHT, SIZE = 8, 8
 
@@ -52,48 +51,6 @@ def test_texel_weights_are_mitsubas_envmap_lookup(mi):
     index, weight = texel_weights(d, HEIGHT)
     assert np.allclose(weight.sum(1), 1) and (weight >= 0).all()
     np.testing.assert_allclose((env.reshape(-1, 3)[index] * weight[..., None]).sum(1), expected, rtol=1e-4, atol=1e-5)
-
-
-def test_an_upsampled_map_holds_what_mitsuba_reads_of_the_coarse_one_at_each_texel(mi):
-    import drjit as dr
-
-    coarse = random_map(0)
-    assert torch.equal(lookup_upsample(coarse, HEIGHT), coarse)
-    fine = lookup_upsample(coarse, 4 * HEIGHT).numpy()
-    emitter = mi.load_dict({"type": "envmap", "bitmap": mi.Bitmap(coarse.numpy().astype(np.float32))})
-    rows, cols = np.meshgrid(np.arange(1, 4 * HEIGHT - 1), np.arange(8 * HEIGHT), indexing="ij")  # poles: one point
-    theta, phi = np.pi * rows / (4 * HEIGHT - 1), 2 * np.pi * (cols + 0.5) / (8 * HEIGHT)
-    d = np.stack([np.sin(phi) * np.sin(theta), np.cos(theta), -np.cos(phi) * np.sin(theta)], -1).reshape(-1, 3)
-    si = dr.zeros(mi.SurfaceInteraction3f, len(d))
-    si.wi = mi.Vector3f(*(-d.T))
-    np.testing.assert_allclose(fine[rows, cols].reshape(-1, 3), np.asarray(emitter.eval(si)).T, rtol=1e-4, atol=1e-5)
-
-
-def test_the_nonnegative_solve_meets_its_optimality_conditions():
-    rng = np.random.default_rng(0)
-    basis = torch.from_numpy(rng.normal(size=(2, 30, 20)))
-    matrix = basis.transpose(1, 2) @ basis + 0.1 * torch.eye(20, dtype=torch.float64)
-    free = torch.from_numpy(rng.uniform(0.5, 1.5, size=(2, 20)))
-    rhs = (matrix @ free[:, :, None])[..., 0]
-    np.testing.assert_allclose(nonnegative_quadratic(matrix, rhs, torch.zeros(2, 20, dtype=torch.float64), 3000), free, atol=1e-6)
-    rhs = torch.from_numpy(rng.normal(size=(2, 20)))  # now some bounds hold: the KKT conditions
-    x = nonnegative_quadratic(matrix, rhs, torch.zeros(2, 20, dtype=torch.float64), 3000)
-    gradient = (matrix @ x[:, :, None])[..., 0] - rhs
-    assert (x >= 0).all() and (x == 0).any() and (x > 0).any()
-    assert gradient[x > 0].abs().max() < 1e-6 and gradient[x == 0].min() > -1e-6
-
-
-def test_projection_fits_the_views_better_and_a_strong_pull_keeps_the_map(transport):
-    albedo = random_albedo(7)
-    wrong = random_map(9, 0.5) * torch.linspace(0.2, 3.0, HEIGHT)[:, None, None]  # the light's balance off
-    corrected, record = project_map(wrong, transport, albedo, 0, ProjectSettings(enabled=True, ridge=0.01))
-    assert (corrected >= 0).all() and corrected.shape == wrong.shape
-    assert record["fit_after"] < 0.8 * record["fit_before"]
-    norm = float(transport.observed.double().square().sum())
-    assert float(transport.fit_loss(corrected, albedo)) / norm == pytest.approx(record["fit_after"], rel=1e-4)
-    kept, record = project_map(wrong, transport, albedo, 0, ProjectSettings(enabled=True, ridge=1e6))
-    torch.testing.assert_close(kept, wrong, rtol=1e-3, atol=1e-4)
-    assert record["fit_after"] == pytest.approx(record["fit_before"], rel=1e-3)
 
 
 def test_texture_weights_are_mitsubas_bitmap_lookup(mi):

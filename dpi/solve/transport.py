@@ -105,20 +105,14 @@ def roughness_levels(roughness: torch.Tensor, count: int) -> list[torch.Tensor]:
 
 def texel_weights(directions: np.ndarray, height: int) -> tuple[np.ndarray, np.ndarray]:
     """Texel indices (n, 4) into an (H, 2H) map and bilinear weights (n, 4) of Mitsuba's envmap lookup at
-    world directions (n, 3): u = atan2(x, -z) / 2pi, v = acos(y) / pi (`uv_weights`)."""
+    world directions (n, 3): columns at u = atan2(x, -z) / 2pi are texel centres, rows at v = acos(y) / pi
+    span the poles (row r at v = r / (H - 1)), azimuth wraps (dpi.envmap documents the map's layout)."""
+    width = 2 * height
     d = np.asarray(directions, np.float64)
     u = np.mod(np.arctan2(d[:, 0], -d[:, 2]) / (2 * np.pi), 1.0)
     v = np.arccos(np.clip(d[:, 1], -1.0, 1.0)) / np.pi
-    return uv_weights(u, v, height)
-
-
-def uv_weights(u: np.ndarray, v: np.ndarray, height: int) -> tuple[np.ndarray, np.ndarray]:
-    """Texel indices (n, 4) and bilinear weights (n, 4) of Mitsuba's envmap lookup at map coordinates (u, v) in
-    [0, 1]: columns at u are texel centres, rows span the poles (row r at v = r / (H - 1)), azimuth wraps
-    (dpi.envmap documents the map's layout)."""
-    width = 2 * height
-    x = np.asarray(u, np.float64) * width - 0.5
-    y = np.asarray(v, np.float64) * (height - 1)
+    x = u * width - 0.5
+    y = v * (height - 1)
     x0 = np.floor(x)
     y0 = np.minimum(np.floor(y), height - 2)
     fx, fy = x - x0, y - y0
@@ -128,18 +122,6 @@ def uv_weights(u: np.ndarray, v: np.ndarray, height: int) -> tuple[np.ndarray, n
                       rows[1] * width + cols[0], rows[1] * width + cols[1]], axis=1)
     weight = np.stack([(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy], axis=1)
     return index, weight
-
-
-def lookup_upsample(coarse: torch.Tensor, height: int) -> torch.Tensor:
-    """(h, 2h, C) map -> (height, 2 height, C): each texel of the finer map holds Mitsuba's bilinear lookup of the
-    coarse one where Mitsuba reads that texel (`uv_weights`), so the path tracer sees the finer map as a transport
-    of h rows sees the coarse one."""
-    width = 2 * height
-    v, u = np.meshgrid(np.arange(height) / (height - 1), (np.arange(width) + 0.5) / width, indexing="ij")
-    index, weight = uv_weights(u.reshape(-1), v.reshape(-1), coarse.shape[0])
-    flat = coarse.reshape(-1, coarse.shape[-1])
-    values = (flat[torch.from_numpy(index)] * torch.from_numpy(weight).to(flat.dtype)[..., None]).sum(1)
-    return values.reshape(height, width, -1)
 
 
 def texture_weights(uv: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:

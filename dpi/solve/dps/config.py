@@ -1,8 +1,7 @@
 """`dps`'s settings, grouped by concern, and its samplers by name.
 
 method_params.dps holds the shared keys (sampler, steps, the material rates, ...) and one section per
-concern: each sampler's own settings (`proximal`, `gibbs`, `paper`), the parametric `sun`, the map's last
-`project`ion on the views, the `refine`ment.
+concern: each sampler's own settings (`proximal`, `gibbs`, `paper`), the parametric `sun`, the `refine`ment.
 A sampler owns its settings dataclass and its defaults; only the chosen sampler's section is used.
 """
 
@@ -16,7 +15,6 @@ from dpi.materials import MaterialRates
 from dpi.settings import SettingsError, check_keys, check_values, settings_from_dict
 from dpi.solve.dps.gibbs import GibbsSettings, gibbs_step
 from dpi.solve.dps.paper import PaperSettings, paper_step
-from dpi.solve.dps.projection import ProjectSettings
 from dpi.solve.dps.proximal import ProximalSettings, proximal_step
 from dpi.solve.dps.refine import RefineSettings
 from dpi.solve.dps.state import DPSRun, DPSState
@@ -40,7 +38,6 @@ SAMPLERS: dict[str, Sampler] = {"proximal": Sampler(ProximalSettings, proximal_s
 
 SECTIONS: dict[str, Callable[[Any], Any]] = {**{name: s.settings.from_dict for name, s in SAMPLERS.items()},
                                              "sun": SunSettings.from_dict,
-                                             "project": partial(settings_from_dict, ProjectSettings),
                                              "refine": partial(settings_from_dict, RefineSettings)}
 """method_params.dps keys that hold a settings section, and the builder of its dataclass from its entry"""
 
@@ -75,7 +72,6 @@ class DPSConfig(MaterialRates):
     gibbs: GibbsSettings = field(default_factory=GibbsSettings)
     paper: PaperSettings = field(default_factory=PaperSettings)
     sun: SunSettings = field(default_factory=SunSettings)
-    project: ProjectSettings = field(default_factory=ProjectSettings)
     refine: RefineSettings = field(default_factory=RefineSettings)
 
     @property

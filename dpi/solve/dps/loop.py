@@ -25,8 +25,6 @@ from dpi.prior.sample import Prior
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.config import SAMPLERS, DPSConfig
-from dpi.solve.dps.data_term import current_level
-from dpi.solve.dps.projection import project_map
 from dpi.solve.dps.refine import refine
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.dps.sun import LR_SUN, LR_SUN_UV, wants_sun
@@ -151,9 +149,6 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
                                    "bytes": transport.nbytes}
     if run.sun:
         trace.info["sun"] = sun_summary(state.sun_uv.detach(), run.sun_irradiance(state).detach(), env)
-    if transport is not None and cfg.project.enabled:
-        env, trace.info["project"] = project_map(env, transport, state.materials.albedo.detach(),
-                                                 current_level(transport, state.materials.roughness), cfg.project)
     env, materials, refine_trace = refine(problem, env, state.materials, cfg.refine.for_init(init.materials), cfg,
                                           seed + 1, progress)
     trace.info["refine"] = refine_trace.summary()
