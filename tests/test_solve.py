@@ -15,7 +15,7 @@ from dpi.solve.decomposition import Decomposition
 from dpi.solve.init import START_ALBEDO, is_glossy, path_traced_init, starting_materials
 from dpi.solve.optimize import OptimizeConfig, fit
 from dpi.solve.priors import chromaticity_penalty, global_norm_penalty, make_prior, smoothness_penalty
-from dpi.solve.problem import InverseProblem, ProblemSettings
+from dpi.solve.problem import InverseProblem, ProblemSettings, to_loss_space
 from dpi.solve.trace import Trace
 
 
@@ -59,6 +59,26 @@ def test_a_glossy_init_keeps_its_roughness_and_metallic_textures():
     torch.testing.assert_close(start.roughness, roughness)
     torch.testing.assert_close(start.metallic, metallic)
     assert torch.all(start.albedo == START_ALBEDO)
+
+
+def test_the_view_loss_compares_log1p_images_so_a_glint_does_not_outweigh_the_rest(problem):
+    image = problem.images[0].clone()
+    mask = problem.masks[0]
+    assert problem.settings.loss_space == "log1p"
+    expected = ((torch.log1p(image * 1.1) - torch.log1p(image)).square() * mask[..., None]).sum() / (3 * mask.sum())
+    torch.testing.assert_close(problem.view_loss(image * 1.1, 0), expected)
+    glint, dim = image.clone(), image.clone()
+    row, col = map(int, torch.nonzero(mask)[0])
+    glint[row, col] = 100.0 * (1 + image[row, col])  # one pixel's sun missed by a factor 1.5 ...
+    wrong_glint = glint.clone()
+    wrong_glint[row, col] *= 1.5
+    dim[mask] *= 0.5  # ... against every other pixel at half its radiance
+    dim[row, col] = glint[row, col]
+    linear = {name: float((((to_loss_space(x, "linear") - to_loss_space(glint, "linear")) ** 2) * mask[..., None]).sum())
+              for name, x in (("glint", wrong_glint), ("dim", dim))}
+    log = {name: float((((to_loss_space(x, "log1p") - to_loss_space(glint, "log1p")) ** 2) * mask[..., None]).sum())
+           for name, x in (("glint", wrong_glint), ("dim", dim))}
+    assert linear["glint"] > linear["dim"] and log["glint"] < log["dim"]
 
 
 def test_balanced_weight_equalises_terms():
