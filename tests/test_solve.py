@@ -74,11 +74,11 @@ def test_the_view_loss_compares_log1p_images_so_a_glint_does_not_outweigh_the_re
     wrong_glint[row, col] *= 1.5
     dim[mask] *= 0.5  # ... against every other pixel at half its radiance
     dim[row, col] = glint[row, col]
-    linear = {name: float((((to_loss_space(x, "linear") - to_loss_space(glint, "linear")) ** 2) * mask[..., None]).sum())
-              for name, x in (("glint", wrong_glint), ("dim", dim))}
-    log = {name: float((((to_loss_space(x, "log1p") - to_loss_space(glint, "log1p")) ** 2) * mask[..., None]).sum())
-           for name, x in (("glint", wrong_glint), ("dim", dim))}
-    assert linear["glint"] > linear["dim"] and log["glint"] < log["dim"]
+
+    def error(x: torch.Tensor, space: str) -> float:
+        return float(((to_loss_space(x, space) - to_loss_space(glint, space)).square() * mask[..., None]).sum())
+
+    assert error(wrong_glint, "linear") > error(dim, "linear") and error(wrong_glint, "log1p") < error(dim, "log1p")
 
 
 def test_balanced_weight_equalises_terms():
