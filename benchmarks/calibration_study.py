@@ -45,6 +45,8 @@ from posterior_study import (
 )
 
 WORK = ROOT / "results" / "benchmarks" / "calibration_study"
+REPEATS = 3
+"""repeats per scene (each its own capture noise, init and seed stream)"""
 CSV = ROOT / "benchmarks" / "results" / "calibration_study.csv"
 COLUMNS = ("scene", "object", "light", "roughness", "metallic", "method", "sampler", "repeat", "samples", "env_psnr",
            "env_ssim", "albedo_mse", "novel_psnr", "env_sigma2_sample", "calibration", "seconds")
@@ -141,7 +143,7 @@ def main() -> None:
     parser.add_argument("--methods", nargs="*", default=list(METHODS), choices=list(METHODS))
     parser.add_argument("--samplers", nargs="*", default=["proximal", "gibbs"], help="dps samplers (or --dps labels)")
     parser.add_argument("--dps", nargs="*", default=[], metavar="NAME:key=value,...", help="extra dps variants")
-    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--repeats", type=int, default=REPEATS)
     parser.add_argument("--samples", type=int, default=4)
     parser.add_argument("--jobs", type=int, default=2, help="samples drawn side by side (1 thread each)")
     parser.add_argument("--out", type=Path, default=CSV)

@@ -114,9 +114,9 @@ def workflow_config(env_height: int | None = None) -> dict[str, Any]:
     return resolve_config({"problem": sizes})
 
 
-def prepare_scene(root: Path, scene: str, synth: dict, config: dict, threads: int) -> None:
-    """The scene's capture, validated capture.json and initialisation (made once, then reused)."""
-    from dpi.stages import SolveSettings, capture_stage, init_stage
+def prepare_capture(root: Path, scene: str, synth: dict, threads: int) -> Path:
+    """The scene's capture and validated capture.json (made once, then reused); the latter's path."""
+    from dpi.stages import capture_stage
     from dpi.synth.capture import SynthConfig, make_synthetic_capture
 
     layout = study_layout(root)
@@ -126,6 +126,15 @@ def prepare_scene(root: Path, scene: str, synth: dict, config: dict, threads: in
                                progress=False)
     if not files.capture_json.exists():
         capture_stage(layout.capture_dir(scene), files.capture_json)
+    return files.capture_json
+
+
+def prepare_scene(root: Path, scene: str, synth: dict, config: dict, threads: int) -> None:
+    """The scene's capture, validated capture.json and initialisation (made once, then reused)."""
+    from dpi.stages import SolveSettings, init_stage
+
+    prepare_capture(root, scene, synth, threads)
+    files = study_layout(root).scene(scene)
     if not files.sample_files("init")["trace"].exists():
         init_stage(files.capture_json, files.sample_dir("init"), scene, config["init"],
                    SolveSettings.from_config(config, threads), progress=False)

@@ -33,7 +33,7 @@ from dpi.prior.train import PriorJobConfig
 from dpi.render import RenderSettings
 from dpi.settings import SettingsError, check_keys, settings_from_dict
 from dpi.solve.methods import METHODS, method_config
-from dpi.solve.optimize import OptimizeConfig
+from dpi.solve.init import InitConfig
 from dpi.solve.problem import ProblemSettings
 from dpi.synth.capture import SynthConfig
 
@@ -46,7 +46,7 @@ def preprocess_settings() -> dict[str, Callable[[dict], Any]]:
 SECTION_SETTINGS: dict[str, Callable[[dict], Any]] = {
     "render": partial(settings_from_dict, RenderSettings),
     "problem": partial(settings_from_dict, ProblemSettings),
-    "init": OptimizeConfig.from_dict,
+    "init": InitConfig.from_dict,
     "adaptive": AdaptiveConfig.from_dict,
     **{f"preprocess.{stage}": make for stage, make in preprocess_settings().items()},
 }

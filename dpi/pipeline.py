@@ -37,7 +37,7 @@ from dpi.prior.sample import DEFAULT_FAMILY, DEFAULT_MODELS
 from dpi.prior.train import PriorJobConfig
 from dpi.settings import apply_preset
 from dpi.solve.methods import REGISTRY, method_config
-from dpi.solve.optimize import OptimizeConfig
+from dpi.solve.init import InitConfig
 from dpi.solve.problem import SolveSettings
 from dpi.synth.capture import SynthConfig
 
@@ -116,8 +116,8 @@ class Pipeline:
         return SolveSettings.from_config(self.config, threads)
 
     @property
-    def init_settings(self) -> OptimizeConfig:
-        return OptimizeConfig.from_dict(self.config["init"])
+    def init_settings(self) -> InitConfig:
+        return InitConfig.from_dict(self.config["init"])
 
     @property
     def adaptive(self) -> AdaptiveConfig:

@@ -100,6 +100,8 @@ FIELD_BOUNDS: dict[str, Bound] = {
     "*map_solve": Bound(0),
     "perturb": Bound(0),
     "perturb_height": Bound(1),
+    "retry_below": Bound(0, 1),
+    "retry_gain": Bound(0, 1),
 }
 """valid ranges of numeric settings by field-name pattern (fnmatch); the first matching pattern applies"""
 

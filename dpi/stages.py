@@ -25,9 +25,8 @@ from dpi.preprocess.stages import capture_stage  # noqa: F401  (the first stage 
 from dpi.prior.sample import load_scene_prior
 from dpi.seeding import seed_for
 from dpi.spread import albedo_std_map, log_std_map, mean_log_map
-from dpi.solve.init import path_traced_init
+from dpi.solve.init import InitConfig, path_traced_init
 from dpi.solve.methods import REGISTRY, SampleJob, method_config
-from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import InverseProblem, SolveSettings
 from dpi.working import working_capture
 
@@ -55,7 +54,7 @@ def init_stage(capture_json: str | Path, out_dir: str | Path, scene: str, init_c
                settings: SolveSettings, progress: bool = True) -> None:
     """Path-traced initialisation of one scene into out_dir (envmap.exr, textures, log.json)."""
     problem = load_problem(capture_json, settings)
-    result = path_traced_init(problem, OptimizeConfig.from_dict(init_cfg), seed_for(scene, INIT), progress,
+    result = path_traced_init(problem, InitConfig.from_dict(init_cfg), seed_for(scene, INIT), progress,
                               Path(out_dir) / RESUME_FILE)
     result.trace.info["variant"] = backend.mitsuba().variant()
     problem.save_decomposition(result, out_dir, trace_name=INIT_TRACE)

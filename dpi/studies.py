@@ -19,8 +19,7 @@ from dpi.prior.sample import Prior
 from dpi.render import RenderSettings
 from dpi.solve.dps import DPSConfig, dps_sample
 from dpi.solve.dps.refine import RefineSettings
-from dpi.solve.init import path_traced_init
-from dpi.solve.optimize import OptimizeConfig
+from dpi.solve.init import InitConfig, path_traced_init
 from dpi.solve.problem import InverseProblem, ProblemSettings
 from dpi.synth.capture import SynthConfig, make_synthetic_capture
 
@@ -37,7 +36,7 @@ class SweepSettings:
                                                                    environment_seed=31))
     problem: ProblemSettings = field(default_factory=lambda: ProblemSettings(texture_size=32))
     render: RenderSettings = field(default_factory=RenderSettings)
-    init: OptimizeConfig = field(default_factory=lambda: OptimizeConfig.from_dict(resolve_config()["init"]))
+    init: InitConfig = field(default_factory=lambda: InitConfig.from_dict(resolve_config()["init"]))
     dps: DPSConfig = field(default_factory=lambda: DPSConfig(steps=50, refine=RefineSettings(iterations=20)))
     samples: int = 3
 

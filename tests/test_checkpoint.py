@@ -12,7 +12,7 @@ from dpi.render import RenderSettings
 from dpi.solve.checkpoint import run_key
 from dpi.solve.dip import DeepImagePrior, DIPConfig
 from dpi.solve.dps import DPSConfig, dps_sample
-from dpi.solve.init import path_traced_init, starting_materials
+from dpi.solve.init import InitConfig, path_traced_init, starting_materials
 from dpi.solve.optimize import FreeEnvMap, OptimizeConfig, fit_env_model
 from dpi.solve.priors import smoothness_penalty
 from dpi.solve.problem import InverseProblem, ProblemSettings
@@ -31,7 +31,7 @@ class Interrupted(Exception):
 def problem_and_init(tiny_capture):
     problem = InverseProblem(load_capture(tiny_capture), ProblemSettings(env_height=4, texture_size=8),
                              RenderSettings(spp=4, threads=2))
-    return problem, path_traced_init(problem, OptimizeConfig(iterations=2), seed=0, progress=False)
+    return problem, path_traced_init(problem, InitConfig(iterations=2), seed=0, progress=False)
 
 
 @contextmanager
@@ -86,6 +86,31 @@ def test_cut_fit_continues_to_the_uninterrupted_result(problem_and_init, tmp_pat
     resumed = run_fit(problem, init, env_model, seed=4, checkpoint=resume, checkpoint_every=3)
     assert resumed[2].info["resumed_from_step"] == 3 and not resume.exists()
     assert_same_fit(resumed, run_fit(problem, init, env_model, seed=4))
+
+
+def test_cut_init_retry_keeps_the_finished_first_fit_and_continues(problem_and_init, tmp_path, monkeypatch):
+    problem = problem_and_init[0]
+    cfg = InitConfig(iterations=7, views_per_step=1, retry_below=1.0, retry_gain=1.0)  # always retried and kept
+    resume = tmp_path / ".resume.pt"
+    with cut_after(monkeypatch, problem, "data_loss", steps=7 + 5):  # the first fit, then 5 steps of the retry
+        path_traced_init(problem, cfg, seed=5, progress=False, checkpoint=resume, checkpoint_every=3)
+    retry_file = tmp_path / ".resume.glossy.pt"
+    assert resume.is_file() and retry_file.is_file()
+
+    calls = []
+    with monkeypatch.context() as patch:
+        real = problem.data_loss
+        patch.setattr(problem, "data_loss", lambda *a, **k: calls.append(1) or real(*a, **k))
+        resumed = path_traced_init(problem, cfg, seed=5, progress=False, checkpoint=resume, checkpoint_every=3)
+    assert len(calls) == 7 - 3  # the first fit is not redone; the retry goes on from its step 3
+    fresh = path_traced_init(problem, cfg, seed=5, progress=False)
+    assert resumed.trace.info["resumed_from_step"] == 3 and not resume.exists() and not retry_file.exists()
+    a, b = resumed.trace.info["retry"], fresh.trace.info["retry"]
+    assert a.pop("kept") == b.pop("kept") == "glossy" and a == pytest.approx(b, rel=CLOSE["rtol"])
+    torch.testing.assert_close(resumed.env, fresh.env, **CLOSE)
+    for (name, x), (_, y) in zip(resumed.materials.items(), fresh.materials.items()):
+        torch.testing.assert_close(x, y, **CLOSE, msg=name)
+    assert [s["step"] for s in resumed.trace.steps] == list(range(7))
 
 
 @pytest.mark.parametrize("sampler", ["paper", "proximal", "gibbs"])

@@ -12,7 +12,7 @@ from dpi.prior.unet import SMALL_CONFIGS, UNetModel
 from dpi.render import RenderSettings
 from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample
 from dpi.solve.dps.paper import PaperSettings, rho_schedule, scale_to_bound
-from dpi.solve.init import path_traced_init
+from dpi.solve.init import InitConfig, path_traced_init
 from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import InverseProblem, ProblemSettings
 from dpi.tonecurve import TONE_CURVES
@@ -80,7 +80,7 @@ def test_guidance_is_scaled_to_its_bound():
 def problem_and_init(tiny_capture):
     problem = InverseProblem(load_capture(tiny_capture), ProblemSettings(env_height=4, texture_size=8),
                              RenderSettings(spp=4, threads=2))
-    return problem, path_traced_init(problem, OptimizeConfig(iterations=2), seed=0, progress=False)
+    return problem, path_traced_init(problem, InitConfig(iterations=2), seed=0, progress=False)
 
 
 def test_dps_run_is_finite_and_traced(problem_and_init):

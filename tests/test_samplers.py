@@ -21,7 +21,7 @@ from dpi.settings import SettingsError, settings_from_dict
 from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, start_run
 from dpi.solve.dps.map_solve import PRIOR_STD, Resampling, posterior_variance
 from dpi.solve.dps.proximal import ProximalSettings
-from dpi.solve.init import path_traced_init
+from dpi.solve.init import InitConfig, path_traced_init
 from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import InverseProblem, ProblemSettings
 from dpi.solve.prior_space import prior_to_env
@@ -215,7 +215,7 @@ def test_a_solve_fits_the_views_by_a_field_on_the_transports_grid():
 def problem_and_init(tiny_capture):
     problem = InverseProblem(load_capture(tiny_capture), ProblemSettings(env_height=4, texture_size=8),
                              RenderSettings(spp=4, threads=2))
-    return problem, path_traced_init(problem, OptimizeConfig(iterations=10), seed=0, progress=False)
+    return problem, path_traced_init(problem, InitConfig(iterations=10), seed=0, progress=False)
 
 
 def training_residual(problem: InverseProblem, decomposition: Decomposition) -> float:

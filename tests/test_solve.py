@@ -12,8 +12,10 @@ from dpi.solve.classic import ClassicConfig, balanced_weight, classic_sample
 from dpi.solve.dip import DeepImagePrior, DIPConfig, dip_sample, network_levels
 from dpi.materials import MaterialTextures
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.init import START_ALBEDO, is_glossy, path_traced_init, starting_materials
-from dpi.solve.optimize import OptimizeConfig, fit
+from dpi.settings import SettingsError
+from dpi.solve.init import (CLOSING_STEPS, START_ALBEDO, InitConfig, closing_loss, is_glossy, path_traced_init,
+                             roughness_p25, starting_materials)
+from dpi.solve.optimize import AdamFit, FreeEnvMap, OptimizeConfig, fit
 from dpi.solve.priors import chromaticity_penalty, global_norm_penalty, make_prior, smoothness_penalty
 from dpi.solve.problem import InverseProblem, ProblemSettings, to_loss_space
 from dpi.solve.trace import Trace
@@ -87,8 +89,8 @@ def test_balanced_weight_equalises_terms():
 
 
 def test_init_lowers_the_data_loss(problem):
-    result = path_traced_init(problem, OptimizeConfig(iterations=12, views_per_step=4, lr_env=0.1), seed=0,
-                              progress=False)
+    result = path_traced_init(problem, InitConfig(iterations=12, views_per_step=4, lr_env=0.1, retry_below=0.0),
+                              seed=0, progress=False)
     losses = [s["loss"] for s in result.trace.steps]
     assert np.mean(losses[-3:]) < 0.8 * np.mean(losses[:3])
     assert torch.isfinite(result.env).all() and (result.env > 0).all()
@@ -113,7 +115,7 @@ def test_nan_steps_are_skipped_and_counted(problem):
 
 
 def test_seeded_samples_reproduce_and_differ_across_seeds(problem):
-    init = path_traced_init(problem, OptimizeConfig(iterations=2), seed=0, progress=False)
+    init = path_traced_init(problem, InitConfig(iterations=2), seed=0, progress=False)
     cfg = ClassicConfig(optimize=OptimizeConfig(iterations=2, views_per_step=1))
     a = classic_sample(problem, "smoothness", init, cfg, seed=5, progress=False)
     b = classic_sample(problem, "smoothness", init, cfg, seed=5, progress=False)
@@ -145,7 +147,7 @@ def test_dip_network_is_seamless_seeded_and_shaped():
 
 
 def test_dip_lowers_the_data_loss(problem):
-    init = path_traced_init(problem, OptimizeConfig(iterations=2), seed=0, progress=False)
+    init = path_traced_init(problem, InitConfig(iterations=2), seed=0, progress=False)
     cfg = DIPConfig(optimize=OptimizeConfig(iterations=15, views_per_step=4, lr_env=3e-2), channels=8,
                     code_channels=4, warmup_iterations=20)
     result = dip_sample(problem, init, cfg, seed=5, progress=False)
@@ -157,7 +159,7 @@ def test_dip_lowers_the_data_loss(problem):
 
 
 def test_dip_samples_reproduce_and_differ_across_seeds(problem):
-    init = path_traced_init(problem, OptimizeConfig(iterations=2), seed=0, progress=False)
+    init = path_traced_init(problem, InitConfig(iterations=2), seed=0, progress=False)
     cfg = DIPConfig(optimize=OptimizeConfig(iterations=2, views_per_step=1), channels=8, code_channels=4,
                     warmup_iterations=5)
     a, b, c = (dip_sample(problem, init, cfg, seed=seed, progress=False) for seed in (5, 5, 6))
@@ -176,3 +178,51 @@ def test_a_saved_decomposition_loads_at_the_problems_size(problem, tmp_path):
     assert loaded.env.shape == (4, 8, 3) and loaded.materials.albedo.shape[:2] == (8, 8)
     assert torch.allclose(problem.to_scene_units(loaded).env.mean((0, 1)), env.mean((0, 1)), rtol=1e-4)
     assert torch.allclose(loaded.materials.roughness, torch.full_like(loaded.materials.roughness, 0.7))
+
+
+def test_a_fit_run_in_stretches_equals_one_uninterrupted_fit(problem):
+    cfg = OptimizeConfig(iterations=6, views_per_step=2)
+    start = MaterialTextures.constant(8, 0.5, 0.4, 0.1)
+    log_env = torch.zeros(4, 8, 3)
+    stretched = AdamFit(problem, FreeEnvMap(log_env), start, cfg, seed=3, trace=Trace())
+    stretched.run(2, progress=False)
+    stretched.run(6, progress=False)
+    a_env, a_mats = stretched.finish()
+    b_env, b_mats = fit(problem, log_env, start, cfg, seed=3, trace=Trace(), progress=False)
+    torch.testing.assert_close(a_env, b_env, rtol=1e-4, atol=1e-5)
+    for (name, x), (_, y) in zip(a_mats.items(), b_mats.items()):
+        torch.testing.assert_close(x, y, rtol=1e-4, atol=1e-5, msg=name)
+    assert [s["step"] for s in stretched.trace.steps] == list(range(6))
+
+
+def test_an_init_whose_roughness_falls_is_retried_from_a_metal_and_kept_by_its_closing_loss(problem):
+    def init(**settings):
+        return path_traced_init(problem, InitConfig(iterations=6, **settings), seed=2, progress=False)
+
+    rough, metal = init(retry_below=0.0), init(start=(0.1, 1.0), retry_below=0.0)  # each start alone
+    assert "retry" not in rough.trace.info and rough.trace.info["start"] == [0.5, 0.0]
+    for gain, kept, alone in ((1.0, "glossy", metal), (0.0, "first", rough)):  # the retry always / never kept
+        result = init(retry_below=1.0, retry_gain=gain)
+        retry = result.trace.info["retry"]
+        assert retry["kept"] == kept and result.trace.info["start"] == alone.trace.info["start"]
+        assert retry["first_roughness_p25"] == pytest.approx(roughness_p25(rough.materials))
+        assert retry["first_closing_loss"] == pytest.approx(closing_loss(rough.trace))
+        assert retry["glossy_closing_loss"] == pytest.approx(closing_loss(metal.trace))
+        torch.testing.assert_close(result.env, alone.env, rtol=1e-4, atol=1e-5)
+        torch.testing.assert_close(result.materials.roughness, alone.materials.roughness, rtol=1e-4, atol=1e-5)
+        assert [s["step"] for s in result.trace.steps] == list(range(6))
+
+
+def test_closing_loss_is_the_mean_data_loss_of_the_last_steps():
+    trace = Trace()
+    for step in range(CLOSING_STEPS + 5):
+        trace.record(step=step, data=100.0 if step < 5 else float(step % 2))
+    trace.skip(CLOSING_STEPS + 5, "non-finite loss")
+    assert closing_loss(trace) == pytest.approx(0.5)
+    assert closing_loss(Trace()) == float("inf")
+
+
+@pytest.mark.parametrize("start", [[], [0.5], [0.5, 1.5]])
+def test_init_starts_must_be_a_roughness_metallic_pair_in_the_unit_range(start):
+    with pytest.raises(SettingsError, match="start"):
+        InitConfig.from_dict({"glossy_start": start})

@@ -2,23 +2,54 @@
 
 Its roughness and metallic seed every posterior method; its albedo is reset by the methods.
 The starting map is uniform, at the level that makes a grey (albedo 0.5) diffuse object match
-the mean observed foreground radiance.
+the mean observed foreground radiance; the textures start constant, as a rough dielectric. Under
+that uniform map roughness changes nothing, so a mirror's roughness gets little gradient and stops
+half-way, with its reflections smeared into the map. When the fit's roughness ends that way (its
+25th percentile below `retry_below`), the init is fitted again from a glossy metal and keeps that
+fit when it explains the views clearly better (docs/studies.md, "The init's start").
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import torch
 
 from dpi.materials import MaterialTextures
+from dpi.settings import SettingsError
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.optimize import OptimizeConfig, fit
+from dpi.solve.optimize import CHECKPOINT_EVERY, AdamFit, FreeEnvMap, OptimizeConfig
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
 
-START_ALBEDO, START_ROUGHNESS, START_METALLIC = 0.5, 0.5, 0.0
+START_ALBEDO = 0.5
+CLOSING_STEPS = 20
+"""steps at the end of a fit whose mean data loss compares two fits (the same seed: the same views and noise)"""
+
+
+@dataclass
+class InitConfig(OptimizeConfig):
+    """The init's fit (config section `init`): Adam settings, the materials' starts and the glossy retry."""
+
+    start: tuple[float, float] = (0.5, 0.0)
+    """constant (roughness, metallic) the textures start from: a rough dielectric"""
+    glossy_start: tuple[float, float] = (0.1, 1.0)
+    """the retry's (roughness, metallic): a glossy metal"""
+    retry_below: float = 0.4
+    """the fit is retried from `glossy_start` when its roughness 25th percentile ends below this (0: never). On the
+    studies' scenes a rough start ends at 0.41-0.50 on rough objects and at 0.20-0.36 on mirror-like metal"""
+    retry_gain: float = 0.6
+    """the retry is kept when its closing data loss is below this fraction of the first fit's. A metal under a free
+    map explains a rough object's views somewhat better too (0.6-1.1x), a mirror's far better (0.17-0.48x)"""
+
+    def __post_init__(self) -> None:
+        for name in ("start", "glossy_start"):
+            pair = getattr(self, name)
+            if len(pair) != 2 or not all(0 <= v <= 1 for v in pair):
+                raise SettingsError(name, f"must be [roughness, metallic], each in [0, 1], got {list(pair)!r}")
+            setattr(self, name, tuple(float(v) for v in pair))
 
 
 def starting_log_env(problem: InverseProblem) -> torch.Tensor:
@@ -31,13 +62,18 @@ def starting_log_env(problem: InverseProblem) -> torch.Tensor:
 
 
 GLOSSY_ROUGHNESS = 0.3
-"""an init whose roughness 25th percentile is below this is glossy (untouched texels keep the start's
-0.5, so the median misses a shiny object)"""
+"""an init whose roughness 25th percentile is below this is glossy"""
+
+
+def roughness_p25(materials: MaterialTextures) -> float:
+    """The roughness texture's 25th percentile (untouched texels keep the start's, so the median misses a shiny
+    object)."""
+    return float(torch.quantile(materials.roughness.detach().flatten(), 0.25))
 
 
 def is_glossy(materials: MaterialTextures, threshold: float = GLOSSY_ROUGHNESS) -> bool:
     """True when the roughness 25th percentile is below `threshold`: a shiny object, at least in part."""
-    return float(torch.quantile(materials.roughness.detach().flatten(), 0.25)) < threshold
+    return roughness_p25(materials) < threshold
 
 
 def starting_materials(init: Decomposition) -> MaterialTextures:
@@ -57,13 +93,49 @@ def starting_materials(init: Decomposition) -> MaterialTextures:
     return materials
 
 
-def path_traced_init(problem: InverseProblem, cfg: OptimizeConfig, seed: int, progress: bool = True,
-                     checkpoint: Path | None = None) -> Decomposition:
-    """Fit env map + materials from constant starting values; returns them with the trace (`checkpoint`:
-    the fit's resume file)."""
-    trace = Trace(info={"stage": "init", "config": vars(cfg).copy(), "seed": seed})
-    materials = MaterialTextures.constant(problem.settings.texture_size, START_ALBEDO, START_ROUGHNESS,
-                                          START_METALLIC)
-    log_env, materials = fit(problem, starting_log_env(problem), materials, cfg, seed, trace, progress=progress,
-                             checkpoint=checkpoint)
-    return Decomposition(log_env.exp(), materials, trace)
+def closing_loss(trace: Trace) -> float:
+    """Mean data loss over a fit's last CLOSING_STEPS steps."""
+    losses = [step["data"] for step in trace.steps if step.get("data") is not None][-CLOSING_STEPS:]
+    return sum(losses) / len(losses) if losses else math.inf
+
+
+def retried(cfg: InitConfig, first_roughness_p25: float) -> bool:
+    """Whether the first fit's roughness (its 25th percentile) fell far enough to retry from `cfg.glossy_start`."""
+    return first_roughness_p25 < cfg.retry_below
+
+
+def retry_kept(cfg: InitConfig, first_loss: float, retry_loss: float) -> bool:
+    """Whether the retry explains the views clearly better than the first fit (closing losses)."""
+    return retry_loss < cfg.retry_gain * first_loss
+
+
+def start_fit(problem: InverseProblem, cfg: InitConfig, start: tuple[float, float], seed: int) -> AdamFit:
+    """The init's fit from the uniform starting map and constant (roughness, metallic) textures."""
+    materials = MaterialTextures.constant(problem.settings.texture_size, START_ALBEDO, *start)
+    return AdamFit(problem, FreeEnvMap(starting_log_env(problem)), materials, cfg, seed,
+                   Trace(info={"stage": "init", "config": vars(cfg).copy(), "seed": seed, "start": list(start)}))
+
+
+def path_traced_init(problem: InverseProblem, cfg: InitConfig, seed: int, progress: bool = True,
+                     checkpoint: Path | None = None, checkpoint_every: int = CHECKPOINT_EVERY) -> Decomposition:
+    """Fit env map + materials from `cfg.start`, retried from `cfg.glossy_start` when the fit's roughness asks for
+    it; returns the kept fit with its trace (`checkpoint`: the resume file; the retry's is its sibling)."""
+    first = start_fit(problem, cfg, cfg.start, seed)
+    first.resume(checkpoint, checkpoint_every)
+    first.run(cfg.iterations, progress)
+    fits = [first]
+    if retried(cfg, roughness_p25(first.materials)):
+        first.save()  # a kill during the retry does not redo the first fit
+        retry = start_fit(problem, cfg, cfg.glossy_start, seed)
+        retry.trace.started = first.trace.started
+        retry.resume(checkpoint and checkpoint.with_name(f"{checkpoint.stem}.glossy{checkpoint.suffix}"),
+                     checkpoint_every)
+        retry.run(cfg.iterations, progress)
+        losses = closing_loss(first.trace), closing_loss(retry.trace)
+        keep = retry_kept(cfg, *losses)
+        fits = [retry, first] if keep else [first, retry]
+        fits[0].trace.info["retry"] = {"first_roughness_p25": roughness_p25(first.materials),
+                                       "first_closing_loss": losses[0], "glossy_closing_loss": losses[1],
+                                       "kept": "glossy" if keep else "first"}
+    log_env, materials = [fit.finish() for fit in fits][0]
+    return Decomposition(log_env.exp(), materials, fits[0].trace)

@@ -124,48 +124,85 @@ def fit_env_model(problem: InverseProblem, env_model: EnvModel, materials: Mater
     """Minimise data loss (+ prior_weight * prior(env)) over the env model's parameters (updated in
     place) and the materials; returns the final log-env and materials. With a `checkpoint` file the
     fit continues from the state a killed run of the same fit left there."""
-    env_model.requires_grad_(cfg.optimize_env)
-    materials = materials.detached()
-    tensors = {**{f"env.{name}": t for name, t in env_model.state_dict().items()}, **dict(materials.items())}
-    groups = [{"params": list(env_model.parameters()), "lr": cfg.lr_env}] if cfg.optimize_env else []
-    for name, tensor in materials.items():
-        if name in cfg.optimize_materials:
-            tensor.requires_grad_(True)
-            groups.append({"params": [tensor], "lr": cfg.rate(name)})
-    free = [p for g in groups for p in g["params"]]
-    optimizer = torch.optim.Adam(groups) if groups else None
-    generator = torch.Generator().manual_seed(seed)
-    store = checkpoint_for(checkpoint, checkpoint_every, "fit", vars(cfg), seed, prior_weight,
-                           problem_identity(problem), tensors)
-    state = store.resume(tensors, optimizer, generator, trace) if store else None
-    start = state.step if state else 0
-    for step in tqdm(range(start, cfg.iterations), initial=start, total=cfg.iterations, desc="optimise",
-                     disable=not progress, mininterval=2.0):
-        if store and store.due(step, start):
-            store.save(LoopState.capture(step, tensors, optimizer, generator, trace))
-        t0 = trace.seconds
-        views = problem.sample_views(cfg.views_per_step, generator)
-        env = env_model().exp()
-        data = problem.data_loss(env, materials, views, seed=seed * 100_003 + step)
-        reg = prior(env) if prior is not None and prior_weight > 0 else torch.zeros(())
-        loss = data + prior_weight * reg
-        if not torch.isfinite(loss):
-            trace.skip(step, "non-finite loss")
-            continue
-        if optimizer is None:
-            trace.record(step=step, loss=loss.item(), data=data.item(), seconds=trace.seconds - t0)
-            continue
-        optimizer.zero_grad()
-        loss.backward()
-        if not all_finite(free):
-            trace.skip(step, "non-finite gradient")
-            continue
-        optimizer.step()
-        env_model.constrain_()
-        materials.clamp_()
-        trace.record(step=step, loss=loss.item(), data=data.item(), prior=reg.item(), views=views,
-                     seconds=round(trace.seconds - t0, 4))
-    if store:
-        store.remove()
-    with torch.no_grad():
-        return env_model().detach(), materials.detached()
+    run = AdamFit(problem, env_model, materials, cfg, seed, trace, prior, prior_weight)
+    run.resume(checkpoint, checkpoint_every)
+    run.run(cfg.iterations, progress)
+    return run.finish()
+
+
+class AdamFit:
+    """One Adam fit, run in stretches: `run(until)` goes on from where the last stretch stopped, exactly as one
+    uninterrupted loop would (the init runs a few steps from several starts and continues the best)."""
+
+    def __init__(self, problem: InverseProblem, env_model: EnvModel, materials: MaterialTextures,
+                 cfg: OptimizeConfig, seed: int, trace: Trace, prior: PriorFn | None = None,
+                 prior_weight: float = 0.0):
+        self.problem, self.env_model, self.cfg, self.seed, self.trace = problem, env_model, cfg, seed, trace
+        self.prior, self.prior_weight = prior, prior_weight
+        env_model.requires_grad_(cfg.optimize_env)
+        self.materials = materials.detached()
+        self.tensors = {**{f"env.{name}": t for name, t in env_model.state_dict().items()},
+                        **dict(self.materials.items())}
+        groups = [{"params": list(env_model.parameters()), "lr": cfg.lr_env}] if cfg.optimize_env else []
+        for name, tensor in self.materials.items():
+            if name in cfg.optimize_materials:
+                tensor.requires_grad_(True)
+                groups.append({"params": [tensor], "lr": cfg.rate(name)})
+        self.free = [p for g in groups for p in g["params"]]
+        self.optimizer = torch.optim.Adam(groups) if groups else None
+        self.generator = torch.Generator().manual_seed(seed)
+        self.step = 0
+        self.store = None
+        self.key = ("fit", vars(cfg), seed, prior_weight, problem_identity(problem),
+                    {name: t.detach().clone() for name, t in self.tensors.items()})
+
+    def resume(self, checkpoint: Path | None, every: int = CHECKPOINT_EVERY) -> None:
+        """Save the loop's state to `checkpoint` from now on, continuing from the state a killed run of this
+        fit (same config, seed, problem and start) left there."""
+        self.store = checkpoint_for(checkpoint, every, *self.key)
+        state = self.store.resume(self.tensors, self.optimizer, self.generator, self.trace) if self.store else None
+        self.step = max(self.step, state.step if state else 0)
+
+    def run(self, until: int, progress: bool = True) -> None:
+        """Run the steps before `until`."""
+        start, cfg, trace = self.step, self.cfg, self.trace
+        for step in tqdm(range(start, until), initial=start, total=until, desc="optimise", disable=not progress,
+                         mininterval=2.0):
+            if self.store and self.store.due(step, start):
+                self.store.save(LoopState.capture(step, self.tensors, self.optimizer, self.generator, trace))
+            t0 = trace.seconds
+            views = self.problem.sample_views(cfg.views_per_step, self.generator)
+            env = self.env_model().exp()
+            data = self.problem.data_loss(env, self.materials, views, seed=self.seed * 100_003 + step)
+            use_prior = self.prior is not None and self.prior_weight > 0
+            reg = self.prior(env) if use_prior else torch.zeros(())
+            loss = data + self.prior_weight * reg
+            if not torch.isfinite(loss):
+                trace.skip(step, "non-finite loss")
+                continue
+            if self.optimizer is None:
+                trace.record(step=step, loss=loss.item(), data=data.item(), seconds=trace.seconds - t0)
+                continue
+            self.optimizer.zero_grad()
+            loss.backward()
+            if not all_finite(self.free):
+                trace.skip(step, "non-finite gradient")
+                continue
+            self.optimizer.step()
+            self.env_model.constrain_()
+            self.materials.clamp_()
+            trace.record(step=step, loss=loss.item(), data=data.item(), prior=reg.item(), views=views,
+                         seconds=round(trace.seconds - t0, 4))
+        self.step = max(start, until)
+
+    def save(self) -> None:
+        """Write where the loop stands to its resume file now (none: nothing), so a rerun starts from here."""
+        if self.store:
+            self.store.save(LoopState.capture(self.step, self.tensors, self.optimizer, self.generator, self.trace))
+
+    def finish(self) -> tuple[torch.Tensor, MaterialTextures]:
+        """The fit's log-env and materials; its resume file is removed (a later rerun is a new run)."""
+        if self.store:
+            self.store.remove()
+        with torch.no_grad():
+            return self.env_model().detach(), self.materials.detached()

@@ -1,0 +1,149 @@
+"""The init's start study: does the init's glossy retry pick the start that makes the better init, on every
+study scene?
+
+For each scene of the posterior, calibration and resolution studies (their captures, their workflow
+configs), the init's fit runs from `init.start` and from `init.glossy_start` (dpi.solve.init.start_fit) to
+the end, recording its closing loss (what the retry is kept by), its mean data loss over steps 20-39
+(`pilot_loss`: a 40-step pilot of each start, the rule tried first), the roughness 25th percentile (what the
+retry is triggered by) and median metallic, and the held-out view PSNR of that start's init. A row per
+scene and start; `chosen` marks the fit the init keeps, `best` the one whose held-out views are best.
+
+    .venv/bin/python benchmarks/init_start_study.py [--studies posterior calibration resolution] [--repeats 1]
+
+Rows go to benchmarks/results/init_start_study.csv (scenes already there are not rerun; `chosen` is
+recomputed from the rows with config.yaml's rule); then a table of the choices: per study and truth
+material, how often the kept fit is the best one, and the held-out view PSNR of the kept fit, of the first
+start alone (the init before 2026-11-25) and of the best.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from posterior_study import (ROOT, SCENES as POSTERIOR_SCENES, append_row, prepare_capture, read_rows,
+                             workflow_config)
+
+CSV = ROOT / "benchmarks" / "results" / "init_start_study.csv"
+COLUMNS = ("study", "scene", "roughness", "metallic", "start_roughness", "start_metallic", "pilot_loss",
+           "closing_loss", "init_roughness_p25", "init_metallic_median", "novel_psnr", "chosen", "best", "seconds")
+PILOT = (20, 40)
+"""steps whose mean data loss is `pilot_loss`: the second half of a 40-step pilot"""
+TEXT = ("study", "scene")
+STUDIES = ("posterior", "calibration", "resolution")
+
+
+def study_scenes(study: str, repeats: int) -> tuple[Path, dict[str, Any], dict[str, dict[str, Any]]]:
+    """A study's folder, workflow config and scenes (folder name -> synth settings): the calibration study's
+    first `repeats` repeats of the scenes in its CSV."""
+    if study == "posterior":
+        from posterior_study import WORK
+
+        return WORK, workflow_config(), {name: synth for name, (_, synth) in POSTERIOR_SCENES.items()}
+    if study == "calibration":
+        from calibration_study import CSV as CALIBRATION_CSV, WORK, repeat_scene, scenes
+
+        studied = {r["scene"] for r in read_rows(CALIBRATION_CSV, ("scene",))}
+        return WORK, workflow_config(env_height=16), {
+            repeat_scene(name, r): {**synth, "seed": synth["seed"] + 100 * r}
+            for name, synth in scenes().items() if name in studied for r in range(repeats)}
+    from resolution_study import SCENES, size_config, size_root
+
+    return size_root(128, 64), size_config(128, 64), {name: synth for name, (_, synth) in SCENES.items()}
+
+
+def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth: dict[str, Any]) -> list[dict]:
+    """The init's fit from each start on one scene, scored on the held-out views; a row per start."""
+    from dpi.evaluation.sample_metrics import novel_view_metrics, render_held_out
+    from dpi.layout import INIT
+    from dpi.pipeline import Pipeline
+    from dpi.seeding import seed_for
+    from dpi.solve.decomposition import Decomposition
+    from dpi.solve.init import closing_loss, start_fit
+    from dpi.stages import SolveSettings, load_problem
+
+    problem = load_problem(prepare_capture(root, scene, synth, threads=2), SolveSettings.from_config(config, 2))
+    cfg = Pipeline(config).init_settings
+    rows = []
+    for start in (cfg.start, cfg.glossy_start):
+        begin = time.perf_counter()
+        run = start_fit(problem, cfg, start, seed_for(scene, INIT))
+        run.run(cfg.iterations, progress=False)
+        log_env, materials = run.finish()
+        pilot = [s["data"] for s in run.trace.steps[slice(*PILOT)] if s.get("data") is not None]
+        renders = render_held_out(problem, Decomposition(log_env.exp(), materials), config["evaluate"]["spp"], 0)
+        rows.append({"study": study, "scene": scene, "roughness": synth["roughness"], "metallic": synth["metallic"],
+                     "start_roughness": start[0], "start_metallic": start[1], "pilot_loss": float(np.mean(pilot)),
+                     "closing_loss": closing_loss(run.trace),
+                     "init_roughness_p25": float(torch.quantile(materials.roughness.flatten(), 0.25)),
+                     "init_metallic_median": float(materials.metallic.median()),
+                     "novel_psnr": novel_view_metrics(problem, renders)["novel_psnr"],
+                     "seconds": round(time.perf_counter() - begin, 1)})
+    return mark(rows, cfg)
+
+
+def mark(rows: list[dict[str, Any]], cfg: Any) -> list[dict[str, Any]]:
+    """Set `chosen` (the fit the init keeps, dpi.solve.init's rule) and `best` on one scene's two rows (first
+    start, glossy start)."""
+    from dpi.solve.init import retried, retry_kept
+
+    first, glossy = rows
+    keep = retried(cfg, first["init_roughness_p25"]) and retry_kept(cfg, first["closing_loss"], glossy["closing_loss"])
+    best = max(rows, key=lambda r: r["novel_psnr"])
+    for row in rows:
+        row.update(chosen=int(row is (glossy if keep else first)), best=int(row is best))
+    return rows
+
+
+def summary(rows: list[dict[str, Any]]) -> list[str]:
+    """Per study and truth material: scenes, how often the chosen start is the best, and mean held-out view
+    PSNR of the chosen start, of the first start alone (one start: no choice) and of the best start."""
+    lines = [f"{'study':<12} {'truth':<16} {'scenes':>6} {'chosen = best':>13} {'chosen [dB]':>11} "
+             f"{'first start [dB]':>16} {'best [dB]':>9}"]
+    keys = sorted({(r["study"], f"r {r['roughness']:g} m {r['metallic']:g}") for r in rows})
+    for study, truth in keys:
+        sel = [r for r in rows if (r["study"], f"r {r['roughness']:g} m {r['metallic']:g}") == (study, truth)]
+        scenes = sorted({r["scene"] for r in sel})
+        pick = [next(r for r in sel if r["scene"] == s and r["chosen"]) for s in scenes]
+        first = [next(r for r in sel if r["scene"] == s) for s in scenes]
+        best = [next(r for r in sel if r["scene"] == s and r["best"]) for s in scenes]
+        lines.append(f"{study:<12} {truth:<16} {len(scenes):>6} {sum(p['best'] for p in pick):>6} of {len(scenes):<4}"
+                     f"{np.mean([p['novel_psnr'] for p in pick]):>11.2f} {np.mean([f['novel_psnr'] for f in first]):>16.2f}"
+                     f" {np.mean([b['novel_psnr'] for b in best]):>9.2f}")
+    return lines
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--studies", nargs="*", default=list(STUDIES), choices=STUDIES)
+    parser.add_argument("--repeats", type=int, default=1, help="calibration study repeats per scene")
+    parser.add_argument("--out", type=Path, default=CSV)
+    args = parser.parse_args()
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    done = {(r["study"], r["scene"]) for r in read_rows(args.out, TEXT)}
+    for study in args.studies:
+        root, config, scenes = study_scenes(study, args.repeats)
+        for scene, synth in scenes.items():
+            if (study, scene) in done:
+                continue
+            for row in scene_rows(study, root, config, scene, synth):
+                append_row(args.out, row, COLUMNS)
+            print(f"{study} {scene}: done", flush=True)
+    from dpi.pipeline import Pipeline, resolve_config
+
+    cfg = Pipeline(resolve_config({})).init_settings
+    rows = read_rows(args.out, TEXT)
+    rows = [row for i in range(0, len(rows), 2) for row in mark(rows[i:i + 2], cfg)]
+    args.out.unlink()
+    for row in rows:
+        append_row(args.out, row, COLUMNS)
+    print("\n".join(summary(rows)))
+
+
+if __name__ == "__main__":
+    main()
