@@ -13,7 +13,6 @@ from dpi.render import RenderSettings
 from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample
 from dpi.solve.dps.paper import PaperSettings, rho_schedule, scale_to_bound
 from dpi.solve.init import InitConfig, path_traced_init
-from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import InverseProblem, ProblemSettings
 from dpi.tonecurve import TONE_CURVES
 

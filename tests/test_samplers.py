@@ -22,7 +22,6 @@ from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, star
 from dpi.solve.dps.map_solve import PRIOR_STD, Resampling, posterior_variance
 from dpi.solve.dps.proximal import ProximalSettings
 from dpi.solve.init import InitConfig, path_traced_init
-from dpi.solve.optimize import OptimizeConfig
 from dpi.solve.problem import InverseProblem, ProblemSettings
 from dpi.solve.prior_space import prior_to_env
 from dpi.solve.sun import map_energy, sun_env
