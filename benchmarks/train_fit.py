@@ -10,7 +10,7 @@ fit of these very views and also fits their render noise, so a decomposition as 
 them worse than the init; each method's ratio to the truth's MSE, and how many exceed it, are printed too.
 
     .venv/bin/python benchmarks/train_fit.py results/benchmarks/calibration_study [--spp 1024] [--out CSV]
-        [--methods none dps_proximal]
+        [--methods none dps_proximal] [--scenes blob_glossy]
 """
 
 from __future__ import annotations
@@ -59,6 +59,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=None, help="CSV of every sample's MSE and its init's")
     parser.add_argument("--methods", nargs="*", default=None,
                         help="method folders to score (e.g. none dps_proximal; default: all)")
+    parser.add_argument("--scenes", nargs="*", default=None, help="scenes to score (default: all)")
     args = parser.parse_args()
 
     from posterior_study import study_layout, workflow_config
@@ -68,6 +69,8 @@ def main() -> None:
     rows = []
     for capture_json in sorted(args.root.glob("results/*/capture.json")):
         scene = capture_json.parent.name
+        if args.scenes is not None and scene not in args.scenes:
+            continue
         files = layout.scene(scene)
         problem = load_problem(capture_json, SolveSettings.from_config(config, threads=args.threads))
         init = training_mse(problem, problem.load_decomposition(files.sample_dir(INIT)), args.spp)
