@@ -29,7 +29,7 @@ class SweepSettings:
     """Sizes of one roughness-sweep run: small views and map (32 rows), the workflow's render and init.
 
     The light is a natural map, not Mitsuba's sun-and-sky: a mirror of a featureless sky shows little
-    more than a rough object does, and an init of one leaves the mirror's roughness near 0.5."""
+    more than a rough object does."""
 
     synth: SynthConfig = field(default_factory=lambda: SynthConfig(views=8, held_out_every=0, width=32, height=32,
                                                                    spp=64, environment="outdoor",
