@@ -112,7 +112,7 @@ def summary(rows: list[dict[str, Any]]) -> list[str]:
         pick = [next(r for r in sel if r["scene"] == s and r["chosen"]) for s in scenes]
         first = [next(r for r in sel if r["scene"] == s) for s in scenes]
         best = [next(r for r in sel if r["scene"] == s and r["best"]) for s in scenes]
-        lines.append(f"{study:<12} {truth:<16} {len(scenes):>6} {int(sum(p["best"] for p in pick)):>6} of {len(scenes):<4}"
+        lines.append(f"{study:<12} {truth:<16} {len(scenes):>6} {int(sum(p['best'] for p in pick)):>6} of {len(scenes):<4}"
                      f"{np.mean([p['novel_psnr'] for p in pick]):>11.2f} {np.mean([f['novel_psnr'] for f in first]):>16.2f}"
                      f" {np.mean([b['novel_psnr'] for b in best]):>9.2f}")
     return lines
