@@ -61,11 +61,13 @@ def test_settings_are_grouped_and_the_flat_keys_name_their_new_place():
         DPSConfig.from_dict({"refine": 3})
 
 
-def test_a_glossy_init_refines_longer():
+def test_a_glossy_init_refines_longer_with_a_freer_polish():
     from dpi.materials import MaterialTextures
 
-    settings = DPSConfig.from_dict({"refine": {"iterations": 50, "glossy_factor": 2.0}}).refine
-    assert settings.for_init(MaterialTextures.constant(8, roughness=0.1)).iterations == 100
+    settings = DPSConfig.from_dict({"refine": {"iterations": 50, "glossy_factor": 2.0, "lr_texels": 0.005,
+                                               "glossy_lr_texels": 0.02}}).refine
+    glossy = settings.for_init(MaterialTextures.constant(8, roughness=0.1))
+    assert (glossy.iterations, glossy.lr_texels) == (100, 0.02)
     assert settings.for_init(MaterialTextures.constant(8, roughness=0.8)) is settings
 
 

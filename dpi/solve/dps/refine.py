@@ -40,11 +40,17 @@ class RefineSettings:
     roughness a mirror's views hinge on (posterior study's glossy scene, 100 against 50 iterations: views
     +0.5 dB; rough scenes tie at 50, docs/studies.md "the refinement's length")"""
 
+    glossy_lr_texels: float = 0.02
+    """the polish's rate on a glossy init: a mirror's views pin its light's detail down, which the prior's grid
+    cannot hold (mirror torus at 128 rows and the posterior study's metal blob, 3 seeds each: views +2.6 and
+    +2.0 dB, env PSNR +2.2 and -0.3; at 0.05 the blob's env lost 4.9 dB, docs/studies.md "a freer polish")"""
+
     def for_init(self, materials: MaterialTextures) -> RefineSettings:
-        """These settings for a sample whose init has `materials`: `glossy_factor` times longer on a glossy one."""
+        """These settings for a sample whose init has `materials`: on a glossy one `glossy_factor` times longer,
+        and the polish at `glossy_lr_texels`."""
         if not is_glossy(materials):
             return self
-        return replace(self, iterations=round(self.iterations * self.glossy_factor))
+        return replace(self, iterations=round(self.iterations * self.glossy_factor), lr_texels=self.glossy_lr_texels)
 
     def optimize(self, rates: MaterialRates) -> OptimizeConfig:
         """The joint fit's settings: the gain's rate for the map's parameters, `rates` for the textures."""
