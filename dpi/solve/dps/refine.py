@@ -42,8 +42,9 @@ class RefineSettings:
 
     glossy_lr_texels: float = 0.02
     """the polish's rate on a glossy init: a mirror's views pin its light's detail down, which the prior's grid
-    cannot hold (mirror torus at 128 rows and the posterior study's metal blob, 3 seeds each: views +2.6 and
-    +2.0 dB, env PSNR +2.2 and -0.3; at 0.05 the blob's env lost 4.9 dB, docs/studies.md "a freer polish")"""
+    cannot hold (resolution, posterior and calibration studies' metals: views +1.1-2.6 dB, albedo and relighting
+    better, env PSNR -0.9..+2.2, the posterior blob's env SSIM 0.85 -> 0.71; at 0.05 its env PSNR lost 4.9 dB;
+    docs/studies.md "a freer polish")"""
 
     def for_init(self, materials: MaterialTextures) -> RefineSettings:
         """These settings for a sample whose init has `materials`: on a glossy one `glossy_factor` times longer,
