@@ -21,6 +21,8 @@ from test_dps import tiny_prior
 
 FIT = OptimizeConfig(iterations=7, views_per_step=1)
 CLOSE = dict(rtol=1e-4, atol=1e-5)  # Dr.Jit's parallel gradient atomics: equal up to float rounding
+NETWORK_CLOSE = dict(rtol=3e-3, atol=3e-3)
+"""dip: a CNN generates the map, and 7 Adam steps through it grow that rounding to ~5e-4 on a loaded machine"""
 
 
 class Interrupted(Exception):
@@ -66,13 +68,13 @@ def run_fit(problem, init, env_model: str, seed: int, **checkpointing):
     return log_env, materials, trace
 
 
-def assert_same_fit(a, b):
-    torch.testing.assert_close(a[0], b[0], **CLOSE)
+def assert_same_fit(a, b, close=CLOSE):
+    torch.testing.assert_close(a[0], b[0], **close)
     for (name, x), (_, y) in zip(a[1].items(), b[1].items()):
-        torch.testing.assert_close(x, y, **CLOSE, msg=name)
+        torch.testing.assert_close(x, y, **close, msg=name)
     assert [s["step"] for s in a[2].steps] == [s["step"] for s in b[2].steps] == list(range(FIT.iterations))
-    assert [s["loss"] for s in a[2].steps] == pytest.approx([s["loss"] for s in b[2].steps], rel=CLOSE["rtol"],
-                                                            abs=CLOSE["atol"])
+    assert [s["loss"] for s in a[2].steps] == pytest.approx([s["loss"] for s in b[2].steps], rel=close["rtol"],
+                                                            abs=close["atol"])
 
 
 @pytest.mark.parametrize("env_model", ENV_MODELS)
@@ -85,7 +87,7 @@ def test_cut_fit_continues_to_the_uninterrupted_result(problem_and_init, tmp_pat
 
     resumed = run_fit(problem, init, env_model, seed=4, checkpoint=resume, checkpoint_every=3)
     assert resumed[2].info["resumed_from_step"] == 3 and not resume.exists()
-    assert_same_fit(resumed, run_fit(problem, init, env_model, seed=4))
+    assert_same_fit(resumed, run_fit(problem, init, env_model, seed=4), NETWORK_CLOSE if env_model == "dip" else CLOSE)
 
 
 def test_cut_init_retry_keeps_the_finished_first_fit_and_continues(problem_and_init, tmp_path, monkeypatch):
