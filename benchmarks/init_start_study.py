@@ -25,7 +25,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 from posterior_study import (ROOT, SCENES as POSTERIOR_SCENES, append_row, prepare_capture, read_rows,
                              workflow_config)
 
@@ -64,7 +63,7 @@ def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth
     from dpi.pipeline import Pipeline
     from dpi.seeding import seed_for
     from dpi.solve.decomposition import Decomposition
-    from dpi.solve.init import closing_loss, start_fit
+    from dpi.solve.init import closing_loss, roughness_p25, start_fit
     from dpi.stages import SolveSettings, load_problem
 
     problem = load_problem(prepare_capture(root, scene, synth, threads=2), SolveSettings.from_config(config, 2))
@@ -80,7 +79,7 @@ def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth
         rows.append({"study": study, "scene": scene, "roughness": synth["roughness"], "metallic": synth["metallic"],
                      "start_roughness": start[0], "start_metallic": start[1], "pilot_loss": float(np.mean(pilot)),
                      "closing_loss": closing_loss(run.trace),
-                     "init_roughness_p25": float(torch.quantile(materials.roughness.flatten(), 0.25)),
+                     "init_roughness_p25": roughness_p25(materials),
                      "init_metallic_median": float(materials.metallic.median()),
                      "novel_psnr": novel_view_metrics(problem, renders)["novel_psnr"],
                      "seconds": round(time.perf_counter() - begin, 1)})

@@ -131,8 +131,9 @@ def fit_env_model(problem: InverseProblem, env_model: EnvModel, materials: Mater
 
 
 class AdamFit:
-    """One Adam fit, run in stretches: `run(until)` goes on from where the last stretch stopped, exactly as one
-    uninterrupted loop would (the init runs a few steps from several starts and continues the best)."""
+    """One Adam fit as an object: `run(until)` goes on from where the last call stopped, exactly as one
+    uninterrupted loop would, and the fit's trace, materials and resume file stay at hand between calls (the
+    init compares two fits before keeping one, dpi.solve.init)."""
 
     def __init__(self, problem: InverseProblem, env_model: EnvModel, materials: MaterialTextures,
                  cfg: OptimizeConfig, seed: int, trace: Trace, prior: PriorFn | None = None,
