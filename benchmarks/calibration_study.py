@@ -141,7 +141,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--scenes", nargs="*", default=None, choices=list(scenes()))
     parser.add_argument("--methods", nargs="*", default=list(METHODS), choices=list(METHODS))
-    parser.add_argument("--samplers", nargs="*", default=["proximal", "gibbs"], help="dps samplers (or --dps labels)")
+    parser.add_argument("--samplers", nargs="*", default=["proximal"], help="dps samplers (or --dps labels)")
     parser.add_argument("--dps", nargs="*", default=[], metavar="NAME:key=value,...", help="extra dps variants")
     parser.add_argument("--repeats", type=int, default=REPEATS)
     parser.add_argument("--samples", type=int, default=4)

@@ -4,10 +4,9 @@ At the default preset (64 x 64 images, 16 spp, its env map and textures, the dem
 `dpi.solve.dps.posterior_steps` (the loop `dps_sample` runs, not a copy of it) for each sampler and
 reads each step's timings from its record:
   network            eps_theta on the randomly rolled x_t (paper: with the autograd graph)
-  transport          proximal, gibbs: recording the light transport (the first step only; not in the table)
+  transport          proximal: recording the light transport (the first step only; not in the table)
+  solve              proximal: the map's Gauss-Newton solve on the recorded transport
   data               proximal: the data updates on the recorded transport
-  albedo, equations  gibbs: the draws of roughness level and albedo, and the map's normal equations after them
-  draw               gibbs: the draw of the map
   render             paper: the data term's render, forward and backward
   network_backward   paper: the gradient back through x0_hat and the UNet to x_t
   rest               the reverse step, Adam and bookkeeping
@@ -24,7 +23,7 @@ With 2 threads on a machine whose cores are busy with other work, torch's OpenMP
 (libgomp's default) and the network can run tens of times slower; compare with
 OMP_WAIT_POLICY=PASSIVE in the environment (the header line says which was set).
 
-    .venv/bin/python benchmarks/dps_step.py [--samplers proximal gibbs paper] [--steps 20] [--rebuilt-steps 6] [--threads 2]
+    .venv/bin/python benchmarks/dps_step.py [--samplers proximal paper] [--steps 20] [--rebuilt-steps 6] [--threads 2]
 """
 
 from __future__ import annotations
@@ -53,13 +52,10 @@ from dpi.solve.problem import InverseProblem, ProblemSettings
 PARTS = {"network": "network forward (UNet, random roll)",
          "solve": "Gauss-Newton solve of the map on the transport (proximal)",
          "data": "data updates on the transport (proximal)",
-         "albedo": "level and albedo draws (gibbs)",
-         "equations": "the map's normal equations (gibbs)",
-         "draw": "draw of the map (gibbs)",
          "render": "render forward + backward (paper)",
          "network_backward": "network backward (paper)", "rest": "reverse step, Adam and the rest",
          "total": "whole step"}
-TIMED = ("network", "transport", "solve", "data", "albedo", "equations", "draw", "render", "network_backward")
+TIMED = ("network", "transport", "solve", "data", "render", "network_backward")
 """the parts a step's record times (seconds_<part>); the transport's recording (first step) is not a step's cost"""
 
 

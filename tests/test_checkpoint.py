@@ -115,7 +115,7 @@ def test_cut_init_retry_keeps_the_finished_first_fit_and_continues(problem_and_i
     assert [s["step"] for s in resumed.trace.steps] == list(range(7))
 
 
-@pytest.mark.parametrize("sampler", ["paper", "proximal", "gibbs"])
+@pytest.mark.parametrize("sampler", ["paper", "proximal"])
 def test_cut_dps_sample_continues_to_the_uninterrupted_result(problem_and_init, tmp_path, monkeypatch, sampler):
     problem, init = problem_and_init
     cfg = DPSConfig.from_dict({"sampler": sampler, "steps": 4, "strip_frames": 3, "refine": {"iterations": 1},

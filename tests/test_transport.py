@@ -131,26 +131,6 @@ def test_the_halves_product_is_the_data_term_without_the_recordings_noise(proble
     assert transport.pixels == transport.foreground == sum(int(problem.masks[v].sum()) for v in problem.train_ids)
 
 
-def test_normal_equations_of_the_map_give_the_data_term_and_its_gradient(transport):
-    albedo, env = random_albedo(8), random_map(8).double()
-    equations = transport.light_equations(albedo, level=1)
-    direct = float(transport.sum_squares(env, albedo, level=1))
-    ridge = float(equations.sum_squares(env)) - direct  # G is kept convex: at most a small ridge on top
-    assert -1e-4 * direct < ridge < 0.01 * direct
-    assert float(torch.linalg.eigvalsh(equations.gram).min()) > -1e-9 * float(equations.gram.abs().max())
-    flat = env.reshape(-1, 3).T
-    first, second = transport.halves(env, albedo, 1).double() - transport.observed
-    per_channel = (first * second).sum(0)  # the direct sum of squares per channel, and the quadratic's
-    quadratic = (flat * equations.apply(flat)).sum(1) - 2 * (equations.rhs * flat).sum(1) \
-        + transport.observed.square().sum(0)
-    shift = (quadratic - per_channel) / flat.square().sum(1)  # each channel's ridge is shift_c |L_c|^2
-    leaf = env.clone().requires_grad_(True)
-    transport.sum_squares(leaf, albedo, level=1).backward()
-    analytic = 2 * (equations.apply(flat) - equations.rhs - shift[:, None] * flat)
-    np.testing.assert_allclose(leaf.grad.reshape(-1, 3).T.numpy(), analytic.numpy(), rtol=1e-3,
-                               atol=1e-4 * float(analytic.abs().max()))
-
-
 def test_image_equations_are_the_fit_loss_and_its_gradient(transport):
     albedo, env = random_albedo(10), random_map(10).double()
     equations = transport.image_equations(albedo, level=1)
@@ -168,12 +148,8 @@ def test_image_equations_are_the_fit_loss_and_its_gradient(transport):
             float(equations.diagonal()[0, i]), rel=1e-4)
 
 
-def test_albedo_terms_are_the_data_term_as_a_quadratic_in_the_seen_albedo(transport):
+def test_the_data_terms_gradient_in_the_albedo_is_its_finite_difference(transport):
     env, albedo = random_map(9), random_albedo(9)
-    curvature, linear, constant = transport.albedo_terms(env)
-    seen = transport.seen_albedo(albedo).double()
-    quadratic = float((curvature * seen.square() - 2 * linear * seen).sum()) + constant
-    assert quadratic == pytest.approx(float(transport.sum_squares(env, albedo)), rel=1e-3)
     leaf = albedo.clone().requires_grad_(True)  # its gradient through the lookup, against finite differences
     transport.sum_squares(env, leaf).backward()
     bump = torch.zeros_like(albedo)

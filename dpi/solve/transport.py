@@ -545,12 +545,11 @@ class NormalEquations:
         """x^T G x summed over the channels, x (3, N)."""
         return float((x * self.apply(x)).sum())
 
-    def sum_squares(self, env: torch.Tensor, rhs: torch.Tensor | None = None) -> torch.Tensor:
-        """Sum of squared residuals under an (H, 2H, 3) map (differentiable); `rhs` replaces b (a perturbed
-        data term)."""
+    def sum_squares(self, env: torch.Tensor) -> torch.Tensor:
+        """Sum of squared residuals under an (H, 2H, 3) map (differentiable)."""
         flat = env.reshape(-1, 3).T.to(torch.float64)
         quadratic = (flat * self.apply(flat)).sum()
-        return quadratic - 2 * ((self.rhs if rhs is None else rhs) * flat).sum() + self.constant
+        return quadratic - 2 * (self.rhs * flat).sum() + self.constant
 
     def mean_squares(self, env: torch.Tensor) -> torch.Tensor:
         """Mean squared residual per pixel and channel (differentiable, at least 0)."""
@@ -562,14 +561,6 @@ class NormalEquations:
         den = self.energy(flat)
         num = float((self.rhs * flat).sum())
         return num / den if den > 0 and num > 0 else 1.0
-
-
-def convex(gram: torch.Tensor) -> torch.Tensor:
-    """The product of two halves' transports is symmetric but not always positive semidefinite (its noise can
-    leave a direction of slightly negative curvature): raise the diagonal by the smallest eigenvalue where it is
-    negative, so the data term stays convex."""
-    lowest = torch.linalg.eigvalsh(gram)[:, 0].clamp(max=0)
-    return gram - lowest[:, None, None] * torch.eye(gram.shape[-1], dtype=gram.dtype)
 
 
 @dataclass
@@ -658,18 +649,6 @@ class LightTransport:
             residual = self.halves(env, albedo, slice(None)) - self.observed.to(self.slope.dtype)
             return (residual[:, 0] * residual[:, 1]).sum(dim=(1, 2)).double()
 
-    def light_equations(self, albedo: torch.Tensor, level: int = 0) -> NormalEquations:
-        """The data term as a quadratic form in the map under a fixed albedo and roughness level:
-        G = sym(M1^T M2) (kept convex), b = mean(M)^T y, M_h = a_p A_h + B_h per channel; over the recorded
-        pixels."""
-        a = self.seen_albedo(albedo.detach()).T[:, :, None].to(self.slope.dtype)
-        rows = a * self.slope[level] + self.offset[level]  # (HALVES, 3, P, N)
-        cross = rows[0].transpose(1, 2) @ rows[1]
-        gram = convex((0.5 * (cross + cross.transpose(1, 2))).double())
-        y = self.observed.T.to(rows.dtype)
-        rhs = (rows.sum(0).transpose(1, 2) @ y[:, :, None])[..., 0] / HALVES
-        return NormalEquations(gram, rhs.double(), float(self.observed.double().square().sum()), 3 * self.pixels)
-
     def image_equations(self, albedo: torch.Tensor, level: int = 0) -> NormalEquations:
         """`fit_loss` as normal equations in the map under a fixed albedo and roughness level: of the halves'
         mean transport M_p = a_p A_p + B_p, G = M^T M and b = M^T y."""
@@ -679,17 +658,6 @@ class LightTransport:
         rhs = (matrix.transpose(1, 2) @ observed.to(matrix.dtype)[:, :, None])[..., 0].double()
         return NormalEquations((matrix.transpose(1, 2) @ matrix).double(), rhs,
                                float(observed.double().square().sum()), observed.numel())
-
-    def albedo_terms(self, env: torch.Tensor, level: int = 0) -> tuple[torch.Tensor, torch.Tensor, float]:
-        """The data term in the albedo each pixel sees under a fixed map and roughness level:
-        sum_p c_p a_p^2 - 2 l_p a_p + k, per pixel and channel (P, 3) each: c the product of the halves' A L (at
-        least 0), l from the products of the halves' residuals; and the constant k (unbiased, as `sum_squares`)."""
-        light = env.detach().reshape(-1, 3).T
-        scaled = apply_light(self.slope[level], light).transpose(1, 2).double()
-        rest = apply_light(self.offset[level], light).transpose(1, 2).double() - self.observed.double()
-        curvature = (scaled[0] * scaled[1]).clamp_min(0)
-        linear = -0.5 * (scaled[0] * rest[1] + scaled[1] * rest[0])
-        return curvature, linear, float((rest[0] * rest[1]).sum())
 
 
 def transport_height(env_height: int, max_height: int = MAX_TRANSPORT_HEIGHT) -> int:

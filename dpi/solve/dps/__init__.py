@@ -3,15 +3,15 @@
 Reverse diffusion over the prior's image space x (encoded env maps in [-1, 1]), guided by the
 views, with the materials fitted jointly; after the last step the materials are refined under the
 clean map by path tracing (`refine`). How one reverse step uses the data is the `sampler` setting,
-each in its own module with its own settings: `proximal` (x0-space data steps) and `gibbs` (draws of
-map, albedo, roughness level and noise), both on the views' recorded light transport (`data_term`),
-and `paper` (the reference's gradient guidance through the path tracer). The modules:
+each in its own module with its own settings: `proximal` (x0-space data steps on the views' recorded light
+transport, `data_term`) and `paper` (the reference's gradient guidance through the path tracer). The modules:
 
 - config: DPSConfig (method_params.dps) and the samplers by name
 - state: the fixed run and the loop state a step advances
 - loop: start_run, posterior_steps (the loop as a generator) and dps_sample
 - data_term: the recorded light transport as a sampler's data term
-- proximal, gibbs, paper: one sampler each
+- proximal, paper: one sampler each
+- map_solve: the map's Gauss-Newton solve on the transport (proximal's per-step solve)
 - sun: the parametric sun's settings and when a sample gets one
 - refine: the refinement
 """

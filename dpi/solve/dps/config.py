@@ -1,7 +1,7 @@
 """`dps`'s settings, grouped by concern, and its samplers by name.
 
 method_params.dps holds the shared keys (sampler, steps, the material rates, ...) and one section per
-concern: each sampler's own settings (`proximal`, `gibbs`, `paper`), the parametric `sun`, the `refine`ment.
+concern: each sampler's own settings (`proximal`, `paper`), the parametric `sun`, the `refine`ment.
 A sampler owns its settings dataclass and its defaults; only the chosen sampler's section is used.
 """
 
@@ -13,7 +13,6 @@ from typing import Any, Callable
 
 from dpi.materials import MaterialRates
 from dpi.settings import SettingsError, check_keys, check_values, settings_from_dict
-from dpi.solve.dps.gibbs import GibbsSettings, gibbs_step
 from dpi.solve.dps.paper import PaperSettings, paper_step
 from dpi.solve.dps.proximal import ProximalSettings, proximal_step
 from dpi.solve.dps.refine import RefineSettings
@@ -32,7 +31,6 @@ class Sampler:
 
 
 SAMPLERS: dict[str, Sampler] = {"proximal": Sampler(ProximalSettings, proximal_step),
-                                "gibbs": Sampler(GibbsSettings, gibbs_step),
                                 "paper": Sampler(PaperSettings, paper_step)}
 """dps's samplers by name (the `sampler` setting and its section's key); the first is the default"""
 
@@ -53,6 +51,8 @@ MOVED: dict[str, str] = {
 REMOVED = ("map_update", "warm_start", "refine_env", "refine_gain_order", "lr_sun", "lr_sun_uv", "refine_lr_env",
            "annealed", "spp")
 """flat keys of variants that lost their study (docs/studies.md)"""
+REMOVED_SAMPLERS = ("gibbs",)
+"""samplers that lost their study (docs/studies.md): a config naming one, or its section, gets an error saying so"""
 
 
 @dataclass
@@ -60,8 +60,8 @@ class DPSConfig(MaterialRates):
     """Settings of the `dps` method (defaults: the CPU preset); the textures' rates: MaterialRates."""
 
     sampler: str = next(iter(SAMPLERS))
-    """how a reverse step uses the data: proximal (x0-space data steps), gibbs (draws of map, albedo and noise on
-    the recorded light transport) or paper (the reference's gradient guidance)"""
+    """how a reverse step uses the data: proximal (x0-space data steps on the recorded light transport) or paper
+    (the reference's gradient guidance through the path tracer)"""
     steps: int = 100
     """reverse-diffusion steps (respaced from the prior's 1000; the paper uses 1000)"""
     radiance_scale: float | None = None
@@ -69,7 +69,6 @@ class DPSConfig(MaterialRates):
     strip_frames: int = 8
     """x0_hat snapshots kept for the progress strip"""
     proximal: ProximalSettings = field(default_factory=ProximalSettings)
-    gibbs: GibbsSettings = field(default_factory=GibbsSettings)
     paper: PaperSettings = field(default_factory=PaperSettings)
     sun: SunSettings = field(default_factory=SunSettings)
     refine: RefineSettings = field(default_factory=RefineSettings)
@@ -87,8 +86,11 @@ class DPSConfig(MaterialRates):
         for key in values:
             if key in MOVED:
                 raise SettingsError(key, f"moved to {MOVED[key]} (a section of method_params.dps)")
-            if key in REMOVED:
+            if key in REMOVED or key in REMOVED_SAMPLERS:
                 raise SettingsError(key, "removed: that variant lost its study (docs/studies.md)")
+        if values.get("sampler") in REMOVED_SAMPLERS:
+            raise SettingsError("sampler", f"{values['sampler']!r} was removed: it lost its study (docs/studies.md); "
+                                           f"use one of {', '.join(SAMPLERS)}")
         check_keys(values, [f.name for f in fields(cls)], f"{cls.__name__} setting")
         sections = {}
         for name, make in SECTIONS.items():

@@ -1,13 +1,12 @@
 """The map's log radiance given x0_hat and the views: Gauss-Newton with conjugate gradients on the transport.
 
-Both transport samplers solve, at a reverse step, for the map's normalised log radiance l (prior resolution)
+The proximal sampler solves, at a reverse step, for the map's normalised log radiance l (prior resolution)
 and the global log-exposure e:
-  min  ||M (e^e (R s e^l + S)) - y||^2 / (2 sigma2) + (z(l) - t)^T Q (z(l) - t) / (2 r^2) - p^T (z(l) - t) / r^2
+  min  ||M (e^e (R s e^l + S)) - y||^2 / (2 sigma2) + ||z(l) - t||^2 / (2 r^2) - p^T (z(l) - t) / r^2
 with M the views' transport under fixed materials (as normal equations), R the resampling from
 the prior's grid to the transport's, s the radiance scale, S a fixed extra light (a parametric sun, per unit of
-exposure), z the prior-space map, t its target (x0_hat), Q = I + smoothness x the grid's Laplacian and p an
-optional perturbation (`gibbs`: a randomise-then-optimise draw, prior and data perturbed; `proximal`: the
-prior's mean pushed by a coarse random field, Q = I, the data as recorded). The exposure is solved exactly
+exposure), z the prior-space map, t its target (x0_hat) and p an optional push (the prior's mean moved by a
+coarse random field, dpi.solve.dps.proximal). The exposure is solved exactly
 before every Gauss-Newton iteration; each iteration's step is clamped to a trust region and halved until the
 objective falls. With a `basis` the change of l lives on a coarser grid (`proximal`: the transport's); its
 data steps then reach the views from x0_hat in one or two iterations, where a few Adam steps do not.
@@ -33,18 +32,6 @@ CG_ITERATIONS = 20
 PRIOR_STD = 0.5
 """std of a prior-space map's texel around its mean under the priors (their maps span [-1, 1]), for r_t"""
 BACKTRACKS = 6
-
-
-def negative_laplacian(x: torch.Tensor, wrap: bool = True) -> torch.Tensor:
-    """(C, H, W) -> 4 x minus its four neighbours on the grid (columns wrap when `wrap`, as a map's azimuth does;
-    other edges reflect): the graph Laplacian whose quadratic form sums the squared differences of neighbours."""
-    up = torch.cat([x[:, :1], x[:, :-1]], dim=1)
-    down = torch.cat([x[:, 1:], x[:, -1:]], dim=1)
-    if wrap:
-        left, right = torch.roll(x, 1, dims=2), torch.roll(x, -1, dims=2)
-    else:
-        left, right = torch.cat([x[:, :, :1], x[:, :, :-1]], dim=2), torch.cat([x[:, :, 1:], x[:, :, -1:]], dim=2)
-    return 4 * x - up - down - left - right
 
 
 def conjugate_gradients(apply: Callable[[torch.Tensor], torch.Tensor], rhs: torch.Tensor, diagonal: torch.Tensor,
@@ -120,32 +107,26 @@ def prior_coordinates(encoding: Any, log_map: torch.Tensor) -> tuple[torch.Tenso
 
 @dataclass(frozen=True)
 class MapPrior:
-    """The map's prior around its target in prior space: variance r^2, smoothness of Q, optional push p (3, N)."""
+    """The map's prior around its target in prior space: variance r^2, optional push p (3, N)."""
 
     target: torch.Tensor
     variance: float
-    smoothness: float = 0.0
     push: torch.Tensor | None = None
 
 
 def solve_map(run: DPSRun, state: DPSState, equations: NormalEquations, prior: MapPrior, sigma2: float,
-              iterations: int, rhs: torch.Tensor | None = None, extra: torch.Tensor | None = None,
+              iterations: int, extra: torch.Tensor | None = None,
               basis: Resampling | None = None, cg_iterations: int = CG_ITERATIONS) -> float:
     """Gauss-Newton on the map's log radiance (state.log_map, from its current value, in place) and the
-    log-exposure (module notes); `rhs` replaces the equations' b (a perturbed data term), `extra` (3, N) is S,
-    `basis` (default: every texel) the coarser grid the change of l lives on, upsampled onto the prior's
-    (l = l_start + B v: the finer detail stays the start's); `cg_iterations` bound each step's solve.
+    log-exposure (module notes); `extra` (3, N) is S, `basis` (default: every texel) the coarser grid the change
+    of l lives on, upsampled onto the prior's (l = l_start + B v: the finer detail stays the start's);
+    `cg_iterations` bound each step's solve.
     The map is re-centred after (the shift moves into the exposure; the sun's log irradiance keeps its light).
     Returns the solution's prior term."""
     encoding = run.prior.encoding
-    shape = state.log_map.shape[-2:]
-    rhs = equations.rhs if rhs is None else rhs
+    rhs = equations.rhs
     push = 0.0 if prior.push is None else prior.push
     target, variance = prior.target.reshape(3, -1).double(), prior.variance
-
-    def smooth(x: torch.Tensor) -> torch.Tensor:  # Q x per channel
-        return x + prior.smoothness * negative_laplacian(x.reshape(3, *shape)).reshape(3, -1)
-
     height = math.isqrt(equations.rhs.shape[1] // 2)  # the equations' map: H x 2H texels
     resampling = cached_resampling(state, run.prior.height, height)
     fixed = 0.0 if extra is None else extra.double()
@@ -163,10 +144,10 @@ def solve_map(run: DPSRun, state: DPSState, equations: NormalEquations, prior: M
 
     def objective(l: torch.Tensor, log_exposure: float) -> tuple[float, float]:
         """The negative log (data / 2 sigma^2 + prior + range) and its prior term."""
-        sse = float(equations.sum_squares(math.exp(log_exposure) * light(l).T, rhs))
+        sse = float(equations.sum_squares(math.exp(log_exposure) * light(l).T))
         z, _ = prior_coordinates(encoding, l)
         d = z - target
-        value = (float((d * smooth(d)).sum()) - 2 * float((push * d).sum())) / (2 * variance)
+        value = (float(d.square().sum()) - 2 * float((push * d).sum())) / (2 * variance)
         beyond = float(((z.abs() - 1).clamp_min(0) / RANGE_STD).square().sum()) / 2
         return sse / (2 * sigma2) + value + beyond, value
 
@@ -180,16 +161,16 @@ def solve_map(run: DPSRun, state: DPSState, equations: NormalEquations, prior: M
         residual = (equations.apply(math.exp(log_exposure) * mapped) - rhs) / sigma2
         z, slope = prior_coordinates(encoding, l)
         outside = (z.abs() - 1).clamp_min(0) * z.sign()
-        gradient = u * resampling.transpose(residual) + slope * ((smooth(z - target) - push) / variance
+        gradient = u * resampling.transpose(residual) + slope * ((z - target - push) / variance
                                                                  + outside / RANGE_STD ** 2)
         precision = slope.square() * (outside != 0) / RANGE_STD ** 2
 
         def hessian(x: torch.Tensor) -> torch.Tensor:
             x = up(x)
-            return down(precision * x + slope * smooth(slope * x) / variance
+            return down(precision * x + slope * slope * x / variance
                         + u * resampling.transpose(equations.apply(resampling.apply(u * x)) / sigma2))
 
-        diagonal = down_squared(precision + slope.square() * (1 + 4 * prior.smoothness) / variance
+        diagonal = down_squared(precision + slope.square() / variance
                                 + u.square() * jacobi)
         step = conjugate_gradients(hessian, -down(gradient), diagonal, cg_iterations)
         step = step.clamp(-MAX_LOG_STEP, MAX_LOG_STEP)
