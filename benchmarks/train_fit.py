@@ -3,11 +3,12 @@
 A decomposition is a sample of the posterior only if it explains the photos: issue 31 asks that no
 sample fits the training views worse than the init does. For every sample folder of a study (the
 posterior or the calibration study's results), this renders the scene's training views at `--spp`
-and compares the foreground mean squared error with the init's (same renders, same seeds), then
-prints per method and sampler: the samples, the mean ratio to the init's MSE, and how many exceed it.
-Where the capture has its ground truth (gt/), the truth's own MSE is the other yardstick: the init is a free
-fit of these very views and also fits their render noise, so a decomposition as good as the truth can fit
-them worse than the init; each method's ratio to the truth's MSE, and how many exceed it, are printed too.
+and compares the foreground mean squared error (in the data term's loss space, `problem.loss_space`) with the
+init's (same renders, same seeds), then prints per method and sampler: the samples, the mean ratio to the
+init's MSE, and how many exceed it. Where the capture has its ground truth (gt/), the truth's own MSE is the
+other yardstick: the truth and an exact posterior sample are alike given the photos, so they fit the views
+equally well on average, while the init, a free fit, can land on either side of them; each method's ratio to
+the truth's MSE, and how many exceed it, are printed too.
 
     .venv/bin/python benchmarks/train_fit.py results/benchmarks/calibration_study [--spp 1024] [--out CSV]
         [--methods none dps_proximal] [--scenes blob_glossy]
@@ -36,7 +37,8 @@ study (0.00125 against 0.00051 at 1024) and grows with how peaked a map is, so i
 
 
 def training_mse(problem, decomposition, spp: int) -> float:
-    """Foreground mean squared error of the training views re-rendered with a decomposition."""
+    """Foreground mean squared error of the training views re-rendered with a decomposition, in the problem's loss
+    space (InverseProblem.view_loss)."""
     with torch.no_grad():
         return float(np.mean([float(problem.view_loss(problem.render(decomposition.env, decomposition.materials, v,
                                                                      seed=17 + v, spp=spp), v))
