@@ -30,6 +30,8 @@ from typing import Any, Callable
 import torch
 from posterior_study import SCENES, job_settings, prepare_capture, study_layout
 
+from dpi.layout import INIT
+
 ROOT = Path(__file__).resolve().parent.parent
 DEMO = ROOT / "captures" / "demo"
 PAPER_ENV_HEIGHT = 128
@@ -96,8 +98,10 @@ def demo_capture(root: Path) -> Path:
     return files.capture_json
 
 
-def scene_rows(root: Path, scene: str, config: dict, threads: int) -> list[dict[str, Any]]:
-    """Init, one dps sample and its evaluation of one scene under `config`; a row per stage with its metrics."""
+def scene_rows(root: Path, scene: str, config: dict, threads: int,
+               sampler: str | None = None) -> list[dict[str, Any]]:
+    """Init (unless one is there), one dps sample (with `sampler`, else the config's) and its evaluation of one
+    scene under `config`; a row per stage with its metrics."""
     from dpi.stages import SolveSettings, evaluate_stage, init_stage, sample_stage
 
     settings = SolveSettings.from_config(config, threads)
@@ -105,13 +109,16 @@ def scene_rows(root: Path, scene: str, config: dict, threads: int) -> list[dict[
     capture_json = demo_capture(root) if scene == "demo" else prepare_capture(root, scene, SCENES[scene][1], threads)
     files = study_layout(root).scene(scene)
     rows = [{"part": "capture", "seconds": time.perf_counter() - start, "detail": ""}]
+    if files.sample_files(INIT)["trace"].exists():  # made before (here or carried from another machine)
+        rows.append({"part": "init", "seconds": float("nan"), "detail": "reused"})
+    else:
+        start = time.perf_counter()
+        init_stage(capture_json, files.sample_dir(INIT), scene, config["init"], settings, progress=False)
+        rows.append({"part": "init", "seconds": time.perf_counter() - start,
+                     "detail": f"{config['init']['iterations']} iterations"})
+    dps = {**job_settings(config["method_params"]["dps"]), **({"sampler": sampler} if sampler else {})}
     start = time.perf_counter()
-    init_stage(capture_json, files.sample_dir("init"), scene, config["init"], settings, progress=False)
-    rows.append({"part": "init", "seconds": time.perf_counter() - start,
-                 "detail": f"{config['init']['iterations']} iterations"})
-    dps = job_settings(config["method_params"]["dps"])
-    start = time.perf_counter()
-    sample_stage(capture_json, files.sample_dir("init"), files.sample_dir("dps", 0), scene, "dps", 0, dps, settings,
+    sample_stage(capture_json, files.sample_dir(INIT), files.sample_dir("dps", 0), scene, "dps", 0, dps, settings,
                  progress=False)
     trace = json.loads(files.sample_files("dps", 0)["trace"].read_text())
     rows.append({"part": "dps sample", "seconds": time.perf_counter() - start,
@@ -135,6 +142,7 @@ def main() -> None:
     parser.add_argument("--work", type=Path, default=ROOT / "results" / "benchmarks" / "paper_preset_gpu",
                         help="folder of the scenes' captures and results")
     parser.add_argument("--skip-network", action="store_true")
+    parser.add_argument("--sampler", default=None, help="dps sampler of the samples (default: the config's)")
     args = parser.parse_args()
 
     from dpi import backend
@@ -163,7 +171,7 @@ def main() -> None:
     if not args.skip_network:
         parts.append(("-", "paper", lambda: network_check(PAPER_ENV_HEIGHT, device)))
     parts += [(scene, preset, lambda scene=scene, preset=preset: scene_rows(args.work / preset, scene,
-                                                                            configs[preset], threads))
+                                                                            configs[preset], threads, args.sampler))
               for preset in args.presets for scene in args.scenes]
     for scene, preset, part in parts:
         try:
