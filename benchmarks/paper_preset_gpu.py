@@ -9,7 +9,7 @@ A smoke run on the CPU: `--presets draft --skip-network`.
 
     python benchmarks/paper_preset_gpu.py [--scenes demo blob_sun] [--presets default paper] [--out OUT] [--work DIR]
 
-Rows (part, scene, preset, variant, seconds, detail) go to OUT/paper_preset_gpu.csv as each part ends, so a
+Rows (part, scene, preset, variant, device, seconds, detail) go to OUT/paper_preset_gpu.csv as each part ends, so a
 run cut short keeps what it measured; a table is printed last.
 """
 
@@ -36,7 +36,7 @@ ROOT = Path(__file__).resolve().parent.parent
 DEMO = ROOT / "captures" / "demo"
 PAPER_ENV_HEIGHT = 128
 """the map the authors' network is run on: the `paper` preset's env_height"""
-COLUMNS = ("part", "scene", "preset", "variant", "seconds", "detail")
+COLUMNS = ("part", "scene", "preset", "variant", "device", "seconds", "detail")
 
 
 def timed(fn: Callable[[], Any], repeats: int, device: torch.device) -> float:
@@ -154,13 +154,14 @@ def main() -> None:
     variant = backend.choose_variant(configs[args.presets[-1]]["render"].get("variant", "auto"))
     device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
     threads = os.cpu_count() or 2
-    print(f"torch {torch.__version__}, {torch.cuda.get_device_name() if device.type == 'cuda' else 'cpu'}, "
+    card = torch.cuda.get_device_name() if device.type == "cuda" else "cpu"
+    print(f"torch {torch.__version__}, {card}, "
           f"mitsuba variant {variant}", flush=True)
     rows: list[dict[str, Any]] = []
 
     def keep(new: list[dict[str, Any]], scene: str, preset: str) -> None:
         for row in new:
-            rows.append({"scene": scene, "preset": preset, "variant": variant, **row})
+            rows.append({"scene": scene, "preset": preset, "variant": variant, "device": card, **row})
             print(f"{row['part']:>30} {scene:>9} {preset:>8} {row['seconds']:9.3f} s  {row['detail']}", flush=True)
         with table.open("w", newline="") as f:
             writer = csv.DictWriter(f, COLUMNS)
