@@ -75,8 +75,11 @@ class ProximalSettings(TransportSampling, SamplerSettings):
     """weight of ||z - x0_hat||^2 per unit abar_t / (1 - abar_t)"""
     noise_mix: float = 0.5
     """share zeta of fresh noise in the re-noising (0: deterministic DDIM, 1: all fresh)"""
-    material_start: float = 0.3
-    """fraction of the steps before the materials start to move"""
+    material_start: float = 0.6
+    """fraction of the steps before the materials start to move: the map settles its light first, and the albedo
+    then fits that light instead of trading against it (posterior study, ambiguous: albedo MSE -17 % on 18 of 18
+    samples, relight PSNR-H +0.8 dB, env and views tied, against 0.3; 0.8 -30 % and +1.2 dB at -0.3 dB of env;
+    docs/studies.md "the material start's step")"""
     level_every: int = 4
     """steps between two choices of the roughness level (once the materials move)"""
     roughness_levels: int = 0
