@@ -34,8 +34,6 @@ from dpi.layout import INIT
 
 ROOT = Path(__file__).resolve().parent.parent
 DEMO = ROOT / "captures" / "demo"
-PAPER_ENV_HEIGHT = 128
-"""the map the authors' network is run on: the `paper` preset's env_height"""
 COLUMNS = ("part", "scene", "preset", "variant", "device", "seconds", "detail")
 
 
@@ -155,8 +153,7 @@ def main() -> None:
     device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
     threads = os.cpu_count() or 2
     card = torch.cuda.get_device_name() if device.type == "cuda" else "cpu"
-    print(f"torch {torch.__version__}, {card}, "
-          f"mitsuba variant {variant}", flush=True)
+    print(f"torch {torch.__version__}, {card}, mitsuba variant {variant}", flush=True)
     rows: list[dict[str, Any]] = []
 
     def keep(new: list[dict[str, Any]], scene: str, preset: str) -> None:
@@ -170,7 +167,8 @@ def main() -> None:
 
     parts: list[tuple[str, str, Callable[[], list[dict[str, Any]]]]] = []
     if not args.skip_network:
-        parts.append(("-", "paper", lambda: network_check(PAPER_ENV_HEIGHT, device)))
+        paper_height = resolve_config({"preset": "paper"})["problem"]["env_height"]  # the map the authors' net sees
+        parts.append(("-", "paper", lambda: network_check(paper_height, device)))
     parts += [(scene, preset, lambda scene=scene, preset=preset: scene_rows(args.work / preset, scene,
                                                                             configs[preset], threads, args.sampler))
               for preset in args.presets for scene in args.scenes]

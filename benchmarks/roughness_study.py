@@ -1,9 +1,10 @@
 """Env-map diversity of `dps` samples against material roughness (the paper's Fig. 9), over repeats.
 
 Renders one object at each roughness under the same natural light (dpi.studies.SweepSettings); each
-repeat has its own capture noise, init and sample seed stream and draws `--samples` (6) dps samples with the
-shipped outdoor prior (dps at its defaults, `--steps` respaced steps). Rows (roughness, metallic, repeat, samples,
-env_sigma2_sample) go to benchmarks/results/roughness_study.csv, the plot beside it; it prints mean +- std per roughness.
+repeat has its own capture noise, init and sample seed stream and draws `--samples` (default 6) dps samples
+with the shipped outdoor prior (dps at its defaults, `--steps` respaced steps). Rows (roughness, metallic,
+repeat, samples, env_sigma2_sample) go to benchmarks/results/roughness_study.csv, the plot beside it; it prints
+mean +- std per roughness.
 
     .venv/bin/python benchmarks/roughness_study.py [--roughness 0.05 0.2 0.5 0.9] [--repeats 3] [--jobs 2]
 """
@@ -27,10 +28,6 @@ from dpi.studies import SweepSettings, roughness_point
 ROOT = Path(__file__).resolve().parent.parent
 CSV = ROOT / "benchmarks" / "results" / "roughness_study.csv"
 COLUMNS = ("roughness", "metallic", "repeat", "samples", "env_sigma2_sample")
-SAMPLES = 6
-"""dps samples per point: sigma2_sample of 3 varied by 2x between repeats of one roughness (2026-11-25: 0.0079
-against 0.0146-0.0200 at 0.9), which decided Fig. 9's ratio on one repeat; with 6 that estimate's variance is 0.4x
-(2 / (n - 1))"""
 
 
 def point(task: tuple[float, int], folder: str, settings: SweepSettings) -> dict[str, float]:
@@ -66,7 +63,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--roughness", type=float, nargs="+", default=[0.05, 0.2, 0.5, 0.9])
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--samples", type=int, default=SAMPLES)
+    parser.add_argument("--samples", type=int, default=SweepSettings.samples)
     parser.add_argument("--steps", type=int, default=50)
     parser.add_argument("--jobs", type=int, default=2, help="(roughness, repeat) points run side by side")
     parser.add_argument("--out", type=Path, default=CSV)
@@ -78,8 +75,7 @@ def main() -> None:
     start = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp, \
             ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
-        rows = [{**row, "samples": settings.samples}
-                for row in pool.map(partial(point, folder=tmp, settings=settings), tasks)]
+        rows = list(pool.map(partial(point, folder=tmp, settings=settings), tasks))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     with open(args.out, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=COLUMNS)
