@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import math
-from functools import partial
 
 import numpy as np
 import pytest
@@ -20,8 +19,6 @@ from dpi.render import RenderSettings
 from dpi.solve.decomposition import Decomposition
 from dpi.settings import SettingsError, settings_from_dict
 from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, start_run
-from dpi.solve.dps.candidates import arrangement_fit, candidate_seed, choose_arrangement, selection_step
-from dpi.solve.dps.loop import sampler_step, start_state
 from dpi.solve.dps.map_solve import PRIOR_STD, Resampling, posterior_variance
 from dpi.solve.dps.proximal import ProximalSettings
 from dpi.solve.init import InitConfig, path_traced_init
@@ -302,33 +299,3 @@ def test_a_parametric_sun_is_fitted_and_lands_in_the_map(problem_and_init):
     assert "sun" not in plain.trace.info
     with pytest.raises(ValueError, match="sun.mode: must be one of auto, on, off"):
         DPSConfig.from_dict({"sun": "sometimes"})
-
-
-def test_candidates_keep_the_arrangement_whose_views_fit_best(problem_and_init):
-    """With `candidates` the sample goes on from the candidate whose albedo-fitted data term is lowest, and that
-    state is exactly the candidate drawn alone on the same recorded transport."""
-    problem, init = problem_and_init
-    cfg = DPSConfig.from_dict({"steps": 6, "refine": {"iterations": 1},
-                               "proximal": {"start_noise": 1.0, "candidates": 3, "select_at": 0.5}})
-    run, state = start_run(problem, log_prior(), init, cfg, seed=4)
-    step = sampler_step(run)
-    records = choose_arrangement(run, state, partial(start_state, run, cfg), step)
-    fits, best = records[-1]["candidate_fits"], records[-1]["candidate"]
-    assert len(records) == selection_step(run) == 3 and [r["step"] for r in records] == [0, 1, 2]
-    assert best == int(np.argmin(fits)) and len(set(fits)) == 3
-    assert arrangement_fit(run, state) == pytest.approx(fits[best], rel=1e-4)
-    alone = start_state(run, cfg, candidate_seed(4, best))
-    alone.extra["transport"] = state.extra["transport"]
-    for n in range(3):
-        step(run, alone, n)
-    torch.testing.assert_close(alone.x, state.x)
-    torch.testing.assert_close(alone.log_map, state.log_map)
-    single = DPSConfig.from_dict({"steps": 6, "proximal": {"start_noise": 1.0}})
-    assert choose_arrangement(*start_run(problem, log_prior(), init, single, seed=4), None, step) == []
-
-
-@pytest.mark.parametrize("values,message", [({"candidates": 0}, "candidates: must be at least 1, got 0"),
-                                            ({"select_at": 1.0}, r"select_at: must be in \(0, 1\), got 1.0")])
-def test_the_candidate_settings_are_bounded(values, message):
-    with pytest.raises(SettingsError, match=f"^{message}$"):
-        ProximalSettings.from_dict(values)

@@ -12,8 +12,6 @@ The file is deleted when the sample is done.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
-from functools import partial
-from itertools import chain
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -26,8 +24,7 @@ from dpi.prior.diffusion import q_sample
 from dpi.prior.sample import Prior
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.dps.candidates import choose_arrangement
-from dpi.solve.dps.config import SAMPLERS, DPSConfig, StepFunction
+from dpi.solve.dps.config import SAMPLERS, DPSConfig
 from dpi.solve.dps.refine import refine
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.dps.sun import LR_SUN, LR_SUN_UV, wants_sun
@@ -70,8 +67,10 @@ def data_norm(problem: InverseProblem) -> float:
 
 def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: DPSConfig,
               seed: int) -> tuple[DPSRun, DPSState]:
-    """The fixed part of one sample and its loop state at its first step (`start_state`)."""
+    """The fixed part of one sample and its loop state at its first step (the init's materials, grey albedo):
+    x_T ~ N(0, I), or the init map noised to the sampler's start_noise."""
     sampler = cfg.sampler_settings
+    generator = torch.Generator().manual_seed(seed)
     diffusion = prior.schedule(cfg.steps)
     scale = cfg.radiance_scale or estimate_radiance_scale(init.env, prior)
     first = int(round(sampler.start_noise * (diffusion.num_timesteps - 1)))
@@ -79,39 +78,26 @@ def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: D
     has_sun = wants_sun(cfg.sun, sampler.models_sun, prior.family, init.materials, sun)
     run = DPSRun(problem, prior, sampler, cfg, diffusion, seed, scale, data_norm(problem), first,
                  cfg.sun if has_sun else None, init)
-    return run, start_state(run, cfg, seed)
-
-
-def start_state(run: DPSRun, cfg: DPSConfig, seed: int) -> DPSState:
-    """A loop state at the run's first step, drawn from `seed` (the init's materials, grey albedo): x_T ~ N(0, I),
-    or the init map noised to the sampler's start_noise."""
-    init, prior, diffusion, first = run.init, run.prior, run.diffusion, run.first_index
-    generator = torch.Generator().manual_seed(seed)
-    sun = extract_sun(init.env, cfg.sun.radius_deg)
     materials = starting_materials(init)
     for _, t in materials.items():
         t.requires_grad_(True)
     shape = (1, 3, prior.height, 2 * prior.height)
     log_map = torch.zeros(shape, requires_grad=True)
     sun_uv = sun.uv.clone().requires_grad_(True)
-    sun_log = torch.log(sun.irradiance.clamp_min(1e-12 * run.scale) / run.scale).requires_grad_(True)
+    sun_log = torch.log(sun.irradiance.clamp_min(1e-12 * scale) / scale).requires_grad_(True)
     x = torch.randn(shape, generator=generator)
     if first < diffusion.num_timesteps - 1:
-        start = env_to_prior(sun.sky if run.sun else init.env, prior, run.scale)
+        start = env_to_prior(sun.sky if has_sun else init.env, prior, scale)
         x = q_sample(diffusion, start, torch.tensor([first]), x)
-    lr_map = getattr(run.sampler, "lr_map", 0.0)  # samplers without a log map never step it
-    return DPSState(x, materials, torch.zeros(()), log_map, sun_uv, sun_log,
-                    state_optimizer(materials, cfg, lr_map, log_map, sun_uv, sun_log), generator)
-
-
-def sampler_step(run: DPSRun) -> StepFunction:
-    """The step function of the run's sampler."""
-    return {s.settings: s.step for s in SAMPLERS.values()}[type(run.sampler)]
+    lr_map = getattr(sampler, "lr_map", 0.0)  # samplers without a log map never step it
+    state = DPSState(x, materials, torch.zeros(()), log_map, sun_uv, sun_log,
+                     state_optimizer(materials, cfg, lr_map, log_map, sun_uv, sun_log), generator)
+    return run, state
 
 
 def posterior_steps(run: DPSRun, state: DPSState, start: int = 0) -> Iterator[dict[str, Any]]:
     """Run the sampler's reverse steps start .. end on `state`, yielding each step's record."""
-    step = sampler_step(run)
+    step = {s.settings: s.step for s in SAMPLERS.values()}[type(run.sampler)]
     for n in range(start, run.num_steps):
         yield step(run, state, n)
 
@@ -142,14 +128,13 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
     refreshes = 0
     bar = tqdm(total=run.num_steps, initial=start, desc=f"dps {cfg.sampler}", disable=not progress,
                mininterval=2.0)
-    chosen = [] if start else choose_arrangement(run, state, partial(start_state, run, cfg), sampler_step(run))
-    for record in chain(chosen, posterior_steps(run, state, start + len(chosen))):
+    for record in posterior_steps(run, state, start):
         trace.nan_skips += int("skipped" in record) + record.pop("nan_inner", 0)
         refreshes += int(record.get("refresh", False))
         trace.record(**record)
         bar.update(1)
         n = record["step"] + 1
-        if store and len(chosen) <= n < run.num_steps and store.due(n, start):  # the state is past the candidates'
+        if store and n < run.num_steps and store.due(n, start):
             store.save(LoopState.capture(n, state.tensors(), state.optimizer, state.generator, trace,
                                          state.snapshots))
     bar.close()

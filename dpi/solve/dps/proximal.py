@@ -38,7 +38,6 @@ from typing import Any
 
 import torch
 
-from dpi.settings import SettingsError
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.map_solve import (PRIOR_STD, MapPrior, Resampling, cached_resampling, posterior_variance,
                                      solve_map)
@@ -111,25 +110,10 @@ class ProximalSettings(TransportSampling, SamplerSettings):
     """rows of the grid the push is white on (upsampled onto the prior's): a field as broad as the light's balance
     between sky and ground, sides and colour, which the views of a rough object leave open (at 4 and 16 rows the
     samples spread less per dB of env PSNR they lose, docs/studies.md)"""
-    candidates: int = 1
-    """arrangements of the light drawn side by side in the first `select_at` of the steps, on one recorded transport;
-    the one whose views fit best goes on (dpi.solve.dps.candidates; 1: none)"""
-    select_at: float = 0.3
-    """share of the steps after which the candidates are compared"""
     glossy_map_solve: int = 0
     """Gauss-Newton iterations when the init is glossy: none (a mirror's views pin the light down where they
     reflect it; the solve lost 2.8 dB of env PSNR on the calibration study's metal, and its finer transport
     makes it ten times dearer)"""
-
-    @classmethod
-    def from_dict(cls, values: dict[str, Any]) -> "ProximalSettings":
-        """Settings from method_params.dps.proximal."""
-        settings = super().from_dict(values)
-        if settings.candidates < 1:
-            raise SettingsError("candidates", f"must be at least 1, got {settings.candidates}")
-        if not 0 < settings.select_at < 1:
-            raise SettingsError("select_at", f"must be in (0, 1), got {settings.select_at}")
-        return settings
 
     def solve_iterations(self, init: Decomposition) -> int:
         """Gauss-Newton iterations of a step's map for a sample starting from `init`."""
