@@ -22,7 +22,8 @@ RANGES = {"albedo": (0.0, 1.0), "roughness": (0.02, 1.0), "metallic": (0.0, 1.0)
 @dataclass
 class MaterialRates:
     """Adam learning rates of the three textures: the one owner of their defaults, which the init, the
-    optimisation-based methods, sds and dps inherit (their config keys lr_albedo, lr_roughness, lr_metallic)."""
+    optimisation-based methods, sds and dps inherit (their config keys lr_albedo, lr_roughness, lr_metallic;
+    dps sets its own albedo rate, DPSConfig.lr_albedo)."""
 
     lr_albedo: float = 2e-2
     lr_roughness: float = 1.5e-2
