@@ -299,3 +299,16 @@ def test_a_parametric_sun_is_fitted_and_lands_in_the_map(problem_and_init):
     assert "sun" not in plain.trace.info
     with pytest.raises(ValueError, match="sun.mode: must be one of auto, on, off"):
         DPSConfig.from_dict({"sun": "sometimes"})
+
+
+def test_dps_moves_the_albedo_at_its_own_rate_in_the_loop_and_the_refinement(problem_and_init):
+    """dps's albedo rate is its own (half the other methods'), and a config's lr_albedo reaches both stages."""
+    from dpi.materials import MaterialRates
+
+    problem, init = problem_and_init
+    for entry, rate in (({}, 0.01), ({"lr_albedo": 0.03}, 0.03)):
+        cfg = DPSConfig.from_dict({"steps": 2, **entry})
+        _, state = start_run(problem, log_prior(), init, cfg, seed=0)
+        rates = {id(g["params"][0]): g["lr"] for g in state.optimizer.param_groups}
+        assert rates[id(state.materials.albedo)] == rate == cfg.refine.optimize(cfg).lr_albedo
+    assert DPSConfig().lr_albedo < MaterialRates().lr_albedo
