@@ -1,4 +1,4 @@
-"""The parametric sun of dps: a splat that keeps its energy and direction, extraction that finds a sun in
+"""The parametric sun of dps: a drawn disc that keeps its energy and direction, extraction that finds a sun in
 a map, the share prior, and a sampler run that fits the sun where the data hold one."""
 
 from __future__ import annotations
@@ -9,44 +9,66 @@ import numpy as np
 import pytest
 import torch
 
-from dpi.envmap import direction_to_uv, texel_directions
+from dpi.envmap import direction_to_uv, texel_directions, texel_solid_angles
 from dpi.solve.sun import extract_sun, map_energy, share_penalty, sun_direction_of, sun_env, wrap_uv_
+from dpi.sunlight import AUREOLE_SHARE, bright_spots, direction_of_uv, merge_spots_into_sun
 
 
+@pytest.mark.parametrize("height", [8, 32, 128])
 @pytest.mark.parametrize("uv", [(0.3, 0.27), (0.995, 0.5), (0.0, 0.01), (0.6, 0.99)])
-def test_splat_carries_its_irradiance_anywhere_on_the_map(uv):
-    irradiance = torch.tensor([1.0, 2.0, 3.0])
-    env = sun_env(torch.tensor(uv), irradiance, 8)
+def test_a_drawn_sun_carries_its_irradiance_anywhere_on_any_map(uv, height):
+    irradiance = torch.tensor([1.0, 2.0, 3.0], dtype=torch.float64)
+    env = sun_env(torch.tensor(uv, dtype=torch.float64), irradiance, height)
     torch.testing.assert_close(map_energy(env), irradiance)
-    assert int((env.sum(-1) > 0).sum()) <= 4
 
 
-@pytest.mark.parametrize("uv", [(0.3, 0.27), (0.995, 0.5), (0.6, 0.99)])
-def test_a_sun_splatted_coarser_covers_the_coarse_texels_with_its_energy(uv):
-    irradiance = torch.tensor([1.0, 2.0, 3.0])
-    fine = sun_env(torch.tensor(uv), irradiance, 16, splat_height=4)
-    torch.testing.assert_close(map_energy(fine), irradiance)
-    coarse = sun_env(torch.tensor(uv), irradiance, 4)
-    lit = torch.nn.functional.interpolate((coarse.sum(-1) > 0).float()[None, None], size=(16, 32))[0, 0] > 0
-    assert torch.equal(fine.sum(-1) > 0, lit)
-    torch.testing.assert_close(sun_env(torch.tensor(uv), irradiance, 4, splat_height=16), coarse)
+@pytest.mark.parametrize("uv", [(0.3, 0.27), (0.713, 0.45), (0.999, 0.6)])
+def test_at_128_rows_the_sun_is_a_disc_of_a_few_texels_with_a_faint_aureole(uv):
+    env = sun_env(torch.tensor(uv, dtype=torch.float64), torch.ones(3, dtype=torch.float64), 128).numpy()
+    omega = texel_solid_angles(128)
+    energy = np.sort((env[..., 0] * omega).ravel())[::-1]
+    assert energy[:4].sum() > 0.85  # the disc: one texel or a few
+    assert energy[:4].sum() < 1 - 0.5 * AUREOLE_SHARE  # and the aureole around it
+    spots = bright_spots(env + 1 / (4 * math.pi))  # over a sky as bright as the sun, as a clear day's
+    assert len(spots) == 1 and spots[0].radius_deg < 4.0
+    angle = math.degrees(math.acos(min(1.0, float(spots[0].direction @ sun_direction_of(torch.tensor(uv))))))
+    assert angle < 0.7  # half a texel
 
 
-def test_splat_gradient_in_the_sun_position_matches_finite_differences():
-    weights = torch.rand(8, 16, generator=torch.Generator().manual_seed(0))
+def test_sun_gradient_in_its_position_matches_finite_differences():
+    weights = torch.rand(16, 32, generator=torch.Generator().manual_seed(0)).double()
     irradiance = torch.tensor([1.0, 1.0, 1.0], dtype=torch.float64)
 
     def f(uv: torch.Tensor) -> torch.Tensor:
-        return (weights.double()[..., None] * sun_env(uv, irradiance, 8)).sum()
+        return (weights[..., None] * sun_env(uv, irradiance, 16)).sum()
 
     uv = torch.tensor([0.41, 0.37], dtype=torch.float64, requires_grad=True)
     f(uv).backward()
+    assert float(uv.grad.abs().min()) > 0
     h = 1e-6
     for k in range(2):
         step = torch.zeros(2, dtype=torch.float64)
         step[k] = h
         numeric = (f(uv.detach() + step) - f(uv.detach() - step)) / (2 * h)
-        assert float(uv.grad[k]) == pytest.approx(float(numeric), rel=1e-5)
+        assert float(uv.grad[k]) == pytest.approx(float(numeric), rel=1e-4)
+
+
+def test_a_second_sun_in_the_sky_is_merged_into_the_fitted_one():
+    height = 64
+    dirs = torch.as_tensor(texel_directions(height))
+    sky = (1.0 + 0.5 * dirs[..., 1:2].clamp_min(0)) * torch.tensor([0.6, 0.8, 1.0], dtype=torch.float64)
+    stray = sun_env(torch.tensor([0.8, 0.3], dtype=torch.float64), torch.tensor([3.0, 3.0, 2.5], dtype=torch.float64), 16)
+    stray = torch.nn.functional.interpolate(stray.permute(2, 0, 1)[None], size=(height, 2 * height),
+                                            mode="bilinear", align_corners=False)[0].permute(1, 2, 0)
+    uv = torch.tensor([0.2, 0.25], dtype=torch.float64)
+    fitted = torch.tensor([5.0, 4.8, 4.0], dtype=torch.float64)
+    merged_sky, irradiance, count = merge_spots_into_sun(sky + stray, direction_of_uv(uv), fitted)
+    assert count == 1
+    env = merged_sky + sun_env(uv, irradiance, height)
+    torch.testing.assert_close(map_energy(env), map_energy(sky + stray) + fitted)
+    spots = bright_spots(env.numpy(), min_share=0.01)
+    assert len(spots) == 1
+    assert float(spots[0].direction @ sun_direction_of(uv)) > math.cos(math.radians(3))
 
 
 def test_position_round_trips_through_the_world_direction():

@@ -2,10 +2,10 @@
 
 Outdoor light is a sky plus a sun carrying about half its energy in a few hundredths of a percent
 of the sphere. A free or prior-guided map spreads that energy over a blurred blob (a diffuse
-object barely tells the two apart), so `dps` can model the sun apart from the sky: a point of
-irradiance E (RGB) at map coordinates (u, v), splatted bilinearly onto the texels of the scene map
-so that its energy is E wherever it sits (and differentiable in u, v). `extract_sun` moves the
-excess energy of a map's brightest region into such a sun; the sampler then fits both.
+object barely tells the two apart), so `dps` can model the sun apart from the sky: a sun of
+irradiance E (RGB) at map coordinates (u, v), drawn as a disc of the sun's angular size with its
+aureole (dpi.sunlight), so that its energy is E at any map size and it stays differentiable in
+(u, v). `extract_sun` moves the excess energy of a map's brightest region into such a sun; the sampler then fits both.
 """
 
 from __future__ import annotations
@@ -16,8 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from dpi.envmap import direction_to_uv, directions_from_angles, texel_directions, texel_solid_angles
+from dpi.envmap import direction_to_uv, texel_directions, texel_solid_angles
 from dpi.images import luminance
+from dpi.sunlight import direction_of_uv, draw_sun
 
 
 @dataclass(frozen=True)
@@ -65,40 +66,15 @@ def extract_sun(env: torch.Tensor, radius_deg: float = 25.0) -> SunExtraction:
     return SunExtraction(env - excess, uv, irradiance, share)
 
 
-def sun_env(uv: torch.Tensor, irradiance: torch.Tensor, height: int, splat_height: int | None = None) -> torch.Tensor:
-    """(H, 2H, 3) map of a sun of `irradiance` (3,) at `uv` (2,): bilinear weights on the four nearest
-    texel centres (wrapping in azimuth, clamped at the poles), scaled so the energy is `irradiance`. With a
-    `splat_height` below `height` the sun is splatted at that size and spread over the finer texels it covers
-    (the angular size the data term that fitted it saw: a point sun on a 128-row map is a 1.4 deg speck)."""
-    coarse = min(height, splat_height or height)
-    weights = splat_weights(uv, coarse, irradiance.dtype)
-    if coarse < height:
-        weights = torch.nn.functional.interpolate(weights[None, None], size=(height, 2 * height), mode="nearest")[0, 0]
-    energy = (weights * solid_angles(height, irradiance.dtype)).sum()
-    return (weights / energy)[..., None] * irradiance
-
-
-def splat_weights(uv: torch.Tensor, height: int, dtype: torch.dtype) -> torch.Tensor:
-    """(H, 2H) bilinear weights of map coordinates `uv` on the four nearest texel centres (wrapping in azimuth,
-    clamped at the poles)."""
-    width = 2 * height
-    x = torch.remainder(uv[0], 1.0) * width - 0.5
-    y = (uv[1] * height - 0.5).clamp(0.0, height - 1.0)
-    x0, y0 = torch.floor(x), torch.floor(y)
-    fx, fy = x - x0, y - y0
-    cols = [int(x0) % width, (int(x0) + 1) % width]
-    rows = [int(y0), min(int(y0) + 1, height - 1)]
-    weights = torch.zeros(height, width, dtype=dtype)
-    return weights.index_put((torch.tensor([rows[0], rows[0], rows[1], rows[1]]),
-                              torch.tensor([cols[0], cols[1], cols[0], cols[1]])),
-                             torch.stack([(1 - fy) * (1 - fx), (1 - fy) * fx, fy * (1 - fx), fy * fx]).to(dtype),
-                             accumulate=True)
+def sun_env(uv: torch.Tensor, irradiance: torch.Tensor, height: int) -> torch.Tensor:
+    """(H, 2H, 3) map of a sun of `irradiance` (3,) at map coordinates `uv` (2,), drawn as a disc with its
+    aureole (dpi.sunlight): its energy is `irradiance` on any map, differentiable in both."""
+    return draw_sun(direction_of_uv(uv), irradiance, height)
 
 
 def sun_direction_of(uv: torch.Tensor) -> np.ndarray:
     """World direction of map coordinates (u, v) (Mitsuba's convention, as dpi.envmap)."""
-    u, v = (float(a) for a in uv)
-    return directions_from_angles(np.array(v * math.pi), np.array(u * 2 * math.pi))
+    return direction_of_uv(torch.as_tensor(uv, dtype=torch.float64).detach()).numpy()
 
 
 def map_energy(env: torch.Tensor) -> torch.Tensor:

@@ -139,16 +139,16 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
                                          state.snapshots))
     bar.close()
     transport = state.extra.get("transport")
-    with torch.no_grad():  # a fitted sun at the size the transport saw it
-        env = run.env(prior.encoding.to_radiance(state.x.clamp(-1, 1)), state,
-                      sun_height=transport.height if transport is not None else None)
+    with torch.no_grad():
+        env, sun_irradiance, merged = run.written_env(prior.encoding.to_radiance(state.x.clamp(-1, 1)), state)
     trace.info["log_exposure"] = float(state.log_exposure)
     if transport is not None:
         trace.info["transport"] = {"recordings": refreshes, "seconds": round(transport.seconds, 3),
                                    "pixels": transport.pixels, "foreground": transport.foreground,
                                    "bytes": transport.nbytes}
     if run.sun:
-        trace.info["sun"] = sun_summary(state.sun_uv.detach(), run.sun_irradiance(state).detach(), env)
+        trace.info["sun"] = {**sun_summary(state.sun_uv.detach(), sun_irradiance, env),
+                             "merged_spots": merged}
     env, materials, refine_trace = refine(problem, env, state.materials, cfg.refine.for_init(init.materials), cfg,
                                           seed + 1, progress)
     trace.info["refine"] = refine_trace.summary()

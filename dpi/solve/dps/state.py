@@ -23,6 +23,7 @@ from dpi.solve.dps.sun import SunSettings
 from dpi.solve.prior_space import resample_env
 from dpi.solve.problem import InverseProblem
 from dpi.solve.sun import sun_env
+from dpi.sunlight import direction_of_uv, merge_spots_into_sun
 
 
 @dataclass
@@ -90,15 +91,23 @@ class DPSRun:
         """Schedule index of executed step n (the first executed step is the noisiest)."""
         return self.first_index - n
 
-    def env(self, radiance: torch.Tensor, state: "DPSState", height: int | None = None,
-            sun_height: int | None = None) -> torch.Tensor:
+    def env(self, radiance: torch.Tensor, state: "DPSState", height: int | None = None) -> torch.Tensor:
         """Prior-resolution normalised radiance (1, 3, h, 2h) -> scene env map (H, 2H, 3) at `height` rows
-        (default the problem's), times the state's exposure, plus its sun (splatted at that height, or at
-        `sun_height` when lower: so it stays a point of light where the prior's resolution would blur it, no
-        smaller than the data term that fitted it saw it)."""
+        (default the problem's), times the state's exposure, plus its sun."""
         height = height or self.problem.settings.env_height
         env = self.scale * torch.exp(state.log_exposure) * resample_env(radiance, height)
-        return env + sun_env(state.sun_uv, self.sun_irradiance(state), height, sun_height) if self.sun else env
+        return env + sun_env(state.sun_uv, self.sun_irradiance(state), height) if self.sun else env
+
+    def written_env(self, radiance: torch.Tensor, state: "DPSState") -> tuple[torch.Tensor, torch.Tensor, int]:
+        """The sample's map at the problem's height: with a sun, any bright spot the prior drew in the sky is
+        moved into the fitted sun (dpi.sunlight.merge_spots_into_sun), so one sun remains; returns the map, the
+        sun's irradiance (zero without one) and the number of spots merged."""
+        height = self.problem.settings.env_height
+        sky = self.scale * torch.exp(state.log_exposure) * resample_env(radiance, height)
+        if not self.sun:
+            return sky, torch.zeros(3), 0
+        sky, irradiance, merged = merge_spots_into_sun(sky, direction_of_uv(state.sun_uv), self.sun_irradiance(state))
+        return sky + sun_env(state.sun_uv, irradiance, height), irradiance, merged
 
     def sun_irradiance(self, state: "DPSState") -> torch.Tensor:
         """(3,) the state's sun in scene radiance units (its log irradiance is in the prior's, times the exposure)."""
