@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from dpi.envmap import direction_to_texel, texel_solid_angles
+from dpi.sunlight import draw_sun_np
 from dpi.images import luminance
 from dpi.prior.daylight import (Daylight, irradiance, overcast, physical_daylight, random_sun_elevation,
                                 upper_hemisphere)
@@ -112,7 +113,10 @@ def test_sun_has_the_sunsky_power_unless_a_facade_hides_it() -> None:
     row, col = direction_to_texel(light.sun, 32)
     deposit = sunsky_envmap(32, params)[row, col] - sunsky_envmap(32, replace(params, sun_scale=0.0))[row, col]
     open_side = street_envmap(light, street([wall(-10.0, 30.0)]))
-    assert open_side[row, col] - light.sky[row, col] == pytest.approx(deposit, rel=1e-4)
+    drawn = draw_sun_np(light.sun, light.sun_irradiance, 32)  # its disc and aureole, energy sunsky's deposit
+    assert (drawn * texel_solid_angles(32)[..., None]).sum((0, 1)) == pytest.approx(
+        deposit * texel_solid_angles(32)[row, 0], rel=1e-4)
+    assert open_side[row, col] - light.sky[row, col] == pytest.approx(drawn[row, col], rel=1e-4)
     hidden = street_envmap(light, street([wall(10.0, 30.0)]))
     assert luminance(hidden[row, col]) < 1e-3 * luminance(deposit)
 
@@ -134,10 +138,10 @@ def test_clear_landscape_energy_is_dominated_by_the_sun() -> None:
     row, col = direction_to_texel(light.sun, 32)
     physical = {albedo: sunsky_envmap(32, replace(params, ground_albedo=albedo))
                 for albedo in (0.04, 0.8)}
-    deposit = sunsky_envmap(32, params)[row, col] - light.sky[row, col]
+    drawn = draw_sun_np(light.sun, light.sun_irradiance, 32)[row, col]
     for seed in range(3):
         env = landscape_envmap(light, np.random.default_rng(seed))
-        assert env[row, col] - light.sky[row, col] == pytest.approx(deposit, rel=1e-4)
+        assert env[row, col] - light.sky[row, col] == pytest.approx(drawn, rel=1e-4)
         # the ground albedo (0.05-0.8) brackets the sun's share of the energy, as in the physical model
         assert 0.9 * top_energy_share(physical[0.8]) < top_energy_share(env) < 1.1 * top_energy_share(physical[0.04])
     assert top_energy_share(physical[0.8]) > 0.3
