@@ -45,6 +45,17 @@ def cmd_pack_envmaps(args: argparse.Namespace) -> None:
     print(f"{args.out}: {len(data)} maps of {args.height} x {2 * args.height}, {args.encoding} encoding")
 
 
+def cmd_panorama_set(args: argparse.Namespace) -> None:
+    """Build a packed training (or held-out) set from a folder of real panoramas, checked against the manifest."""
+    from dpi.prior.panoramas import build_panorama_set
+    from dpi.tonecurve import family_encoding
+
+    data = build_panorama_set(args.data, args.family, args.height, family_encoding(args.family, args.encoding),
+                              args.split)
+    data.save(args.out)
+    print(f"{args.out}: {len(data)} {args.family} panoramas ({args.split}) of {args.height} x {2 * args.height}")
+
+
 def cmd_train_prior(args: argparse.Namespace) -> None:
     """Train (or resume training) a prior on a folder of env maps."""
     from dpi.prior.train import TrainConfig, export_model, train
@@ -60,7 +71,8 @@ def cmd_train_prior(args: argparse.Namespace) -> None:
                          max_minutes=args.max_minutes,
                          sample_every=args.sample_every, checkpoint_every=args.checkpoint_every,
                          device=args.device, seed=args.seed, encoding=args.encoding,
-                         clip_fraction=args.clip_fraction)
+                         clip_fraction=args.clip_fraction, real_data=args.real_data,
+                         real_fraction=args.real_fraction)
     train(config)
     if args.export:
         export_model(args.out, args.export)
@@ -96,6 +108,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="output .npz")
     p.set_defaults(fn=cmd_pack_envmaps)
 
+    p = subparsers.add_parser("panorama-set", help="pack a folder of real HDR panoramas (checked against the "
+                              "manifest dpi/data/panoramas.csv) into a training or held-out set")
+    p.add_argument("--family", choices=PRIORS, required=True)
+    p.add_argument("--data", required=True, help="folder of .hdr/.exr panoramas (the manifest's and your own)")
+    p.add_argument("--split", choices=("train", "held_out"), default="train",
+                   help="the manifest's split; files it does not name are training data")
+    p.add_argument("--height", type=int, default=32, help="map height H of the prior (width 2H)")
+    p.add_argument("--encoding", choices=ENCODINGS, default=field_default(TrainConfig, "encoding"))
+    p.add_argument("--out", required=True, help="output .npz")
+    p.set_defaults(fn=cmd_panorama_set)
+
     p = subparsers.add_parser("train-prior", help="train a diffusion prior on a folder of env maps")
     p.add_argument("--family", choices=PRIORS, required=True)
     p.add_argument("--data", required=True, help="folder of .exr/.hdr/.png/.jpg panoramas, or a packed .npz")
@@ -112,7 +135,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              ("max_minutes", float, "stop (with a checkpoint) after this wall time"),
                              ("sample_every", int, None), ("sample_steps", int, "respaced steps of those sample grids"),
                              ("checkpoint_every", int, None), ("device", str, None), ("seed", int, None),
-                             ("clip_fraction", float, "share of each batch clipped like 8-bit panoramas")):
+                             ("clip_fraction", float, "share of each batch clipped like 8-bit panoramas"),
+                             ("real_data", str, "real panoramas mixed in: a folder or a set from `dpi panorama-set`"),
+                             ("real_fraction", float, "share of each batch drawn from --real-data")):
         p.add_argument(f"--{name.replace('_', '-')}", type=kind, default=field_default(TrainConfig, name), help=text)
     p.add_argument("--threads", type=int, default=1)
     p.set_defaults(fn=cmd_train_prior)

@@ -5,9 +5,10 @@ s = median luminance(L) / median_target, so its median luminance becomes `median
 mapped to [-1, 1] by the prior's encoding (dpi.tonecurve): log radiance (median_target 1), or the
 paper's tone curve x = 2 a (L / s)^(1/gamma) - 1 (median_target per family, `MEDIAN_TARGETS`).
 Going back, `encoding.with_scale(s).to_radiance(x)` gives HDR radiance for any chosen scene
-scale s. Augmentation is the paper's: a random horizontal roll (rotation about the up axis) and a
-random horizontal flip. A dataset can be packed into one `.npz` (x quantised to 8 bits, with its
-encoding) to train elsewhere, e.g. on a GPU machine without the generators.
+scale s. Augmentation is the paper's, a random horizontal roll (rotation about the up axis) and a
+random horizontal flip, plus a random exposure and white balance (real panoramas' are arbitrary). A
+dataset can be packed into one `.npz` (x quantised to 8 bits, with its encoding) to train elsewhere,
+e.g. on a GPU machine without the generators.
 """
 
 from __future__ import annotations
@@ -27,6 +28,10 @@ PANORAMA_SUFFIXES = IMAGE_SUFFIXES + (".hdr",)
 MEDIAN_TARGETS = {"outdoor": 0.3, "indoor": 0.05}
 """median luminance of a training map under the paper's tone curves (the log encoding uses 1)"""
 PACK_LEVELS = 255
+EXPOSURE_JITTER = 0.3
+"""std of the log exposure a training batch's maps are scaled by (`recolour`)"""
+WHITE_BALANCE_JITTER = 0.08
+"""std of the log per-channel gains of a training batch's white balance (`recolour`)"""
 """a packed dataset stores x in [-1, 1] as round((x + 1) / 2 * PACK_LEVELS) in uint8"""
 
 
@@ -107,18 +112,49 @@ def augment(x: torch.Tensor, generator: torch.Generator | None = None) -> torch.
     return roll_columns(x, shifts)
 
 
+def recolour(x: torch.Tensor, encoding: Encoding, generator: torch.Generator | None = None) -> torch.Tensor:
+    """Random per-image exposure (log-normal, std EXPOSURE_JITTER) and white balance (per-channel log-normal
+    gains, std WHITE_BALANCE_JITTER, luminance kept) of a batch (B, 3, H, W) of prior-space maps: a real
+    panorama's exposure and camera white balance are arbitrary, its content is not."""
+    b = x.shape[0]
+    exposure = EXPOSURE_JITTER * torch.randn(b, 1, generator=generator, device=x.device)
+    tint = torch.exp(WHITE_BALANCE_JITTER * torch.randn(b, 3, generator=generator, device=x.device))
+    tint = tint / luminance(tint)[:, None]
+    gain = (torch.exp(exposure) * tint)[..., None, None]
+    unit = encoding.with_scale(1.0)
+    return unit.to_prior(unit.to_radiance(x) * gain)
+
+
 class EnvmapDataset:
     """Env maps in prior space, held in memory as one (N, 3, H, 2H) tensor (on any device).
 
     `quantum` is the step of a packed (8-bit) dataset: batches add uniform noise of that width, so the
     network sees a continuous density rather than 256 levels."""
 
-    def __init__(self, images: torch.Tensor, family: str, encoding: Encoding, quantum: float = 0.0):
+    def __init__(self, images: torch.Tensor, family: str, encoding: Encoding, quantum: float = 0.0,
+                 weights: torch.Tensor | None = None):
         self.images = images
         self.family = family
         self.encoding = encoding
         self.height = images.shape[-2]
         self.quantum = quantum
+        self.weights = weights
+        """per-map sampling weights of `batch` (None: uniform)"""
+
+    @classmethod
+    def mixed(cls, parts: list["EnvmapDataset"], fractions: list[float]) -> "EnvmapDataset":
+        """One dataset whose batches draw a `fractions[i]` share of their maps from `parts[i]` (e.g. real
+        panoramas beside procedural worlds); the parts must share height, family and encoding."""
+        first = parts[0]
+        for part in parts[1:]:
+            if (part.height, part.family, part.encoding.to_dict()) != (first.height, first.family,
+                                                                       first.encoding.to_dict()):
+                raise ValueError("mixed datasets differ in height, family or encoding")
+        if len(fractions) != len(parts) or min(fractions) < 0 or sum(fractions) <= 0:
+            raise ValueError(f"need one non-negative fraction per dataset, got {fractions}")
+        weights = torch.cat([torch.full((len(p),), f / len(p)) for p, f in zip(parts, fractions)])
+        return cls(torch.cat([p.images.cpu() for p in parts]), first.family, first.encoding,
+                   max(p.quantum for p in parts), weights)
 
     @classmethod
     def from_folder(cls, folder: str | Path, height: int, family: str, encoding: Encoding,
@@ -148,7 +184,8 @@ class EnvmapDataset:
 
     def to(self, device: str | torch.device) -> "EnvmapDataset":
         """The same dataset with its maps on `device` (train where the network is)."""
-        return EnvmapDataset(self.images.to(device), self.family, self.encoding, self.quantum)
+        weights = None if self.weights is None else self.weights.to(device)
+        return EnvmapDataset(self.images.to(device), self.family, self.encoding, self.quantum, weights)
 
     def __len__(self) -> int:
         return len(self.images)
@@ -157,8 +194,11 @@ class EnvmapDataset:
         """A random augmented batch (size, 3, H, 2H) in [-1, 1], drawn with replacement (`generator` on
         the maps' device)."""
         device = self.images.device
-        idx = torch.randint(0, len(self.images), (size,), generator=generator, device=device)
-        x = augment(self.images[idx], generator)
+        if self.weights is None:
+            idx = torch.randint(0, len(self.images), (size,), generator=generator, device=device)
+        else:
+            idx = torch.multinomial(self.weights, size, replacement=True, generator=generator)
+        x = recolour(augment(self.images[idx], generator), self.encoding, generator)
         if self.quantum:
             x = (x + self.quantum * (torch.rand(x.shape, generator=generator, device=device) - 0.5)).clamp(-1, 1)
         return x

@@ -62,9 +62,13 @@ class TrainConfig:
     amp: bool = True  # bfloat16 autocast of the forward pass on CUDA (ignored on the CPU)
     clip_fraction: float = 0.0  # share of each batch clipped like 8-bit panoramas (dpi.prior.data.clip_highlights)
     clip_multiples: tuple[float, float] = (3.0, 30.0)  # clip levels, in multiples of the median luminance
+    real_data: str | None = None  # real panoramas (a folder or a set packed by `dpi panorama-set`) mixed in
+    real_fraction: float = 0.25  # share of each batch drawn from `real_data`
 
     def __post_init__(self):
         """An unknown schedule fails here, not at the first optimiser step."""
+        if not 0.0 <= self.real_fraction <= 1.0:
+            raise SettingsError("real_fraction", f"must be in [0, 1], got {self.real_fraction}")
         if self.lr_schedule not in LR_SCHEDULES:
             raise SettingsError("lr_schedule", f"unknown schedule {self.lr_schedule!r}; choose from "
                                                f"{', '.join(LR_SCHEDULES)}")
@@ -172,7 +176,11 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
     out.parent.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(cfg.seed)
     encoding = family_encoding(cfg.family, cfg.encoding)
-    data = (dataset or read_dataset(cfg.data_dir, cfg.model.image_size, cfg.family, encoding)).to(cfg.device)
+    data = dataset or read_dataset(cfg.data_dir, cfg.model.image_size, cfg.family, encoding)
+    if cfg.real_data:
+        real = read_dataset(cfg.real_data, cfg.model.image_size, cfg.family, encoding)
+        data = EnvmapDataset.mixed([data, real], [1.0 - cfg.real_fraction, cfg.real_fraction])
+    data = data.to(cfg.device)
     model = UNetModel(cfg.model).to(cfg.device)
     ema = copy.deepcopy(model).eval().requires_grad_(False)
     cuda = torch.device(cfg.device).type == "cuda"
