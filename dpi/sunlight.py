@@ -4,8 +4,8 @@ A sun is drawn as what it is: a disc of the sun's angular size, anti-aliased ove
 moves smoothly between texel centres (its direction stays differentiable), and a faint circumsolar
 aureole around it; both are normalised on the map itself, so the drawn energy is the given irradiance
 exactly at any resolution. Procedural daylight, the `dps` sampler and the written maps all draw it
-here. `bright_spots` finds the compact regions far above a map's median (suns, lamps) with their energy,
-so a sampler can merge a second sun into its fitted one and a test or a report can count them.
+here. `find_spots` peels the sun-like spots (far brighter than their surroundings) off a map with their
+energy, so a sampler can merge a second sun into its fitted one and a test or a report can count them.
 """
 
 from __future__ import annotations
@@ -16,7 +16,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
-from scipy import ndimage
 
 from dpi.envmap import texel_directions, texel_solid_angles
 from dpi.images import luminance
@@ -30,8 +29,11 @@ AUREOLE_DEG = 2.0
 """e-folding angle of the aureole's radiance away from the disc"""
 AUREOLE_EXTENT_DEG = 12.0
 """angle from the sun's centre beyond which the aureole is zero"""
-SUN_CONTRAST = 50.0
-"""a bright spot is a region of texels above this many times the map's median luminance"""
+SPOT_CONTRAST = 6.0
+"""a sun-like spot's peak stands at least this many times above the level of its surroundings (a cloud's
+edge or a bright horizon stands two or three times above theirs)"""
+SPOT_RADIUS_DEG = 10.0
+"""radius around a spot's peak whose excess over the surroundings (the ring out to twice it) is the spot"""
 
 
 @functools.lru_cache(maxsize=8)
@@ -76,90 +78,71 @@ def draw_sun_np(direction: np.ndarray, irradiance: np.ndarray, height: int) -> n
 
 
 @dataclass(frozen=True)
-class BrightSpot:
-    """A compact region of a map far above its median: a sun or a lamp."""
+class Spot:
+    """A map's brightest region peeled off it: its excess over its surroundings, as a sun would be."""
 
-    mask: np.ndarray
-    """(H, 2H) bool: the spot's texels"""
-    excess: np.ndarray
-    """(H, 2H, 3) the radiance the spot holds above its surroundings (zero outside the mask)"""
-    energy: np.ndarray
-    """(3,) the excess's energy per channel (radiance x solid angle)"""
-    direction: np.ndarray
+    sky: torch.Tensor
+    """(H, 2H, 3) the map without the excess"""
+    irradiance: torch.Tensor
+    """(3,) the excess's energy per channel (radiance x solid angle, summed)"""
+    direction: torch.Tensor
     """(3,) unit direction of the excess's energy-weighted centre"""
-    radius_deg: float
-    """angle from that centre to the spot's farthest texel centre"""
     share: float
     """the excess's share of the map's energy (luminance)"""
+    contrast: float
+    """the peak texel's luminance over the surroundings' level"""
 
 
-def _wrapped_labels(mask: np.ndarray) -> tuple[np.ndarray, int]:
-    """Connected components (8-neighbour) of an (H, 2H) mask, joined across the azimuth seam."""
-    labels, count = ndimage.label(mask, structure=np.ones((3, 3), dtype=bool))
-    parent = list(range(count + 1))
-
-    def root(i: int) -> int:
-        while parent[i] != i:
-            i = parent[i]
-        return i
-
-    rows = labels.shape[0]
-    for r in range(rows):
-        for dr in (-1, 0, 1):
-            if 0 <= r + dr < rows:
-                a, b = labels[r, -1], labels[r + dr, 0]
-                if a and b:
-                    parent[root(a)] = root(b)
-    roots = np.array([root(i) for i in range(count + 1)])
-    merged = roots[labels]
-    unique = np.unique(merged[merged > 0])
-    relabel = np.zeros(count + 1, dtype=int)
-    relabel[unique] = np.arange(1, len(unique) + 1)
-    return relabel[merged], len(unique)
-
-
-def bright_spots(env: np.ndarray, contrast: float = SUN_CONTRAST, min_share: float = 0.0) -> list[BrightSpot]:
-    """The regions of an (H, 2H, 3) map whose luminance exceeds `contrast` x its median, brightest first,
-    each with the excess it holds over the median of the texels around it (a one-texel ring), and only
-    those carrying at least `min_share` of the map's energy."""
-    env = np.asarray(env, dtype=np.float64)
+def peel_brightest(env: torch.Tensor, radius_deg: float) -> Spot:
+    """The excess of a map (H, 2H, 3) over its surroundings within `radius_deg` of its brightest texel: the
+    surroundings' level is the per-channel median of the ring radius..2 radius, and texels inside the radius
+    keep at most that level."""
     height = env.shape[0]
+    env = env.detach()
     lum = luminance(env)
-    omega = texel_solid_angles(height)
-    total = max(float((lum * omega).sum()), 1e-30)
-    labels, count = _wrapped_labels(lum > contrast * max(float(np.median(lum)), 1e-30))
-    dirs = texel_directions(height)
-    spots = []
-    for k in range(1, count + 1):
-        mask = labels == k
-        grown = ndimage.binary_dilation(np.pad(mask, ((0, 0), (1, 1)), mode="wrap"), np.ones((3, 3), bool))
-        ring = grown[:, 1:-1] & ~mask
-        ring[:, 0] |= grown[:, -1] & ~mask[:, 0]
-        ring[:, -1] |= grown[:, 0] & ~mask[:, -1]
-        level = np.median(env[ring], axis=0) if ring.any() else np.zeros(3)
-        excess = np.where(mask[..., None], np.maximum(env - level, 0.0), 0.0)
-        energy = (excess * omega[..., None]).sum((0, 1))
-        weight = luminance(excess) * omega
-        centre = (weight[..., None] * dirs).sum((0, 1))
-        centre = centre / max(np.linalg.norm(centre), 1e-30)
-        radius = float(np.degrees(np.arccos(np.clip(dirs[mask] @ centre, -1.0, 1.0)).max()))
-        share = float(weight.sum() / total)
-        if share >= min_share:
-            spots.append(BrightSpot(mask, excess, energy, centre, radius, share))
-    return sorted(spots, key=lambda s: -s.share)
+    dirs = _texel_directions(height).to(env.dtype)
+    peak_index = int(torch.argmax(lum))
+    peak = dirs.reshape(-1, 3)[peak_index]
+    cos = dirs @ peak
+    inner = cos >= math.cos(math.radians(radius_deg))
+    ring = ~inner & (cos >= math.cos(math.radians(2 * radius_deg)))
+    level = env[ring].median(dim=0).values if bool(ring.any()) else env.reshape(-1, 3).median(dim=0).values
+    excess = torch.where(inner[..., None], (env - level).clamp_min(0), torch.zeros_like(env))
+    omega = torch.as_tensor(texel_solid_angles(height), dtype=env.dtype)[..., None]
+    weight = luminance(excess) * omega[..., 0]
+    centre = (weight[..., None] * dirs).sum(dim=(0, 1))
+    centre = centre / centre.norm() if float(centre.norm()) > 0 else peak
+    share = float(weight.sum() / (lum * omega[..., 0]).sum().clamp_min(1e-30))
+    contrast = float(lum.reshape(-1)[peak_index] / luminance(level).clamp_min(1e-30))
+    return Spot(env - excess, (excess * omega).sum(dim=(0, 1)), centre, share, contrast)
 
 
-def merge_spots_into_sun(sky: torch.Tensor, direction: torch.Tensor, irradiance: torch.Tensor,
-                         contrast: float = SUN_CONTRAST) -> tuple[torch.Tensor, torch.Tensor, int]:
-    """The bright spots of a sky map (H, 2H, 3) (a sun the prior drew, say) moved into a sun towards
-    `direction` of `irradiance`: each spot's excess leaves the sky and its energy joins the sun's, so the
-    map's energy is kept and one sun remains. Returns the sky, the sun's irradiance and the spot count."""
-    spots = bright_spots(sky.detach().double().numpy(), contrast)
+def find_spots(env: torch.Tensor, contrast: float = SPOT_CONTRAST, radius_deg: float = SPOT_RADIUS_DEG,
+               limit: int = 8) -> list[Spot]:
+    """The sun-like spots of a map (H, 2H, 3), brightest first: its brightest texel is peeled off
+    (`peel_brightest`) while it stands `contrast` times above its surroundings, at most `limit` times; each
+    spot's `sky` is the map with it and those before it removed."""
+    spots: list[Spot] = []
+    sky = env.detach()
+    while len(spots) < limit:
+        spot = peel_brightest(sky, radius_deg)
+        if spot.contrast < contrast or spot.share <= 0:
+            break
+        spots.append(spot)
+        sky = spot.sky
+    return spots
+
+
+def merge_spots_into_sun(sky: torch.Tensor, irradiance: torch.Tensor,
+                         contrast: float = SPOT_CONTRAST) -> tuple[torch.Tensor, torch.Tensor, int]:
+    """The sun-like spots of a sky map (H, 2H, 3) (a sun the prior drew, say) moved into a sun of `irradiance`:
+    each spot's excess leaves the sky and its energy joins the sun's, so the map's energy is kept and one sun
+    remains. Returns the sky, the sun's irradiance and the number of spots merged."""
+    spots = find_spots(sky, contrast)
     if not spots:
         return sky, irradiance, 0
-    excess = torch.as_tensor(sum(s.excess for s in spots), dtype=sky.dtype)
-    energy = torch.as_tensor(sum(s.energy for s in spots), dtype=irradiance.dtype)
-    return sky - excess, irradiance + energy, len(spots)
+    energy = sum(s.irradiance for s in spots)
+    return spots[-1].sky, irradiance + energy.to(irradiance.dtype), len(spots)
 
 
 def direction_of_uv(uv: torch.Tensor) -> torch.Tensor:

@@ -11,7 +11,7 @@ import torch
 
 from dpi.envmap import direction_to_uv, texel_directions, texel_solid_angles
 from dpi.solve.sun import extract_sun, map_energy, share_penalty, sun_direction_of, sun_env, wrap_uv_
-from dpi.sunlight import AUREOLE_SHARE, bright_spots, direction_of_uv, merge_spots_into_sun
+from dpi.sunlight import AUREOLE_SHARE, find_spots, merge_spots_into_sun
 
 
 @pytest.mark.parametrize("height", [8, 32, 128])
@@ -29,9 +29,9 @@ def test_at_128_rows_the_sun_is_a_disc_of_a_few_texels_with_a_faint_aureole(uv):
     energy = np.sort((env[..., 0] * omega).ravel())[::-1]
     assert energy[:4].sum() > 0.85  # the disc: one texel or a few
     assert energy[:4].sum() < 1 - 0.5 * AUREOLE_SHARE  # and the aureole around it
-    spots = bright_spots(env + 1 / (4 * math.pi))  # over a sky as bright as the sun, as a clear day's
-    assert len(spots) == 1 and spots[0].radius_deg < 4.0
-    angle = math.degrees(math.acos(min(1.0, float(spots[0].direction @ sun_direction_of(torch.tensor(uv))))))
+    spots = find_spots(torch.as_tensor(env) + 1 / (4 * math.pi))  # over a sky as bright as the sun, as a clear day's
+    assert len(spots) == 1
+    angle = math.degrees(math.acos(min(1.0, float(spots[0].direction @ torch.as_tensor(sun_direction_of(torch.tensor(uv)))))))
     assert angle < 0.7  # half a texel
 
 
@@ -57,18 +57,19 @@ def test_a_second_sun_in_the_sky_is_merged_into_the_fitted_one():
     height = 64
     dirs = torch.as_tensor(texel_directions(height))
     sky = (1.0 + 0.5 * dirs[..., 1:2].clamp_min(0)) * torch.tensor([0.6, 0.8, 1.0], dtype=torch.float64)
-    stray = sun_env(torch.tensor([0.8, 0.3], dtype=torch.float64), torch.tensor([3.0, 3.0, 2.5], dtype=torch.float64), 16)
+    stray = sun_env(torch.tensor([0.8, 0.3], dtype=torch.float64), torch.tensor([1.0, 1.0, 0.8], dtype=torch.float64), 16)
     stray = torch.nn.functional.interpolate(stray.permute(2, 0, 1)[None], size=(height, 2 * height),
                                             mode="bilinear", align_corners=False)[0].permute(1, 2, 0)
+    assert len(find_spots(sky)) == 0 and len(find_spots(sky + stray)) == 1  # a blurred second sun, ~10x its sky
     uv = torch.tensor([0.2, 0.25], dtype=torch.float64)
     fitted = torch.tensor([5.0, 4.8, 4.0], dtype=torch.float64)
-    merged_sky, irradiance, count = merge_spots_into_sun(sky + stray, direction_of_uv(uv), fitted)
+    merged_sky, irradiance, count = merge_spots_into_sun(sky + stray, fitted)
     assert count == 1
     env = merged_sky + sun_env(uv, irradiance, height)
     torch.testing.assert_close(map_energy(env), map_energy(sky + stray) + fitted)
-    spots = bright_spots(env.numpy(), min_share=0.01)
+    spots = find_spots(env)
     assert len(spots) == 1
-    assert float(spots[0].direction @ sun_direction_of(uv)) > math.cos(math.radians(3))
+    assert float(spots[0].direction @ torch.as_tensor(sun_direction_of(uv))) > math.cos(math.radians(1))
 
 
 def test_position_round_trips_through_the_world_direction():

@@ -16,9 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from dpi.envmap import direction_to_uv, texel_directions, texel_solid_angles
+from dpi.envmap import direction_to_uv, texel_solid_angles
 from dpi.images import luminance
-from dpi.sunlight import direction_of_uv, draw_sun
+from dpi.sunlight import direction_of_uv, draw_sun, peel_brightest
 
 
 @dataclass(frozen=True)
@@ -41,29 +41,11 @@ def solid_angles(height: int, dtype: torch.dtype = torch.float32) -> torch.Tenso
 
 
 def extract_sun(env: torch.Tensor, radius_deg: float = 25.0) -> SunExtraction:
-    """The excess of the map over its surroundings within `radius_deg` of the brightest texel, as a sun.
-
-    The surroundings' level is the per-channel median of the ring radius..2 radius; texels inside the
-    radius keep at most that level, and what they lose is the sun's irradiance. The sun sits at the
-    energy-weighted centroid of the excess."""
-    height = env.shape[0]
-    env = env.detach()
-    lum = luminance(env)
-    dirs = torch.as_tensor(texel_directions(height), dtype=env.dtype)
-    peak = dirs.reshape(-1, 3)[int(torch.argmax(lum))]
-    cos = dirs @ peak
-    inner = cos >= math.cos(math.radians(radius_deg))
-    ring = ~inner & (cos >= math.cos(math.radians(2 * radius_deg)))
-    level = env[ring].median(dim=0).values if bool(ring.any()) else env.reshape(-1, 3).median(dim=0).values
-    excess = torch.where(inner[..., None], (env - level).clamp_min(0), torch.zeros_like(env))
-    omega = solid_angles(height, env.dtype)[..., None]
-    irradiance = (excess * omega).sum(dim=(0, 1))
-    weight = luminance(excess) * omega[..., 0]
-    centre = (weight[..., None] * dirs).sum(dim=(0, 1))
-    centre = centre / centre.norm() if float(centre.norm()) > 0 else peak
-    uv = torch.as_tensor(direction_to_uv(centre.numpy()), dtype=env.dtype)
-    share = float(weight.sum() / (lum * omega[..., 0]).sum().clamp_min(1e-30))
-    return SunExtraction(env - excess, uv, irradiance, share)
+    """The excess of the map over its surroundings within `radius_deg` of the brightest texel, as a sun
+    (dpi.sunlight.peel_brightest); the sun sits at the energy-weighted centroid of the excess."""
+    spot = peel_brightest(env, radius_deg)
+    uv = torch.as_tensor(direction_to_uv(spot.direction.numpy()), dtype=env.dtype)
+    return SunExtraction(spot.sky, uv, spot.irradiance, spot.share)
 
 
 def sun_env(uv: torch.Tensor, irradiance: torch.Tensor, height: int) -> torch.Tensor:

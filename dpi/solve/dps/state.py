@@ -23,7 +23,7 @@ from dpi.solve.dps.sun import SunSettings
 from dpi.solve.prior_space import resample_env
 from dpi.solve.problem import InverseProblem
 from dpi.solve.sun import sun_env
-from dpi.sunlight import direction_of_uv, merge_spots_into_sun
+from dpi.sunlight import merge_spots_into_sun
 
 
 @dataclass
@@ -106,7 +106,7 @@ class DPSRun:
         sky = self.scale * torch.exp(state.log_exposure) * resample_env(radiance, height)
         if not self.sun:
             return sky, torch.zeros(3), 0
-        sky, irradiance, merged = merge_spots_into_sun(sky, direction_of_uv(state.sun_uv), self.sun_irradiance(state))
+        sky, irradiance, merged = merge_spots_into_sun(sky, self.sun_irradiance(state))
         return sky + sun_env(state.sun_uv, irradiance, height), irradiance, merged
 
     def sun_irradiance(self, state: "DPSState") -> torch.Tensor:
