@@ -5,7 +5,7 @@ VENV ?= .venv
 CORES ?= 2
 PYTEST_ARGS ?=
 
-.PHONY: setup demo test test-fast benchmarks clean
+.PHONY: setup demo test test-fast test-slurm benchmarks clean
 
 setup:
 	bash scripts/setup.sh
@@ -15,6 +15,9 @@ demo: setup
 
 test: setup
 	$(VENV)/bin/python -m pytest -q $(PYTEST_ARGS)
+
+test-slurm: setup
+	$(VENV)/bin/python -m pytest -q -m slurm $(PYTEST_ARGS)
 
 test-fast: setup
 	$(VENV)/bin/python -m pytest -q -m "not slow" $(PYTEST_ARGS)

@@ -95,8 +95,8 @@ class Spot:
 
 def peel_brightest(env: torch.Tensor, radius_deg: float) -> Spot:
     """The excess of a map (H, 2H, 3) over its surroundings within `radius_deg` of its brightest texel: the
-    surroundings' level is the per-channel median of the ring radius..2 radius, and texels inside the radius
-    keep at most that level."""
+    surroundings' level is the per-channel median of the ring radius..2 radius; texels within half the radius
+    keep at most that level, and the removal fades out towards the radius (no visible edge where it stops)."""
     height = env.shape[0]
     env = env.detach()
     lum = luminance(env)
@@ -107,7 +107,9 @@ def peel_brightest(env: torch.Tensor, radius_deg: float) -> Spot:
     inner = cos >= math.cos(math.radians(radius_deg))
     ring = ~inner & (cos >= math.cos(math.radians(2 * radius_deg)))
     level = env[ring].median(dim=0).values if bool(ring.any()) else env.reshape(-1, 3).median(dim=0).values
-    excess = torch.where(inner[..., None], (env - level).clamp_min(0), torch.zeros_like(env))
+    angle = torch.acos(cos.clamp(-1.0, 1.0))
+    window = ((math.radians(radius_deg) - angle) / math.radians(radius_deg / 2)).clamp(0.0, 1.0)
+    excess = window[..., None] * (env - level).clamp_min(0)
     omega = torch.as_tensor(texel_solid_angles(height), dtype=env.dtype)[..., None]
     weight = luminance(excess) * omega[..., 0]
     centre = (weight[..., None] * dirs).sum(dim=(0, 1))
@@ -133,12 +135,13 @@ def find_spots(env: torch.Tensor, contrast: float = SPOT_CONTRAST, radius_deg: f
     return spots
 
 
-def merge_spots_into_sun(sky: torch.Tensor, irradiance: torch.Tensor,
+def merge_spots_into_sun(sky: torch.Tensor, irradiance: torch.Tensor, detail_height: int,
                          contrast: float = SPOT_CONTRAST) -> tuple[torch.Tensor, torch.Tensor, int]:
     """The sun-like spots of a sky map (H, 2H, 3) (a sun the prior drew, say) moved into a sun of `irradiance`:
     each spot's excess leaves the sky and its energy joins the sun's, so the map's energy is kept and one sun
-    remains. Returns the sky, the sun's irradiance and the number of spots merged."""
-    spots = find_spots(sky, contrast)
+    remains. The sky's detail is that of a `detail_height`-row map (upsampled): a spot is taken at least two of
+    its texels wide. Returns the sky, the sun's irradiance and the number of spots merged."""
+    spots = find_spots(sky, contrast, max(SPOT_RADIUS_DEG, 360.0 / detail_height))
     if not spots:
         return sky, irradiance, 0
     energy = sum(s.irradiance for s in spots)

@@ -24,7 +24,7 @@ from dpi.solve.dps.proximal import ProximalSettings
 from dpi.solve.init import InitConfig, path_traced_init
 from dpi.solve.problem import InverseProblem, ProblemSettings
 from dpi.solve.prior_space import prior_to_env
-from dpi.solve.sun import map_energy, sun_env
+from dpi.solve.sun import map_energy, sun_direction_of, sun_env
 from dpi.solve.transport import AlbedoLookup, LightTransport
 from dpi.tonecurve import LogEncoding
 
@@ -299,6 +299,38 @@ def test_a_parametric_sun_is_fitted_and_lands_in_the_map(problem_and_init):
     assert "sun" not in plain.trace.info
     with pytest.raises(ValueError, match="sun.mode: must be one of auto, on, off"):
         DPSConfig.from_dict({"sun": "sometimes"})
+
+
+def test_a_written_dps_map_holds_one_sun_drawn_as_a_disc(tiny_capture, problem_and_init, tmp_path):
+    """A sample's map, with a second sun in the prior's sky, written and read back from envmap.exr: one
+    sun-like spot, in the fitted sun's direction, its energy in a few texels of the 64-row map (a disc, not a
+    block carried up from a coarser grid), the second sun's energy merged into it."""
+    from dpi.envmap import read_envmap, texel_solid_angles
+    from dpi.images import luminance
+    from dpi.solve.dps.loop import start_run
+    from dpi.sunlight import find_spots
+
+    _, coarse = problem_and_init
+    problem = InverseProblem(load_capture(tiny_capture), ProblemSettings(env_height=64, texture_size=8),
+                             RenderSettings(spp=4, threads=2))
+    env = torch.nn.functional.interpolate(coarse.env.permute(2, 0, 1)[None], size=(64, 128), mode="nearest")
+    init = Decomposition(env[0].permute(1, 2, 0), coarse.materials, coarse.trace)
+    prior = log_prior()
+    run, state = start_run(problem, prior, init, DPSConfig.from_dict({"sun": "on"}), seed=0)
+    radiance = torch.ones(1, 3, prior.height, 2 * prior.height)
+    radiance[..., 2, 11] = 60.0  # the prior's own sun, a texel of its grid
+    with torch.no_grad():
+        state.sun_uv.copy_(torch.tensor([0.3, 0.3]))
+        state.sun_log.copy_(torch.log(torch.tensor([30.0, 28.0, 25.0])))
+        written, irradiance, merged = run.written_env(radiance, state)
+    assert merged == 1 and bool((irradiance > run.sun_irradiance(state)).all())
+    Decomposition(written, init.materials).save(tmp_path / "dps")
+    env = read_envmap(tmp_path / "dps" / "envmap.exr")
+    spots = find_spots(torch.as_tensor(env, dtype=torch.float64))
+    assert len(spots) == 1
+    assert float(spots[0].direction @ torch.as_tensor(sun_direction_of(state.sun_uv))) > math.cos(math.radians(1))
+    energy = np.sort((luminance(env - spots[0].sky.numpy()) * texel_solid_angles(64)).ravel())[::-1]
+    assert energy[:6].sum() > 0.8 * energy.sum()  # a disc of a few texels (a 16 x 16 block held ~1/40 each)
 
 
 def test_dps_moves_the_albedo_at_its_own_rate_in_the_loop_and_the_refinement(problem_and_init):

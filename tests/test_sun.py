@@ -63,7 +63,7 @@ def test_a_second_sun_in_the_sky_is_merged_into_the_fitted_one():
     assert len(find_spots(sky)) == 0 and len(find_spots(sky + stray)) == 1  # a blurred second sun, ~10x its sky
     uv = torch.tensor([0.2, 0.25], dtype=torch.float64)
     fitted = torch.tensor([5.0, 4.8, 4.0], dtype=torch.float64)
-    merged_sky, irradiance, count = merge_spots_into_sun(sky + stray, fitted)
+    merged_sky, irradiance, count = merge_spots_into_sun(sky + stray, fitted, 64)
     assert count == 1
     env = merged_sky + sun_env(uv, irradiance, height)
     torch.testing.assert_close(map_energy(env), map_energy(sky + stray) + fitted)

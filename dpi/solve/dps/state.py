@@ -106,7 +106,7 @@ class DPSRun:
         sky = self.scale * torch.exp(state.log_exposure) * resample_env(radiance, height)
         if not self.sun:
             return sky, torch.zeros(3), 0
-        sky, irradiance, merged = merge_spots_into_sun(sky, self.sun_irradiance(state))
+        sky, irradiance, merged = merge_spots_into_sun(sky, self.sun_irradiance(state), radiance.shape[-2])
         return sky + sun_env(state.sun_uv, irradiance, height), irradiance, merged
 
     def sun_irradiance(self, state: "DPSState") -> torch.Tensor:
