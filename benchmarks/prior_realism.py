@@ -45,7 +45,8 @@ def row(kind: str, maps: list[np.ndarray], prior, checkpoint: str) -> dict:
     """Denoising error and NIQE of HDR maps (H, W, 3) under `prior`: mean and std over the maps."""
     mse = np.array([-naturalness(m, prior) for m in maps])
     niqe = np.array([env_niqe(m) for m in maps])
-    return {"commit": commit(), "checkpoint": checkpoint, "family": prior.family, "kind": kind, "maps": len(maps),
+    return {"commit": commit(), "checkpoint": Path(checkpoint).name, "family": prior.family, "kind": kind,
+            "maps": len(maps),
             "denoising_mse": round(float(mse.mean()), 5), "denoising_mse_std": round(float(mse.std()), 5),
             "niqe": round(float(niqe.mean()), 3), "niqe_std": round(float(niqe.std()), 3)}
 
