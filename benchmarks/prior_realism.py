@@ -41,11 +41,11 @@ def commit() -> str:
     return out.stdout.strip() or "unknown"
 
 
-def row(kind: str, maps: list[np.ndarray], prior, checkpoint: str) -> dict:
+def row(kind: str, maps: list[np.ndarray], prior, checkpoint: str, revision: str) -> dict:
     """Denoising error and NIQE of HDR maps (H, W, 3) under `prior`: mean and std over the maps."""
     mse = np.array([-naturalness(m, prior) for m in maps])
     niqe = np.array([env_niqe(m) for m in maps])
-    return {"commit": commit(), "checkpoint": Path(checkpoint).name, "family": prior.family, "kind": kind,
+    return {"commit": revision, "checkpoint": Path(checkpoint).name, "family": prior.family, "kind": kind,
             "maps": len(maps),
             "denoising_mse": round(float(mse.mean()), 5), "denoising_mse_std": round(float(mse.std()), 5),
             "niqe": round(float(niqe.mean()), 3), "niqe_std": round(float(niqe.std()), 3)}
@@ -70,8 +70,10 @@ def main() -> None:
     procedural, _ = checked_envmaps(args.family, args.count, 2 * prior.height, seed=HELD_OUT_SEED, progress=False)
     x = draw_samples(prior, args.count, args.steps, seed=0)
     samples = [prior.encoding.to_radiance(xi).permute(1, 2, 0).numpy() for xi in x]
-    rows = [row("real_held_out", real["held_out"], prior, checkpoint), row("real_train", real["train"], prior, checkpoint),
-            row("procedural", procedural, prior, checkpoint), row("samples", samples, prior, checkpoint)]
+    revision = commit()
+    rows = [row(kind, maps, prior, checkpoint, revision) for kind, maps in (
+        ("real_held_out", real["held_out"]), ("real_train", real["train"]), ("procedural", procedural),
+        ("samples", samples))]
     name = Path(checkpoint).stem
     columns = 4
     held = torch.stack([prior_image(m, prior) for m in real["held_out"]])

@@ -28,11 +28,11 @@ PANORAMA_SUFFIXES = IMAGE_SUFFIXES + (".hdr",)
 MEDIAN_TARGETS = {"outdoor": 0.3, "indoor": 0.05}
 """median luminance of a training map under the paper's tone curves (the log encoding uses 1)"""
 PACK_LEVELS = 255
+"""a packed dataset stores x in [-1, 1] as round((x + 1) / 2 * PACK_LEVELS) in uint8"""
 EXPOSURE_JITTER = 0.3
 """std of the log exposure a training batch's maps are scaled by (`recolour`)"""
 WHITE_BALANCE_JITTER = 0.08
 """std of the log per-channel gains of a training batch's white balance (`recolour`)"""
-"""a packed dataset stores x in [-1, 1] as round((x + 1) / 2 * PACK_LEVELS) in uint8"""
 
 
 def read_panorama(path: str | Path) -> np.ndarray:

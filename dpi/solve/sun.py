@@ -5,7 +5,8 @@ of the sphere. A free or prior-guided map spreads that energy over a blurred blo
 object barely tells the two apart), so `dps` can model the sun apart from the sky: a sun of
 irradiance E (RGB) at map coordinates (u, v), drawn as a disc of the sun's angular size with its
 aureole (dpi.sunlight), so that its energy is E at any map size and it stays differentiable in
-(u, v). `extract_sun` moves the excess energy of a map's brightest region into such a sun; the sampler then fits both.
+(u, v). `extract_sun` moves the excess energy of a map's brightest region into such a sun; the sampler
+then fits both.
 """
 
 from __future__ import annotations

@@ -95,15 +95,20 @@ class DPSRun:
         """Prior-resolution normalised radiance (1, 3, h, 2h) -> scene env map (H, 2H, 3) at `height` rows
         (default the problem's), times the state's exposure, plus its sun."""
         height = height or self.problem.settings.env_height
-        env = self.scale * torch.exp(state.log_exposure) * resample_env(radiance, height)
+        env = self.sky(radiance, state, height)
         return env + sun_env(state.sun_uv, self.sun_irradiance(state), height) if self.sun else env
+
+    def sky(self, radiance: torch.Tensor, state: "DPSState", height: int) -> torch.Tensor:
+        """Prior-resolution normalised radiance (1, 3, h, 2h) -> the scene map without its sun (H, 2H, 3) at
+        `height` rows, times the state's exposure."""
+        return self.scale * torch.exp(state.log_exposure) * resample_env(radiance, height)
 
     def written_env(self, radiance: torch.Tensor, state: "DPSState") -> tuple[torch.Tensor, torch.Tensor, int]:
         """The sample's map at the problem's height: with a sun, any bright spot the prior drew in the sky is
         moved into the fitted sun (dpi.sunlight.merge_spots_into_sun), so one sun remains; returns the map, the
         sun's irradiance (zero without one) and the number of spots merged."""
         height = self.problem.settings.env_height
-        sky = self.scale * torch.exp(state.log_exposure) * resample_env(radiance, height)
+        sky = self.sky(radiance, state, height)
         if not self.sun:
             return sky, torch.zeros(3), 0
         sky, irradiance, merged = merge_spots_into_sun(sky, self.sun_irradiance(state), radiance.shape[-2])
