@@ -60,7 +60,7 @@ def preset_setting(name: str | None = None) -> Setting:
     pipeline = PIPELINE if name is None else Pipeline(resolve_config({"preset": name}))
     dps, solve = pipeline.method_settings("dps"), pipeline.solve_settings()
     return Setting(steps=dps.steps, spp=solve.render.spp, resolution=pipeline.synth_settings(DEMO).width,
-                   transport_pixels=dps.sampler_settings.transport_pixels, env_height=solve.problem.env_height,
+                   transport_pixels=dps.proximal.transport.pixels, env_height=solve.problem.env_height,
                    texture_size=solve.problem.texture_size, refine_iterations=dps.refine.iterations)
 
 
@@ -83,7 +83,8 @@ def run(setting: Setting, init_dir: Path, prior, threads: int, seed: int) -> dic
     init = problem.load_decomposition(init_dir)
     base = PIPELINE.method_settings("dps")
     cfg = replace(base, steps=setting.steps, refine=replace(base.refine, iterations=setting.refine_iterations),
-                  **{base.sampler: replace(base.sampler_settings, transport_pixels=setting.transport_pixels)})
+                  proximal=replace(base.proximal, transport=replace(base.proximal.transport,
+                                                                     pixels=setting.transport_pixels)))
     start = time.perf_counter()
     result = dps_sample(problem, prior, init, cfg, seed=seed, progress=False).decomposition
     seconds = time.perf_counter() - start

@@ -12,36 +12,37 @@ Two decisions, each logged where its result is written and switched off in confi
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 
 from dpi.atomic import write_json
 from dpi.exr import read_exr
 from dpi.materials import MaterialTextures
+from pydantic import Field
+
+from dpi.settings import Fraction, Share, Weight, settings, settings_from_dict
 from dpi.spread import normalized_env, sample_variance
-from dpi.settings import settings_from_dict
 
 
-@dataclass
+@settings
 class AdaptiveConfig:
     """Switches and thresholds of the adaptive decisions (config.yaml `adaptive`)."""
 
     sample_stop: bool = True
     """stop drawing samples of a method once its first ones agree"""
-    min_samples: int = 2
+    min_samples: Annotated[int, Field(ge=2)] = 2
     """samples always drawn before the stop rule looks at them"""
-    agree_tolerance: float = 1e-3
+    agree_tolerance: Weight = 1e-3
     """env-map sigma2_sample (as in summary.csv) below which the first samples agree"""
     diffuse_steps: bool = True
     """run fewer diffusion steps when the init stage finds a diffuse object"""
-    diffuse_roughness: float = 0.6
+    diffuse_roughness: Fraction = 0.6
     """init roughness that (at its 25th percentile) makes a scene diffuse: a GGX lobe ~30 deg wide"""
-    diffuse_max_metallic: float = 0.1
+    diffuse_max_metallic: Fraction = 0.1
     """metallic (at its 75th percentile) above which a scene is never treated as diffuse"""
-    diffuse_steps_factor: float = 0.5
+    diffuse_steps_factor: Share = 0.5
     """fraction of the diffusion steps run for a diffuse scene"""
 
     @classmethod

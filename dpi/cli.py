@@ -48,7 +48,13 @@ def _threads(args: argparse.Namespace, pipeline, kind: str) -> int:
 
 
 def cmd_config(args: argparse.Namespace) -> None:
-    """Print the resolved config."""
+    """Print the resolved config, or with --schema the JSON schema it is checked against."""
+    if args.schema:
+        from dpi.config_validation import config_schema
+        from dpi.pipeline import CONFIG_SCHEMA
+
+        print(json.dumps(config_schema(CONFIG_SCHEMA), indent=1))
+        return
     print(yaml.safe_dump(_pipeline(args).describe(), sort_keys=False), end="")
 
 
@@ -229,7 +235,9 @@ def build_parser() -> argparse.ArgumentParser:
             p.add_argument("scene", help="scene name: its capture is captures_dir/SCENE, its results results_dir/SCENE")
         return p
 
-    add("config", cmd_config, "print the resolved config (defaults, ./config.yaml, --config files, preset)")
+    p = add("config", cmd_config, "print the resolved config (defaults, ./config.yaml, --config files, preset)")
+    p.add_argument("--schema", action="store_true",
+                   help="print the JSON schema the config is checked against (each field's bounds and default)")
 
     p = add("synth", cmd_synth, "render a synthetic capture with ground truth into a folder")
     p.add_argument("out", help="capture folder to create")

@@ -1,8 +1,10 @@
 """The workflow config checked before any job runs, with the offending key's path in the one message.
 
 Two passes, both before Snakemake builds the DAG (rules/common.smk):
-1. the JSON schema (dpi/data/config.schema.yaml), closed at every level, so a typo anywhere is an
-   unknown key with the closest valid one suggested;
+1. the JSON schema, closed at every level, so a typo anywhere is an unknown key with the closest valid
+   one suggested: dpi/data/config.schema.yaml for the workflow's own keys, with each section a settings
+   dataclass owns (SCHEMA_SECTIONS) generated from that dataclass's fields and their bounds
+   (`config_schema`, which `dpi config --schema` prints);
 2. every section a settings dataclass owns is built by it: `method_params.{method}` by that
    method's config (dpi.solve.methods, so new dataclass fields are accepted without touching the
    schema), `synthetic.{scene}` by SynthConfig, `preprocess.{stage}` by the stage's config, `render`,
@@ -21,6 +23,7 @@ from typing import Any
 
 import yaml
 from jsonschema import Draft202012Validator
+from pydantic import TypeAdapter
 from jsonschema.exceptions import ValidationError, best_match
 
 from dpi.adaptive import AdaptiveConfig
@@ -53,6 +56,24 @@ SECTION_SETTINGS: dict[str, Callable[[dict], Any]] = {
 """config sections (key paths) built by one settings dataclass each"""
 
 
+SCHEMA_SECTIONS: dict[str, type] = {"render": RenderSettings, "problem": ProblemSettings, "init": InitConfig,
+                                    "adaptive": AdaptiveConfig, "preprocess.sfm": SfMConfig, "preprocess.masks": MaskConfig,
+                                    "preprocess.geometry": GeometryConfig, "preprocess.uv": UVConfig}
+"""config sections whose schema is their settings dataclass's (bounds and defaults written once, on its fields)"""
+
+
+def config_schema(schema_path: str | Path) -> dict[str, Any]:
+    """The config's JSON schema: the file's, with each of SCHEMA_SECTIONS generated from its settings dataclass."""
+    schema = yaml.safe_load(Path(schema_path).read_text())
+    for path, cls in SCHEMA_SECTIONS.items():
+        node = schema
+        for key in path.split("."):
+            node = node["properties"][key]
+        node.clear()
+        node.update(TypeAdapter(cls).json_schema())
+    return schema
+
+
 class ConfigError(ValueError):
     """The workflow config is invalid; the message starts with the key's path (`method_params.dps.steps: ...`)."""
 
@@ -60,7 +81,7 @@ class ConfigError(ValueError):
 def check_config(config: dict[str, Any], schema_path: str | Path) -> None:
     """Raise one ConfigError for the first problem of any quality preset of `config`, then of `config` itself
     (the chosen preset applied)."""
-    schema = yaml.safe_load(Path(schema_path).read_text())
+    schema = config_schema(schema_path)
     partial = {k: v for k, v in schema.items() if k != "required"}
     for name, preset in config.get("presets", {}).items():
         check_against(preset, partial, f"presets.{name}")
@@ -138,6 +159,11 @@ def wrap(check: Callable[[], Any], where: str) -> None:
 def schema_message(error: ValidationError, prefix: str) -> str:
     """A schema violation as `key.path: problem`; an unknown key names the closest valid one."""
     where = join(prefix, *(str(p) for p in error.absolute_path))
+    bounds = {"minimum": ">=", "maximum": "<=", "exclusiveMinimum": ">", "exclusiveMaximum": "<"}
+    if error.validator in bounds:
+        return f"{where}: must be {bounds[error.validator]} {error.validator_value:g}, got {error.instance!r}"
+    if error.validator == "enum":
+        return f"{where}: must be one of {', '.join(map(str, error.validator_value))}, got {error.instance!r}"
     if error.validator == "additionalProperties":
         known = error.schema.get("properties", {})
         try:

@@ -14,20 +14,21 @@ import torch
 from dpi.exr import read_exr, write_exr
 from dpi.images import resize
 from dpi.layout import TEXTURE_NAMES, texture_file
+from dpi.settings import Rate, settings
 
 CHANNELS = dict(zip(TEXTURE_NAMES, (3, 1, 1)))
 RANGES = {"albedo": (0.0, 1.0), "roughness": (0.02, 1.0), "metallic": (0.0, 1.0)}
 
 
-@dataclass
+@settings
 class MaterialRates:
     """Adam learning rates of the three textures: the one owner of their defaults, which the init, the
     optimisation-based methods, sds and dps inherit (their config keys lr_albedo, lr_roughness, lr_metallic;
     dps sets its own albedo rate, DPSConfig.lr_albedo)."""
 
-    lr_albedo: float = 2e-2
-    lr_roughness: float = 1.5e-2
-    lr_metallic: float = 1e-2
+    lr_albedo: Rate = 2e-2
+    lr_roughness: Rate = 1.5e-2
+    lr_metallic: Rate = 1e-2
 
     def rate(self, name: str) -> float:
         """The rate of texture `name` (albedo, roughness, metallic)."""

@@ -27,6 +27,7 @@ from dpi.images import resize, write_srgb
 from dpi.layout import ENV_FILE, SceneLayout
 from dpi.materials import RANGES, MaterialTextures
 from dpi.render import Renderer, RenderSettings
+from dpi.settings import Elevation, MapHeight, Rate, Steps, settings
 from dpi.solve.decomposition import Decomposition
 
 
@@ -61,7 +62,7 @@ class MaterialEdit:
         return edited.clamp_()
 
 
-@dataclass
+@settings
 class RelightConfig:
     """What to render: the environment, its rotation and resolution, the views, material edits."""
 
@@ -69,13 +70,13 @@ class RelightConfig:
     """EXR environment map to light with (None: the decomposition's own)"""
     rotate_deg: float = 0.0
     """turn the environment about the up axis (+Y), counter-clockwise seen from above"""
-    env_height: int | None = None
+    env_height: MapHeight | None = None
     """height H the map is resampled to (None: the decomposition's map height)"""
-    orbit: int = 0
+    orbit: Steps = 0
     """render this many cameras on a ring around the object instead of the capture's cameras"""
-    orbit_elevation_deg: float = 20.0
+    orbit_elevation_deg: Elevation = 20.0
     """elevation of the orbit cameras above the object's centre"""
-    exposure: float = 1.0
+    exposure: Rate = 1.0
     """factor applied before the PNGs' sRGB encoding (the EXRs stay linear)"""
     seed: int = 0
     """sampler seed of the first view (view i uses seed + i)"""

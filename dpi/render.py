@@ -9,15 +9,17 @@ function whose gradients reach the environment map and the three textures.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated, Literal
 
 import numpy as np
 import torch
+from pydantic import Field
 
 from dpi import backend
 from dpi.cameras import Camera, pixel_rays, to_mitsuba
 from dpi.envmap import pad_for_mitsuba
+from dpi.settings import Count, settings
 
 ENV_KEY = "emitter.data"
 TEXTURE_KEYS = {
@@ -28,17 +30,17 @@ TEXTURE_KEYS = {
 SEED_MODULUS = 2**32 - 8192
 
 
-@dataclass
+@settings
 class RenderSettings:
     """Path-tracing settings of the measurement operator."""
 
-    spp: int = 16
+    spp: Count = 16
     """samples per pixel of every differentiable render"""
-    max_depth: int = 5
+    max_depth: Annotated[int, Field(ge=1, le=64)] = 5
     """Mitsuba path depth: 5 = direct light plus 4 bounces"""
-    variant: str = "auto"
+    variant: Literal["auto", "llvm_ad_rgb", "cuda_ad_rgb"] = "auto"
     """Mitsuba variant: auto (cuda_ad_rgb with a GPU, else llvm_ad_rgb), or a name"""
-    threads: int | None = None
+    threads: Count | None = None
     """CPU threads for Dr.Jit and torch (None: leave as is)"""
 
 

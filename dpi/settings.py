@@ -1,11 +1,10 @@
 """Settings dataclasses from config dicts: one strict constructor for every stage's settings.
 
-`settings_from_dict` rejects unknown keys, values of the wrong type (from the dataclass's
-annotations) or non-finite numbers, and numbers outside `FIELD_BOUNDS`. The bounds go by field
-name, so every settings dataclass that follows the naming conventions (`steps`, `iterations`,
-`views_per_step`, `lr_*`, ...) is checked without declaring anything, new fields included.
-Errors are `SettingsError`s that carry the offending key, so a config reader can put the key's
-full path in front (`method_params.dps.steps: must be >= 1, got -5`).
+A settings class is a pydantic dataclass (`@settings`) whose fields carry their bounds in their annotations
+(`steps: Count = 100`, `share: Share = 0.5`), so the bound sits on the field, construction checks it, and the
+JSON schema `dpi config --schema` dumps shows it. `settings_from_dict` also rejects unknown keys (naming the
+closest valid one) and values of the wrong type. Errors are `SettingsError`s that carry the offending key, so
+a config reader can put the key's full path in front (`method_params.dps.steps: must be >= 1, got -5`).
 """
 
 from __future__ import annotations
@@ -15,9 +14,11 @@ import difflib
 import math
 import types
 from collections.abc import Iterable
-from dataclasses import MISSING, dataclass, fields
-from fnmatch import fnmatchcase
-from typing import Any, TypeVar, Union, get_args, get_origin, get_type_hints
+from dataclasses import MISSING, fields
+from typing import Annotated, Any, TypeVar, Union, get_args, get_origin, get_type_hints
+
+from pydantic import ConfigDict, Field, ValidationError
+from pydantic.dataclasses import dataclass as pydantic_dataclass
 
 T = TypeVar("T")
 
@@ -35,83 +36,83 @@ class SettingsError(ValueError):
         return type(self), (self.key, self.problem)
 
 
-@dataclass(frozen=True)
-class Bound:
-    """The valid range of a numeric setting: low (exclusive when `strict`) and high, both optional."""
+SETTINGS_MODEL = ConfigDict(extra="forbid", allow_inf_nan=False, use_attribute_docstrings=True)
+"""pydantic's rules for every settings dataclass: unknown fields, non-finite numbers and values outside a
+field's bounds are errors at construction (so also in `dataclasses.replace`)"""
 
-    low: float | None = None
-    high: float | None = None
-    strict: bool = False
-
-    def problem(self, value: float) -> str | None:
-        """Why `value` is outside the range, or None."""
-        if self.low is not None and (value <= self.low if self.strict else value < self.low):
-            return f"must be {'>' if self.strict else '>='} {self.low:g}, got {value!r}"
-        if self.high is not None and value > self.high:
-            return f"must be <= {self.high:g}, got {value!r}"
-        return None
+_C = TypeVar("_C", bound=type)
 
 
-FIELD_BOUNDS: dict[str, Bound] = {
-    "steps": Bound(1),
-    "*views_per_step": Bound(1),
-    "*iterations": Bound(0),
-    "lr_*": Bound(0, strict=True),
-    "spp": Bound(1),
-    "max_depth": Bound(1),
-    "views": Bound(1),
-    "width": Bound(1),
-    "height": Bound(1),
-    "rho_switch": Bound(0, 1),
-    "t_min": Bound(0, 1),
-    "t_max": Bound(0, 1),
-    "*_fraction": Bound(0, 1),
-    "rho_*": Bound(0),
-    "*_ratio": Bound(0),
-    "guidance_bound": Bound(0, strict=True),
-    "radiance_scale": Bound(0, strict=True),
-    "*channels": Bound(1),
-    "depth": Bound(1),
-    "strip_frames": Bound(1),
-    "start_noise": Bound(0),
-    "count": Bound(1),
-    "data_height": Bound(1),
-    "batch_size": Bound(1),
-    "threads": Bound(1),
-    "passes": Bound(1),
-    "ground_seed": Bound(-1, 1),
-    "ground_grow": Bound(-1, 1),
-    "ground_fit": Bound(0, 1),
-    "ground_min_pixels": Bound(0),
-    "photo_size": Bound(16),
-    "max_incidence_deg": Bound(0, 90),
-    "fallback_window": Bound(0),
-    "clip_fraction": Bound(0, 1),
-    "lr": Bound(0, strict=True),
-    "share": Bound(0, 1, strict=True),
-    "min_share": Bound(0, 1),
-    "radius_deg": Bound(0, 90, strict=True),
-    "min_roughness": Bound(0, 1),
-    "prior_weight": Bound(0),
-    "noise_mix": Bound(0, 1),
-    "material_start": Bound(0, 1),
-    "prox_weight": Bound(0),
-    "inner_steps": Bound(1),
-    "*map_solve": Bound(0),
-    "perturb": Bound(0),
-    "perturb_height": Bound(1),
-    "retry_below": Bound(0, 1),
-    "retry_gain": Bound(0, 1),
-}
-"""valid ranges of numeric settings by field-name pattern (fnmatch); the first matching pattern applies"""
+def settings(cls: _C | None = None, *, frozen: bool = False) -> Any:
+    """Make `cls` a settings dataclass: a pydantic dataclass whose fields carry their bounds (`Annotated`)."""
+    def wrap(c: _C) -> _C:
+        return pydantic_dataclass(c, config=SETTINGS_MODEL, frozen=frozen)
+    return wrap if cls is None else wrap(cls)
+
+
+Count = Annotated[int, Field(ge=1)]
+"""how many of something, at least one"""
+Steps = Annotated[int, Field(ge=0)]
+"""how many (iterations, levels, votes), zero allowed"""
+Rate = Annotated[float, Field(gt=0)]
+"""a learning rate or another strictly positive scale"""
+Weight = Annotated[float, Field(ge=0)]
+"""a non-negative weight, margin or tolerance"""
+Fraction = Annotated[float, Field(ge=0, le=1)]
+"""a share or threshold in [0, 1]"""
+Share = Annotated[float, Field(gt=0, le=1)]
+"""a share in (0, 1]"""
+MapHeight = Annotated[int, Field(ge=4, le=1024)]
+"""rows of an equirectangular map (width twice that)"""
+TextureSize = Annotated[int, Field(ge=4, le=4096)]
+"""texels along a side of a square texture"""
+ImageSize = Annotated[int, Field(ge=8, le=8192)]
+"""pixels along an image side"""
+Elevation = Annotated[float, Field(ge=-90, le=90)]
+"""degrees above the horizon"""
+Loose = Field(strict=False)
+"""a sequence field: a YAML list is read as the tuple"""
 
 
 def settings_from_dict(cls: type[T], values: dict[str, Any] | None) -> T:
     """A settings dataclass from a (partial) dict; unknown keys, wrong types and out-of-range values are errors."""
     values = dict(values or {})
     check_keys(values, [f.name for f in fields(cls)], f"{cls.__name__} setting")
+    return build(cls, **values)
+
+
+def build(cls: type[T], **values: Any) -> T:
+    """`cls(**values)` after the type check (`check_values`); a field's bound broken is a SettingsError naming it."""
     check_values(cls, values)
-    return cls(**values)
+    try:
+        return cls(**values)
+    except ValidationError as exc:
+        raise settings_error(exc) from None
+
+
+def settings_error(exc: ValidationError) -> SettingsError:
+    """pydantic's first error as one `key: must be ..., got ...` line."""
+    error = exc.errors()[0]
+    ctx, value = error.get("ctx") or {}, error.get("input")
+    if isinstance(ctx.get("error"), SettingsError):  # raised by the class's own check (__post_init__, a validator)
+        inner = ctx["error"]
+        return SettingsError(".".join([*(str(part) for part in error["loc"]), inner.key]), inner.problem)
+    key = ".".join(str(part) for part in error["loc"]) or "settings"
+    words = {"greater_than_equal": ">=", "greater_than": ">", "less_than_equal": "<=", "less_than": "<"}
+    if error["type"] in words:
+        limit = next(iter(ctx.values()))
+        return SettingsError(key, f"must be {words[error['type']]} {limit:g}, got {value!r}")
+    if error["type"] == "multiple_of":
+        return SettingsError(key, f"must be a multiple of {ctx['multiple_of']}, got {value!r}")
+    if error["type"] == "literal_error":
+        return SettingsError(key, f"must be one of {ctx['expected']}, got {value!r}")
+    if error["type"] == "value_error":
+        return SettingsError(key, f"{error['ctx']['error']}, got {value!r}")
+    if error["type"] in ("unexpected_keyword_argument", "extra_forbidden"):
+        return SettingsError(key, "unknown setting")
+    if error["type"] == "finite_number":
+        return SettingsError(key, f"must be a finite number, got {value!r}")
+    return SettingsError(key, f"{error['msg'][0].lower()}{error['msg'][1:]}, got {value!r}")
 
 
 def field_default(cls: type, name: str) -> Any:
@@ -132,13 +133,13 @@ def check_keys(values: Iterable[Any], known: Iterable[str], what: str) -> None:
 
 
 def check_values(cls: type, values: dict[str, Any]) -> None:
-    """Fail on the first value of the wrong type (by `cls`'s annotations), non-finite, or outside FIELD_BOUNDS."""
+    """Fail on the first value of the wrong type (by `cls`'s annotations) or non-finite; the bounds are pydantic's."""
     try:
         hints = get_type_hints(cls)
     except NameError:  # an annotation names a type only imported for type checkers: check ranges only
         hints = {}
     for key, value in values.items():
-        problem = (type_problem(value, hints[key]) if key in hints else None) or bound_problem(key, value)
+        problem = type_problem(value, hints[key]) if key in hints else None
         if problem:
             raise SettingsError(key, problem)
 
@@ -150,14 +151,6 @@ def type_problem(value: Any, hint: Any) -> str | None:
     if isinstance(value, float) and not math.isfinite(value):
         return f"must be a finite number, got {value!r}"
     return None
-
-
-def bound_problem(key: str, value: Any) -> str | None:
-    """Why a numeric `value` of setting `key` is outside its FIELD_BOUNDS range, or None."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return None
-    bound = next((b for pattern, b in FIELD_BOUNDS.items() if fnmatchcase(key, pattern)), None)
-    return bound.problem(value) if bound else None
 
 
 def _fits(value: Any, hint: Any) -> bool:

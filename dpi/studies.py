@@ -9,22 +9,23 @@ env-map spread across samples (sigma2_sample) grows with roughness.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import field, replace
 from pathlib import Path
 
 from dpi.capture import load_capture
 from dpi.pipeline import resolve_config
-from dpi.spread import normalized_env, sample_variance
 from dpi.prior.sample import Prior
 from dpi.render import RenderSettings
+from dpi.settings import Count, settings
 from dpi.solve.dps import DPSConfig, dps_sample
 from dpi.solve.dps.refine import RefineSettings
 from dpi.solve.init import InitConfig, path_traced_init
 from dpi.solve.problem import InverseProblem, ProblemSettings
+from dpi.spread import normalized_env, sample_variance
 from dpi.synth.capture import SynthConfig, make_synthetic_capture
 
 
-@dataclass
+@settings
 class SweepSettings:
     """Sizes of one roughness-sweep run: small views and map (32 rows), the workflow's render and init.
 
@@ -38,7 +39,7 @@ class SweepSettings:
     render: RenderSettings = field(default_factory=RenderSettings)
     init: InitConfig = field(default_factory=lambda: InitConfig.from_dict(resolve_config()["init"]))
     dps: DPSConfig = field(default_factory=lambda: DPSConfig(steps=50, refine=RefineSettings(iterations=20)))
-    samples: int = 6
+    samples: Count = 6
     """dps samples per point: sigma2_sample of 3 varied by 2x between repeats of one roughness (2026-11-25: 0.0079
     against 0.0146-0.0200 at 0.9), which decided Fig. 9's ratio on one repeat; with 6 that estimate's variance is
     0.4x (2 / (n - 1))"""

@@ -44,16 +44,18 @@ def test_yaml_booleans_name_the_sun_modes():
     assert DPSConfig.from_dict({"sun": "auto"}).sun.mode == "auto"
 
 
-def test_settings_are_grouped_and_the_flat_keys_name_their_new_place():
-    cfg = DPSConfig.from_dict({"steps": 7, "proximal": {"inner_steps": 3}, "refine": {"iterations": 9}})
+def test_settings_are_grouped_and_each_key_is_checked_where_it_lives():
+    cfg = DPSConfig.from_dict({"steps": 7, "proximal": {"inner_steps": 3, "transport": {"pixels": 512}},
+                               "refine": {"iterations": 9}})
     assert (cfg.steps, cfg.sampler_settings.inner_steps, cfg.refine.iterations) == (7, 3, 9)
-    with pytest.raises(ValueError, match="inner_steps: moved to proximal.inner_steps"):
+    assert cfg.proximal.transport.pixels == 512
+    with pytest.raises(ValueError, match="inner_steps: unknown DPSConfig setting"):
         DPSConfig.from_dict({"inner_steps": 3})
-    with pytest.raises(ValueError, match="refine_iterations: moved to refine.iterations"):
-        DPSConfig.from_dict({"refine_iterations": 3})
-    with pytest.raises(ValueError, match="map_update: removed"):
-        DPSConfig.from_dict({"map_update": "normalized"})
-    with pytest.raises(ValueError, match="proximal.start_noise: must be in"):
+    with pytest.raises(ValueError, match="proximal.transport.pixelz: unknown setting"):
+        DPSConfig.from_dict({"proximal": {"transport": {"pixelz": 3}}})
+    with pytest.raises(ValueError, match="proximal.transport.spp: must be a multiple of 2"):
+        DPSConfig.from_dict({"proximal": {"transport": {"spp": 3}}})
+    with pytest.raises(ValueError, match="proximal.start_noise: must be > 0, got 0"):
         DPSConfig.from_dict({"proximal": {"start_noise": 0}})
     with pytest.raises(ValueError, match="proximal.lr_mapp: unknown ProximalSettings setting; did you mean 'lr_map'"):
         DPSConfig.from_dict({"proximal": {"lr_mapp": 0.1}})
@@ -61,14 +63,20 @@ def test_settings_are_grouped_and_the_flat_keys_name_their_new_place():
         DPSConfig.from_dict({"refine": 3})
 
 
-def test_a_glossy_init_refines_longer_with_a_freer_polish():
+def test_a_glossy_init_changes_the_settings_in_one_place():
+    """DPSConfig.for_init: a glossy init records a finer transport with roughness levels, skips the map's solve,
+    takes two updates a step and refines twice as long with a freer polish; a rough init keeps the settings."""
     from dpi.materials import MaterialTextures
+    from dpi.solve.decomposition import Decomposition
 
-    settings = DPSConfig.from_dict({"refine": {"iterations": 50, "glossy_factor": 2.0, "lr_texels": 0.005,
-                                               "glossy_lr_texels": 0.02}}).refine
-    glossy = settings.for_init(MaterialTextures.constant(8, roughness=0.1))
-    assert (glossy.iterations, glossy.lr_texels) == (100, 0.02)
-    assert settings.for_init(MaterialTextures.constant(8, roughness=0.8)) is settings
+    cfg = DPSConfig.from_dict({"refine": {"iterations": 50, "lr_texels": 0.005}})
+    env = torch.ones(4, 8, 3)
+    glossy = cfg.for_init(Decomposition(env, MaterialTextures.constant(8, roughness=0.1)))
+    assert (glossy.refine.iterations, glossy.refine.lr_texels) == (100, 0.02)
+    assert (glossy.proximal.transport.roughness_levels, glossy.proximal.transport.max_height) == (3, 32)
+    assert (glossy.proximal.map_solve, glossy.proximal.inner_steps) == (0, 2)
+    assert glossy.proximal.transport.pixels == cfg.proximal.transport.pixels
+    assert cfg.for_init(Decomposition(env, MaterialTextures.constant(8, roughness=0.8))) is cfg
 
 
 def test_guidance_is_scaled_to_its_bound():

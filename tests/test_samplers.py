@@ -258,12 +258,6 @@ def test_unknown_sampler_is_an_error():
         DPSConfig.from_dict({"proximal": {"inner_steps": 0}})
 
 
-@pytest.mark.parametrize("entry", [{"sampler": "gibbs"}, {"gibbs": {"smoothness": 1.0}}])
-def test_a_removed_sampler_is_an_error_that_says_so(entry):
-    with pytest.raises(ValueError, match="removed"):
-        DPSConfig.from_dict(entry)
-
-
 def test_sample_stage_draws_a_dps_sample(tiny_capture, tmp_path):
     from dpi.prior.train import save_atomic
     from dpi.stages import SolveSettings, capture_stage, init_stage, sample_stage

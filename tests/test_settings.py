@@ -1,11 +1,12 @@
 """Strict settings from dicts, and quality presets that fill only what the user leaves unset."""
 
 import copy
-from dataclasses import dataclass
+from dataclasses import replace
+from typing import Annotated
 
 import pytest
 
-from dpi.settings import SettingsError, apply_preset, settings_from_dict
+from dpi.settings import Count, Loose, Rate, SettingsError, apply_preset, settings, settings_from_dict
 
 PRESETS = {"draft": {"render": {"spp": 4}, "method_params": {"dps": {"steps": 25, "refine_iterations": 50}}},
            "paper": {"render": {"spp": 64}, "problem": {"env_height": 64}}}
@@ -34,13 +35,13 @@ def test_unknown_preset_names_the_defined_ones():
         apply_preset({"preset": "fast", "presets": PRESETS})
 
 
-@dataclass
+@settings
 class S:
     a: int = 1
-    steps: int = 10
-    lr_env: float = 0.1
+    steps: Count = 10
+    lr_env: Rate = 0.1
     scale: float | None = None
-    names: tuple[str, ...] = ()
+    names: Annotated[tuple[str, ...], Loose] = ()
 
 
 def test_settings_from_dict_rejects_unknown_keys_naming_the_closest():
@@ -69,9 +70,17 @@ def test_settings_values_are_checked_by_type_and_field_bounds(values, message):
     assert str(info.value) == message
 
 
+def test_a_fields_bound_holds_wherever_the_settings_are_made():
+    """The bound sits on the field: a direct construction or a `replace` is checked as a config is."""
+    with pytest.raises(ValueError, match="greater than or equal to 1"):
+        replace(S(), steps=0)
+    with pytest.raises(ValueError):
+        S(lr_env=-1.0)
+
+
 def test_valid_values_pass_and_ints_count_as_numbers():
     s = settings_from_dict(S, {"steps": 1, "lr_env": 1, "scale": None, "names": ["a"]})
-    assert (s.steps, s.lr_env, s.scale, s.names) == (1, 1, None, ["a"])
+    assert (s.steps, s.lr_env, s.scale, s.names) == (1, 1, None, ("a",))
 
 
 def test_settings_error_survives_pickling():

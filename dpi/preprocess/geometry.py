@@ -12,46 +12,54 @@ oriented outwards (positive volume), as Mitsuba's one-sided BSDFs need.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import numpy as np
+from pydantic import Field
 
 from dpi.cameras import Camera
-from dpi.preprocess.hull import cut_below, marching_cubes, seen_from_above, support_plane, visual_hull
+from dpi.preprocess.hull import (
+    cut_below,
+    marching_cubes,
+    seen_from_above,
+    support_plane,
+    visual_hull,
+)
+from dpi.settings import Count, Fraction, Rate, Steps, Weight, settings
 
 if TYPE_CHECKING:
     from dpi.preprocess.stereo import StereoConfig
 
 
 
-@dataclass
+@settings
 class GeometryConfig:
     """Settings of carving and mesh clean-up."""
 
-    resolution: int = 128
+    resolution: Annotated[int, Field(ge=8, le=1024)] = 128
     """voxels along the longest side of the object's box (fine pass)"""
-    coarse_resolution: int = 48
+    coarse_resolution: Annotated[int, Field(ge=8, le=1024)] = 48
     """voxels along the side of the search box (coarse pass)"""
-    outside_votes: int = 2
+    outside_votes: Steps = 2
     """views that must see a voxel outside its silhouette to carve it (tolerates outside_votes - 1 bad masks)"""
     object_in_frame: bool = True
     """the whole object is inside every image: a voxel outside a view's frame is outside the object"""
-    min_view_fraction: float = 0.5
+    min_view_fraction: Fraction = 0.5
     """without object_in_frame: a voxel inside fewer than this fraction of the views' frames is outside"""
-    margin: float = 0.08
+    margin: Weight = 0.08
     """margin around the coarse hull's box, as a fraction of its size"""
-    smoothing_steps: int = 10
+    smoothing_steps: Steps = 10
     """Taubin smoothing iterations"""
-    target_faces: int = 20000
+    target_faces: Count = 20000
     """face budget of the decimated mesh"""
-    remesh_iterations: int = 3
+    remesh_iterations: Steps = 3
     """isotropic remeshing iterations (0: none)"""
-    remesh_edge: float | None = None
+    remesh_edge: Rate | None = None
     """target edge length of the remeshing, percent of the bounding-box diagonal (None: the length
     whose equilateral triangles keep the face budget)"""
-    min_component: float = 20.0
+    min_component: Weight = 20.0
     """components with a diagonal below this percent of the whole are removed"""
     support_plane: bool = True
     """when every camera looks from above, cut the hull at the plane of the object's lowest rim points (a
@@ -64,7 +72,7 @@ class GeometryConfig:
     """carve what multi-view stereo sees as empty inside the hull (needs the photos; dpi.preprocess.stereo)"""
     stereo_settings: dict[str, Any] = field(default_factory=dict)
     """fields of dpi.preprocess.stereo.StereoConfig (plane sweep, filtering, carving)"""
-    photo_size: int | None = 480
+    photo_size: Annotated[int, Field(ge=16)] | None = 480
     """longer side (px) of the photos the ground test and stereo match: larger ones are area-downsampled,
     cameras and masks follow (their windows are in pixels and their cost grows with the pixels; None:
     the photos' own size). The silhouettes carve at full size"""

@@ -25,45 +25,55 @@ than `fill_holes_below` of the object (the hole of a torus) are kept.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 import torch
+from pydantic import Field
 
 from dpi.cameras import Camera
 from dpi.consistency import mask_iou
-from dpi.images import read_image, resize, resize_mask, to_uint8, working_size, write_mask
+from dpi.images import (
+    read_image,
+    resize,
+    resize_mask,
+    to_uint8,
+    working_size,
+    write_mask,
+)
 from dpi.preprocess.hull import marching_cubes, visible_sphere, visual_hull
+from dpi.settings import Count, Fraction, Rate, Steps, Weight, settings
 
 log = logging.getLogger(__name__)
 
 METHODS = ("auto", "grabcut", "key")
 
 
-@dataclass
+@settings
 class MaskConfig:
     """Settings of mask extraction."""
 
     method: str = "auto"
     """auto (keying on a uniform background, else GrabCut) | grabcut | key"""
-    sphere_fraction: float = 0.7
+    sphere_fraction: Fraction = 0.7
     """first GrabCut prior: the disc of this fraction of the sphere every camera sees whole is probably foreground"""
-    hull_margin: float = 0.05
+    hull_margin: Weight = 0.05
     """growth of the projected object points' hull that is probably foreground, as a fraction of its size"""
-    hull_core: float = 0.12
+    hull_core: Weight = 0.12
     """the points' hull shrunk by this fraction of its size is foreground for sure (a region; 0: off)"""
-    min_points: int = 30
+    min_points: Count = 30
     """with fewer object points the first prior is the sphere alone"""
-    outlier_std_ratio: float = 2.0
+    outlier_std_ratio: Rate = 2.0
     """object points farther from their neighbours than the mean plus this many standard deviations
     are dropped before the hull (open3d's statistical outlier removal; 0: keep all)"""
-    grabcut_iterations: int = 5
-    key_max_spread: float = 0.06
+    grabcut_iterations: Steps = 5
+    key_max_spread: Weight = 0.06
     """the background is uniform when the border's colours (sRGB, 0-1) spread less than this"""
-    key_threshold: float = 0.1
+    key_threshold: Fraction = 0.1
     """keying: a pixel is foreground when its sRGB colour is farther than this from the key colour"""
-    fill_holes_below: float = 0.01
+    fill_holes_below: Fraction = 0.01
     """holes smaller than this fraction of the mask's area are filled"""
     consensus_votes: list[float] = field(default_factory=lambda: [0.25, 0.125])
     """one consensus round per entry: the fraction of the views that must see a voxel outside their
@@ -71,9 +81,9 @@ class MaskConfig:
     consensus_bands: list[float] = field(default_factory=lambda: [0.08, 0.04])
     """per round: half-width of the band around the projected hull's outline in which GrabCut
     decides, as a fraction of the object's size in the image"""
-    consensus_resolution: int = 96
+    consensus_resolution: Annotated[int, Field(ge=8, le=1024)] = 96
     """voxels along the longest side of the consensus hull's box"""
-    max_size: int | None = 480
+    max_size: Annotated[int, Field(ge=16)] | None = 480
     """longer image side (px) the masks are computed at: larger photos are area-downsampled (with their
     cameras) and the masks upsampled to the photos' size (GrabCut's fixed smoothness is tuned to small
     images and costs seconds per view at photo size); None: the photos' own size"""

@@ -23,11 +23,14 @@ import shutil
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
+from pydantic import Field
 
 from dpi.cameras import Camera
 from dpi.preprocess.hull import axes_centre, visible_sphere
+from dpi.settings import Count, Fraction, Rate, settings
 
 log = logging.getLogger(__name__)
 
@@ -43,35 +46,35 @@ class SfMError(RuntimeError):
         self.summary = summary or {}
 
 
-@dataclass
+@settings
 class SfMConfig:
     """Settings of the COLMAP pipeline and of the checks on its result."""
 
     matcher: str = "auto"
     """auto (exhaustive up to exhaustive_max_images images, else sequential) | exhaustive | sequential"""
-    exhaustive_max_images: int = 120
+    exhaustive_max_images: Count = 120
     """largest capture matched exhaustively under matcher=auto"""
-    sequential_overlap: int = 15
+    sequential_overlap: Count = 15
     """neighbours (in file order) each image is matched with by the sequential matcher"""
-    max_image_size: int = 1600
+    max_image_size: Annotated[int, Field(ge=64)] = 1600
     """images are downscaled to this longest side for feature extraction"""
-    max_features: int = 8192
+    max_features: Count = 8192
     """SIFT features per image"""
-    peak_threshold: float = 0.004
+    peak_threshold: Rate = 0.004
     """SIFT contrast threshold (COLMAP's default 0.0067 finds few features in small or soft images)"""
-    init_min_inliers: int = 50
+    init_min_inliers: Count = 50
     """verified matches the initial image pair needs (COLMAP's default 100 suits large photos)"""
-    min_pose_inliers: int = 30
+    min_pose_inliers: Count = 30
     """2D-3D inliers a further image needs to be registered (COLMAP's default)"""
-    focal_length_px: float | None = None
+    focal_length_px: Rate | None = None
     """known focal length in pixels (fixed during mapping); None: estimated (EXIF or 1.2 x image size first)"""
-    min_registered_fraction: float = 0.9
+    min_registered_fraction: Fraction = 0.9
     """fewer registered images than this fraction of the capture is an error"""
-    max_reprojection_error_px: float = 1.5
+    max_reprojection_error_px: Rate = 1.5
     """a mean reprojection error above this is an error"""
-    object_view_fraction: float = 0.75
+    object_view_fraction: Fraction = 0.75
     """a sparse point is on the object when at least this fraction of the cameras has it in view"""
-    min_track_length: int = 3
+    min_track_length: Annotated[int, Field(ge=2)] = 3
     """sparse points seen in fewer images are dropped"""
     reject_off_centre: bool = True
     """drop registered views that do not have the object (the point all cameras look at) in frame:

@@ -26,67 +26,71 @@ so stereo only removes volume the silhouettes left, never adds it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
+from typing import Annotated
 
 import numpy as np
 import torch
 import torch.nn.functional as F
+from pydantic import Field
 
 from dpi.cameras import Camera
 from dpi.consistency import raycasting_scene
+from dpi.settings import Count, Fraction, Steps, Weight, settings
 
-@dataclass
+
+@settings
 class StereoConfig:
     """Settings of the plane sweep, the depth filters and the carving."""
 
-    neighbours: int = 6
+    neighbours: Count = 6
     """views each depth map is matched against (nearest viewing directions)"""
-    best_of: int = 4
+    best_of: Count = 4
     """a plane's score is the mean NCC of its best `best_of` neighbours (occlusion-robust)"""
-    planes: int = 64
+    planes: Annotated[int, Field(ge=2)] = 64
     """depth planes over the hull's depth range per view (first pass)"""
-    refine: int = 9
+    refine: Steps = 9
     """per-pixel depths around the best plane, one plane step either side (second pass)"""
-    window: int = 11
+    window: Count = 11
     """NCC window side in pixels"""
-    fallback_window: int = 15
+    fallback_window: Steps = 15
     """pixels left without a consistent depth at `window` take the depth a sweep with this larger window
     finds, if that one is consistent (a noisy, weakly lit patch such as a bowl's cavity matches over
     more pixels; at most `window`: off)"""
-    min_score: float = 0.3
+    min_score: Annotated[float, Field(ge=-1, le=1)] = 0.3
     """mean NCC a depth must reach"""
-    blur_px: float = 1.0
+    blur_px: Weight = 1.0
     """Gaussian blur (pixels) of the images before matching: noise and aliased texture do not match"""
-    min_consistent: int = 2
+    min_consistent: Count = 2
     """neighbour depth maps that must agree with a depth (within `consistency` of it)"""
-    consistency: float = 0.01
+    consistency: Weight = 0.01
     """relative depth difference under which two views agree"""
-    beyond: float = 0.5
+    beyond: Weight = 0.5
     """planes continue this fraction of the hull's depth extent past its far side (holes)"""
-    highlight_ratio: float = 1.3
+    highlight_ratio: Weight = 1.3
     """pixels brighter than this times their surroundings' mean (and 3 px around) get no depth (0: off)"""
-    band_voxels: float = 3.0
+    band_voxels: Weight = 3.0
     """truncation of the carving distance, in hull voxels"""
-    margin_voxels: float = 0.5
+    margin_voxels: Weight = 0.5
     """the carving distance must exceed this (hull voxels): depth noise does not shave the hull"""
-    votes: int = 3
+    votes: Count = 3
     """views that must have a depth at a voxel for it to be carved"""
-    max_baseline_deg: float = 50.0
+    max_baseline_deg: Annotated[float, Field(gt=0, le=180)] = 50.0
     """neighbours see the object's centre within this angle of the reference view"""
-    max_incidence_deg: float = 70.0
+    max_incidence_deg: Annotated[float, Field(ge=0, le=90)] = 70.0
     """depths whose surface (the depth map's own normal) is seen more than this from head-on are dropped
     (a window on a grazing surface spans more depth than the sweep resolves; 90: off)"""
-    passes: int = 2
+    passes: Count = 2
     """rounds of depth maps and carving, each swept inside the surface the previous one carved: depths
     in front of it are no longer hypotheses, so cavities the first round half opened open further"""
-    ground_fit: float = 0.02
+    ground_fit: Fraction = 0.02
     """the ground test (dpi.preprocess.ground) runs only when at least this fraction of the background
     pixels near the object reach `ground_seed` under the fitted ground plane (a plain ground: none)"""
-    ground_seed: float = 0.95
+    ground_seed: Annotated[float, Field(ge=-1, le=1)] = 0.95
     """NCC under the ground plane's homography at which a masked pixel sees the ground"""
-    ground_grow: float = 0.7
+    ground_grow: Annotated[float, Field(ge=-1, le=1)] = 0.7
     """NCC at which a masked pixel connected to a seed sees the ground too"""
-    ground_min_pixels: int = 20
+    ground_min_pixels: Steps = 20
     """ground regions smaller than this (pixels) stay in the mask"""
 
 

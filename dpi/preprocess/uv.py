@@ -17,21 +17,21 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from dpi.settings import Steps, TextureSize, settings
 from dpi.synth.shapes import TriangleMesh
 
 
-@dataclass
+@settings
 class UVConfig:
     """Settings of the atlas."""
 
-    texture_size: int = 512
+    texture_size: TextureSize = 512
     """texture resolution the charts are packed for (gutters are measured in its texels)"""
-    padding: int = 2
+    padding: Steps = 2
     """texels between charts"""
 
 

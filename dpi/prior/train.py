@@ -14,18 +14,42 @@ import copy
 import json
 import math
 import time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, field, fields
 from pathlib import Path
+from typing import Annotated
 
 import torch
 from tqdm import tqdm
 
 from dpi.atomic import atomic_path
 from dpi.prior.data import EnvmapDataset, clip_highlights, median_target, read_dataset
-from dpi.prior.diffusion import base_diffusion, evenly_spaced_timesteps, respaced, sample, training_losses
+from dpi.prior.diffusion import (
+    base_diffusion,
+    evenly_spaced_timesteps,
+    respaced,
+    sample,
+    training_losses,
+)
 from dpi.prior.sample import write_grid
-from dpi.prior.unet import SMALL_CONFIGS, CheckpointError, UNetConfig, UNetModel, count_parameters, load_checkpoint
-from dpi.settings import SettingsError, settings_from_dict
+from dpi.prior.unet import (
+    SMALL_CONFIGS,
+    CheckpointError,
+    UNetConfig,
+    UNetModel,
+    count_parameters,
+    load_checkpoint,
+)
+from dpi.settings import (
+    Count,
+    Fraction,
+    Loose,
+    MapHeight,
+    Rate,
+    SettingsError,
+    Steps,
+    settings,
+    settings_from_dict,
+)
 from dpi.tonecurve import family_encoding
 
 CHECKPOINT_FORMAT = "dpi-prior-v1"
@@ -35,7 +59,7 @@ DEFAULT_MODEL = "small_32x64"
 """the network (a name in dpi.prior.unet.SMALL_CONFIGS) a prior is trained with unless told otherwise"""
 
 
-@dataclass
+@settings
 class TrainConfig:
     """Everything a training run depends on."""
 
@@ -43,27 +67,27 @@ class TrainConfig:
     data_dir: str  # folder of panoramas, or a packed .npz (EnvmapDataset.save)
     out: str  # checkpoint path; resumed when it exists
     model: UNetConfig = field(default_factory=lambda: SMALL_CONFIGS[DEFAULT_MODEL])
-    steps: int = 20000  # total optimiser steps (including resumed ones)
-    batch_size: int = 8
-    lr: float = 3e-4
-    warmup_steps: int = 0  # linear learning-rate warm-up from 0 (large batches on a GPU want a few hundred)
+    steps: Count = 20000  # total optimiser steps (including resumed ones)
+    batch_size: Count = 8
+    lr: Rate = 3e-4
+    warmup_steps: Steps = 0  # linear learning-rate warm-up from 0 (large batches on a GPU want a few hundred)
     lr_schedule: str = "constant"  # 'constant', or 'cosine' (decays to 0 at `steps`; a fine-tune's end)
     init: str | None = None  # start a new run from this prior's weights (model and EMA); ignored when resuming
-    ema_decay: float = 0.995  # with warm-up min(decay, (1 + step) / (10 + step)); short CPU runs want < 0.999
-    num_timesteps: int = 1000
-    max_minutes: float | None = None  # stop after this wall time (checkpoint written)
-    sample_every: int = 1000  # write a PNG grid of EMA samples every N steps (0: never)
-    sample_steps: int = 50  # respaced steps for those grids
-    checkpoint_every: int = 100
-    log_every: int = 10
+    ema_decay: Fraction = 0.995  # with warm-up min(decay, (1 + step) / (10 + step)); short CPU runs want < 0.999
+    num_timesteps: Count = 1000
+    max_minutes: Rate | None = None  # stop after this wall time (checkpoint written)
+    sample_every: Steps = 1000  # write a PNG grid of EMA samples every N steps (0: never)
+    sample_steps: Count = 50  # respaced steps for those grids
+    checkpoint_every: Count = 100
+    log_every: Count = 10
     device: str = "cpu"
     seed: int = 0
     encoding: str = "log"  # 'log' (log radiance around the median) or 'paper' (the family's tone curve)
     amp: bool = True  # bfloat16 autocast of the forward pass on CUDA (ignored on the CPU)
-    clip_fraction: float = 0.0  # share of each batch clipped like 8-bit panoramas (dpi.prior.data.clip_highlights)
-    clip_multiples: tuple[float, float] = (3.0, 30.0)  # clip levels, in multiples of the median luminance
+    clip_fraction: Fraction = 0.0  # share of each batch clipped like 8-bit panoramas (dpi.prior.data.clip_highlights)
+    clip_multiples: Annotated[tuple[float, float], Loose] = (3.0, 30.0)  # clip levels, in multiples of the median luminance
     real_data: str | None = None  # real panoramas (a folder or a set packed by `dpi panorama-set`) mixed in
-    real_fraction: float = 0.25  # share of each batch drawn from `real_data`
+    real_fraction: Fraction = 0.25  # share of each batch drawn from `real_data`
 
     def __post_init__(self):
         """An unknown schedule fails here, not at the first optimiser step."""
@@ -74,21 +98,21 @@ class TrainConfig:
                                                f"{', '.join(LR_SCHEDULES)}")
 
 
-@dataclass
+@settings
 class PriorJobConfig:
     """How the workflow makes one family's prior (config `prior:`, then `prior.<family>`): a procedural
     dataset (rule envmap_dataset), then a training run (rule train_prior). Keys other than these fields are
     TrainConfig fields (steps, batch_size, lr, ema_decay, max_minutes, sample_every, device, ...)."""
 
-    count: int = 3000
+    count: Count = 3000
     """maps in the procedural dataset"""
-    data_height: int = 64
+    data_height: MapHeight = 64
     """their height H (maps are H x 2H; indoor ray casting costs ~H^2)"""
     seed: int = 0
     """seed of the dataset and of training"""
     model: str = DEFAULT_MODEL
     """network, a name in dpi.prior.unet.SMALL_CONFIGS"""
-    threads: int = 1
+    threads: Count = 1
     """CPU threads of the training job"""
     train: dict = field(default_factory=dict)
     """the TrainConfig fields set"""

@@ -11,33 +11,37 @@ by 2^(levels-1), so H x 2H env maps work as well as squares.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
+from typing import Annotated
 
 import torch
+from pydantic import Field
 from torch import nn
 from torch.nn import functional as F
 
+from dpi.settings import Count, Loose, settings
 
-@dataclass(frozen=True)
+
+@settings(frozen=True)
 class UNetConfig:
     """Hyper-parameters of guided-diffusion's UNetModel (names as in its script_util flags)."""
 
-    image_size: int = 32  # height H; only used to turn attention resolutions into downsample factors
-    in_channels: int = 3
-    num_channels: int = 64  # model_channels
-    num_res_blocks: int = 2
-    channel_mult: tuple[int, ...] = (1, 2, 2)
-    attention_ds: tuple[int, ...] = (4,)  # downsample factors with attention (image_size // resolution)
-    num_heads: int = 4
-    num_head_channels: int = -1  # channels per head; overrides num_heads when != -1
-    num_heads_upsample: int = -1
+    image_size: Annotated[int, Field(ge=8)] = 32  # height H; only used to turn attention resolutions into downsample factors
+    in_channels: Count = 3
+    num_channels: Count = 64  # model_channels
+    num_res_blocks: Count = 2
+    channel_mult: Annotated[tuple[int, ...], Loose] = (1, 2, 2)
+    attention_ds: Annotated[tuple[int, ...], Loose] = (4,)  # downsample factors with attention (image_size // resolution)
+    num_heads: Count = 4
+    num_head_channels: Annotated[int, Field(ge=-1)] = -1  # channels per head; overrides num_heads when != -1
+    num_heads_upsample: Annotated[int, Field(ge=-1)] = -1
     learn_sigma: bool = True
     use_scale_shift_norm: bool = True
     resblock_updown: bool = True
     use_new_attention_order: bool = False
-    dropout: float = 0.0
-    norm_groups: int = 32  # GroupNorm groups (guided-diffusion: 32); no parameter depends on it. Keep several
+    dropout: Annotated[float, Field(ge=0, lt=1)] = 0.0
+    norm_groups: Count = 32  # GroupNorm groups (guided-diffusion: 32); no parameter depends on it. Keep several
     # channels per group: with one channel per group the output head cannot carry the image mean, and
     # samples get strong random colour casts
 

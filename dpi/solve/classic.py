@@ -8,11 +8,12 @@ have the same magnitude at the start (times `prior_weight_ratio`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 
 import torch
 
+from dpi.settings import Weight, settings
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.init import starting_materials
 from dpi.solve.optimize import OptimizeConfig, fit, flat_config, method_config_from_dict
@@ -21,14 +22,14 @@ from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
 
 
-@dataclass
+@settings
 class ClassicConfig:
     """Settings of an optimisation-based prior method."""
 
     optimize: OptimizeConfig = field(default_factory=lambda: OptimizeConfig(iterations=150, views_per_step=2))
-    prior_weight_ratio: float = 1.0
+    prior_weight_ratio: Weight = 1.0
     """prior weight relative to the balanced one (1: equal magnitude at the start)"""
-    start_noise: float = 0.5
+    start_noise: Weight = 0.5
     """std of the log-normal perturbation of the starting map (makes samples differ)"""
 
     @classmethod

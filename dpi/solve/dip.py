@@ -18,17 +18,26 @@ rendering) to the init map. The seed's weights and code make samples differ.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
+from typing import Annotated
 
 import torch
+from pydantic import Field
 from torch import nn
 
 from dpi.envmap import pad_equirect
+from dpi.settings import Count, Steps, settings
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.init import starting_materials
-from dpi.solve.optimize import (LOG_ENV_RANGE, EnvModel, OptimizeConfig, fit_env_model, flat_config,
-                                method_config_from_dict)
+from dpi.solve.optimize import (
+    LOG_ENV_RANGE,
+    EnvModel,
+    OptimizeConfig,
+    fit_env_model,
+    flat_config,
+    method_config_from_dict,
+)
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
 
@@ -38,20 +47,20 @@ CODE_SCALE = 0.1
 """the input code is uniform in [0, CODE_SCALE)"""
 
 
-@dataclass
+@settings
 class DIPConfig:
     """Settings of the `dip` method."""
 
     optimize: OptimizeConfig = field(
         default_factory=lambda: OptimizeConfig(iterations=150, views_per_step=2, lr_env=1e-2))
     """Adam settings; lr_env is the learning rate of the network's weights"""
-    channels: int = 32
+    channels: Count = 32
     """feature channels at every level of the network"""
-    depth: int = 4
+    depth: Annotated[int, Field(ge=1, le=8)] = 4
     """downsampling levels (fewer when env_height has fewer factors of 2)"""
-    code_channels: int = 16
+    code_channels: Count = 16
     """channels of the fixed random input code"""
-    warmup_iterations: int = 100
+    warmup_iterations: Steps = 100
     """Adam steps fitting the network to the init map before the rendering loss (0: start from its mean level)"""
 
     @classmethod

@@ -12,13 +12,13 @@ fit when it explains the views clearly better (docs/studies.md, "The init's star
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 import torch
 
 from dpi.materials import MaterialTextures
-from dpi.settings import SettingsError
+from dpi.settings import Fraction, Loose, SettingsError, settings
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.optimize import CHECKPOINT_EVERY, AdamFit, FreeEnvMap, OptimizeConfig
 from dpi.solve.problem import InverseProblem
@@ -29,18 +29,18 @@ CLOSING_STEPS = 20
 """steps at the end of a fit whose mean data loss compares two fits (the same seed: the same views and noise)"""
 
 
-@dataclass
+@settings
 class InitConfig(OptimizeConfig):
     """The init's fit (config section `init`): Adam settings, the materials' starts and the glossy retry."""
 
-    start: tuple[float, float] = (0.5, 0.0)
+    start: Annotated[tuple[Fraction, Fraction], Loose] = (0.5, 0.0)
     """constant (roughness, metallic) the textures start from: a rough dielectric"""
-    glossy_start: tuple[float, float] = (0.1, 1.0)
+    glossy_start: Annotated[tuple[Fraction, Fraction], Loose] = (0.1, 1.0)
     """the retry's (roughness, metallic): a glossy metal"""
-    retry_below: float = 0.4
+    retry_below: Fraction = 0.4
     """the fit is retried from `glossy_start` when its roughness 25th percentile ends below this (0: never). On the
     studies' scenes a rough start ends at 0.41-0.50 on rough objects and at 0.20-0.36 on mirror-like metal"""
-    retry_gain: float = 0.6
+    retry_gain: Fraction = 0.6
     """the retry is kept when its closing data loss is below this fraction of the first fit's. A metal under a free
     map explains a rough object's views somewhat better too (0.6-1.1x), a mirror's far better (0.17-0.48x)"""
 

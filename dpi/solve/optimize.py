@@ -12,15 +12,24 @@ and a rerun continues from it (see dpi.solve.checkpoint); the file is deleted wh
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import fields
 from pathlib import Path
-from typing import Any, Callable, TypeVar
+from typing import Annotated, Any, Callable, TypeVar
 
 import torch
 from tqdm import tqdm
 
 from dpi.materials import MaterialRates, MaterialTextures
-from dpi.settings import check_keys, check_values, settings_from_dict
+from dpi.settings import (
+    Count,
+    Loose,
+    Rate,
+    Steps,
+    check_keys,
+    check_values,
+    settings,
+    settings_from_dict,
+)
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
@@ -30,19 +39,19 @@ CHECKPOINT_EVERY = 25
 """Adam steps between two saves of a fit's resume state (a save costs far less than one render)"""
 
 
-@dataclass
+@settings
 class OptimizeConfig(MaterialRates):
     """Adam settings of a joint env-map + materials fit (the textures' rates: MaterialRates)."""
 
-    iterations: int = 400
+    iterations: Steps = 400
     """number of Adam steps"""
-    views_per_step: int = 4
+    views_per_step: Count = 4
     """training views rendered per step (all views if larger than their number)"""
-    lr_env: float = 3e-2
+    lr_env: Rate = 3e-2
     """Adam learning rate of the env map's parameters (its log-radiance texels; dip: the network weights)"""
     optimize_env: bool = True
     """False keeps the env map fixed (material refinement)"""
-    optimize_materials: tuple[str, ...] = ("albedo", "roughness", "metallic")
+    optimize_materials: Annotated[tuple[str, ...], Loose] = ("albedo", "roughness", "metallic")
     """which material textures are free"""
 
     @classmethod

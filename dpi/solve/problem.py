@@ -9,12 +9,13 @@ works on is too; decomposition files hold scene radiance, and `load_decompositio
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import torch
+from pydantic import Field
 
 from dpi.capture import Capture
 from dpi.exposure import MIDDLE_GREY, capture_exposure
@@ -22,30 +23,30 @@ from dpi.images import read_image, read_mask, resize
 from dpi.layout import SAMPLE_TRACE
 from dpi.materials import MaterialTextures
 from dpi.render import Renderer, RenderSettings
-from dpi.settings import settings_from_dict
+from dpi.settings import MapHeight, TextureSize, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 
 LOSS_SPACES = ("linear", "log1p")
 
 
-@dataclass
+@settings
 class ProblemSettings:
     """Resolution of the unknowns and how the data term is measured."""
 
-    env_height: int = 32
+    env_height: MapHeight = 32
     """environment map height H (width 2H)"""
-    texture_size: int = 64
+    texture_size: TextureSize = 64
     """material texture resolution R (R x R texels)"""
-    loss_space: str = "log1p"
+    loss_space: Literal["linear", "log1p"] = "log1p"
     """compare the views' path-traced images as log(1 + x) of the normalised radiance (foreground median 0.18) or
     as linear HDR: in linear a mirror's glints of the sun outweigh the rest of its views and the fit places
     little else (resolution study, mirror: held-out views +1.8 dB in log1p; rough scenes tie, docs/studies.md)"""
-    resolution: int | None = None
+    resolution: Annotated[int, Field(ge=16, le=8192)] | None = None
     """longer image side (px) the views are fitted and evaluated at: larger captures are area-downsampled
     once (dpi.working); None: the capture's own size"""
 
 
-@dataclass
+@settings
 class SolveSettings:
     """Renderer and unknowns' resolution shared by init, methods and evaluation."""
 

@@ -10,37 +10,48 @@ materials. `w` is set so the two gradients have the same max-abs at the start (t
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import torch
 from tqdm import tqdm
 
 from dpi.materials import MaterialRates
-from dpi.prior.diffusion import model_output_with_random_roll, q_sample, split_model_output
+from dpi.prior.diffusion import (
+    model_output_with_random_roll,
+    q_sample,
+    split_model_output,
+)
 from dpi.prior.sample import Prior
-from dpi.settings import settings_from_dict
+from dpi.settings import (
+    Count,
+    Fraction,
+    Rate,
+    Steps,
+    Weight,
+    settings,
+    settings_from_dict,
+)
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.prior_space import estimate_radiance_scale, prior_to_env
 from dpi.solve.init import starting_materials
 from dpi.solve.optimize import all_finite
+from dpi.solve.prior_space import estimate_radiance_scale, prior_to_env
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
 
 
-@dataclass
+@settings
 class SDSConfig(MaterialRates):
     """Settings of the `sds` ablation (the textures' rates: MaterialRates)."""
 
-    iterations: int = 150
-    views_per_step: int = 1
-    lr_map: float = 2e-2
+    iterations: Steps = 150
+    views_per_step: Count = 1
+    lr_map: Rate = 2e-2
     """Adam learning rate on the prior-space map x"""
-    t_min: float = 0.02
-    t_max: float = 0.98
+    t_min: Fraction = 0.02
+    t_max: Fraction = 0.98
     """range of diffusion times, as fractions of the schedule"""
-    sds_weight_ratio: float = 1.0
-    radiance_scale: float | None = None
+    sds_weight_ratio: Weight = 1.0
+    radiance_scale: Rate | None = None
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> "SDSConfig":

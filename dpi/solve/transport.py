@@ -30,12 +30,15 @@ import math
 import time
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Annotated
 
 import numpy as np
 import torch
+from pydantic import Field
 
 from dpi.materials import MaterialTextures
 from dpi.render import SEED_MODULUS, texture_plugin
+from dpi.settings import Count, settings
 from dpi.solve.problem import InverseProblem
 
 MAX_TRANSPORT_HEIGHT = 32
@@ -57,33 +60,27 @@ GUIDE_FLOOR = 0.25
 chance to be sampled, so T stays unbiased and useful for maps brighter elsewhere"""
 
 
-@dataclass
+Halves = Annotated[int, Field(ge=HALVES, multiple_of=HALVES)]
+"""samples split evenly between the transport's two halves"""
+
+
+@settings
 class TransportSettings:
     """How the light transport is recorded (method_params.dps.<sampler>.transport)."""
 
-    spp: int = 16
+    spp: Halves = 16
     """paths per pixel for the light after the first bounce (split between the two halves)"""
-    direct_spp: int = 4
+    direct_spp: Halves = 4
     """camera samples per pixel of the direct light, each with one shadow ray per texel (split between the halves)"""
-    pixels: int = 3072
+    pixels: Count = 2048
     """most foreground pixels of the training views recorded: beyond it, an even random subset"""
-    roughness_levels: int = 3
+    roughness_levels: Annotated[int, Field(ge=0, le=8)] = 0
     """besides the materials' own roughness, the transport under this many more: the texture shifted to medians
-    from a mirror's to a matte's (`roughness_levels`), recorded in the same pass (only the BSDF's values differ)"""
-    max_height: int = MAX_TRANSPORT_HEIGHT
-    """most rows of the maps the transport takes (`transport_height`)"""
-
-    def __post_init__(self) -> None:
-        for name in ("spp", "direct_spp"):
-            value = getattr(self, name)
-            if value < HALVES or value % HALVES:
-                raise ValueError(f"{name} must be a positive multiple of {HALVES} (the two halves), got {value}")
-        if self.pixels < 1:
-            raise ValueError(f"pixels must be at least 1, got {self.pixels}")
-        if self.roughness_levels < 0:
-            raise ValueError(f"roughness_levels must be at least 0, got {self.roughness_levels}")
-        if self.max_height < 1:
-            raise ValueError(f"max_height must be at least 1, got {self.max_height}")
+    from a mirror's to a matte's (`roughness_levels`), recorded in the same pass (only the BSDF's values differ);
+    none on a rough object, whose fit never chose another level (docs/studies.md)"""
+    max_height: Annotated[int, Field(ge=2, le=MAX_TRANSPORT_HEIGHT)] = 16
+    """most rows of the maps the transport takes (`transport_height`): a rough object's views fix the light's low
+    frequencies only, and the recording's cost grows with the texels (docs/studies.md)"""
 
 
 ROUGHNESS_RANGE = (0.05, 0.9)

@@ -11,12 +11,14 @@ from __future__ import annotations
 import json
 import shutil
 import tempfile
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 import torch
 import yaml
+from pydantic import Field
 from tqdm import tqdm
 
 from dpi.atomic import write_json, write_text
@@ -26,7 +28,20 @@ from dpi.images import luminance, write_mask, write_srgb
 from dpi.layout import SYNTH_MARKER
 from dpi.prior.procedural import generator
 from dpi.render import Renderer, RenderSettings
-from dpi.settings import settings_from_dict
+from dpi.settings import (
+    Count,
+    Elevation,
+    Fraction,
+    ImageSize,
+    Loose,
+    MapHeight,
+    Rate,
+    Steps,
+    TextureSize,
+    Weight,
+    settings,
+    settings_from_dict,
+)
 from dpi.skies import SkyParams, sunsky_envmap
 from dpi.synth.backdrop import BACKGROUNDS, add_detail, composite_backdrop
 from dpi.synth.shapes import make_shape, write_ply
@@ -35,27 +50,27 @@ from dpi.synth.textures import procedural_materials
 EVALUATION_SEED_STREAM = 7_919  # ground-truth maps draw from default_rng([this, seed]); datasets from [seed, chunk], seed 0
 
 
-@dataclass
+@settings
 class SynthConfig:
     """Parameters of one synthetic capture."""
 
     shape: str = "blob"
     """procedural mesh: blob or bumpy_torus"""
-    views: int = 16
+    views: Count = 16
     """number of rendered views (training + held-out)"""
-    held_out_every: int = 4
+    held_out_every: Steps = 4
     """every n-th view is held out for novel-view evaluation (0: none)"""
-    width: int = 64
-    height: int = 64
-    fov_deg: float = 35.0
-    camera_distance: float = 4.0
-    elevations_deg: tuple[float, ...] = (10.0, 35.0)
-    arc_deg: float = 360.0
+    width: ImageSize = 64
+    height: ImageSize = 64
+    fov_deg: Annotated[float, Field(gt=0, lt=180)] = 35.0
+    camera_distance: Rate = 4.0
+    elevations_deg: Annotated[tuple[Elevation, ...], Loose] = (10.0, 35.0)
+    arc_deg: Annotated[float, Field(gt=0, le=360)] = 360.0
     """azimuth range the cameras cover: 360 all around; less leaves the far side of the object unseen"""
-    spp: int = 256
+    spp: Count = 256
     """samples per pixel of the ground-truth renders"""
-    max_depth: int = 5
-    env_height: int = 32
+    max_depth: Annotated[int, Field(ge=1, le=64)] = 5
+    env_height: MapHeight = 32
     """height of the ground-truth sky map (width is twice this)"""
     envmap: str | None = None
     """optional EXR to use as ground-truth environment instead of a procedural one"""
@@ -64,22 +79,22 @@ class SynthConfig:
     fields), or a map of the prior's generators, outdoor or indoor (drawn by environment_seed
     from a seed stream the training datasets never use)"""
     environment_seed: int = 0
-    environment_clip: float | None = None
+    environment_clip: Rate | None = None
     """clip the map's luminance at this multiple of its median, like an 8-bit panorama decoded through
     the paper's tone curve (the paper's test maps hold no sun); None keeps the full HDR range"""
-    sun_elevation_deg: float = 35.0
+    sun_elevation_deg: Elevation = 35.0
     sun_azimuth_deg: float = 60.0
-    turbidity: float = 3.0
-    texture_size: int = 64
-    roughness: float = 0.3
-    roughness_variation: float = 0.1
-    metallic: float = 0.0
+    turbidity: Rate = 3.0
+    texture_size: TextureSize = 64
+    roughness: Fraction = 0.3
+    roughness_variation: Fraction = 0.1
+    metallic: Fraction = 0.0
     image_format: str = "exr"
     """format of images/: exr (linear HDR), or png or jpg (sRGB LDR, like photos)"""
     background: str = "env"
     """what the cameras see behind the object: env (the sky), textured (a ground plane and a wall,
     seen but not lighting the object, like a room) or plain (uniform grey, like a studio)"""
-    albedo_detail: float = 0.0
+    albedo_detail: Weight = 0.0
     """strength (0-1) of a fine random pattern multiplied into the albedo, like print on a real object:
     features for structure from motion (0: the plain procedural albedo)"""
     photos_only: bool = False

@@ -7,17 +7,29 @@ A sampler owns its settings dataclass and its defaults; only the chosen sampler'
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from functools import partial
-from typing import Any, Callable
+from typing import Annotated, Any, Callable
+
+from pydantic import Field
 
 from dpi.materials import MaterialRates
-from dpi.settings import SettingsError, check_keys, check_values, settings_from_dict
+from dpi.settings import (
+    Count,
+    Rate,
+    SettingsError,
+    build,
+    check_keys,
+    settings,
+    settings_from_dict,
+)
+from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.paper import PaperSettings, paper_step
 from dpi.solve.dps.proximal import ProximalSettings, proximal_step
 from dpi.solve.dps.refine import RefineSettings
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.dps.sun import SunSettings
+from dpi.solve.init import is_glossy
 
 StepFunction = Callable[[DPSRun, DPSState, int], dict[str, Any]]
 
@@ -39,27 +51,22 @@ SECTIONS: dict[str, Callable[[Any], Any]] = {**{name: s.settings.from_dict for n
                                              "refine": partial(settings_from_dict, RefineSettings)}
 """method_params.dps keys that hold a settings section, and the builder of its dataclass from its entry"""
 
-MOVED: dict[str, str] = {
-    **{key: f"proximal.{key}" for key in ("inner_steps", "lr_map", "prox_weight", "noise_mix", "material_start")},
-    **{key: f"paper.{key}" for key in ("guidance_bound", "rho_start", "rho_end", "rho_schedule", "rho_switch")},
-    "views_per_step": "paper.views_per_step", "start_noise": "<sampler>.start_noise",
-    "refine_iterations": "refine.iterations", "refine_views_per_step": "refine.views_per_step",
-    "refine_lr_gain": "refine.lr_gain", "refine_lr_texels": "refine.lr_texels",
-    **{f"sun_{key}": f"sun.{key}" for key in ("radius_deg", "min_roughness", "min_share", "share", "prior_weight")},
-}
-"""flat keys of the settings before they were grouped -> where they are now"""
-REMOVED = ("map_update", "warm_start", "refine_env", "refine_gain_order", "lr_sun", "lr_sun_uv", "refine_lr_env",
-           "annealed", "spp")
-"""flat keys of variants that lost their study (docs/studies.md)"""
-REMOVED_SAMPLERS = ("gibbs",)
-"""samplers that lost their study (docs/studies.md): a config naming one, or its section, gets an error saying so"""
+GLOSSY_PROXIMAL = {"inner_steps": 2, "map_solve": 0}
+"""a glossy init's proximal steps: no map solve (a mirror's views pin its light down where they reflect it, and a
+solve on its finer transport cost env PSNR, docs/studies.md), two data updates instead"""
+GLOSSY_TRANSPORT = {"roughness_levels": 3, "max_height": 32}
+"""a glossy init's recording: a mirror's fit moves with its roughness, and its views resolve the light's detail"""
+GLOSSY_REFINE_FACTOR = 2
+"""a glossy init refines this many times longer (the loop does not move the roughness a mirror's views hinge on)"""
+GLOSSY_LR_TEXELS = 0.02
+"""a glossy init's polish rate: a mirror's views pin down detail the prior's grid cannot hold"""
 
 
-@dataclass
+@settings
 class DPSConfig(MaterialRates):
     """Settings of the `dps` method (defaults: the CPU preset); the textures' rates: MaterialRates."""
 
-    lr_albedo: float = 0.01
+    lr_albedo: Rate = 0.01
     """the albedo's Adam rate, in the loop and the refinement: half the other methods' (MaterialRates); the albedo
     settles under the light instead of chasing each step's residual (posterior study, ambiguous: albedo MSE -27 %
     on 18 of 18 samples, relight PSNR-H +0.5 dB, views +0.2, env -0.1; at 0.005 the views lose 1.5 dB;
@@ -67,11 +74,11 @@ class DPSConfig(MaterialRates):
     sampler: str = next(iter(SAMPLERS))
     """how a reverse step uses the data: proximal (x0-space data steps on the recorded light transport) or paper
     (the reference's gradient guidance through the path tracer)"""
-    steps: int = 100
+    steps: Annotated[int, Field(ge=1, le=1000)] = 100
     """reverse-diffusion steps (respaced from the prior's 1000; the paper uses 1000)"""
-    radiance_scale: float | None = None
+    radiance_scale: Rate | None = None
     """scene radiance per unit of the prior's normalised radiance (None: estimated from the init)"""
-    strip_frames: int = 8
+    strip_frames: Count = 8
     """x0_hat snapshots kept for the progress strip"""
     proximal: ProximalSettings = field(default_factory=ProximalSettings)
     paper: PaperSettings = field(default_factory=PaperSettings)
@@ -83,26 +90,28 @@ class DPSConfig(MaterialRates):
         """The chosen sampler's own settings."""
         return getattr(self, self.sampler)
 
+    def for_init(self, init: Decomposition) -> DPSConfig:
+        """The settings a sample from `init` runs with: the one place a glossy init (dpi.solve.init.is_glossy)
+        changes them (GLOSSY_*); a rough init's are these."""
+        if not is_glossy(init.materials):
+            return self
+        transport = replace(self.proximal.transport, **GLOSSY_TRANSPORT)
+        proximal = replace(self.proximal, transport=transport, **GLOSSY_PROXIMAL)
+        refine = replace(self.refine, iterations=self.refine.iterations * GLOSSY_REFINE_FACTOR,
+                         lr_texels=GLOSSY_LR_TEXELS)
+        return replace(self, proximal=proximal, refine=refine)
+
     @classmethod
     def from_dict(cls, values: dict[str, Any] | None) -> "DPSConfig":
         """Settings from a `method_params.dps` entry: shared keys, and a mapping per section (`sun` also takes a
-        bare mode). A key of the flat layout before the sections is an error that names its new place."""
+        bare mode)."""
         values = dict(values or {})
-        for key in values:
-            if key in MOVED:
-                raise SettingsError(key, f"moved to {MOVED[key]} (a section of method_params.dps)")
-            if key in REMOVED or key in REMOVED_SAMPLERS:
-                raise SettingsError(key, "removed: that variant lost its study (docs/studies.md)")
-        if values.get("sampler") in REMOVED_SAMPLERS:
-            raise SettingsError("sampler", f"{values['sampler']!r} was removed: it lost its study (docs/studies.md); "
-                                           f"use one of {', '.join(SAMPLERS)}")
         check_keys(values, [f.name for f in fields(cls)], f"{cls.__name__} setting")
         sections = {}
         for name, make in SECTIONS.items():
             if name in values:
                 sections[name] = build_section(name, make, values.pop(name))
-        check_values(cls, values)
-        cfg = cls(**values, **sections)
+        cfg = build(cls, **values, **sections)
         if cfg.sampler not in SAMPLERS:
             raise SettingsError("sampler", f"must be one of {', '.join(SAMPLERS)}, got {cfg.sampler!r}")
         return cfg

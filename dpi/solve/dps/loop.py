@@ -69,6 +69,7 @@ def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: D
               seed: int) -> tuple[DPSRun, DPSState]:
     """The fixed part of one sample and its loop state at its first step (the init's materials, grey albedo):
     x_T ~ N(0, I), or the init map noised to the sampler's start_noise."""
+    cfg = cfg.for_init(init)
     sampler = cfg.sampler_settings
     generator = torch.Generator().manual_seed(seed)
     diffusion = prior.schedule(cfg.steps)
@@ -149,7 +150,7 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
     if run.sun:
         trace.info["sun"] = {**sun_summary(state.sun_uv.detach(), sun_irradiance, env),
                              "merged_spots": merged}
-    env, materials, refine_trace = refine(problem, env, state.materials, cfg.refine.for_init(init.materials), cfg,
+    env, materials, refine_trace = refine(problem, env, state.materials, run.cfg.refine, run.cfg,
                                           seed + 1, progress)
     trace.info["refine"] = refine_trace.summary()
     trace.nan_skips += refine_trace.nan_skips

@@ -8,34 +8,40 @@ for 1000 steps; it starts from pure noise and renders one view per step, as the 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import torch
 
-from dpi.settings import SettingsError
-from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerSettings, finite, network_step
+from dpi.settings import Count, Fraction, Rate, SettingsError, Weight, settings
+from dpi.solve.dps.state import (
+    DPSRun,
+    DPSState,
+    Laps,
+    SamplerSettings,
+    finite,
+    network_step,
+)
 from dpi.solve.optimize import all_finite
 
 RHO_SCHEDULES = ("linear", "step", "constant")
 
 
-@dataclass
+@settings
 class PaperSettings(SamplerSettings):
     """The paper's guidance (method_params.dps.paper): one view per step from pure noise, as the reference."""
 
-    views_per_step: int = 1
+    views_per_step: Count = 1
     """training views rendered per step"""
-    guidance_bound: float = 0.1
+    guidance_bound: Rate = 0.1
     """max-abs of the rendering-loss gradient after rescaling"""
-    rho_start: float = 0.1
+    rho_start: Weight = 0.1
     """guidance weight during the first part of the steps"""
-    rho_end: float = 1.0
+    rho_end: Weight = 1.0
     """guidance weight at the last step"""
     rho_schedule: str = "linear"
     """linear: rho_start, then linear to rho_end (outdoor); step: jump to rho_end (indoor); constant"""
-    rho_switch: float = 0.5
+    rho_switch: Fraction = 0.5
     """fraction of steps run at rho_start"""
 
     @classmethod

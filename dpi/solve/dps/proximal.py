@@ -12,9 +12,8 @@ so the views fix what they see at the resolution they see it and x0_hat keeps th
 steps from x0_hat do not reach the views). The solve's target is x0_hat pushed by a smooth random field as
 large as the prior's uncertainty about x0 at that step (`perturb`, as DAPS draws x0): where the views are
 silent each sample keeps its own push, where they speak the solve pulls it back, so the samples' spread
-follows what the views leave open. Then `inner_steps` Adam steps move map, albedo and sun together. On a
-glossy init there is no solve (a mirror's views pin its light down; `glossy_inner_steps` updates); l
-starts from x0_hat at the first step and from the previous step's l after that, or with `restart` from
+follows what the views leave open. Then `inner_steps` Adam steps move map, albedo and sun together (on a
+glossy init, `DPSConfig.for_init` sets what changes). l starts from x0_hat at the first step and from the previous step's l after that, or with `restart` from
 each step's x0_hat.
 Then re-noise:
 x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) (sqrt(1 - zeta) eps_hat + sqrt(zeta) eps) with
@@ -33,21 +32,34 @@ views cannot (a diffuse object barely tells a sun from a bright patch of sky aro
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import field
 from typing import Any
 
 import torch
 
-from dpi.solve.decomposition import Decomposition
-from dpi.solve.dps.map_solve import (PRIOR_STD, MapPrior, Resampling, cached_resampling, posterior_variance,
-                                     solve_map)
-from dpi.solve.dps.data_term import TransportSampling, current_level, sample_transport, set_level
-from dpi.solve.dps.state import (DPSRun, DPSState, Laps, SamplerSettings, finite, log_radiance, predict_x0,
-                                recentre_)
-from dpi.solve.init import is_glossy
+from dpi.settings import Count, Fraction, Rate, Share, Steps, Weight, settings
+from dpi.solve.dps.data_term import current_level, sample_transport, set_level
+from dpi.solve.dps.map_solve import (
+    PRIOR_STD,
+    MapPrior,
+    Resampling,
+    cached_resampling,
+    posterior_variance,
+    solve_map,
+)
+from dpi.solve.dps.state import (
+    DPSRun,
+    DPSState,
+    Laps,
+    SamplerSettings,
+    finite,
+    log_radiance,
+    predict_x0,
+    recentre_,
+)
 from dpi.solve.optimize import all_finite
-from dpi.solve.transport import LightTransport, TransportSettings
 from dpi.solve.sun import share_penalty, sun_env, wrap_uv_
+from dpi.solve.transport import LightTransport, TransportSettings
 
 MAX_EXPOSURE_STEP = 3.0
 """largest change of the log-exposure in one data update"""
@@ -59,77 +71,47 @@ SOLVE_CG_ITERATIONS = 10
 accurate as 20, and 0.5 s a sample less)"""
 
 
-@dataclass
-class ProximalSettings(TransportSampling, SamplerSettings):
+@settings
+class ProximalSettings(SamplerSettings):
     """The proximal x0-space sampler (method_params.dps.proximal)."""
 
-    start_noise: float = 0.4
+    start_noise: Share = 0.4
     """starts from the init map noised to 0.4 of the schedule (SDEdit; SamplerSettings)"""
-    inner_steps: int = 1
+    transport: TransportSettings = field(default_factory=TransportSettings)
+    """how the data term's light transport is recorded (dpi.solve.transport)"""
+    inner_steps: Count = 1
     """joint data updates of map, materials and exposure per reverse step, after the map's solve"""
-    glossy_inner_steps: int = 2
-    """the same when the init is glossy (no solve there: the updates alone move the map)"""
-    lr_map: float = 0.05
+    lr_map: Rate = 0.05
     """Adam rate of the map's log radiance per data update"""
-    prox_weight: float = 0.5
+    prox_weight: Weight = 0.5
     """weight of ||z - x0_hat||^2 per unit abar_t / (1 - abar_t)"""
-    noise_mix: float = 0.5
+    noise_mix: Fraction = 0.5
     """share zeta of fresh noise in the re-noising (0: deterministic DDIM, 1: all fresh)"""
-    material_start: float = 0.6
+    material_start: Fraction = 0.6
     """fraction of the steps before the materials start to move: the map settles its light first, and the albedo
     then fits that light instead of trading against it (posterior study, ambiguous: albedo MSE -17 % on 18 of 18
     samples, relight PSNR-H +0.8 dB, env and views tied, against 0.3; 0.8 -30 % and +1.2 dB at -0.3 dB of env;
     docs/studies.md "the material start's step")"""
-    level_every: int = 4
+    level_every: Count = 4
     """steps between two choices of the roughness level (once the materials move)"""
-    roughness_levels: int = 0
-    """roughness levels recorded besides the init's on a rough object: none (its fit never chose another level
-    in the posterior study; the refinement moves the roughness, docs/studies.md)"""
-    glossy_roughness_levels: int = 3
-    """roughness levels recorded besides the init's when the init is glossy (dpi.solve.init.is_glossy): a mirror's
-    fit moves with its roughness (posterior study's glossy scene: views +0.5 dB, albedo MSE -7 %)"""
-    transport_height: int = 16
-    """most rows of the recorded maps on a rough object: its views fix the light's low frequencies only, and the
-    recording's cost grows with the texels (docs/studies.md "The transport's map size")"""
-    glossy_transport_height: int = 32
-    """most rows of the recorded maps when the init is glossy: a mirror's views resolve the light's detail"""
     restart: bool = False
     """each step's data updates start from that step's x0_hat (DiffPIR's proximal point: where the views are
     silent the map is the prior's); False: from the previous step's fit, which keeps the start's guess there"""
-    map_solve: int = 1
+    map_solve: Steps = 1
     """Gauss-Newton iterations on the step's map (the same loss, all the views, dpi.solve.dps.map_solve) before
     its data updates: the map reaches the views from x0_hat, which a few Adam steps do not, by a correction of
     x0_hat on the transport's grid (finer detail stays x0_hat's; 0: Adam only, the sampler before 2026-11-25)"""
-    perturb: float = 0.35
+    perturb: Weight = 0.35
     """the solve's target is x0_hat plus a smooth random field of perturb x the prior's std of x0 given x_t (r_t of
     DAPS, Zhang et al. 2024, for a prior of std PRIOR_STD): where the views are silent each sample's map moves as
     the prior allows instead of keeping x0_hat's guess, where they speak the solve pulls it back. The most accurate
     sample whose calibration stays clearly nearest 1 (by more than its standard error): calibration study, rough,
     1.74 at 0.35, 1.62 at 0.4, 1.90 at 0.3 (a plain fit's 1.99), 4.22 at 0 (`unperturbed`); each sample's env PSNR
     +0.21 dB at 0.35 against 0.4 (15 of 18 posterior-study samples; docs/studies.md "the push's size")"""
-    perturb_height: int = 2
+    perturb_height: Count = 2
     """rows of the grid the push is white on (upsampled onto the prior's): a field as broad as the light's balance
     between sky and ground, sides and colour, which the views of a rough object leave open (at 4 and 16 rows the
     samples spread less per dB of env PSNR they lose, docs/studies.md)"""
-    glossy_map_solve: int = 0
-    """Gauss-Newton iterations when the init is glossy: none (a mirror's views pin the light down where they
-    reflect it; the solve lost 2.8 dB of env PSNR on the calibration study's metal, and its finer transport
-    makes it ten times dearer)"""
-
-    def solve_iterations(self, init: Decomposition) -> int:
-        """Gauss-Newton iterations of a step's map for a sample starting from `init`."""
-        return self.glossy_map_solve if is_glossy(init.materials) else self.map_solve
-
-    def updates(self, init: Decomposition) -> int:
-        """Data updates per step for a sample starting from `init`."""
-        return self.glossy_inner_steps if is_glossy(init.materials) else self.inner_steps
-
-    def transport_for(self, init: Decomposition) -> TransportSettings:
-        """The recording's settings for a sample starting from `init`: more levels and rows on a glossy object."""
-        if is_glossy(init.materials):
-            return replace(self.transport, roughness_levels=self.glossy_roughness_levels,
-                           max_height=self.glossy_transport_height)
-        return replace(self.transport, roughness_levels=self.roughness_levels)
 
     models_sun = True
 
@@ -225,12 +207,11 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     if n == 0 or settings.restart:
         with torch.no_grad():
             state.log_map.copy_(log_radiance(run, x0_hat))
-    iterations = settings.solve_iterations(run.init)
-    if iterations:
-        solve_step_map(run, state, transport, x0_hat, level, prox_weight, n, iterations)
+    if settings.map_solve:
+        solve_step_map(run, state, transport, x0_hat, level, prox_weight, n, settings.map_solve)
     laps.lap("solve")
     losses, skipped = [], 0
-    for _ in range(settings.updates(run.init)):
+    for _ in range(settings.inner_steps):
         env = run.env(torch.exp(state.log_map), state, transport.height)
         c = exposure_fit(transport, env, state.materials.albedo, level)
         state.log_exposure += math.log(c)

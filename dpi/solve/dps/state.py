@@ -14,10 +14,15 @@ from typing import Any
 import torch
 
 from dpi.images import luminance
-from dpi.materials import MaterialRates, MaterialTextures
-from dpi.prior.diffusion import Diffusion, model_output_with_random_roll, model_timesteps, p_mean_variance
+from dpi.materials import MaterialTextures
+from dpi.prior.diffusion import (
+    Diffusion,
+    model_output_with_random_roll,
+    model_timesteps,
+    p_mean_variance,
+)
 from dpi.prior.sample import Prior
-from dpi.settings import SettingsError, settings_from_dict
+from dpi.settings import Share, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.sun import SunSettings
 from dpi.solve.prior_space import resample_env
@@ -26,11 +31,11 @@ from dpi.solve.sun import sun_env
 from dpi.sunlight import merge_spots_into_sun
 
 
-@dataclass
+@settings
 class SamplerSettings:
     """What every sampler's settings have (each sampler's subclass sets its own defaults)."""
 
-    start_noise: float = 1.0
+    start_noise: Share = 1.0
     """noise level the reverse diffusion starts from, as a fraction of the schedule: 1 starts from pure noise;
     less starts from the init map noised to that level (SDEdit) and runs that fraction of the steps"""
 
@@ -40,10 +45,7 @@ class SamplerSettings:
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> Any:
         """Settings from the sampler's section of method_params.dps."""
-        settings = settings_from_dict(cls, values)
-        if not 0 < settings.start_noise <= 1:
-            raise SettingsError("start_noise", f"must be in (0, 1], got {settings.start_noise}")
-        return settings
+        return settings_from_dict(cls, values)
 
 
 DARK_FLOOR = 1e-6
@@ -68,7 +70,8 @@ class DPSRun:
     prior: Prior
     sampler: Any
     """the sampler's own settings (dpi.solve.dps.config.SAMPLERS)"""
-    rates: MaterialRates
+    cfg: Any
+    """the sample's dps settings (dpi.solve.dps.config.DPSConfig, adapted to the init by its `for_init`)"""
     diffusion: Diffusion
     seed: int
     scale: float

@@ -8,11 +8,19 @@ init's bright region carries a share of its energy worth modelling).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
+
+from pydantic import Field
 
 from dpi.materials import MaterialTextures
-from dpi.settings import SettingsError, settings_from_dict
+from dpi.settings import (
+    Fraction,
+    SettingsError,
+    Share,
+    Weight,
+    settings,
+    settings_from_dict,
+)
 from dpi.solve.init import GLOSSY_ROUGHNESS, is_glossy
 from dpi.solve.sun import SunExtraction
 
@@ -25,23 +33,23 @@ LR_SUN_UV = 0.003
 """Adam rate of the sun's map coordinates (u spans 360 deg, v 180 deg)"""
 
 
-@dataclass
+@settings
 class SunSettings:
     """A parametric sun next to the prior's sky (method_params.dps.sun)."""
 
     mode: str = "auto"
     """on, off, or auto (on for samplers that model a sun, with the outdoor prior, for objects that are not glossy)"""
-    radius_deg: float = 25.0
+    radius_deg: Annotated[float, Field(gt=0, le=90)] = 25.0
     """radius around the init's brightest texel whose excess energy becomes the sun"""
-    min_roughness: float = GLOSSY_ROUGHNESS
+    min_roughness: Fraction = GLOSSY_ROUGHNESS
     """auto leaves it off for an init that `is_glossy` at this threshold: a glossy object mirrors the light,
     the views resolve its sun, and the sun's share prior only costs accuracy there"""
-    min_share: float = 0.05
+    min_share: Fraction = 0.05
     """the sun is kept only when that excess carries at least this share of the init map's energy"""
-    share: float = 0.55
+    share: Share = 0.55
     """the share of the map's energy the sun's prior expects: the median over the outdoor generator's clear
     skies with the sun above 10 deg (0.5-0.6 per elevation band; lower under clouds)"""
-    prior_weight: float = 0.01
+    prior_weight: Weight = 0.01
     """weight of (logit share - logit `share`)^2 next to the relative data term (0: the data alone)"""
 
     @classmethod
