@@ -20,6 +20,7 @@ import json
 import math
 import os
 import re
+import unicodedata
 import warnings
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
@@ -191,21 +192,32 @@ def _check_root(root: Path) -> None:
         raise CaptureError(f"{root}: capture folder does not exist")
 
 
+OS_CLUTTER = ("thumbs.db", "ehthumbs.db", "desktop.ini", "icon\r")
+"""files operating systems leave in a folder of photos (besides dot files such as .DS_Store), skipped"""
+
+
+def view_name(name: str) -> str:
+    """A view's name in one Unicode normal form (NFC): macOS writes file names decomposed, JSON files composed."""
+    return unicodedata.normalize("NFC", name)
+
+
 def _stems(folder: Path, what: str) -> dict[str, Path]:
-    """stem -> file of the images in a folder; EXR wins over an LDR copy, other duplicates are errors."""
+    """view name (the stem, NFC) -> file of the images in a folder; EXR wins over an LDR copy, other duplicates
+    are errors; dot files and OS_CLUTTER are skipped."""
     found: dict[str, Path] = {}
     for path in sorted(folder.iterdir()):
-        if path.name.startswith(".") or path.is_dir():
+        if path.name.startswith(".") or path.name.lower() in OS_CLUTTER or path.is_dir():
             continue
         if path.suffix.lower() not in IMAGE_SUFFIXES:
             raise CaptureError(f"{path}: unsupported {what} suffix {path.suffix!r} (use {', '.join(IMAGE_SUFFIXES)})")
-        other = found.get(path.stem)
+        stem = view_name(path.stem)
+        other = found.get(stem)
         if other is None:
-            found[path.stem] = path
+            found[stem] = path
         elif (path.suffix.lower() in HDR_SUFFIXES) == (other.suffix.lower() in HDR_SUFFIXES):
             raise CaptureError(f"{path}: ambiguous {what}: {other.name} has the same name")
         elif path.suffix.lower() in HDR_SUFFIXES:
-            found[path.stem] = path
+            found[stem] = path
     return found
 
 
@@ -353,7 +365,7 @@ def inspect_capture(root: str | os.PathLike) -> dict[str, bool]:
     mesh = _mesh_file(root, read_scene_options(root))
     return {
         "cameras": (root / "transforms.json").is_file() or _camera_xml(root) is not None,
-        "masks": (root / "masks").is_dir(),
+        "masks": (root / "masks").is_dir() or _names_masks(root / "transforms.json"),
         "mesh": mesh is not None,
         "mesh_has_uv": mesh is not None and mesh.is_file() and mesh_has_uv(mesh),
     }
@@ -447,7 +459,7 @@ def _fit_camera(source: Path, camera: Camera, size: tuple[int, int], name: str) 
 def _frame_name(file_path: str) -> str:
     """View name a transforms.json file_path refers to ("./images/r_0.png", "r_0" -> "r_0")."""
     name = PurePosixPath(str(file_path).replace("\\", "/")).name
-    return Path(name).stem if Path(name).suffix.lower() in IMAGE_SUFFIXES else name
+    return view_name(Path(name).stem if Path(name).suffix.lower() in IMAGE_SUFFIXES else name)
 
 
 def _transforms_cameras(path: Path, names: list[str], size: tuple[int, int]) -> dict[str, Camera]:
@@ -492,12 +504,41 @@ def _xml_cameras(path: Path, names: list[str], size: tuple[int, int]) -> dict[st
     return {n: _fit_camera(path, c, size, n) for n, c in zip(names, cameras)}
 
 
-def _mask_files(root: Path, images: dict[str, Path], size: tuple[int, int]) -> dict[str, Path] | None:
-    """view name -> mask file (None without masks/), checking one non-empty mask of the right size per image."""
-    folder = root / "masks"
-    if not folder.is_dir():
+def _frame_masks(path: Path) -> dict[str, Path] | None:
+    """view name -> mask file from transforms.json frames' `mask_path` (nerfstudio; relative to the file), or None
+    where no frame names one."""
+    frames = json.loads(path.read_text())["frames"]
+    named = [f for f in frames if "mask_path" in f]
+    if not named:
         return None
-    masks = _stems(folder, "mask")
+    if len(named) != len(frames):
+        raise CaptureError(f"{path}: {len(frames) - len(named)} of {len(frames)} frames lack 'mask_path' "
+                           "(give one per frame, or masks/ beside images/)")
+    masks = {}
+    for frame in named:
+        if not isinstance(frame["mask_path"], str):
+            raise CaptureError(f"{path}: frame {frame['file_path']!r}: 'mask_path' must be a string")
+        masks[_frame_name(frame["file_path"])] = (path.parent / frame["mask_path"]).resolve()
+    return masks
+
+
+def _names_masks(path: Path) -> bool:
+    """Whether a transforms.json exists and a frame of it names a `mask_path` (a broken file: False; load_capture
+    names its problem)."""
+    try:
+        return path.is_file() and any("mask_path" in f for f in json.loads(path.read_text()).get("frames", []))
+    except (json.JSONDecodeError, UnicodeDecodeError, AttributeError, TypeError):
+        return False
+
+
+def _mask_files(root: Path, images: dict[str, Path], size: tuple[int, int],
+                given: dict[str, Path] | None = None) -> dict[str, Path] | None:
+    """view name -> mask file: `given` (transforms.json's mask_path) or masks/ (None without either), checking one
+    non-empty mask of the right size per image."""
+    folder = root / "masks"
+    if given is None and not folder.is_dir():
+        return None
+    masks = given if given is not None else _stems(folder, "mask")
     for name in masks:
         if name not in images:
             raise CaptureError(f"{masks[name]}: mask has no matching image in images/")
@@ -622,7 +663,8 @@ def load_capture(root: str | os.PathLike) -> Capture:
         cameras = _transforms_cameras(camera_file, names, size)
     else:
         cameras = _xml_cameras(camera_file, names, size)
-    masks = _mask_files(root, images, size)
+    masks = _mask_files(root, images, size,
+                        _frame_masks(camera_file) if camera_file is not None and camera_file.suffix == ".json" else None)
     mesh = _mesh_file(root, options)
     if mesh is not None:
         surface = _check_mesh(mesh)

@@ -77,8 +77,28 @@ def linear_to_srgb(c: np.ndarray) -> np.ndarray:
     return np.where(c <= 0.0031308, c * 12.92, 1.055 * c ** (1 / 2.4) - 0.055).astype(np.float32)
 
 
+EXIF_ORIENTATION = 0x0112
+"""the EXIF tag saying how a camera's stored pixels are to be turned for display"""
+def exif_orientation(path: Path) -> int:
+    """A photo's EXIF orientation (1, upright, where it has none or the file has no EXIF)."""
+    try:
+        with Image.open(path) as image:
+            return int(image.getexif().get(EXIF_ORIENTATION, 1))
+    except (OSError, ValueError):
+        return 1
+
+
+def upright(values: np.ndarray, orientation: int) -> np.ndarray:
+    """`values` (H, W, C) turned as EXIF `orientation` asks, as Pillow's exif_transpose turns an image."""
+    ops = {2: lambda a: a[:, ::-1], 3: lambda a: a[::-1, ::-1], 4: lambda a: a[::-1],
+           5: lambda a: a.transpose(1, 0, 2), 6: lambda a: np.rot90(a, -1), 7: lambda a: np.rot90(a, 2).transpose(1, 0, 2),
+           8: lambda a: np.rot90(a, 1)}
+    return np.ascontiguousarray(ops[orientation](values)) if orientation in ops else values
+
+
 def decode_ldr(path: Path) -> np.ndarray:
-    """A PNG/JPG's code values in [0, 1] at its bit depth (8 or 16), (H, W, C): grey (C = 1), RGB or RGBA."""
+    """A PNG/JPG's code values in [0, 1] at its bit depth (8 or 16), (H, W, C): grey (C = 1), RGB or RGBA,
+    turned upright by its EXIF orientation (images and masks alike)."""
     import cv2
 
     raw = np.fromfile(path, dtype=np.uint8)
@@ -91,8 +111,10 @@ def decode_ldr(path: Path) -> np.ndarray:
         raise ImageError(f"{path}: unsupported pixel type {data.dtype} (use 8 or 16 bits per channel)")
     values = data.astype(np.float32) / np.iinfo(data.dtype).max
     if values.ndim == 2:
-        return values[..., None]
-    return np.concatenate([values[..., 2::-1], values[..., 3:]], axis=-1)  # OpenCV's BGR(A) -> RGB(A)
+        values = values[..., None]
+    else:
+        values = np.concatenate([values[..., 2::-1], values[..., 3:]], axis=-1)  # OpenCV's BGR(A) -> RGB(A)
+    return upright(values, exif_orientation(path))
 
 
 def read_image(path: str | os.PathLike) -> np.ndarray:

@@ -26,9 +26,11 @@ from pathlib import Path
 from typing import Annotated
 
 import numpy as np
+from PIL import Image, ImageOps
 from pydantic import Field
 
 from dpi.cameras import Camera
+from dpi.images import exif_orientation
 from dpi.preprocess.hull import axes_centre, visible_sphere
 from dpi.settings import Count, Fraction, Rate, settings
 
@@ -113,6 +115,17 @@ def _pinhole(camera) -> tuple[float, float, float, float]:
     raise SfMError(f"unexpected COLMAP camera model {camera.model_name}")
 
 
+def upright_copies(images: list[Path], folder: Path) -> list[Path]:
+    """Copies of `images` turned upright by their EXIF orientation (Pillow's exif_transpose), same names."""
+    folder.mkdir(parents=True, exist_ok=True)
+    copies = []
+    for path in images:
+        with Image.open(path) as image:
+            ImageOps.exif_transpose(image).save(folder / path.name, quality=95)
+        copies.append(folder / path.name)
+    return copies
+
+
 def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = None,
             threads: int = 1) -> SparseModel:
     """COLMAP on `images` (all in one folder; view name = file stem), in `work_dir` (database, model).
@@ -132,6 +145,9 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
     if work.exists():
         shutil.rmtree(work)
     (work / "sparse").mkdir(parents=True)
+    if any(exif_orientation(p) != 1 for p in images):  # COLMAP reads the stored pixels; dpi reads them upright
+        images = upright_copies(images, work / "upright")
+        image_dir = work / "upright"
     database = work / "database.db"
     device = pycolmap.Device.cpu
     times = {}
@@ -140,8 +156,6 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
     reader = pycolmap.ImageReaderOptions()
     reader.camera_model = "SIMPLE_PINHOLE"
     if cfg.focal_length_px:
-        from PIL import Image
-
         with Image.open(images[0]) as im:
             width, height = im.size
         reader.camera_params = f"{cfg.focal_length_px},{width / 2},{height / 2}"
