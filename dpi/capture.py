@@ -33,7 +33,7 @@ from dpi.cameras import Camera, TransformsError, camera_problem, json_value, rea
 from dpi.consistency import cameras_problem
 from dpi.envmap import EnvmapLayoutError, read_envmap
 from dpi.exr import EXRError, read_exr
-from dpi.images import HDR_SUFFIXES, IMAGE_SUFFIXES, LDR_SUFFIXES, ImageError, read_image, read_mask
+from dpi.images import HDR_SUFFIXES, IMAGE_SUFFIXES, LDR_SUFFIXES, ImageError, decode_ldr, read_image, read_mask
 from dpi.layout import SceneLayout
 from dpi.mitsuba_xml import MitsubaXMLError, read_mesh_shapes, read_sensors
 
@@ -553,7 +553,13 @@ def _mask_files(root: Path, images: dict[str, Path], size: tuple[int, int],
             raise CaptureError(f"{masks[name]}: mask size {mask.shape[1]}x{mask.shape[0]} != "
                                f"image size {size[0]}x{size[1]}")
         if not mask.any():
-            raise CaptureError(f"{masks[name]}: empty mask (no foreground pixel)")
+            top = float(decode_ldr(masks[name]).max()) if masks[name].suffix.lower() in LDR_SUFFIXES else 0.0
+            hint = (f"; its largest value is {round(top * 255)} of 255: masks stored as 0/1 must be scaled to 0/255"
+                    if 0 < top <= 1 / 255 + 1e-6 else "")
+            raise CaptureError(f"{masks[name]}: empty mask (no foreground pixel){hint}")
+        if mask.all():
+            raise CaptureError(f"{masks[name]}: mask is all foreground (every pixel white): a mask is white on the "
+                               "object and black on the background")
     return masks
 
 

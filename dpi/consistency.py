@@ -145,9 +145,32 @@ def shift_cause(table: np.ndarray, names: list[str], shift: int) -> str:
             f"{other.mean():.2f}, as given {np.diag(table).mean():.2f})")
 
 
+FOV_RANGE_DEG = (1.0, 170.0)
+"""horizontal fields of view a camera of an object capture can have; outside them the focal length is wrong"""
+
+
+def intrinsics_cause(cameras: list[Camera], names: list[str]) -> str | None:
+    """A camera whose own intrinsics cannot be right (a field of view outside FOV_RANGE_DEG, a principal point
+    outside its image), named with its numbers, or None."""
+    for camera, name in zip(cameras, names):
+        fov = math.degrees(2 * math.atan(camera.width / (2 * camera.fx)))
+        if not FOV_RANGE_DEG[0] <= fov <= FOV_RANGE_DEG[1]:
+            return (f"focal length: {name}'s fl_x {camera.fx:g} px gives a {fov:.3g} deg field of view on its "
+                    f"{camera.width} px wide image (expected {FOV_RANGE_DEG[0]:g}-{FOV_RANGE_DEG[1]:g} deg)")
+        if not (0 <= camera.cx <= camera.width and 0 <= camera.cy <= camera.height):
+            return (f"principal point: {name}'s (cx, cy) = ({camera.cx:g}, {camera.cy:g}) lies outside its "
+                    f"{camera.width}x{camera.height} image")
+    return None
+
+
 def mask_cause(scene, cameras: list[Camera], masks: np.ndarray, table: np.ndarray, names: list[str],
                bad: np.ndarray) -> str:
-    """The likely cause of views whose silhouettes contradict their masks: convention, order, scale, or mismatch."""
+    """The likely cause of views whose silhouettes contradict their masks: the intrinsics, inverted masks, the
+    convention, the order, the scale, or mismatched files."""
+    inverted = np.diag(overlaps(~masks, silhouettes(scene, cameras)))
+    if (inverted[bad] >= MIN_IOU).all():
+        return (f"mask polarity: the masks fit inverted (IoU >= {inverted[bad].min():.2f}): a mask is white "
+                "(255) on the object and black (0) elsewhere")
     flip = np.diag(overlaps(masks, silhouettes(scene, flipped(cameras))))
     if (flip >= MIN_IOU).all():
         return f"{CONVENTION} every view fits (IoU >= {flip.min():.2f})"
@@ -178,7 +201,7 @@ def masks_problem(scene, cameras: list[Camera], masks: list[np.ndarray], names: 
     if len(bad):
         return (f"the cameras contradict the masks: the mesh's silhouette overlaps the mask with IoU < {MIN_IOU:g} in "
                 f"{len(bad)} of {len(names)} views ({listed(names, own, bad)}); likely cause: "
-                + mask_cause(scene, small, masks, table, names, bad))
+                + (intrinsics_cause(cameras, names) or mask_cause(scene, small, masks, table, names, bad)))
     shift = preferred_shift(table)
     if shift is None:
         return None
@@ -197,7 +220,7 @@ def frame_problem(vertices: np.ndarray, cameras: list[Camera], names: list[str])
     if not len(bad):
         return None
     flip = np.array([inside_fraction(vertices, c) for c in flipped(cameras)])
-    cause = (f"{CONVENTION} the mesh lies in every image (at least {100 * flip.min():.0f}% of its vertices)"
+    cause = intrinsics_cause(cameras, names) or (f"{CONVENTION} the mesh lies in every image (at least {100 * flip.min():.0f}% of its vertices)"
              if (flip >= MIN_INSIDE).all() else
              "the mesh and the cameras are in different frames or scales (mismatched files?)")
     return (f"the cameras do not see the mesh: less than {100 * MIN_INSIDE:.0f}% of its vertices project into the "

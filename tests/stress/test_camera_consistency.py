@@ -18,7 +18,7 @@ from capture_helpers import edit_transforms, make_capture
 
 from dpi.capture import CaptureError, load_capture
 from dpi.consistency import OPENCV_TO_GL, check_cameras, check_masks, overlaps, raycasting_scene, silhouettes
-from dpi.images import read_mask
+from dpi.images import read_mask, write_mask
 
 VIEWS = ("r_000", "r_001", "r_002", "r_003", "r_004")
 
@@ -61,6 +61,19 @@ def mesh_scaled(factor: float) -> Callable[[Path], None]:
     return edit
 
 
+def intrinsics(**values: float) -> Callable[[Path], None]:
+    """Every frame's intrinsics set to `values` (fl_x, cx, ...)."""
+    def edit(root: Path) -> None:
+        edit_transforms(root, lambda data: [frame.update(values) for frame in data["frames"]])
+    return edit
+
+
+def inverted_masks(root: Path) -> None:
+    """Every mask saved with object and background swapped."""
+    for path in (root / "masks").iterdir():
+        write_mask(path, ~read_mask(path))
+
+
 def without_masks(edit: Callable[[Path], None]) -> Callable[[Path], None]:
     """`edit`, and the masks removed."""
     def both(root: Path) -> None:
@@ -82,6 +95,11 @@ REJECTED = {  # case: (edit of the capture, words of the message after the file)
         "IoU < 0.7 in 5 of 5 views (r_000 0.2", "likely cause: scale: the mesh's silhouette is 0.49x the mask's size"]),
     "mesh twice as large": (mesh_scaled(2.0), ["IoU < 0.7 in 5 of 5 views",
                                                "likely cause: scale: the mesh's silhouette is 2.2x the mask's size"]),
+    "focal length 1e12": (intrinsics(fl_x=1e12, fl_y=1e12), [
+        "likely cause: focal length: r_000's fl_x 1e+12 px gives a 1.38e-09 deg field of view"]),
+    "principal point outside": (intrinsics(cx=500.0), [
+        "likely cause: principal point: r_000's (cx, cy) = (500,"]),
+    "inverted masks": (inverted_masks, ["likely cause: mask polarity: the masks fit inverted"]),
     "opencv poses, no masks": (without_masks(matrices(opencv)), [
         "the cameras do not see the mesh: less than 50% of its vertices project into the image in 5 of 5 views "
         "(fraction inside: r_000 0.00,", "likely cause: convention: the poses are OpenCV's",

@@ -93,3 +93,17 @@ def test_a_missing_mask_path_file_is_named(tmp_path):
     edit_transforms(root, lambda d: [f.update(mask_path=f"segments/{n}.png") for f, n in zip(d["frames"], NAMES)])
     with pytest.raises(CaptureError, match=r"segments/r_0.png: mask file does not exist"):
         load_capture(root)
+
+
+def test_a_mask_saved_as_0_and_1_is_named_with_the_hint(tmp_path):
+    root = make_capture(tmp_path / "cap")
+    Image.fromarray(sphere_mask().astype(np.uint8)).save(root / "masks" / "r_1.png")  # 0/1, not 0/255
+    with pytest.raises(CaptureError, match=r"r_1.png: empty mask .*largest value is 1 of 255: masks stored as 0/1"):
+        load_capture(root)
+
+
+def test_an_all_white_mask_is_named(tmp_path):
+    root = make_capture(tmp_path / "cap")
+    write_mask(root / "masks" / "r_2.png", np.ones((SIZE, SIZE), bool))
+    with pytest.raises(CaptureError, match=r"r_2.png: mask is all foreground"):
+        load_capture(root)
