@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import copy
 import difflib
+import functools
 import math
 import types
 from collections.abc import Iterable
@@ -44,9 +45,21 @@ _C = TypeVar("_C", bound=type)
 
 
 def settings(cls: _C | None = None, *, frozen: bool = False) -> Any:
-    """Make `cls` a settings dataclass: a pydantic dataclass whose fields carry their bounds (`Annotated`)."""
+    """Make `cls` a settings dataclass: a pydantic dataclass whose fields carry their bounds (`Annotated`); making
+    one with a value out of bounds raises one SettingsError naming the key."""
     def wrap(c: _C) -> _C:
-        return pydantic_dataclass(c, config=SETTINGS_MODEL, frozen=frozen)
+        model = pydantic_dataclass(c, config=SETTINGS_MODEL, frozen=frozen)
+        validated = model.__init__
+
+        @functools.wraps(validated)
+        def checked(self: Any, *args: Any, **kwargs: Any) -> None:
+            try:
+                validated(self, *args, **kwargs)
+            except ValidationError as exc:
+                raise settings_error(exc) from None
+
+        model.__init__ = checked
+        return model
     return wrap if cls is None else wrap(cls)
 
 
@@ -84,10 +97,7 @@ def settings_from_dict(cls: type[T], values: dict[str, Any] | None) -> T:
 def build(cls: type[T], **values: Any) -> T:
     """`cls(**values)` after the type check (`check_values`); a field's bound broken is a SettingsError naming it."""
     check_values(cls, values)
-    try:
-        return cls(**values)
-    except ValidationError as exc:
-        raise settings_error(exc) from None
+    return cls(**values)
 
 
 def settings_error(exc: ValidationError) -> SettingsError:

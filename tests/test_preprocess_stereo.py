@@ -120,13 +120,13 @@ def test_highlights_finds_a_bright_spot_not_texture():
 
 def test_stereo_settings_are_checked_with_the_geometry_config():
     from dpi.preprocess.geometry import GeometryConfig
-    from dpi.settings import SettingsError
+    from dpi.settings import SettingsError, settings_from_dict
 
     assert GeometryConfig(stereo_settings={"passes": 3}).stereo_config().passes == 3
     with pytest.raises(SettingsError, match=r"stereo_settings\.passes: must be >= 1"):
-        GeometryConfig(stereo_settings={"passes": 0})
+        settings_from_dict(GeometryConfig, {"stereo_settings": {"passes": 0}})
     with pytest.raises(SettingsError, match=r"stereo_settings\.pases: unknown .*did you mean 'passes'"):
-        GeometryConfig(stereo_settings={"pases": 2})
+        settings_from_dict(GeometryConfig, {"stereo_settings": {"pases": 2}})
 
 
 def test_grazing_depths_are_found_from_the_depth_maps_own_normals():

@@ -72,9 +72,9 @@ def test_settings_values_are_checked_by_type_and_field_bounds(values, message):
 
 def test_a_fields_bound_holds_wherever_the_settings_are_made():
     """The bound sits on the field: a direct construction or a `replace` is checked as a config is."""
-    with pytest.raises(ValueError, match="greater than or equal to 1"):
+    with pytest.raises(SettingsError, match="^steps: must be >= 1, got 0$"):
         replace(S(), steps=0)
-    with pytest.raises(ValueError):
+    with pytest.raises(SettingsError, match="^lr_env: must be > 0, got -1.0$"):
         S(lr_env=-1.0)
 
 

@@ -191,5 +191,5 @@ def test_pixels_beyond_the_limit_are_an_even_subset_and_weigh_for_the_rest(probl
     for v in problem.train_ids:
         assert set(chosen[v]) <= set(everything[v])
         assert len(chosen[v]) == pytest.approx(len(everything[v]) / 4, abs=1)
-    with pytest.raises(ValueError, match="multiple of 2"):
+    with pytest.raises(ValueError, match="direct_spp: must be a multiple of 2"):
         TransportSettings(direct_spp=3)

@@ -11,11 +11,10 @@ from __future__ import annotations
 
 from dataclasses import field
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Any, Literal
 
 import numpy as np
 import torch
-from pydantic import Field
 
 from dpi.capture import Capture
 from dpi.exposure import MIDDLE_GREY, capture_exposure
@@ -23,7 +22,7 @@ from dpi.images import read_image, read_mask, resize
 from dpi.layout import SAMPLE_TRACE
 from dpi.materials import MaterialTextures
 from dpi.render import Renderer, RenderSettings
-from dpi.settings import MapHeight, TextureSize, settings, settings_from_dict
+from dpi.settings import ImageSize, MapHeight, TextureSize, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 
 LOSS_SPACES = ("linear", "log1p")
@@ -41,7 +40,7 @@ class ProblemSettings:
     """compare the views' path-traced images as log(1 + x) of the normalised radiance (foreground median 0.18) or
     as linear HDR: in linear a mirror's glints of the sun outweigh the rest of its views and the fit places
     little else (resolution study, mirror: held-out views +1.8 dB in log1p; rough scenes tie, docs/studies.md)"""
-    resolution: Annotated[int, Field(ge=16, le=8192)] | None = None
+    resolution: ImageSize | None = None
     """longer image side (px) the views are fitted and evaluated at: larger captures are area-downsampled
     once (dpi.working); None: the capture's own size"""
 

@@ -1,7 +1,6 @@
 """What photographers' folders bring (issue: real photos): EXIF orientation, OS clutter, Unicode-normalised names,
 nerfstudio's per-frame mask_path. Each is read correctly, or named in one line."""
 
-import json
 import unicodedata
 from pathlib import Path
 
