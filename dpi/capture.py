@@ -462,6 +462,38 @@ def _frame_name(file_path: str) -> str:
     return view_name(Path(name).stem if Path(name).suffix.lower() in IMAGE_SUFFIXES else name)
 
 
+PINHOLE_MODELS = ("PINHOLE", "SIMPLE_PINHOLE", "OPENCV", "RADIAL", "SIMPLE_RADIAL")
+"""camera models whose projection is a pinhole plus (at most) polynomial lens distortion"""
+DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
+
+
+def lens_distortion(path: Path, data: dict) -> None:
+    """Reject a camera model dpi cannot use (fisheye, equirectangular) with one line; warn (CaptureWarning) where
+    the file gives lens distortion, which dpi does not model yet (the images are used as a pinhole took them)."""
+    for i, where in enumerate([data, *data["frames"]]):
+        model = where.get("camera_model")
+        if model is not None and str(model).upper() not in PINHOLE_MODELS:
+            place = "top level" if i == 0 else f"frame {i - 1}"
+            raise CaptureError(f"{path}: {place}: camera_model {model!r} is not a pinhole camera; dpi reads "
+                               f"{', '.join(PINHOLE_MODELS)} (undistort the images to a pinhole first, e.g. COLMAP's "
+                               "image_undistorter)")
+    largest = max((abs(float(w[k])) for w in [data, *data["frames"]] for k in DISTORTION_KEYS
+                   if isinstance(w.get(k), (int, float, str)) and _number(w[k])), default=0.0)
+    if largest > 0:
+        warnings.warn(f"{path}: lens distortion given (largest coefficient {largest:.3g}) is not modelled yet: the "
+                      "images are used as a pinhole camera took them, so silhouettes and highlights near the border "
+                      "are misplaced; undistort the images first (e.g. COLMAP's image_undistorter)",
+                      CaptureWarning, stacklevel=3)
+
+
+def _number(value: object) -> bool:
+    """Whether a JSON value reads as a finite number (nerfstudio writes some as strings)."""
+    try:
+        return math.isfinite(float(value))
+    except (TypeError, ValueError):
+        return False
+
+
 def _transforms_cameras(path: Path, names: list[str], size: tuple[int, int]) -> dict[str, Camera]:
     """view name -> camera from transforms.json, checking it covers exactly the images."""
     try:
@@ -473,6 +505,7 @@ def _transforms_cameras(path: Path, names: list[str], size: tuple[int, int]) -> 
     for i, frame in enumerate(data["frames"]):
         if not isinstance(frame, dict) or "file_path" not in frame or "transform_matrix" not in frame:
             raise CaptureError(f"{path}: frame {i} needs 'file_path' and 'transform_matrix'")
+    lens_distortion(path, data)
     try:
         frames = read_transforms(data, default_size=size)
     except TransformsError as exc:

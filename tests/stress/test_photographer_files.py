@@ -106,3 +106,21 @@ def test_an_all_white_mask_is_named(tmp_path):
     write_mask(root / "masks" / "r_2.png", np.ones((SIZE, SIZE), bool))
     with pytest.raises(CaptureError, match=r"r_2.png: mask is all foreground"):
         load_capture(root)
+
+
+@pytest.mark.parametrize("where", ["top", "frame"])
+def test_a_fisheye_camera_model_is_rejected_in_one_line(tmp_path, where):
+    root = make_capture(tmp_path / "cap")
+    edit_transforms(root, lambda d: (d if where == "top" else d["frames"][1]).update(camera_model="OPENCV_FISHEYE"))
+    place = "top level" if where == "top" else "frame 1"
+    with pytest.raises(CaptureError, match=rf"transforms.json: {place}: camera_model 'OPENCV_FISHEYE' is not a pinhole"):
+        load_capture(root)
+
+
+def test_lens_distortion_is_not_dropped_silently(tmp_path):
+    from dpi.capture import CaptureWarning
+
+    root = make_capture(tmp_path / "cap")
+    edit_transforms(root, lambda d: d.update(k1=-0.12, k2="0.03", p1=0.0))
+    with pytest.warns(CaptureWarning, match=r"transforms.json: lens distortion given \(largest coefficient 0.12\)"):
+        load_capture(root)
