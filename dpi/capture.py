@@ -477,8 +477,8 @@ def lens_distortion(path: Path, data: dict) -> None:
             raise CaptureError(f"{path}: {place}: camera_model {model!r} is not a pinhole camera; dpi reads "
                                f"{', '.join(PINHOLE_MODELS)} (undistort the images to a pinhole first, e.g. COLMAP's "
                                "image_undistorter)")
-    largest = max((abs(float(w[k])) for w in [data, *data["frames"]] for k in DISTORTION_KEYS
-                   if isinstance(w.get(k), (int, float, str)) and _number(w[k])), default=0.0)
+    largest = max((abs(float(w[k])) for w in [data, *data["frames"]] for k in DISTORTION_KEYS if _number(w.get(k))),
+                  default=0.0)
     if largest > 0:
         warnings.warn(f"{path}: lens distortion given (largest coefficient {largest:.3g}) is not modelled yet: the "
                       "images are used as a pinhole camera took them, so silhouettes and highlights near the border "
@@ -494,8 +494,8 @@ def _number(value: object) -> bool:
         return False
 
 
-def _transforms_cameras(path: Path, names: list[str], size: tuple[int, int]) -> dict[str, Camera]:
-    """view name -> camera from transforms.json, checking it covers exactly the images."""
+def _transforms_json(path: Path) -> dict:
+    """A parsed transforms.json, checked to hold a 'frames' list of frames with a file path and a pose."""
     try:
         data = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
@@ -505,6 +505,11 @@ def _transforms_cameras(path: Path, names: list[str], size: tuple[int, int]) -> 
     for i, frame in enumerate(data["frames"]):
         if not isinstance(frame, dict) or "file_path" not in frame or "transform_matrix" not in frame:
             raise CaptureError(f"{path}: frame {i} needs 'file_path' and 'transform_matrix'")
+    return data
+
+
+def _transforms_cameras(path: Path, data: dict, names: list[str], size: tuple[int, int]) -> dict[str, Camera]:
+    """view name -> camera from transforms.json (`data`, parsed), checking it covers exactly the images."""
     lens_distortion(path, data)
     try:
         frames = read_transforms(data, default_size=size)
@@ -537,10 +542,10 @@ def _xml_cameras(path: Path, names: list[str], size: tuple[int, int]) -> dict[st
     return {n: _fit_camera(path, c, size, n) for n, c in zip(names, cameras)}
 
 
-def _frame_masks(path: Path) -> dict[str, Path] | None:
+def _frame_masks(path: Path, data: dict) -> dict[str, Path] | None:
     """view name -> mask file from transforms.json frames' `mask_path` (nerfstudio; relative to the file), or None
     where no frame names one."""
-    frames = json.loads(path.read_text())["frames"]
+    frames = data["frames"]
     named = [f for f in frames if "mask_path" in f]
     if not named:
         return None
@@ -696,14 +701,14 @@ def load_capture(root: str | os.PathLike) -> Capture:
     names = list(images)
     size = _check_images(images)
     camera_file = root / "transforms.json" if (root / "transforms.json").is_file() else _camera_xml(root)
+    transforms = _transforms_json(camera_file) if camera_file is not None and camera_file.suffix == ".json" else None
     if camera_file is None:
         cameras = {}
-    elif camera_file.suffix == ".json":
-        cameras = _transforms_cameras(camera_file, names, size)
+    elif transforms is not None:
+        cameras = _transforms_cameras(camera_file, transforms, names, size)
     else:
         cameras = _xml_cameras(camera_file, names, size)
-    masks = _mask_files(root, images, size,
-                        _frame_masks(camera_file) if camera_file is not None and camera_file.suffix == ".json" else None)
+    masks = _mask_files(root, images, size, _frame_masks(camera_file, transforms) if transforms is not None else None)
     mesh = _mesh_file(root, options)
     if mesh is not None:
         surface = _check_mesh(mesh)

@@ -3,7 +3,7 @@
 Two passes, both before Snakemake builds the DAG (rules/common.smk):
 1. the JSON schema, closed at every level, so a typo anywhere is an unknown key with the closest valid
    one suggested: dpi/data/config.schema.yaml for the workflow's own keys, with each section a settings
-   dataclass owns (SCHEMA_SECTIONS) generated from that dataclass's fields and their bounds
+   dataclass owns (SECTIONS) generated from that dataclass's fields and their bounds
    (`config_schema`, which `dpi config --schema` prints);
 2. every section a settings dataclass owns is built by it: `method_params.{method}` by that
    method's config (dpi.solve.methods, so new dataclass fields are accepted without touching the
@@ -40,32 +40,28 @@ from dpi.solve.init import InitConfig
 from dpi.solve.problem import ProblemSettings
 from dpi.synth.capture import SynthConfig
 
+SECTIONS: dict[str, type] = {"render": RenderSettings, "problem": ProblemSettings, "init": InitConfig,
+                              "adaptive": AdaptiveConfig, "preprocess.sfm": SfMConfig, "preprocess.masks": MaskConfig,
+                              "preprocess.geometry": GeometryConfig, "preprocess.uv": UVConfig}
+"""config sections (key paths) each owned by one settings dataclass: their schema is generated from it, and it
+builds them"""
+
+
+def builder(cls: type) -> Callable[[dict], Any]:
+    """The builder of a settings dataclass from its config section: its own `from_dict`, else settings_from_dict."""
+    return getattr(cls, "from_dict", None) or partial(settings_from_dict, cls)
+
+
 def preprocess_settings() -> dict[str, Callable[[dict], Any]]:
     """preprocess stage -> the builder of its settings dataclass from its config section."""
-    return {stage: partial(settings_from_dict, cls)
-            for stage, cls in (("sfm", SfMConfig), ("masks", MaskConfig), ("geometry", GeometryConfig), ("uv", UVConfig))}
-
-
-SECTION_SETTINGS: dict[str, Callable[[dict], Any]] = {
-    "render": partial(settings_from_dict, RenderSettings),
-    "problem": partial(settings_from_dict, ProblemSettings),
-    "init": InitConfig.from_dict,
-    "adaptive": AdaptiveConfig.from_dict,
-    **{f"preprocess.{stage}": make for stage, make in preprocess_settings().items()},
-}
-"""config sections (key paths) built by one settings dataclass each"""
-
-
-SCHEMA_SECTIONS: dict[str, type] = {"render": RenderSettings, "problem": ProblemSettings, "init": InitConfig,
-                                    "adaptive": AdaptiveConfig, "preprocess.sfm": SfMConfig, "preprocess.masks": MaskConfig,
-                                    "preprocess.geometry": GeometryConfig, "preprocess.uv": UVConfig}
-"""config sections whose schema is their settings dataclass's (bounds and defaults written once, on its fields)"""
+    return {path.removeprefix("preprocess."): builder(cls) for path, cls in SECTIONS.items()
+            if path.startswith("preprocess.")}
 
 
 def config_schema(schema_path: str | Path) -> dict[str, Any]:
-    """The config's JSON schema: the file's, with each of SCHEMA_SECTIONS generated from its settings dataclass."""
+    """The config's JSON schema: the file's, with each of SECTIONS generated from its settings dataclass."""
     schema = yaml.safe_load(Path(schema_path).read_text())
-    for path, cls in SCHEMA_SECTIONS.items():
+    for path, cls in SECTIONS.items():
         node = schema
         for key in path.split("."):
             node = node["properties"][key]
@@ -98,10 +94,10 @@ def check_against(config: dict[str, Any], schema: dict[str, Any], prefix: str) -
         where = join(prefix, "synthetic", scene)
         build(SynthConfig.from_dict, entry, where)
         check_family(entry.get("prior"), f"{where}.prior")
-    for path, make in SECTION_SETTINGS.items():
+    for path, cls in SECTIONS.items():
         values = section(config, path)
         if values is not None:
-            build(make, values, join(prefix, path))
+            build(builder(cls), values, join(prefix, path))
     illumination = config.get("illumination_prior", {})
     check_family(illumination.get("family"), join(prefix, "illumination_prior.family"))
     for family in illumination.get("checkpoints", {}):
