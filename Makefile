@@ -5,7 +5,7 @@ VENV ?= .venv
 CORES ?= 2
 PYTEST_ARGS ?=
 
-.PHONY: setup demo test test-fast test-slurm benchmarks clean
+.PHONY: setup demo test test-fast test-slurm benchmarks tables clean
 
 setup:
 	bash scripts/setup.sh
@@ -24,6 +24,9 @@ test-fast: setup
 
 benchmarks: setup
 	$(VENV)/bin/python benchmarks/render_step.py
+
+tables: setup
+	$(VENV)/bin/dpi tables
 
 clean:
 	rm -rf results .snakemake captures/demo

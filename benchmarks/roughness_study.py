@@ -1,6 +1,6 @@
 """Env-map diversity of `dps` samples against material roughness (the paper's Fig. 9), over repeats.
 
-Renders one object at each roughness under the same natural light (dpi.studies.SweepSettings); each
+Renders one object at each roughness under the same natural light (dpi.studies.roughness.SweepSettings); each
 repeat has its own capture noise, init and sample seed stream and draws `--samples` (default 6) dps samples
 with the shipped outdoor prior (dps at its defaults, `--steps` respaced steps). Rows (roughness, metallic,
 repeat, samples, env_sigma2_sample) go to benchmarks/results/roughness_study.csv, the plot beside it; it prints
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dpi.studies import SweepSettings, roughness_point
+from dpi.studies.roughness import SweepSettings, roughness_point
 
 ROOT = Path(__file__).resolve().parent.parent
 CSV = ROOT / "benchmarks" / "results" / "roughness_study.csv"

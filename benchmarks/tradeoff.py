@@ -28,7 +28,7 @@ from dpi.render import RenderSettings
 from dpi.solve.dps import dps_sample
 from dpi.solve.init import path_traced_init
 from dpi.solve.problem import InverseProblem, ProblemSettings
-from dpi.studies import pareto_front
+from dpi.studies.pareto import pareto_front
 from dpi.synth.capture import make_synthetic_capture
 
 DEMO = "demo"

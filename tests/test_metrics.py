@@ -1,10 +1,13 @@
 """Metric known answers: identical images, a known shift, scaled maps and albedos, and the summary's
 set metrics (sigma2_invar across the illuminations of an object, init seconds, FID without weights)."""
 
+import csv
+
 import numpy as np
 import pytest
 
-from dpi.evaluation.summary import sample_rows, summarize
+from dpi.evaluation.metric_table import read_summary
+from dpi.evaluation.summary import sample_rows, summarize, write_csv
 from dpi.exr import write_exr
 from dpi.evaluation.metrics import PSNR_CAP, albedo_mse, env_metrics, psnr, ssim
 from dpi.spread import sample_variance
@@ -96,3 +99,22 @@ def test_summary_says_which_sampler_made_a_row(tmp_path, monkeypatch):
     assert rows["dps"]["env_calibration"] == "missing: no gt/envmap.exr"
     assert rows["none"]["env_log_std"] == "missing: one sample"
     assert [r["sampler"] for r in sample_rows(records, list(rows.values()))] == ["proximal", "proximal", ""]
+
+
+def test_summary_csv_columns_stay_numeric(tmp_path, monkeypatch):
+    """A missing metric is an empty cell with its reason in `notes`; read_summary gives the reason back."""
+    monkeypatch.setenv(WEIGHTS_ENV, str(tmp_path / "no_weights"))
+    flat = np.ones((2, 2, 3))
+    rows = summarize([toy_record(tmp_path, "sunny", "m", flat, "cube"), toy_record(tmp_path, "ball", "m", flat)])
+    path = tmp_path / "summary.csv"
+    write_csv(path, rows)
+    with open(path, newline="") as f:
+        raw = list(csv.DictReader(f))
+    for row in raw:
+        for column, cell in row.items():
+            if column not in ("scene", "method", "sampler", "object", "notes") and cell:
+                float(cell)  # every non-empty metric cell is a number
+    assert raw[0]["env_fid"] == "" and "env_fid: " in raw[0]["notes"]
+    back = read_summary(path)
+    assert back[0]["env_fid"] == rows[0]["env_fid"] and back[0]["albedo_sigma2_invar"].startswith("missing: one")
+    assert "notes" not in back[0]

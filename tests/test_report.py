@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import json
 import shutil
 import subprocess
@@ -16,6 +15,7 @@ from dpi.capture import read_capture_json
 from dpi.evaluation.figures import envmap_grid
 from dpi.evaluation.metric_table import direction, metric_table
 from dpi.evaluation.relighting import RELIGHT_MAPS, relit_name
+from dpi.evaluation.summary import write_csv
 from dpi.evaluation.report import Page, build_report, quality_section, roughness_section
 from dpi.exr import read_exr, write_exr
 from dpi.layout import INIT, Layout, view_file
@@ -47,11 +47,9 @@ def summary_rows(naturalness: bool = True) -> list[dict[str, str]]:
 
 
 def write_summary(path: Path, rows: list[dict[str, str]]) -> None:
+    """As the summary stage writes it: missing cells empty, their reasons in `notes`."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    write_csv(path, rows)
 
 
 @pytest.fixture(scope="module")

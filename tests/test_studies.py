@@ -1,6 +1,6 @@
 """Pareto front of run-time/accuracy trade-offs."""
 
-from dpi.studies import pareto_front
+from dpi.studies.pareto import pareto_front
 
 
 def test_pareto_front_known_answer():

@@ -1,4 +1,7 @@
-"""summary.csv as an HTML table: missing cells greyed with their reason, the best value per scene marked."""
+"""summary.csv as an HTML table: missing cells greyed with their reason, the best value per scene marked.
+
+The CSVs keep numeric columns numeric: a metric that could not be computed is an empty cell, and its reason
+is one entry of the row's `notes` column (`column: reason; ...`); `read_summary` folds the reasons back."""
 
 from __future__ import annotations
 
@@ -6,6 +9,7 @@ import csv
 import math
 from html import escape
 from pathlib import Path
+from typing import Any
 
 MISSING = "missing"
 HIGHER_BETTER = {"psnr", "ssim", "naturalness"}
@@ -13,12 +17,32 @@ LOWER_BETTER = {"mse", "lpips", "fid", "niqe", "sigma2"}
 UNRANKED = ("sigma2_sample",)
 """spread across posterior samples: a property of the posterior, neither more nor less is better"""
 STD_SUFFIX = "_std"
+NOTES = "notes"
+"""the column that holds the reasons of a row's empty (missing) cells"""
+NOTE_SEPARATOR = "; "
+
+
+def split_missing(row: dict[str, Any]) -> dict[str, Any]:
+    """A row as written to CSV: each `missing: <reason>` cell empty, its reason in the `notes` column."""
+    reasons = {k: missing_reason(v) for k, v in row.items() if isinstance(v, str) and missing_reason(v)}
+    cells = {k: ("" if k in reasons else v) for k, v in row.items()}
+    return {**cells, NOTES: NOTE_SEPARATOR.join(f"{k}: {why}" for k, why in reasons.items())}
+
+
+def join_missing(row: dict[str, str]) -> dict[str, str]:
+    """A CSV row read back: each empty cell named in `notes` is `missing: <reason>` again (split_missing undone)."""
+    notes = row.pop(NOTES, "") or ""
+    for entry in filter(None, notes.split(NOTE_SEPARATOR)):
+        column, _, why = entry.partition(": ")
+        if column in row and not row[column]:
+            row[column] = f"{MISSING}: {why}"
+    return row
 
 
 def read_summary(path: str | Path) -> list[dict[str, str]]:
-    """Rows of summary.csv as column -> cell text."""
+    """Rows of summary.csv as column -> cell text, a missing metric as `missing: <reason>`."""
     with open(path, newline="") as f:
-        return list(csv.DictReader(f))
+        return [join_missing(row) for row in csv.DictReader(f)]
 
 
 def number(cell: str | None) -> float | None:

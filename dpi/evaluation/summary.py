@@ -17,6 +17,7 @@ import numpy as np
 
 from dpi.atomic import atomic_path
 from dpi.capture import read_ground_truth
+from dpi.evaluation.metric_table import split_missing
 from dpi.evaluation.metrics import aligned_env, env_metrics, missing, resize_area
 from dpi.spread import (albedo_std_map, calibration, log_std_map, mean_log_map, normalized_albedo, normalized_env,
                          sample_variance, sphere_mean)
@@ -144,7 +145,9 @@ def sample_rows(records: list[dict[str, Any]], summary: list[dict[str, Any]]) ->
 
 
 def write_csv(path: str | Path, rows: list[dict[str, Any]]) -> None:
-    """Write rows (union of their keys as columns, first-seen order) as CSV, atomically."""
+    """Write rows (union of their keys as columns, first-seen order) as CSV, atomically; a missing metric is an
+    empty cell with its reason in the `notes` column, so every metric column reads as numbers."""
+    rows = [split_missing(row) for row in rows]
     columns: list[str] = []
     for row in rows:
         columns += [k for k in row if k not in columns]

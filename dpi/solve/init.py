@@ -38,11 +38,11 @@ class InitConfig(OptimizeConfig):
     glossy_start: Annotated[tuple[Fraction, Fraction], Loose] = (0.1, 1.0)
     """the retry's (roughness, metallic): a glossy metal"""
     retry_below: Fraction = 0.4
-    """the fit is retried from `glossy_start` when its roughness 25th percentile ends below this (0: never). On the
-    studies' scenes a rough start ends at 0.41-0.50 on rough objects and at 0.20-0.36 on mirror-like metal"""
+    """the fit is retried from `glossy_start` when its roughness 25th percentile ends below this (0: never): a rough
+    start stops half-way on a mirror (docs/studies.md, "The init's start")"""
     retry_gain: Fraction = 0.6
-    """the retry is kept when its closing data loss is below this fraction of the first fit's. A metal under a free
-    map explains a rough object's views somewhat better too (0.6-1.1x), a mirror's far better (0.17-0.48x)"""
+    """the retry is kept when its closing data loss is below this fraction of the first fit's: a metal under a free
+    map explains a rough object's views a little better too, a mirror's far better"""
 
     def __post_init__(self) -> None:
         for name in ("start", "glossy_start"):
@@ -80,11 +80,9 @@ def starting_materials(init: Decomposition) -> MaterialTextures:
     """Where every posterior method starts: a grey albedo, the init's roughness, and on a rough object
     the init's median metallic everywhere (on a glossy one, `is_glossy`, its metallic texture).
 
-    The init fits a rough object's materials under a blurred light and explains the highlights it
-    cannot place with metal: on the sun study's blob its metallic reaches 0.5 where the sun's
-    highlights fall (truth 0). Starting from the median metallic, `dps`'s held-out views gain
-    0.4-0.6 dB on the sun study, 0.2 on the demo and 0.07 on the posterior study's ambiguous scenes
-    (docs/studies.md, "the material start"). A mirror's views resolve its materials: there the texture starts."""
+    The init fits a rough object's materials under a blurred light and explains the highlights it cannot place
+    with metal, so its metallic texture is a poor start there (docs/studies.md, "the material start"). A mirror's
+    views resolve its materials: there the texture starts."""
     materials = init.materials.detached()
     with torch.no_grad():
         materials.albedo.fill_(START_ALBEDO)

@@ -39,7 +39,7 @@ class ProblemSettings:
     loss_space: Literal["linear", "log1p"] = "log1p"
     """compare the views' path-traced images as log(1 + x) of the normalised radiance (foreground median 0.18) or
     as linear HDR: in linear a mirror's glints of the sun outweigh the rest of its views and the fit places
-    little else (resolution study, mirror: held-out views +1.8 dB in log1p; rough scenes tie, docs/studies.md)"""
+    little else (docs/studies.md, "Map resolution")"""
     resolution: ImageSize | None = None
     """longer image side (px) the views are fitted and evaluated at: larger captures are area-downsampled
     once (dpi.working); None: the capture's own size"""

@@ -77,7 +77,7 @@ class TransportSettings:
     roughness_levels: Annotated[int, Field(ge=0, le=8)] = 0
     """besides the materials' own roughness, the transport under this many more: the texture shifted to medians
     from a mirror's to a matte's (`roughness_levels`), recorded in the same pass (only the BSDF's values differ);
-    none on a rough object, whose fit never chose another level (docs/studies.md)"""
+    none on a rough object (docs/studies.md)"""
     max_height: Annotated[int, Field(ge=2, le=MAX_TRANSPORT_HEIGHT)] = 16
     """most rows of the maps the transport takes (`transport_height`): a rough object's views fix the light's low
     frequencies only, and the recording's cost grows with the texels (docs/studies.md)"""

@@ -68,9 +68,7 @@ class DPSConfig(MaterialRates):
 
     lr_albedo: Rate = 0.01
     """the albedo's Adam rate, in the loop and the refinement: half the other methods' (MaterialRates); the albedo
-    settles under the light instead of chasing each step's residual (posterior study, ambiguous: albedo MSE -27 %
-    on 18 of 18 samples, relight PSNR-H +0.5 dB, views +0.2, env -0.1; at 0.005 the views lose 1.5 dB;
-    docs/studies.md "the albedo's rate")"""
+    settles under the light instead of chasing each step's residual (docs/studies.md, "the albedo's rate")"""
     sampler: str = next(iter(SAMPLERS))
     """how a reverse step uses the data: proximal (x0-space data steps on the recorded light transport) or paper
     (the reference's gradient guidance through the path tracer)"""

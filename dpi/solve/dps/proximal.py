@@ -67,8 +67,7 @@ GRAM_EVERY = 4
 """reverse steps one formed G of the views' normal equations serves the map's solve (the albedo moves little
 between)"""
 SOLVE_CG_ITERATIONS = 10
-"""conjugate-gradient iterations of a step's solve on the transport's grid (posterior study, 128 rows: as
-accurate as 20, and 0.5 s a sample less)"""
+"""conjugate-gradient iterations of a step's solve on the transport's grid (more do not make it more accurate)"""
 
 
 @settings
@@ -89,9 +88,7 @@ class ProximalSettings(SamplerSettings):
     """share zeta of fresh noise in the re-noising (0: deterministic DDIM, 1: all fresh)"""
     material_start: Fraction = 0.6
     """fraction of the steps before the materials start to move: the map settles its light first, and the albedo
-    then fits that light instead of trading against it (posterior study, ambiguous: albedo MSE -17 % on 18 of 18
-    samples, relight PSNR-H +0.8 dB, env and views tied, against 0.3; 0.8 -30 % and +1.2 dB at -0.3 dB of env;
-    docs/studies.md "the material start's step")"""
+    then fits that light instead of trading against it (docs/studies.md, "the material start's step")"""
     level_every: Count = 4
     """steps between two choices of the roughness level (once the materials move)"""
     restart: bool = False
@@ -100,18 +97,15 @@ class ProximalSettings(SamplerSettings):
     map_solve: Steps = 1
     """Gauss-Newton iterations on the step's map (the same loss, all the views, dpi.solve.dps.map_solve) before
     its data updates: the map reaches the views from x0_hat, which a few Adam steps do not, by a correction of
-    x0_hat on the transport's grid (finer detail stays x0_hat's; 0: Adam only, the sampler before 2026-11-25)"""
+    x0_hat on the transport's grid (finer detail stays x0_hat's; 0: Adam only)"""
     perturb: Weight = 0.35
     """the solve's target is x0_hat plus a smooth random field of perturb x the prior's std of x0 given x_t (r_t of
     DAPS, Zhang et al. 2024, for a prior of std PRIOR_STD): where the views are silent each sample's map moves as
-    the prior allows instead of keeping x0_hat's guess, where they speak the solve pulls it back. The most accurate
-    sample whose calibration stays clearly nearest 1 (by more than its standard error): calibration study, rough,
-    1.74 at 0.35, 1.62 at 0.4, 1.90 at 0.3 (a plain fit's 1.99), 4.22 at 0 (`unperturbed`); each sample's env PSNR
-    +0.21 dB at 0.35 against 0.4 (15 of 18 posterior-study samples; docs/studies.md "the push's size")"""
+    the prior allows instead of keeping x0_hat's guess, where they speak the solve pulls it back (0: samples near
+    x0_hat's guess and alike; docs/studies.md, "the push's size")"""
     perturb_height: Count = 2
     """rows of the grid the push is white on (upsampled onto the prior's): a field as broad as the light's balance
-    between sky and ground, sides and colour, which the views of a rough object leave open (at 4 and 16 rows the
-    samples spread less per dB of env PSNR they lose, docs/studies.md)"""
+    between sky and ground, sides and colour, which the views of a rough object leave open (docs/studies.md)"""
 
     models_sun = True
 

@@ -3,7 +3,7 @@
 Adam on the materials while the map keeps the sample's detail and sun: it gets an order-1
 spherical-harmonic log gain (the light's broad balance, which the views determine;
 dpi.solve.smooth_gain) and a per-texel polish moving at `lr_texels`, at most about 1 in log over
-200 iterations (docs/studies.md, "Refinement", for the variants this won against).
+200 iterations (docs/studies.md, "Refinement").
 """
 
 from __future__ import annotations

@@ -40,9 +40,8 @@ class SweepSettings:
     init: InitConfig = field(default_factory=lambda: InitConfig.from_dict(resolve_config()["init"]))
     dps: DPSConfig = field(default_factory=lambda: DPSConfig(steps=50, refine=RefineSettings(iterations=20)))
     samples: Count = 6
-    """dps samples per point: sigma2_sample of 3 varied by 2x between repeats of one roughness (2026-11-25: 0.0079
-    against 0.0146-0.0200 at 0.9), which decided Fig. 9's ratio on one repeat; with 6 that estimate's variance is
-    0.4x (2 / (n - 1))"""
+    """dps samples per point: a variance from n samples has a relative variance of 2 / (n - 1), so too few let one
+    repeat decide Fig. 9's ratio"""
 
 
 def material_for(roughness: float) -> dict[str, float]:
@@ -65,13 +64,3 @@ def roughness_point(roughness: float, repeat: int, prior: Prior, folder: str | P
     return {"roughness": roughness, "metallic": material_for(roughness)["metallic"], "repeat": repeat,
             "samples": settings.samples,
             "env_sigma2_sample": sample_variance([normalized_env(e.numpy()) for e in envs])}
-
-
-def pareto_front(rows: list[dict[str, float]], minimize: tuple[str, ...], maximize: tuple[str, ...]) -> list[bool]:
-    """Per row, whether no other row is at least as good in every objective and better in one."""
-    def dominates(a: dict[str, float], b: dict[str, float]) -> bool:
-        no_worse = all(a[k] <= b[k] for k in minimize) and all(a[k] >= b[k] for k in maximize)
-        better = any(a[k] < b[k] for k in minimize) or any(a[k] > b[k] for k in maximize)
-        return no_worse and better
-
-    return [not any(dominates(other, row) for other in rows if other is not row) for row in rows]

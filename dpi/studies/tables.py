@@ -1,0 +1,249 @@
+"""Result tables generated from the committed study CSVs, never typed: each table is a function of its CSV's
+rows, and `dpi tables` writes it into the documents between the markers `<!-- table:NAME -->` and
+`<!-- /table:NAME -->` (or checks that they are up to date)."""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+RESULTS = Path("benchmarks") / "results"
+"""the committed study CSVs, relative to a checkout's root"""
+DOCUMENTS = (Path("README.md"), Path("docs") / "studies.md")
+"""the documents whose tables are generated"""
+METHOD_ORDER = ("init", "none", "global_norm", "smoothness", "chromaticity", "sds", "dip", "dps")
+
+Row = dict[str, Any]
+
+
+def read_rows(path: Path) -> list[Row]:
+    """A study CSV's rows, each cell a float where it reads as one (empty and text cells as they are)."""
+    with open(path, newline="") as f:
+        return [{k: _number(v) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+def _number(cell: str | None) -> Any:
+    try:
+        return float(cell)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return cell
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One numeric column of a table: its header, the CSV column, the format, and which way is better."""
+
+    header: str
+    column: str
+    fmt: str
+    better: int = 0
+    """+1: higher is better, -1: lower, 0: not ranked (the best per group is bold)"""
+    spread: bool = True
+    """show `mean ± std` (population std over the group's rows), else the mean only"""
+
+
+def stats(values: Iterable[Any]) -> tuple[float, float] | None:
+    """Mean and population std of the finite numbers among `values`; None when there are none."""
+    numbers = [v for v in values if isinstance(v, float) and math.isfinite(v)]
+    if not numbers:
+        return None
+    mean = sum(numbers) / len(numbers)
+    return mean, math.sqrt(sum((v - mean) ** 2 for v in numbers) / len(numbers))
+
+
+def markdown(header: list[str], body: list[list[str]]) -> str:
+    """A GitHub markdown table."""
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    return "\n".join(lines + ["| " + " | ".join(cells) + " |" for cells in body])
+
+
+def grouped_table(rows: list[Row], keys: tuple[str, ...], metrics: tuple[Metric, ...], rank_by: str | None = None,
+                  order: Callable[[tuple], Any] | None = None) -> str:
+    """Mean (± std) of each metric per distinct value of `keys`, with the row count `n`; within each value of
+    `rank_by` (one of the keys, or the whole table) the best mean of a ranked metric is bold."""
+    groups: dict[tuple, list[Row]] = {}
+    for row in rows:
+        groups.setdefault(tuple(row[k] for k in keys), []).append(row)
+    ordered = sorted(groups, key=order) if order else list(groups)
+    means = {g: {m.column: stats(r[m.column] for r in groups[g]) for m in metrics} for g in ordered}
+    best: set[tuple[tuple, str]] = set()
+    for m in (m for m in metrics if m.better):
+        for part in dict.fromkeys(g[keys.index(rank_by)] if rank_by else None for g in ordered):
+            members = [g for g in ordered if rank_by is None or g[keys.index(rank_by)] == part]
+            scored = {g: m.better * means[g][m.column][0] for g in members if means[g][m.column]}
+            if len(scored) > 1:
+                top = max(scored.values())
+                best |= {(g, m.column) for g, v in scored.items() if v == top}
+    body = []
+    for g in ordered:
+        cells = [_text(v) for v in g] + [str(len(groups[g]))]
+        for m in metrics:
+            s = means[g][m.column]
+            cell = "-" if s is None else f"{s[0]:{m.fmt}}"
+            cell = f"**{cell}**" if (g, m.column) in best else cell
+            if s is not None and m.spread and len(groups[g]) > 1:
+                cell += f" ± {s[1]:{m.fmt}}"
+            cells.append(cell)
+        body.append(cells)
+    return markdown([*keys, "n", *(m.header for m in metrics)], body)
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:g}"
+    return "" if value is None else str(value)
+
+
+def method_order(key: tuple, method_at: int = 1) -> tuple:
+    """Sort key: the keys before the method as they are, then the methods in METHOD_ORDER, then the rest."""
+    method = key[method_at]
+    rank = METHOD_ORDER.index(method) if method in METHOD_ORDER else len(METHOD_ORDER)
+    return (*key[:method_at], rank, *(str(k) for k in key[method_at + 1:]))
+
+
+VIEW = Metric("view PSNR [dB]", "novel_psnr", ".2f", +1)
+ENV = Metric("env PSNR [dB]", "env_psnr", ".2f", +1)
+ALBEDO = Metric("albedo MSE", "albedo_mse", ".4f", -1, spread=False)
+SECONDS = Metric("s/sample", "seconds", ".1f", spread=False)
+
+
+def posterior(root: Path) -> str:
+    """Posterior study: every method per scene group, over scenes and seeds."""
+    rows = read_rows(root / RESULTS / "posterior_study.csv")
+    metrics = (VIEW, ENV, Metric("env SSIM", "env_ssim", ".3f", +1, spread=False), ALBEDO,
+               Metric("relight PSNR-H [dB]", "relight_psnr_h", ".2f", +1),
+               Metric("relight PSNR-L [dB]", "relight_psnr_l", ".2f", +1), SECONDS)
+    return grouped_table(rows, ("group", "method", "sampler"), metrics, rank_by="group", order=method_order)
+
+
+def calibration(root: Path) -> str:
+    """Calibration study: metal and rough objects, means over repeats x lights x objects."""
+    rows = read_rows(root / RESULTS / "calibration_study.csv")
+    for row in rows:
+        row["material"] = "metal" if row["metallic"] >= 0.5 else "rough"
+    metrics = (ENV, ALBEDO, Metric("view PSNR [dB]", "novel_psnr", ".2f", +1, spread=False),
+               Metric("env sigma2_sample", "env_sigma2_sample", ".4f", spread=False),
+               Metric("calibration", "calibration", ".2f"), Metric("s/sample", "seconds", ".0f", spread=False))
+    return grouped_table(rows, ("material", "method", "sampler"), metrics, rank_by="material", order=method_order)
+
+
+def fig9_ratios(root: Path) -> str:
+    """Calibration study, Fig. 9: the metal's env sigma2_sample over the rough object's, per object, light and
+    repeat (a mirror's samples agree, a rough object's differ); its range per method."""
+    rows = read_rows(root / RESULTS / "calibration_study.csv")
+    spread = {(r["object"], r["light"], r["repeat"], r["method"], r["sampler"], r["metallic"] >= 0.5):
+              r["env_sigma2_sample"] for r in rows if r["method"] != "init"}
+    ratios: dict[tuple, list[float]] = {}
+    for (obj, light, repeat, method, sampler, metal), value in spread.items():
+        rough = spread.get((obj, light, repeat, method, sampler, False))
+        if metal and rough:
+            ratios.setdefault((method, sampler), []).append(value / rough)
+    body = [[m, s, str(len(v)), f"{min(v):.2f}", f"{max(v):.2f}"]
+            for (m, s), v in sorted(ratios.items(), key=lambda kv: method_order(kv[0], 0))]
+    return markdown(["method", "sampler", "n", "metal / rough, least", "metal / rough, most"], body)
+
+
+def train_fit(root: Path) -> str:
+    """Training-view fit: each sample's training-view MSE over its init's and over the truth's, per method and
+    scene group (the posterior study's groups)."""
+    groups = {r["scene"]: r["group"] for r in read_rows(root / RESULTS / "posterior_study.csv")}
+    rows = read_rows(root / RESULTS / "train_fit.csv")
+    for row in rows:
+        row["group"] = groups.get(row["scene"], "")
+        row["over_init"] = row["mse"] / row["init_mse"]
+        row["over_truth"] = row["mse"] / row["truth_mse"]
+        row["above_truth"] = float(row["over_truth"] > 1.05)
+    metrics = (Metric("MSE / init", "over_init", ".2f", -1), Metric("MSE / truth", "over_truth", ".2f", -1),
+               Metric("share above 1.05x the truth", "above_truth", ".2f", spread=False))
+    return grouped_table(rows, ("group", "method"), metrics, rank_by="group", order=method_order)
+
+
+def resolution(root: Path) -> str:
+    """Resolution study: dps at each map size, a mirror-like torus and a rough blob."""
+    rows = read_rows(root / RESULTS / "resolution_study.csv")
+    for row in rows:
+        row["env map"] = f"{int(row['env_height'])} x {2 * int(row['env_height'])}"
+    metrics = (VIEW, ENV, Metric("relight PSNR-H [dB]", "relight_psnr_h", ".2f", +1), SECONDS)
+    return grouped_table(rows, ("group", "env map"), metrics, rank_by="group",
+                         order=lambda k: (k[0], int(k[1].split()[0])))
+
+
+def roughness(root: Path) -> str:
+    """Roughness study (Fig. 9): env sigma2_sample of dps samples per roughness, over repeats."""
+    rows = read_rows(root / RESULTS / "roughness_study.csv")
+    return grouped_table(rows, ("roughness", "metallic"),
+                         (Metric("env sigma2_sample", "env_sigma2_sample", ".4f"),), order=lambda k: k)
+
+
+def tradeoff(root: Path) -> str:
+    """Presets trade-off: one dps sample of the demo per setting, each changing one knob of `default`."""
+    rows = read_rows(root / RESULTS / "tradeoff.csv")
+    body = [[r["label"], f"{r['seconds']:.1f}", f"{r['env_psnr']:.2f}", f"{r['albedo_mse']:.4f}",
+             f"{r['view_psnr']:.2f}", "yes" if r["pareto"] == "True" else ""] for r in rows]
+    return markdown(["setting", "s/sample", "env PSNR [dB]", "albedo MSE", "view PSNR [dB]", "Pareto"], body)
+
+
+def presets(root: Path) -> str:
+    """The quality presets of dpi's default config, each with the settings it fills (dpi.settings.apply_preset)."""
+    from copy import deepcopy
+
+    from dpi.pipeline import DEFAULT_CONFIG, read_yaml
+    from dpi.settings import apply_preset
+    from dpi.solve.dps.config import GLOSSY_REFINE_FACTOR
+    from dpi.solve.problem import ProblemSettings
+
+    base = read_yaml(DEFAULT_CONFIG)
+    body = []
+    for name in base["presets"]:
+        config = apply_preset({**deepcopy(base), "preset": name})
+        problem = ProblemSettings(**config["problem"])
+        dps = config["method_params"]["dps"]
+        refine = dps["refine"]["iterations"]
+        body.append([f"`{name}`", str(dps["steps"]), f"{refine} ({refine * GLOSSY_REFINE_FACTOR} on a glossy object)",
+                     str(config["render"]["spp"]), str(config["init"]["iterations"]),
+                     f"{problem.resolution} px" if problem.resolution else "the capture's own",
+                     f"{problem.env_height} x {2 * problem.env_height}", str(problem.texture_size)])
+    return markdown(["preset", "diffusion steps", "refinement iterations", "spp", "init iterations",
+                     "views fitted at (longer side)", "env map", "textures"], body)
+
+
+TABLES: dict[str, Callable[[Path], str]] = {
+    "presets": presets, "posterior": posterior, "calibration": calibration, "fig9": fig9_ratios, "train_fit": train_fit,
+    "resolution": resolution, "roughness": roughness, "tradeoff": tradeoff,
+}
+"""every generated table by the name its markers use"""
+
+MARKER = re.compile(r"(<!-- table:(?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- /table:(?P=name) -->)", re.S)
+
+
+def render_document(text: str, root: Path) -> str:
+    """`text` with each marked table replaced by its generated one; an unknown name is an error naming it."""
+    def table(match: re.Match) -> str:
+        name = match["name"]
+        if name not in TABLES:
+            raise KeyError(f"unknown table {name!r} (known: {', '.join(TABLES)})")
+        return f"{match[1]}{TABLES[name](root)}\n{match[4]}"
+
+    return MARKER.sub(table, text)
+
+
+def update_tables(root: Path, check: bool = False) -> list[Path]:
+    """Regenerate the tables of every document under `root` (or, with `check`, change nothing); the documents
+    whose tables were (or would be) changed."""
+    changed = []
+    for relative in DOCUMENTS:
+        path = root / relative
+        if not path.exists():
+            continue
+        text = path.read_text()
+        new = render_document(text, root)
+        if new != text:
+            changed.append(path)
+            if not check:
+                path.write_text(new)
+    return changed
