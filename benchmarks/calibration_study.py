@@ -17,58 +17,30 @@ material, method and sampler, and the metal / rough ratio of sigma2_sample per o
     .venv/bin/python benchmarks/calibration_study.py [--methods ...] [--samplers ...] [--dps NAME:key=value,...]
         [--repeats 3] [--samples 4]
 
-Samples already drawn are reused; rows already in the CSV are kept and not recomputed.
+Samples already drawn are reused; rows already in the CSV with the same settings hash are kept and not
+recomputed.
 """
 
 from __future__ import annotations
 
 import argparse
-import multiprocessing
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from posterior_study import (
-    ROOT,
-    SIZE,
-    TEXT_COLUMNS,
-    Job,
-    append_row,
-    dps_variants,
-    job_settings,
-    mean_std_cells,
-    prepare_job,
-    read_rows,
-    run_job,
-    workflow_config,
-)
 
-WORK = ROOT / "results" / "benchmarks" / "calibration_study"
+from dpi.studies.engine import (TEXT_COLUMNS, Job, append_row, dps_variants, job_settings, mean_std_cells, pool,
+                                prepare_job, read_rows, results_csv, run_job, work_dir,
+                                workflow_config)
+from dpi.studies.scenes import calibration_scenes as scenes, repeat_scene, repeat_synth
+
+WORK = work_dir("calibration_study")
 REPEATS = 3
 """repeats per scene (each its own capture noise, init and seed stream)"""
-CSV = ROOT / "benchmarks" / "results" / "calibration_study.csv"
+CSV = results_csv("calibration_study")
 COLUMNS = ("scene", "object", "light", "roughness", "metallic", "method", "sampler", "repeat", "samples", "env_psnr",
            "env_ssim", "albedo_mse", "novel_psnr", "env_sigma2_sample", "calibration", "seconds")
-OBJECTS = {"blob": {"shape": "blob", "seed": 0}, "torus": {"shape": "bumpy_torus", "seed": 3}}
-LIGHTS = {"sun": {"environment": "outdoor", "environment_seed": 21, "prior": "outdoor"},
-          "room": {"environment": "indoor", "environment_seed": 22, "prior": "indoor"},
-          "ldr": {"environment": "outdoor", "environment_seed": 23, "environment_clip": 5.3, "prior": "outdoor"}}
-MATERIALS = {"metal": {"roughness": 0.05, "roughness_variation": 0.0, "metallic": 1.0},
-             "rough": {"roughness": 0.85, "roughness_variation": 0.05, "metallic": 0.0}}
 METHODS = ("init", "none", "sds", "dip", "dps")
-
-
-def scenes() -> dict[str, dict[str, Any]]:
-    """scene name -> its synthetic capture settings (without the repeat's seed)."""
-    return {f"{o}_{light}_{m}": {**SIZE, "arc_deg": 150.0, "elevations_deg": (15.0, 40.0), **OBJECTS[o],
-                                 **LIGHTS[light], **MATERIALS[m], "object": o}
-            for o in OBJECTS for light in LIGHTS for m in MATERIALS}
-
-
-def repeat_scene(scene: str, repeat: int) -> str:
-    """The folder of one repeat of a scene: its own capture noise and initialisation."""
-    return f"{scene}_r{repeat}"
 
 
 def sample_jobs(args: argparse.Namespace, config: dict) -> dict[tuple[str, str, str, int], list[Job]]:
@@ -79,7 +51,7 @@ def sample_jobs(args: argparse.Namespace, config: dict) -> dict[tuple[str, str, 
         if args.scenes and scene not in args.scenes:
             continue
         for repeat in range(args.repeats):
-            name, own = repeat_scene(scene, repeat), {**synth, "seed": synth["seed"] + 100 * repeat}
+            name, own = repeat_scene(scene, repeat), repeat_synth(synth, repeat)
             for method in args.methods:
                 labels = {s: variants[s] for s in args.samplers} if method == "dps" else \
                     {"": config["method_params"].get(method, {})}
@@ -152,22 +124,23 @@ def main() -> None:
     config = workflow_config(env_height=16)
     groups = sample_jobs(args, config)
     text = TEXT_COLUMNS + ("object", "light")
-    done = {(r["scene"], r["method"], r["sampler"], int(r["repeat"])) for r in read_rows(args.out, text)}
-    todo = {k: v for k, v in groups.items() if k not in done}
+    keyed = {(*key, jobs[0].settings_hash): jobs for key, jobs in groups.items()}
+
+    def row_key(r: dict) -> tuple:
+        return r["scene"], r["method"], r["sampler"], int(r["repeat"]), r["settings_hash"]
+
+    done = {row_key(r) for r in read_rows(args.out, text)}
+    todo = {k: v for k, v in keyed.items() if k not in done}
     inits = list({j.scene: j for jobs in todo.values() for j in jobs}.values())
-    context = multiprocessing.get_context("spawn")
     print(f"{len(todo)} groups to draw ({sum(len(v) for v in todo.values())} samples); {len(done)} rows already "
           f"in {args.out}", flush=True)
-    with ProcessPoolExecutor(max_workers=args.jobs, mp_context=context) as pool:
-        list(pool.map(prepare_job, inits))
+    with pool(max(args.jobs, 1)) as workers:
+        list(workers.map(prepare_job, inits))
         for key, jobs in todo.items():
-            rows = list(pool.map(run_job, jobs))
-            row = group_row(key, rows, jobs)
-            append_row(args.out, row, COLUMNS)
+            row = group_row(key[:4], list(workers.map(run_job, jobs)), jobs)
+            append_row(args.out, row, COLUMNS, key[4])
             print("  ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items()), flush=True)
-    wanted = set(groups)
-    rows = [r for r in read_rows(args.out, text)
-            if (r["scene"], r["method"], r["sampler"], int(r["repeat"])) in wanted]
+    rows = [r for r in read_rows(args.out, text) if row_key(r) in keyed]
     print("\n".join(summary(rows)))
 
 

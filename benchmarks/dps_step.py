@@ -36,7 +36,6 @@ from typing import Any, Iterator
 
 import numpy as np
 import torch
-from tradeoff import DEMO, PIPELINE, capture_at, preset_setting
 
 from dpi import backend
 from dpi.capture import load_capture
@@ -48,6 +47,9 @@ from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, star
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.state import DPSRun
 from dpi.solve.problem import InverseProblem, ProblemSettings
+from dpi.studies.demo_costs import DEMO, capture_at, demo_pipeline, preset_setting
+
+PIPELINE = demo_pipeline()
 
 PARTS = {"network": "network forward (UNet, random roll)",
          "solve": "Gauss-Newton solve of the map on the transport (proximal)",
@@ -74,7 +76,7 @@ def kernel_counts() -> dict[str, float]:
 def make_run(sampler: str, threads: int, seed: int) -> tuple[DPSRun, Iterator[dict[str, Any]]]:
     """The demo's problem at the default setting, the init, the prior, and the sampler's step loop."""
     base = preset_setting()
-    capture = load_capture(capture_at(base.resolution, threads))
+    capture = load_capture(capture_at(base.resolution, threads, PIPELINE.layout.results / "benchmarks"))
     problem = InverseProblem(capture, ProblemSettings(env_height=base.env_height, texture_size=base.texture_size),
                              RenderSettings(spp=base.spp, threads=threads))
     init = problem.load_decomposition(PIPELINE.layout.scene(DEMO).sample_dir(INIT))

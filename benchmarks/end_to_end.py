@@ -19,16 +19,14 @@ import shutil
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import yaml
-from posterior_study import append_row
 
 from dpi.layout import SYNTH_MARKER
+from dpi.studies.engine import CHECKOUT as ROOT, append_row, results_csv, settings_hash, work_dir
 
-ROOT = Path(__file__).resolve().parent.parent
-WORK = ROOT / "results" / "benchmarks" / "end_to_end"
-CSV = ROOT / "benchmarks" / "results" / "end_to_end.csv"
+WORK = work_dir("end_to_end")
+CSV = results_csv("end_to_end")
 COLUMNS = ("capture", "views", "size", "preset", "seconds")
 CAPTURES = {
     "synthetic_60x512": {"views": 60, "held_out_every": 10, "width": 512, "height": 512, "spp": 64},
@@ -70,7 +68,7 @@ def main() -> None:
             seconds = run_preset(capture, synth, preset, args.cores)
             row = {"capture": capture, "views": synth["views"], "size": f"{synth['width']}x{synth['height']}",
                    "preset": preset, "seconds": round(seconds, 1)}
-            append_row(CSV, row, COLUMNS)
+            append_row(CSV, row, COLUMNS, settings_hash({"synth": synth, "preset": preset, "cores": args.cores}))
             print("  ".join(f"{k} {v}" for k, v in row.items()), flush=True)
 
 

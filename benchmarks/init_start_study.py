@@ -25,10 +25,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from posterior_study import (ROOT, SCENES as POSTERIOR_SCENES, append_row, prepare_capture, read_rows,
-                             workflow_config)
 
-CSV = ROOT / "benchmarks" / "results" / "init_start_study.csv"
+from dpi.studies.engine import append_row, prepare_capture, read_rows, results_csv, settings_hash, work_dir, \
+    workflow_config
+from dpi.studies.scenes import (POSTERIOR_SCENES, RESOLUTION_SCENES, calibration_scenes, repeat_scene, repeat_synth,
+                                resolution_config, resolution_root)
+
+CSV = results_csv("init_start_study")
 COLUMNS = ("study", "scene", "roughness", "metallic", "start_roughness", "start_metallic", "pilot_loss",
            "closing_loss", "init_roughness_p25", "init_metallic_median", "novel_psnr", "chosen", "best", "seconds")
 PILOT = (20, 40)
@@ -41,19 +44,14 @@ def study_scenes(study: str, repeats: int) -> tuple[Path, dict[str, Any], dict[s
     """A study's folder, workflow config and scenes (folder name -> synth settings): the calibration study's
     first `repeats` repeats of the scenes in its CSV."""
     if study == "posterior":
-        from posterior_study import WORK
-
-        return WORK, workflow_config(), {name: synth for name, (_, synth) in POSTERIOR_SCENES.items()}
+        return work_dir("posterior_study"), workflow_config(), {n: synth for n, (_, synth) in POSTERIOR_SCENES.items()}
     if study == "calibration":
-        from calibration_study import CSV as CALIBRATION_CSV, WORK, repeat_scene, scenes
-
-        studied = {r["scene"] for r in read_rows(CALIBRATION_CSV, ("scene",))}
-        return WORK, workflow_config(env_height=16), {
-            repeat_scene(name, r): {**synth, "seed": synth["seed"] + 100 * r}
-            for name, synth in scenes().items() if name in studied for r in range(repeats)}
-    from resolution_study import SCENES, size_config, size_root
-
-    return size_root(128, 64), size_config(128, 64), {name: synth for name, (_, synth) in SCENES.items()}
+        studied = {r["scene"] for r in read_rows(results_csv("calibration_study"), ("scene",))}
+        return work_dir("calibration_study"), workflow_config(env_height=16), {
+            repeat_scene(name, r): repeat_synth(synth, r)
+            for name, synth in calibration_scenes().items() if name in studied for r in range(repeats)}
+    return (resolution_root(work_dir("resolution_study"), 128, 64), resolution_config(128, 64),
+            {name: synth for name, (_, synth) in RESOLUTION_SCENES.items()})
 
 
 def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth: dict[str, Any]) -> list[dict]:
@@ -84,6 +82,12 @@ def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth
                      "novel_psnr": novel_view_metrics(problem, renders)["novel_psnr"],
                      "seconds": round(time.perf_counter() - begin, 1)})
     return mark(rows, cfg)
+
+
+def row_settings(config: dict[str, Any], synth: dict[str, Any]) -> str:
+    """The settings hash of a scene's rows: its capture and the init's settings."""
+    return settings_hash({"synth": synth, "init": config["init"], "problem": config["problem"],
+                          "render": config["render"]})
 
 
 def mark(rows: list[dict[str, Any]], cfg: Any) -> list[dict[str, Any]]:
@@ -131,7 +135,7 @@ def main() -> None:
             if (study, scene) in done:
                 continue
             for row in scene_rows(study, root, config, scene, synth):
-                append_row(args.out, row, COLUMNS)
+                append_row(args.out, row, COLUMNS, row_settings(config, synth))
             print(f"{study} {scene}: done", flush=True)
     from dpi.pipeline import Pipeline, resolve_config
 
@@ -140,7 +144,7 @@ def main() -> None:
     rows = [row for i in range(0, len(rows), 2) for row in mark(rows[i:i + 2], cfg)]
     args.out.unlink()
     for row in rows:
-        append_row(args.out, row, COLUMNS)
+        append_row(args.out, row, COLUMNS, row["settings_hash"])
     print("\n".join(summary(rows)))
 
 

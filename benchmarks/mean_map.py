@@ -13,7 +13,6 @@ evaluation's env PSNR / SSIM, and prints the means per method folder.
 from __future__ import annotations
 
 import argparse
-import csv
 from collections import defaultdict
 from pathlib import Path
 
@@ -24,6 +23,7 @@ from dpi.evaluation.metrics import env_metrics
 from dpi.exr import read_exr
 from dpi.layout import ENV_FILE
 from dpi.spread import mean_log_map
+from dpi.studies.engine import settings_hash, write_rows
 
 
 def main() -> None:
@@ -53,10 +53,7 @@ def main() -> None:
                          "sample_env_ssim": np.mean([s["env_ssim"] for s in single]),
                          "mean_env_psnr": mean["env_psnr"], "mean_env_ssim": mean["env_ssim"]})
     if args.out:
-        with open(args.out, "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-            writer.writeheader()
-            writer.writerows(rows)
+        write_rows(args.out, rows, settings_hash({"methods": args.methods, "scenes": args.scenes}))
     groups = defaultdict(list)
     for row in rows:
         groups[row["method"]].append(row)

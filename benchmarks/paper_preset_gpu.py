@@ -28,9 +28,10 @@ from pathlib import Path
 from typing import Any, Callable
 
 import torch
-from posterior_study import SCENES, job_settings, prepare_capture, study_layout
 
 from dpi.layout import INIT
+from dpi.studies.engine import PROVENANCE, current_commit, job_settings, prepare_capture, settings_hash, study_layout
+from dpi.studies.scenes import POSTERIOR_SCENES as SCENES
 
 ROOT = Path(__file__).resolve().parent.parent
 DEMO = ROOT / "captures" / "demo"
@@ -158,10 +159,11 @@ def main() -> None:
 
     def keep(new: list[dict[str, Any]], scene: str, preset: str) -> None:
         for row in new:
-            rows.append({"scene": scene, "preset": preset, "variant": variant, "device": card, **row})
+            rows.append({"scene": scene, "preset": preset, "variant": variant, "device": card, **row,
+                         "commit": current_commit(), "settings_hash": settings_hash(configs.get(preset, preset))})
             print(f"{row['part']:>30} {scene:>9} {preset:>8} {row['seconds']:9.3f} s  {row['detail']}", flush=True)
         with table.open("w", newline="") as f:
-            writer = csv.DictWriter(f, COLUMNS)
+            writer = csv.DictWriter(f, (*COLUMNS, *PROVENANCE))
             writer.writeheader()
             writer.writerows(rows)
 

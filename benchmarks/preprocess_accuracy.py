@@ -22,10 +22,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-from posterior_study import append_row
 from tabulate import tabulate
 
 from dpi.images import read_mask
+from dpi.studies.engine import append_row, settings_hash
 from dpi.consistency import mask_iou
 from dpi.preprocess.accuracy import align_mesh, chamfer, pose_errors
 from dpi.preprocess.geometry import read_mesh
@@ -86,7 +86,10 @@ def append_csv(path: Path, row: dict, views: int, size: int, elevations: list[fl
               "mask_iou": row.get("iou_mean", ""), "chamfer_pct": row.get("chamfer_pct", ""),
               "seconds": sum(v for k, v in row.items() if k.endswith("_s") and k != "render_s"),
               "error": row.get("error", "")}
-    append_row(path, {k: f"{v:.4g}" if isinstance(v, float) else v for k, v in record.items()}, tuple(record))
+    settings = {k: record[k] for k in ("shape", "background", "views", "size", "elevations_deg", "support_plane",
+                                       "stereo")}
+    append_row(path, {k: f"{v:.4g}" if isinstance(v, float) else v for k, v in record.items()}, tuple(record),
+               settings_hash(settings))
 
 
 def main() -> None:

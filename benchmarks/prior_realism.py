@@ -13,8 +13,6 @@ a grid of samples (top rows) above the held-out real maps (bottom row) as PNG ne
 from __future__ import annotations
 
 import argparse
-import csv
-import subprocess
 import time
 from pathlib import Path
 
@@ -28,24 +26,19 @@ from dpi.prior.data import read_panorama
 from dpi.prior.panoramas import panorama_files
 from dpi.prior.procedural import checked_envmaps
 from dpi.prior.sample import DEFAULT_MODELS, draw_samples, load_prior, write_grid
+from dpi.studies.engine import append_row, settings_hash
 
 RESULTS = Path(__file__).resolve().parent / "results"
 HELD_OUT_SEED = 1000
 """seed of the procedural maps (the shipped priors trained on seed 0)"""
-COLUMNS = ("commit", "checkpoint", "family", "kind", "maps", "denoising_mse", "denoising_mse_std", "niqe", "niqe_std")
+COLUMNS = ("checkpoint", "family", "kind", "maps", "denoising_mse", "denoising_mse_std", "niqe", "niqe_std")
 
 
-def commit() -> str:
-    """The checkout's commit (short), or 'unknown' outside git."""
-    out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=RESULTS)
-    return out.stdout.strip() or "unknown"
-
-
-def row(kind: str, maps: list[np.ndarray], prior, checkpoint: str, revision: str) -> dict:
+def row(kind: str, maps: list[np.ndarray], prior, checkpoint: str) -> dict:
     """Denoising error and NIQE of HDR maps (H, W, 3) under `prior`: mean and std over the maps."""
     mse = np.array([-naturalness(m, prior) for m in maps])
     niqe = np.array([env_niqe(m) for m in maps])
-    return {"commit": revision, "checkpoint": Path(checkpoint).name, "family": prior.family, "kind": kind,
+    return {"checkpoint": Path(checkpoint).name, "family": prior.family, "kind": kind,
             "maps": len(maps),
             "denoising_mse": round(float(mse.mean()), 5), "denoising_mse_std": round(float(mse.std()), 5),
             "niqe": round(float(niqe.mean()), 3), "niqe_std": round(float(niqe.std()), 3)}
@@ -70,8 +63,7 @@ def main() -> None:
     procedural, _ = checked_envmaps(args.family, args.count, 2 * prior.height, seed=HELD_OUT_SEED, progress=False)
     x = draw_samples(prior, args.count, args.steps, seed=0)
     samples = [prior.encoding.to_radiance(xi).permute(1, 2, 0).numpy() for xi in x]
-    revision = commit()
-    rows = [row(kind, maps, prior, checkpoint, revision) for kind, maps in (
+    rows = [row(kind, maps, prior, checkpoint) for kind, maps in (
         ("real_held_out", real["held_out"]), ("real_train", real["train"]), ("procedural", procedural),
         ("samples", samples))]
     name = Path(checkpoint).stem
@@ -79,13 +71,10 @@ def main() -> None:
     held = torch.stack([prior_image(m, prior) for m in real["held_out"]])
     tiles = torch.cat([x[: columns * max(1, (args.count // columns) - 1)], held])
     write_grid(RESULTS / f"prior_realism_{name}.png", tiles, columns=columns)
-    path = RESULTS / "prior_realism.csv"
-    new = not path.exists()
-    with open(path, "a", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=COLUMNS)
-        if new:
-            writer.writeheader()
-        writer.writerows(rows)
+    settings = settings_hash({"family": args.family, "count": args.count, "steps": args.steps,
+                              "seed": HELD_OUT_SEED})
+    for r in rows:
+        append_row(RESULTS / "prior_realism.csv", r, COLUMNS, settings)
     print(f"{'kind':<14} {'maps':>4} {'denoising MSE':>16} {'NIQE':>14}   ({name}, {time.perf_counter() - start:.0f} s)")
     for r in rows:
         print(f"{r['kind']:<14} {r['maps']:>4} {r['denoising_mse']:>9.4f} +- {r['denoising_mse_std']:<6.4f}"

@@ -26,43 +26,18 @@ from typing import Any
 
 import numpy as np
 import torch
-from posterior_study import ROOT, Job, job_settings, mean_std_cells, run_study, study_layout
 
-WORK = ROOT / "results" / "benchmarks" / "resolution_study"
-CSV = ROOT / "benchmarks" / "results" / "resolution_study.csv"
+from dpi.studies.engine import (Job, job_settings, mean_std_cells, results_csv, run_job, run_study, study_layout,
+                                work_dir)
+from dpi.studies.scenes import RESOLUTION_SCENES as SCENES, resolution_config as size_config, resolution_root
+
+WORK = work_dir("resolution_study")
+CSV = results_csv("resolution_study")
 COLUMNS = ("scene", "group", "env_height", "texture_size", "seed", "novel_psnr", "env_psnr", "relight_psnr_h",
            "seconds")
 TEXT = ("scene", "group")
-CAPTURE = {"views": 12, "held_out_every": 4, "width": 96, "height": 96, "spp": 128, "env_height": 256,
-           "texture_size": 128, "arc_deg": 150.0, "elevations_deg": (15.0, 40.0), "environment": "sunsky",
-           "sun_elevation_deg": 12.0, "sun_azimuth_deg": 200.0, "prior": "outdoor"}
-SCENES = {"torus_glossy": ("glossy", {**CAPTURE, "shape": "bumpy_torus", "seed": 3, "roughness": 0.05,
-                                      "roughness_variation": 0.0, "metallic": 1.0}),
-          "blob_rough": ("rough", {**CAPTURE, "shape": "blob", "seed": 0, "roughness": 0.85,
-                                   "roughness_variation": 0.05, "metallic": 0.0})}
-
-
-def size_config(height: int, texture: int) -> dict[str, Any]:
-    """The workflow's resolved config at a map height and texture size."""
-    from dpi.pipeline import resolve_config
-
-    return resolve_config({"problem": {"env_height": height, "texture_size": texture}})
-
-
-def size_root(height: int, texture: int) -> Path:
-    """One size's study folder; its captures/ is the shared one (the captures do not depend on the size)."""
-    root = WORK / f"h{height}_t{texture}"
-    (root / "results").mkdir(parents=True, exist_ok=True)
-    link = root / "captures"
-    if not link.exists():
-        link.symlink_to(WORK / "captures", target_is_directory=True)
-    return root
-
-
 def score(job: Job) -> dict[str, Any]:
-    """Draw and evaluate one sample (the posterior study's job); its row."""
-    from posterior_study import run_job
-
+    """Draw and evaluate one sample (the engine's job); its row."""
     row = run_job(job)
     metrics = json.loads(job.layout.scene(job.scene).evaluation(job.label, job.seed).read_text())["metrics"]
     problem = job.config["problem"]
@@ -71,14 +46,14 @@ def score(job: Job) -> dict[str, Any]:
 
 
 def job_key(job: Job) -> tuple:
-    """What tells the study's samples apart: scene, map height, texture size, seed."""
+    """What tells the study's samples apart: scene, map height, texture size, seed, settings hash."""
     problem = job.config["problem"]
-    return job.scene, problem["env_height"], problem["texture_size"], job.seed
+    return job.scene, problem["env_height"], problem["texture_size"], job.seed, job.settings_hash
 
 
 def row_key(row: dict[str, Any]) -> tuple:
     """`job_key` of a CSV row."""
-    return row["scene"], int(row["env_height"]), int(row["texture_size"]), int(row["seed"])
+    return row["scene"], int(row["env_height"]), int(row["texture_size"]), int(row["seed"]), row["settings_hash"]
 
 
 def summary(rows: list[dict[str, Any]]) -> list[str]:
@@ -132,14 +107,14 @@ def main() -> None:
             config = size_config(height, texture)
             dps = job_settings(config["method_params"].get("dps", {}))
             for scene, (group, synth) in SCENES.items():
-                jobs.extend(Job(size_root(height, texture), scene, group, synth, "dps", "", seed, dps, config)
+                jobs.extend(Job(resolution_root(WORK, height, texture), scene, group, synth, "dps", "", seed, dps, config)
                             for seed in args.seeds)
     rows = run_study(jobs, args.out, COLUMNS, score, args.jobs, (job_key, row_key), TEXT)
     print("\n".join(summary(rows)))
     print("truth at each size: held-out view PSNR [dB] of the true materials under the true map resampled")
     for scene, (group, _) in SCENES.items():
         truth = layout.capture_dir(scene) / "gt"
-        cells = [f"{h}: {truth_at_size(study_layout(size_root(h, t)).scene(scene).capture_json, truth, h, t):.2f}"
+        cells = [f"{h}: {truth_at_size(study_layout(resolution_root(WORK, h, t)).scene(scene).capture_json, truth, h, t):.2f}"
                  for h in args.heights for t in args.textures]
         print(f"{scene:<13} {group:<7} " + "  ".join(cells))
     from dpi.pipeline import Pipeline

@@ -12,17 +12,17 @@ mean +- std per roughness.
 from __future__ import annotations
 
 import argparse
-import csv
 import multiprocessing
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import replace
+from dataclasses import asdict, replace
 from functools import partial
 from pathlib import Path
 
 import numpy as np
 
+from dpi.studies.engine import settings_hash, write_rows
 from dpi.studies.roughness import SweepSettings, roughness_point
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -76,11 +76,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp, \
             ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
         rows = list(pool.map(partial(point, folder=tmp, settings=settings), tasks))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    with open(args.out, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=COLUMNS)
-        writer.writeheader()
-        writer.writerows({k: row[k] for k in COLUMNS} for row in rows)
+    write_rows(args.out, [{k: row[k] for k in COLUMNS} for row in rows], settings_hash(asdict(settings)))
     plot(rows, args.out.with_suffix(".png"))
     print(f"{args.repeats} repeats x {settings.samples} dps samples per roughness, {args.steps} steps, "
           f"{time.perf_counter() - start:.0f} s in all")

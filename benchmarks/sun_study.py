@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from posterior_study import ROOT, SIZE, Job, job_settings, jobs_for, mean_std_cells, run_job, run_study, workflow_config
+
 
 from dpi.capture import load_capture
 from dpi.envmap import texel_directions, top_energy_share
@@ -37,7 +37,11 @@ from dpi.exr import read_exr
 from dpi.images import luminance
 from dpi.skies import sun_direction
 from dpi.solve.dps import DPSConfig
+from dpi.studies.engine import (Job, dps_variants, job_settings, mean_std_cells, method_jobs, run_job, run_study,
+                                workflow_config)
+from dpi.studies.scenes import SIZE
 
+ROOT = Path(__file__).resolve().parent.parent
 WORK = ROOT / "results" / "benchmarks" / "sun_study"
 CSV = ROOT / "benchmarks" / "results" / "sun_study.csv"
 COLUMNS = ("scene", "method", "sampler", "seed", "top_energy_share", "gt_top_energy_share", "sun_angle_deg", "novel_psnr")
@@ -134,9 +138,8 @@ def main() -> None:
     config = workflow_config(env_height=16)
     dps = job_settings(config["method_params"].get("dps", {}))
     samplers = [spec.partition(":")[0] for spec in args.dps] or [DPSConfig.from_dict(dps).sampler]
-    study = argparse.Namespace(scenes=args.scenes, methods=args.methods, samplers=samplers, seeds=args.seeds,
-                               dps=args.dps, rerun=False)
-    jobs = jobs_for(study, config, WORK, SCENES)
+    scenes = {name: SCENES[name] for name in args.scenes}
+    jobs = method_jobs(WORK, scenes, args.methods, args.seeds, config, dps_variants(config, args.dps), samplers)
     jobs = [replace(j, method_cfg=dps, sampler="") if j.method == TRUE_LIGHT else j for j in jobs]
     print("\n".join(summary(run_study(jobs, args.out, COLUMNS, score, args.jobs))))
 

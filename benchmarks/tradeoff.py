@@ -16,68 +16,31 @@ from __future__ import annotations
 import argparse
 import csv
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, replace
 from pathlib import Path
 
 from dpi.capture import load_capture
 from dpi.evaluation.sample_metrics import evaluate_sample
-from dpi.layout import INIT, INIT_TRACE, SYNTH_MARKER
-from dpi.pipeline import Pipeline, resolve_config
+from dpi.layout import INIT, INIT_TRACE
 from dpi.prior.sample import load_scene_prior
 from dpi.render import RenderSettings
 from dpi.solve.dps import dps_sample
 from dpi.solve.init import path_traced_init
 from dpi.solve.problem import InverseProblem, ProblemSettings
+from dpi.studies.demo_costs import DEMO, Setting, capture_at, demo_pipeline, preset_setting
+from dpi.studies.engine import PROVENANCE, current_commit, settings_hash
 from dpi.studies.pareto import pareto_front
-from dpi.synth.capture import make_synthetic_capture
 
-DEMO = "demo"
-PIPELINE = Pipeline(resolve_config())
-"""dpi's default config (the demo), as the workflow resolves it"""
-OUT = PIPELINE.layout.results / "benchmarks"
-
-
-@dataclass(frozen=True)
-class Setting:
-    """The cost knobs of one dps run."""
-
-    steps: int
-    spp: int
-    resolution: int
-    transport_pixels: int
-    env_height: int
-    texture_size: int
-    refine_iterations: int
-
-
+OUT = demo_pipeline().layout.results / "benchmarks"
+PIPELINE = demo_pipeline()
 SWEEPS = {"steps": [25, 50, 100, 250, 1000], "spp": [4, 16, 64], "resolution": [32, 64],
           "transport_pixels": [1024, 2048, 4096], "env_height": [16, 32, 64], "texture_size": [32, 64, 128],
           "refine_iterations": [25, 100, 200]}
 
 
-def preset_setting(name: str | None = None) -> Setting:
-    """The knobs of the demo under a quality preset (None: the config's own), as the workflow resolves them."""
-    pipeline = PIPELINE if name is None else Pipeline(resolve_config({"preset": name}))
-    dps, solve = pipeline.method_settings("dps"), pipeline.solve_settings()
-    return Setting(steps=dps.steps, spp=solve.render.spp, resolution=pipeline.synth_settings(DEMO).width,
-                   transport_pixels=dps.proximal.transport.pixels, env_height=solve.problem.env_height,
-                   texture_size=solve.problem.texture_size, refine_iterations=dps.refine.iterations)
-
-
-def capture_at(resolution: int, threads: int) -> Path:
-    """The demo capture at an image resolution (the demo's own folder at its configured size)."""
-    demo = PIPELINE.synth_settings(DEMO)
-    own = demo.width == resolution
-    folder = PIPELINE.layout.capture_dir(DEMO) if own else OUT / "captures" / f"{DEMO}_{resolution}"
-    if not (folder / SYNTH_MARKER).exists():
-        make_synthetic_capture(folder, replace(demo, width=resolution, height=resolution), threads=threads,
-                               progress=False)
-    return folder
-
-
 def run(setting: Setting, init_dir: Path, prior, threads: int, seed: int) -> dict[str, float]:
     """One dps sample at `setting`: seconds and errors against ground truth and held-out views."""
-    capture = load_capture(capture_at(setting.resolution, threads))
+    capture = load_capture(capture_at(setting.resolution, threads, OUT))
     problem = InverseProblem(capture, ProblemSettings(env_height=setting.env_height, texture_size=setting.texture_size),
                              RenderSettings(spp=setting.spp, threads=threads))
     init = problem.load_decomposition(init_dir)
@@ -127,7 +90,7 @@ def main() -> None:
     args = parser.parse_args()
 
     base = preset_setting()
-    demo = load_capture(capture_at(base.resolution, args.threads))
+    demo = load_capture(capture_at(base.resolution, args.threads, OUT))
     init_dir = OUT / f"tradeoff_{INIT}"
     if not (init_dir / INIT_TRACE).exists():
         problem = InverseProblem(demo, ProblemSettings(base.env_height, base.texture_size),
@@ -149,7 +112,8 @@ def main() -> None:
     print(f"{'setting':<26} {'s/sample':>9} {'env PSNR':>9} {'albedo MSE':>11} {'view PSNR':>10}")
     rows = []
     for setting, label in todo.items():
-        row = {"label": label, **asdict(setting), **run(setting, init_dir, prior, args.threads, args.seed)}
+        row = {"label": label, **asdict(setting), **run(setting, init_dir, prior, args.threads, args.seed),
+               "commit": current_commit(), "settings_hash": settings_hash({**asdict(setting), "seed": args.seed})}
         rows.append(row)
         print(f"{label:<26} {row['seconds']:>9.1f} {row['env_psnr']:>9.2f} {row['albedo_mse']:>11.5f} "
               f"{row['view_psnr']:>10.2f}", flush=True)
@@ -161,7 +125,7 @@ def main() -> None:
                   f"albedo {row['albedo_mse']:.5f}, view {row['view_psnr']:.2f} dB")
     OUT.mkdir(parents=True, exist_ok=True)
     with open(OUT / "tradeoff.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=[*rows[0], "pareto"])
+        writer = csv.DictWriter(f, fieldnames=[*(k for k in rows[0] if k not in PROVENANCE), "pareto", *PROVENANCE])
         writer.writeheader()
         writer.writerows({**row, "pareto": best} for row, best in zip(rows, front))
     plot(rows, front, OUT / "tradeoff.png")

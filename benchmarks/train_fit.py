@@ -17,7 +17,6 @@ the truth's MSE, and how many exceed it, are printed too.
 from __future__ import annotations
 
 import argparse
-import csv
 from collections import defaultdict
 from pathlib import Path
 
@@ -64,7 +63,7 @@ def main() -> None:
     parser.add_argument("--scenes", nargs="*", default=None, help="scenes to score (default: all)")
     args = parser.parse_args()
 
-    from posterior_study import study_layout, workflow_config
+    from dpi.studies.engine import settings_hash, study_layout, workflow_config, write_rows
 
     config = workflow_config()
     layout = study_layout(args.root)
@@ -86,10 +85,8 @@ def main() -> None:
                 rows.append({"scene": scene, "method": method_dir.name, "sample": sample.name, "mse": mse,
                              "init_mse": init, "truth_mse": truth_mse})
     if args.out:
-        with open(args.out, "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-            writer.writeheader()
-            writer.writerows(rows)
+        write_rows(args.out, rows, settings_hash({"spp": args.spp, "config": {k: config[k] for k in
+                                                                              ("problem", "render", "evaluate")}}))
     for scene in sorted({row["scene"] for row in rows}):
         row = next(r for r in rows if r["scene"] == scene)
         print(f"{scene}: truth MSE / init MSE {row['truth_mse'] / row['init_mse']:.2f}")

@@ -4,13 +4,14 @@ rows, and `dpi tables` writes it into the documents between the markers `<!-- ta
 
 from __future__ import annotations
 
-import csv
 import math
 import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+from dpi.studies.engine import read_rows
 
 RESULTS = Path("benchmarks") / "results"
 """the committed study CSVs, relative to a checkout's root"""
@@ -21,17 +22,9 @@ METHOD_ORDER = ("init", "none", "global_norm", "smoothness", "chromaticity", "sd
 Row = dict[str, Any]
 
 
-def read_rows(path: Path) -> list[Row]:
-    """A study CSV's rows, each cell a float where it reads as one (empty and text cells as they are)."""
-    with open(path, newline="") as f:
-        return [{k: _number(v) for k, v in row.items()} for row in csv.DictReader(f)]
-
-
-def _number(cell: str | None) -> Any:
-    try:
-        return float(cell)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        return cell
+def latest(rows: list[Row], key: tuple[str, ...]) -> list[Row]:
+    """The newest row of each `key` (the last in the file): a rerun with other settings supersedes older rows."""
+    return list({tuple(row[k] for k in key): row for row in rows}.values())
 
 
 @dataclass(frozen=True)
@@ -94,6 +87,7 @@ def grouped_table(rows: list[Row], keys: tuple[str, ...], metrics: tuple[Metric,
 
 
 def _text(value: Any) -> str:
+    """A key cell: a number as short as it reads (0.05, 128), text as it is."""
     if isinstance(value, float):
         return f"{value:g}"
     return "" if value is None else str(value)
@@ -106,6 +100,7 @@ def method_order(key: tuple, method_at: int = 1) -> tuple:
     return (*key[:method_at], rank, *(str(k) for k in key[method_at + 1:]))
 
 
+CALIBRATION_KEY = ("scene", "method", "sampler", "repeat")
 VIEW = Metric("view PSNR [dB]", "novel_psnr", ".2f", +1)
 ENV = Metric("env PSNR [dB]", "env_psnr", ".2f", +1)
 ALBEDO = Metric("albedo MSE", "albedo_mse", ".4f", -1, spread=False)
@@ -114,7 +109,7 @@ SECONDS = Metric("s/sample", "seconds", ".1f", spread=False)
 
 def posterior(root: Path) -> str:
     """Posterior study: every method per scene group, over scenes and seeds."""
-    rows = read_rows(root / RESULTS / "posterior_study.csv")
+    rows = latest(read_rows(root / RESULTS / "posterior_study.csv"), ("scene", "method", "sampler", "seed"))
     metrics = (VIEW, ENV, Metric("env SSIM", "env_ssim", ".3f", +1, spread=False), ALBEDO,
                Metric("relight PSNR-H [dB]", "relight_psnr_h", ".2f", +1),
                Metric("relight PSNR-L [dB]", "relight_psnr_l", ".2f", +1), SECONDS)
@@ -123,7 +118,7 @@ def posterior(root: Path) -> str:
 
 def calibration(root: Path) -> str:
     """Calibration study: metal and rough objects, means over repeats x lights x objects."""
-    rows = read_rows(root / RESULTS / "calibration_study.csv")
+    rows = latest(read_rows(root / RESULTS / "calibration_study.csv"), CALIBRATION_KEY)
     for row in rows:
         row["material"] = "metal" if row["metallic"] >= 0.5 else "rough"
     metrics = (ENV, ALBEDO, Metric("view PSNR [dB]", "novel_psnr", ".2f", +1, spread=False),
@@ -135,7 +130,7 @@ def calibration(root: Path) -> str:
 def fig9_ratios(root: Path) -> str:
     """Calibration study, Fig. 9: the metal's env sigma2_sample over the rough object's, per object, light and
     repeat (a mirror's samples agree, a rough object's differ); its range per method."""
-    rows = read_rows(root / RESULTS / "calibration_study.csv")
+    rows = latest(read_rows(root / RESULTS / "calibration_study.csv"), CALIBRATION_KEY)
     spread = {(r["object"], r["light"], r["repeat"], r["method"], r["sampler"], r["metallic"] >= 0.5):
               r["env_sigma2_sample"] for r in rows if r["method"] != "init"}
     ratios: dict[tuple, list[float]] = {}
@@ -152,7 +147,7 @@ def train_fit(root: Path) -> str:
     """Training-view fit: each sample's training-view MSE over its init's and over the truth's, per method and
     scene group (the posterior study's groups)."""
     groups = {r["scene"]: r["group"] for r in read_rows(root / RESULTS / "posterior_study.csv")}
-    rows = read_rows(root / RESULTS / "train_fit.csv")
+    rows = latest(read_rows(root / RESULTS / "train_fit.csv"), ("scene", "method", "sample"))
     for row in rows:
         row["group"] = groups.get(row["scene"], "")
         row["over_init"] = row["mse"] / row["init_mse"]
@@ -165,7 +160,7 @@ def train_fit(root: Path) -> str:
 
 def resolution(root: Path) -> str:
     """Resolution study: dps at each map size, a mirror-like torus and a rough blob."""
-    rows = read_rows(root / RESULTS / "resolution_study.csv")
+    rows = latest(read_rows(root / RESULTS / "resolution_study.csv"), ("scene", "env_height", "texture_size", "seed"))
     for row in rows:
         row["env map"] = f"{int(row['env_height'])} x {2 * int(row['env_height'])}"
     metrics = (VIEW, ENV, Metric("relight PSNR-H [dB]", "relight_psnr_h", ".2f", +1), SECONDS)
@@ -175,7 +170,7 @@ def resolution(root: Path) -> str:
 
 def roughness(root: Path) -> str:
     """Roughness study (Fig. 9): env sigma2_sample of dps samples per roughness, over repeats."""
-    rows = read_rows(root / RESULTS / "roughness_study.csv")
+    rows = latest(read_rows(root / RESULTS / "roughness_study.csv"), ("roughness", "repeat"))
     return grouped_table(rows, ("roughness", "metallic"),
                          (Metric("env sigma2_sample", "env_sigma2_sample", ".4f"),), order=lambda k: k)
 

@@ -1,0 +1,321 @@
+"""The one engine the studies run on: a study is a list of jobs (scene, method, dps variant, seed) drawn
+and scored through the workflow's own stage functions (dpi.stages) into rows of a CSV.
+
+Every row carries the commit it was made at and a hash of its resolved settings (the scene's synthetic
+capture, the method's settings, the workflow sections a sample reads). A job's row is reused only when one
+with the same key *and* settings hash is already in the CSV, so a rerun with other settings writes new rows
+beside the old ones; the tables (dpi.studies.tables) show the newest row of each key.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import multiprocessing
+import os
+import shutil
+import subprocess
+from collections.abc import Callable, Iterable
+from concurrent.futures import Executor, ProcessPoolExecutor
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from dpi.layout import Layout
+
+PROVENANCE = ("commit", "settings_hash")
+"""the columns every study row ends with"""
+TEXT_COLUMNS = ("scene", "group", "method", "sampler", *PROVENANCE)
+SAMPLE_METRICS = ("novel_psnr", "env_psnr", "env_ssim", "albedo_mse", "relight_psnr_h", "relight_psnr_l",
+                  "relight_ssim")
+"""the workflow's sample metrics a study row keeps"""
+SAMPLE_COLUMNS = ("scene", "group", "method", "sampler", "seed", *SAMPLE_METRICS, "seconds")
+"""the columns of a row of one scored sample (run_job)"""
+SAMPLE_SECTIONS = ("problem", "render", "init", "evaluate", "illumination_prior")
+"""the workflow config sections a sample and its evaluation read (besides the method's own settings)"""
+STUDY_TEXTURES = 32
+"""texture size of the study problems: their views are 32 px, so the default's 64 would not be seen"""
+CHECKOUT = Path(__file__).resolve().parents[2]
+"""the checkout the studies run in (their folders and CSVs are the repository's)"""
+
+
+def work_dir(study: str) -> Path:
+    """A study's folder of captures, inits and samples: results/benchmarks/STUDY (not committed)."""
+    return CHECKOUT / "results" / "benchmarks" / study
+
+
+def results_csv(study: str) -> Path:
+    """A study's committed rows: benchmarks/results/STUDY.csv."""
+    return CHECKOUT / "benchmarks" / "results" / f"{study}.csv"
+
+
+def settings_hash(settings: Any) -> str:
+    """A short, stable hash of JSON-able settings (key order does not matter)."""
+    text = json.dumps(settings, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
+@cache
+def current_commit() -> str:
+    """The checkout's commit (12 hex digits), `-dirty` when tracked files differ from it; `unknown` outside git."""
+    root = Path(__file__).resolve().parents[2]
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=root, capture_output=True, text=True,
+                              check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+                               capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return head + ("-dirty" if dirty else "")
+
+
+def study_layout(root: Path) -> Layout:
+    """A study folder holds captures/ and results/ like a workflow run."""
+    return Layout(root / "results", root / "captures")
+
+
+@dataclass(frozen=True)
+class Job:
+    """One sample to draw and score, in study folder `root`."""
+
+    root: Path
+    scene: str
+    group: str
+    synth: dict
+    method: str
+    sampler: str
+    seed: int
+    method_cfg: dict
+    config: dict
+    rerun: bool = False
+
+    @property
+    def label(self) -> str:
+        """The method's folder: the method, with the dps variant's label."""
+        return self.method if not self.sampler else f"{self.method}_{self.sampler}"
+
+    @property
+    def layout(self) -> Layout:
+        return study_layout(self.root)
+
+    @property
+    def sample_dir(self) -> Path:
+        """Where the sample is (the init's folder for the init row)."""
+        return self.layout.scene(self.scene).sample_dir(self.label, self.seed)
+
+    @property
+    def settings_hash(self) -> str:
+        """Hash of what decides the sample besides its seed: the capture, the method and its settings, the
+        workflow sections a sample reads."""
+        return settings_hash({"synth": self.synth, "method": self.method, "settings": self.method_cfg,
+                              "config": {k: self.config.get(k) for k in SAMPLE_SECTIONS}})
+
+
+def workflow_config(env_height: int | None = None) -> dict[str, Any]:
+    """The workflow's resolved config (defaults and preset) with the studies' texture size, the map at the
+    preset's size or at `env_height` rows."""
+    from dpi.pipeline import resolve_config
+
+    sizes = {"texture_size": STUDY_TEXTURES, **({"env_height": env_height} if env_height else {})}
+    return resolve_config({"problem": sizes})
+
+
+def prepare_capture(root: Path, scene: str, synth: dict, threads: int) -> Path:
+    """The scene's capture and validated capture.json (made once, then reused); the latter's path."""
+    from dpi.stages import capture_stage
+    from dpi.synth.capture import SynthConfig, make_synthetic_capture
+
+    layout = study_layout(root)
+    files = layout.scene(scene)
+    if not layout.synth_marker(scene).exists():
+        make_synthetic_capture(layout.capture_dir(scene), SynthConfig.from_dict(synth), threads=threads,
+                               progress=False)
+    if not files.capture_json.exists():
+        capture_stage(layout.capture_dir(scene), files.capture_json)
+    return files.capture_json
+
+
+def prepare_job(job: Job) -> None:
+    """A job's scene: capture, capture.json and initialisation (made once, then reused)."""
+    from dpi.stages import SolveSettings, init_stage
+
+    prepare_capture(job.root, job.scene, job.synth, threads=2)
+    files = job.layout.scene(job.scene)
+    if not files.sample_files("init")["trace"].exists():
+        init_stage(files.capture_json, files.sample_dir("init"), job.scene, job.config["init"],
+                   SolveSettings.from_config(job.config, 2), progress=False)
+
+
+def run_job(job: Job) -> dict[str, Any]:
+    """Draw (except for the init) and evaluate one sample; its row (SAMPLE_COLUMNS)."""
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    from dpi.stages import SolveSettings, evaluate_stage, sample_stage
+
+    files, sample_dir = job.layout.scene(job.scene), job.sample_dir
+    settings = SolveSettings.from_config(job.config, threads=1)
+    if job.rerun and job.method != "init":
+        shutil.rmtree(sample_dir, ignore_errors=True)
+    if job.method != "init" and not files.sample_files(job.label, job.seed)["trace"].exists():
+        sample_stage(files.capture_json, files.sample_dir("init"), sample_dir, job.scene, job.method, job.seed,
+                     job.method_cfg, settings, progress=False)
+    out = files.evaluation(job.label, job.seed)
+    evaluate_stage(files.capture_json, sample_dir, out, job.scene, job.method, job.seed,
+                   job.config["evaluate"]["spp"], settings)
+    metrics = json.loads(out.read_text())["metrics"]
+    return {"scene": job.scene, "group": job.group, "method": job.method, "sampler": job.sampler,
+            "seed": job.seed, **{k: metrics[k] for k in SAMPLE_METRICS}, "seconds": metrics["sample_seconds"]}
+
+
+def job_settings(settings: dict) -> dict:
+    """A method's settings as one sample job takes them: without the workflow's sample count."""
+    return {k: v for k, v in settings.items() if k != "samples"}
+
+
+def dps_variants(config: dict, extra: list[str]) -> dict[str, dict]:
+    """dps settings per sampler label: each built-in sampler, plus `NAME:key=value,...` variants (a dotted key
+    names a section's setting: `proximal.inner_steps=4`)."""
+    from dpi.pipeline import merge
+    from dpi.solve.dps import SAMPLERS
+
+    base = config["method_params"].get("dps", {})
+    variants = {name: {**base, "sampler": name} for name in SAMPLERS}
+    for spec in extra:
+        name, _, pairs = spec.partition(":")
+        values: dict = {}
+        for key, value in (p.split("=", 1) for p in pairs.split(",") if p):
+            *sections, leaf = key.split(".")
+            node = values
+            for section in sections:
+                node = node.setdefault(section, {})
+            node[leaf] = yaml.safe_load(value)
+        variants[name] = merge(base, values)
+    return variants
+
+
+def method_jobs(root: Path, scenes: dict[str, tuple[str, dict]], methods: Iterable[str], seeds: list[int],
+                config: dict, variants: dict[str, dict], samplers: list[str] | None = None,
+                rerun: bool = False) -> list[Job]:
+    """Every (scene, method, dps variant, seed) of a study: `scenes` maps a name to (group, synthetic capture);
+    the init gets seed 0 only; dps one job per variant in `samplers` (default: all of `variants`)."""
+    jobs = []
+    for scene, (group, synth) in scenes.items():
+        for method in methods:
+            labels = {v: cfg for v, cfg in variants.items() if v in (samplers or variants)} \
+                if method == "dps" else {"": config["method_params"].get(method, {})}
+            for sampler, cfg in labels.items():
+                for seed in ([0] if method == "init" else seeds):
+                    jobs.append(Job(root, scene, group, synth, method, sampler, seed, job_settings(cfg), config,
+                                    rerun))
+    return jobs
+
+
+def read_rows(path: Path, text: Iterable[str] = TEXT_COLUMNS) -> list[dict[str, Any]]:
+    """Rows of a study CSV, numbers parsed except in the `text` columns (and the provenance columns)."""
+    if not path.exists():
+        return []
+    keep = set(text) | set(PROVENANCE)
+    with open(path, newline="") as f:
+        return [{k: (v if k in keep else _number(v)) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+def _number(value: str) -> float | str:
+    try:
+        return float(value)
+    except ValueError:
+        return value
+
+
+def append_row(path: Path, row: dict[str, Any], columns: tuple[str, ...], settings: str) -> None:
+    """Add one row (with a header when the file is new), stamped with the current commit and `settings`, the
+    hash of its settings. A file whose header differs is refused, naming both (rows must not shift columns)."""
+    header = (*columns, *PROVENANCE)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    new = not path.exists() or path.stat().st_size == 0
+    if not new:
+        with open(path, newline="") as f:
+            existing = tuple(next(csv.reader(f), ()))
+        if existing != header:
+            raise ValueError(f"{path}: its columns {', '.join(existing)} are not this study's "
+                             f"{', '.join(header)}: write to another --out")
+    with open(path, "a", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=header)
+        if new:
+            writer.writeheader()
+        writer.writerow({**{k: row[k] for k in columns}, "commit": current_commit(), "settings_hash": settings})
+
+
+def write_rows(path: Path, rows: list[dict[str, Any]], settings: str) -> None:
+    """Write a whole study CSV (its columns: the first row's keys), each row stamped with the current commit
+    and `settings`, the hash of the settings they were made with."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=[*(k for k in rows[0] if k not in PROVENANCE), *PROVENANCE])
+        writer.writeheader()
+        writer.writerows({**row, "commit": current_commit(), "settings_hash": settings} for row in rows)
+
+
+def mean_std_cells(rows: list[dict[str, Any]], metrics: tuple[tuple[str, str], ...]) -> list[str]:
+    """`mean +- std` over the rows of each (column, format) in `metrics`, for a printed summary."""
+    cells = []
+    for key, fmt in metrics:
+        values = np.asarray([r[key] for r in rows], dtype=float)
+        cells.append(f"{values.mean():{fmt}} +- {values.std():{fmt}}")
+    return cells
+
+
+def job_key(job: Job) -> tuple:
+    """What tells a study's samples apart: scene, method, sampler, seed and the settings' hash."""
+    return job.scene, job.method, job.sampler, job.seed, job.settings_hash
+
+
+def row_key(row: dict[str, Any]) -> tuple:
+    """`job_key` of a CSV row."""
+    return row["scene"], row["method"], row["sampler"], int(row["seed"]), row["settings_hash"]
+
+
+def pool(workers: int) -> Executor | None:
+    """Processes that draw samples side by side (spawned: a forked child cannot use a GPU its parent opened);
+    None for 0 workers (everything in this process)."""
+    if workers <= 0:
+        return None
+    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+
+
+def run_study(jobs: list[Job], out: Path, columns: tuple[str, ...], score: Callable[[Job], dict], workers: int,
+              keys: tuple[Callable, Callable] = (job_key, row_key), text: Iterable[str] = TEXT_COLUMNS,
+              prepare: Callable[[Job], None] = prepare_job) -> list[dict]:
+    """Prepare every scene, score the jobs whose rows `out` lacks (`score(job)` gives the row, appended as it
+    comes, with the job's settings hash), and return the rows of these jobs. `keys`: a job's and a row's key,
+    equal when the row is the job's, the settings hash included. `workers` 0 runs in this process."""
+    of_job, of_row = keys
+    scenes = list({(j.root, j.scene): j for j in jobs}.values())
+    done = {of_row(r) for r in read_rows(out, text)}
+    todo = [j for j in jobs if j.rerun or of_job(j) not in done]
+    print(f"{len(todo)} samples to draw and score ({len(done)} rows already in {out})", flush=True)
+    with pool(min(workers, len(scenes))) or _Inline() as ex:
+        list(ex.map(prepare, scenes))
+    with pool(workers) or _Inline() as ex:
+        for job, row in zip(todo, ex.map(score, todo)):
+            append_row(out, row, columns, job.settings_hash)
+            print("  ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items()),
+                  flush=True)
+    wanted = {of_job(j) for j in jobs}
+    return [r for r in read_rows(out, text) if of_row(r) in wanted]
+
+
+class _Inline:
+    """An executor that maps in this process (workers = 0)."""
+
+    def __enter__(self) -> "_Inline":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+    def map(self, fn: Callable, items: Iterable) -> Iterable:
+        return map(fn, items)

@@ -1,0 +1,90 @@
+"""The studies' synthetic scenes: sizes shared by every study and the posterior study's scene set.
+
+Each scene is (group, synthetic capture settings for dpi.synth.capture.SynthConfig); the illuminations
+come from seed streams no prior trained on, or from Mitsuba's sunsky."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+SIZE = {"views": 8, "held_out_every": 4, "width": 32, "height": 32, "spp": 128, "env_height": 32,
+        "texture_size": 32}
+"""views, image and map sizes of the small study captures"""
+AMBIGUOUS = {**SIZE, "roughness": 0.7, "roughness_variation": 0.1, "metallic": 0.0, "arc_deg": 150.0,
+             "elevations_deg": (15.0, 40.0)}
+"""a rough dielectric seen on a limited arc: where the views leave the light open"""
+GLOSSY = {**SIZE, "roughness": 0.08, "roughness_variation": 0.0, "metallic": 1.0, "arc_deg": 360.0}
+"""a shiny metal seen from all around: where a free fit already recovers the light"""
+
+POSTERIOR_SCENES: dict[str, tuple[str, dict[str, Any]]] = {
+    "blob_sun": ("ambiguous", {**AMBIGUOUS, "shape": "blob", "seed": 0, "environment": "outdoor",
+                               "environment_seed": 11, "prior": "outdoor"}),
+    "blob_room": ("ambiguous", {**AMBIGUOUS, "shape": "blob", "seed": 0, "environment": "indoor",
+                                "environment_seed": 12, "prior": "indoor"}),
+    "blob_ldr": ("ambiguous", {**AMBIGUOUS, "shape": "blob", "seed": 0, "environment": "outdoor",
+                               "environment_seed": 13, "environment_clip": 5.3, "prior": "outdoor"}),
+    "torus_sun": ("ambiguous", {**AMBIGUOUS, "shape": "bumpy_torus", "seed": 3, "environment": "sunsky",
+                                "sun_elevation_deg": 25.0, "sun_azimuth_deg": 200.0, "prior": "outdoor"}),
+    "torus_room": ("ambiguous", {**AMBIGUOUS, "shape": "bumpy_torus", "seed": 3, "environment": "indoor",
+                                 "environment_seed": 14, "prior": "indoor"}),
+    "torus_ldr": ("ambiguous", {**AMBIGUOUS, "shape": "bumpy_torus", "seed": 3, "environment": "outdoor",
+                                "environment_seed": 15, "environment_clip": 5.3, "prior": "outdoor"}),
+    "blob_glossy": ("glossy", {**GLOSSY, "shape": "blob", "seed": 5, "environment": "outdoor",
+                               "environment_seed": 16, "prior": "outdoor"}),
+}
+"""the posterior study's scenes: six ambiguous (two objects under a sun, a room, a clipped map) and one glossy"""
+
+CALIBRATION_OBJECTS = {"blob": {"shape": "blob", "seed": 0}, "torus": {"shape": "bumpy_torus", "seed": 3}}
+CALIBRATION_LIGHTS = {"sun": {"environment": "outdoor", "environment_seed": 21, "prior": "outdoor"},
+                      "room": {"environment": "indoor", "environment_seed": 22, "prior": "indoor"},
+                      "ldr": {"environment": "outdoor", "environment_seed": 23, "environment_clip": 5.3,
+                              "prior": "outdoor"}}
+CALIBRATION_MATERIALS = {"metal": {"roughness": 0.05, "roughness_variation": 0.0, "metallic": 1.0},
+                         "rough": {"roughness": 0.85, "roughness_variation": 0.05, "metallic": 0.0}}
+
+
+def calibration_scenes() -> dict[str, dict[str, Any]]:
+    """The calibration study's scenes, OBJECT_LIGHT_MATERIAL -> synthetic capture (without the repeat's seed)."""
+    return {f"{o}_{light}_{m}": {**SIZE, "arc_deg": 150.0, "elevations_deg": (15.0, 40.0), **CALIBRATION_OBJECTS[o],
+                                 **CALIBRATION_LIGHTS[light], **CALIBRATION_MATERIALS[m], "object": o}
+            for o in CALIBRATION_OBJECTS for light in CALIBRATION_LIGHTS for m in CALIBRATION_MATERIALS}
+
+
+def repeat_scene(scene: str, repeat: int) -> str:
+    """The folder of one repeat of a scene: its own capture noise and initialisation."""
+    return f"{scene}_r{repeat}"
+
+
+def repeat_synth(synth: dict[str, Any], repeat: int) -> dict[str, Any]:
+    """A repeat's synthetic capture: its own render noise and object seed."""
+    return {**synth, "seed": synth["seed"] + 100 * repeat}
+
+
+RESOLUTION_CAPTURE = {"views": 12, "held_out_every": 4, "width": 96, "height": 96, "spp": 128, "env_height": 256,
+                      "texture_size": 128, "arc_deg": 150.0, "elevations_deg": (15.0, 40.0), "environment": "sunsky",
+                      "sun_elevation_deg": 12.0, "sun_azimuth_deg": 200.0, "prior": "outdoor"}
+RESOLUTION_SCENES = {
+    "torus_glossy": ("glossy", {**RESOLUTION_CAPTURE, "shape": "bumpy_torus", "seed": 3, "roughness": 0.05,
+                                "roughness_variation": 0.0, "metallic": 1.0}),
+    "blob_rough": ("rough", {**RESOLUTION_CAPTURE, "shape": "blob", "seed": 0, "roughness": 0.85,
+                             "roughness_variation": 0.05, "metallic": 0.0})}
+"""the resolution study's scenes: a mirror-like metal torus and a rough blob under a low sun, views of 96 px"""
+
+
+def resolution_config(height: int, texture: int) -> dict[str, Any]:
+    """The workflow's resolved config at a map height and texture size."""
+    from dpi.pipeline import resolve_config
+
+    return resolve_config({"problem": {"env_height": height, "texture_size": texture}})
+
+
+def resolution_root(work: Path, height: int, texture: int) -> Path:
+    """One size's study folder under `work`; its captures/ links to the shared one (captures do not depend on
+    the size)."""
+    root = work / f"h{height}_t{texture}"
+    (root / "results").mkdir(parents=True, exist_ok=True)
+    link = root / "captures"
+    if not link.exists():
+        link.symlink_to(work / "captures", target_is_directory=True)
+    return root

@@ -1,0 +1,56 @@
+"""The study engine: rows carry commit and settings hash, a rerun with the same settings reuses its rows and one
+with other settings writes new rows, and the tables show the newest row of each key."""
+
+from pathlib import Path
+
+import pytest
+
+from dpi.studies.engine import (PROVENANCE, SAMPLE_COLUMNS, Job, append_row, current_commit, read_rows, run_study,
+                                settings_hash)
+from dpi.studies.tables import latest
+
+SCORED: list[tuple] = []
+
+
+def fake_score(job: Job) -> dict:
+    """A sample's row without drawing it: its metrics follow its settings."""
+    SCORED.append((job.scene, job.seed, job.method_cfg["steps"]))
+    return {"scene": job.scene, "group": job.group, "method": job.method, "sampler": job.sampler, "seed": job.seed,
+            **{k: float(job.method_cfg["steps"]) for k in SAMPLE_COLUMNS[5:]}}
+
+
+def jobs(root: Path, steps: int) -> list[Job]:
+    return [Job(root, "blob", "ambiguous", {"shape": "blob"}, "dps", "proximal", seed, {"steps": steps}, {})
+            for seed in (0, 1)]
+
+
+def test_settings_hash_is_stable_and_tells_settings_apart():
+    assert settings_hash({"a": 1, "b": [1, 2]}) == settings_hash({"b": [1, 2], "a": 1})
+    assert settings_hash({"a": 1}) != settings_hash({"a": 2})
+    assert jobs(Path("x"), 10)[0].settings_hash != jobs(Path("x"), 20)[0].settings_hash
+    assert jobs(Path("x"), 10)[0].settings_hash == jobs(Path("y"), 10)[1].settings_hash  # not the seed, not the folder
+
+
+def test_rows_carry_provenance_and_a_foreign_header_is_refused(tmp_path):
+    out = tmp_path / "study.csv"
+    append_row(out, {"scene": "s", "value": 1.5}, ("scene", "value"), "abc")
+    assert out.read_text().splitlines()[0] == "scene,value," + ",".join(PROVENANCE)
+    row = read_rows(out)[0]
+    assert row == {"scene": "s", "value": 1.5, "commit": current_commit(), "settings_hash": "abc"}
+    with pytest.raises(ValueError, match="study.csv.*another --out"):
+        append_row(out, {"scene": "s", "other": 1}, ("scene", "other"), "abc")
+
+
+def test_rerun_reuses_rows_and_other_settings_add_rows(tmp_path):
+    out = tmp_path / "study.csv"
+    SCORED.clear()
+    first = run_study(jobs(tmp_path, 10), out, SAMPLE_COLUMNS, fake_score, 0, prepare=lambda job: None)
+    assert len(first) == 2 and SCORED == [("blob", 0, 10), ("blob", 1, 10)]
+    again = run_study(jobs(tmp_path, 10), out, SAMPLE_COLUMNS, fake_score, 0, prepare=lambda job: None)
+    assert again == first and len(SCORED) == 2  # nothing drawn again
+    other = run_study(jobs(tmp_path, 20), out, SAMPLE_COLUMNS, fake_score, 0, prepare=lambda job: None)
+    assert [r["env_psnr"] for r in other] == [20.0, 20.0] and len(SCORED) == 4
+    rows = read_rows(out)
+    assert len(rows) == 4 and len({r["settings_hash"] for r in rows}) == 2
+    newest = latest(rows, ("scene", "method", "sampler", "seed"))
+    assert [r["env_psnr"] for r in newest] == [20.0, 20.0]
