@@ -178,3 +178,16 @@ def test_fallback_window_fills_only_what_the_fine_window_missed():
     assert all(m.all() for m in masks)  # the filters did not write into the caller's masks
     added = (both > 0) & (fine == 0)
     assert np.median(np.abs(both[added] - truth[added]) / truth[added]) < 0.01
+
+
+@pytest.mark.parametrize("window", [1, 5, 11])
+def test_box_mean_matches_an_average_pool_that_ignores_the_padding(window):
+    import torch
+    import torch.nn.functional as F
+
+    from dpi.preprocess.stereo import _box
+
+    x = torch.rand(3, 2, 17, 23, generator=torch.Generator().manual_seed(window))
+    half = window // 2
+    pooled = F.avg_pool2d(x, window, stride=1, padding=half, count_include_pad=False)
+    assert torch.allclose(_box(x, window), pooled, atol=1e-6)

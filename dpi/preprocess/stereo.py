@@ -142,11 +142,25 @@ def neighbour_views(cameras: list[Camera], centre: np.ndarray, count: int, max_a
 
 
 def _box(x: torch.Tensor, window: int) -> torch.Tensor:
-    """Mean over a window x window neighbourhood of (n, 1, h, w) maps (edges: mean of what is inside);
-    separable, a row mean then a column mean, so its cost grows with the side, not the area."""
+    """Mean over a window x window neighbourhood of (n, c, h, w) maps (edges: mean of what is inside), from
+    running sums along each axis (in float64, so differences of large sums stay exact): its cost does not grow
+    with the window. An even window is taken one wider, centred."""
     half = window // 2
-    x = F.avg_pool2d(x, (1, window), stride=1, padding=(0, half), count_include_pad=False)
-    return F.avg_pool2d(x, (window, 1), stride=1, padding=(half, 0), count_include_pad=False)
+    span = 2 * half + 1
+
+    def window_sums(x: torch.Tensor, dim: int) -> torch.Tensor:
+        n = x.shape[dim]
+        pad = [half + 1, half, 0, 0] if dim == 3 else [0, 0, half + 1, half]
+        running = torch.cumsum(F.pad(x, pad), dim, dtype=torch.float64)
+        return running.narrow(dim, span, n) - running.narrow(dim, 0, n)
+
+    def counts(n: int) -> torch.Tensor:
+        i = torch.arange(n)
+        return ((i + half).clamp(max=n - 1) - (i - half).clamp(min=0) + 1).double()
+
+    h, w = x.shape[-2:]
+    sums = window_sums(window_sums(x, 3), 2)
+    return (sums / (counts(h)[:, None] * counts(w)[None, :])).to(x.dtype)
 
 
 class Matcher:
