@@ -1,9 +1,11 @@
-"""Pinhole cameras: dpi's one convention and conversions to transforms.json and Mitsuba.
+"""Cameras: dpi's one convention and conversions to transforms.json and Mitsuba.
 
 Inside dpi a camera is a camera-to-world 4x4 matrix in the OpenGL convention used by
 transforms.json (nerfstudio / NeRF-synthetic): camera x right, y up, looking along -z; plus
 pixel intrinsics (fx, fy, cx, cy) with the origin at the image's top-left corner. Mitsuba's
-sensors look along +z with x pointing left, so `to_mitsuba` flips the x and z axes.
+sensors look along +z with x pointing left, so `to_mitsuba` flips the x and z axes. A photo's lens
+distortion (`Lens`, OpenCV's models as COLMAP and nerfstudio name them) is read here and removed from the
+images once, at capture time (dpi.undistort); every later stage sees pinhole cameras.
 """
 
 from __future__ import annotations
@@ -22,9 +24,56 @@ SQUARE_PIXEL_TOLERANCE = 1e-3
 """max |fx - fy| / fx: Mitsuba's perspective sensor has square pixels"""
 
 
+PINHOLE_MODELS = ("PINHOLE", "SIMPLE_PINHOLE")
+DISTORTED_MODELS = ("OPENCV", "FULL_OPENCV", "RADIAL", "SIMPLE_RADIAL")
+"""pinhole projection plus OpenCV's polynomial distortion (k1, k2, k3 radial; p1, p2 tangential)"""
+FISHEYE_MODELS = ("OPENCV_FISHEYE",)
+"""OpenCV's fisheye (equidistant) projection with k1..k4"""
+CAMERA_MODELS = PINHOLE_MODELS + DISTORTED_MODELS + FISHEYE_MODELS
+DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
+
+
+@dataclass(frozen=True)
+class Lens:
+    """Lens distortion in OpenCV's models, on normalised image coordinates (so it survives resizing)."""
+
+    fisheye: bool = False
+    k1: float = 0.0
+    k2: float = 0.0
+    k3: float = 0.0
+    k4: float = 0.0
+    p1: float = 0.0
+    p2: float = 0.0
+
+    def coefficients(self) -> np.ndarray:
+        """OpenCV's distortion vector: (k1, k2, k3, k4) for the fisheye model, else (k1, k2, p1, p2, k3)."""
+        values = (self.k1, self.k2, self.k3, self.k4) if self.fisheye else (self.k1, self.k2, self.p1, self.p2, self.k3)
+        return np.asarray(values, dtype=np.float64)
+
+    def distort(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Normalised pinhole coordinates (x right, y down) as the lens images them (OpenCV's models)."""
+        r2 = x * x + y * y
+        if self.fisheye:
+            r = np.sqrt(r2)
+            theta = np.arctan(r)
+            t2 = theta * theta
+            scaled = theta * (1 + t2 * (self.k1 + t2 * (self.k2 + t2 * (self.k3 + t2 * self.k4))))
+            factor = np.where(r > 1e-12, scaled / np.maximum(r, 1e-12), 1.0)
+            return x * factor, y * factor
+        radial = 1 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
+        return (x * radial + 2 * self.p1 * x * y + self.p2 * (r2 + 2 * x * x),
+                y * radial + self.p1 * (r2 + 2 * y * y) + 2 * self.p2 * x * y)
+
+    def to_json(self) -> dict:
+        """transforms.json keys of this lens (camera_model and its non-zero coefficients)."""
+        values = {k: getattr(self, k) for k in DISTORTION_KEYS if getattr(self, k)}
+        return {"camera_model": FISHEYE_MODELS[0] if self.fisheye else "OPENCV", **values}
+
+
 @dataclass
 class Camera:
-    """A pinhole camera: OpenGL camera-to-world matrix and pixel intrinsics."""
+    """A camera: OpenGL camera-to-world matrix, pixel intrinsics, and the lens distortion of the photos it took
+    (None: a pinhole)."""
 
     c2w: np.ndarray
     width: int
@@ -35,6 +84,7 @@ class Camera:
     cy: float
     name: str = ""
     extras: dict = field(default_factory=dict)
+    lens: Lens | None = None
 
     @property
     def fov_x_deg(self) -> float:
@@ -50,16 +100,17 @@ class Camera:
         """The same camera for an image resampled to width x height."""
         sx, sy = width / self.width, height / self.height
         return Camera(self.c2w.copy(), width, height, self.fx * sx, self.fy * sy, self.cx * sx, self.cy * sy,
-                      self.name, dict(self.extras))
+                      self.name, dict(self.extras), self.lens)
 
     def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Pixel coordinates (N, 2) (x right, y down) and depth (N,) of world points (N, 3)."""
+        """Pixel coordinates (N, 2) (x right, y down) and depth (N,) of world points (N, 3), through the lens."""
         w2c = np.linalg.inv(self.c2w)
         p = points @ w2c[:3, :3].T + w2c[:3, 3]
         depth = -p[:, 2]
-        x = self.fx * p[:, 0] / depth + self.cx
-        y = -self.fy * p[:, 1] / depth + self.cy
-        return np.stack([x, y], axis=-1), depth
+        x, y = p[:, 0] / depth, -p[:, 1] / depth
+        if self.lens is not None:
+            x, y = self.lens.distort(x, y)
+        return np.stack([self.fx * x + self.cx, self.fy * y + self.cy], axis=-1), depth
 
 
 def pixel_rays(camera: Camera, supersample: int = 1) -> tuple[np.ndarray, np.ndarray]:
@@ -167,7 +218,7 @@ class TransformsError(ValueError):
     """A transforms.json value of the wrong type or missing; the message names the frame (or the top level) and key."""
 
 
-NUMERIC_STRING_KEYS = ("fl_x", "fl_y", "cx", "cy", "w", "h", "camera_angle_x")
+NUMERIC_STRING_KEYS = ("fl_x", "fl_y", "cx", "cy", "w", "h", "camera_angle_x", *DISTORTION_KEYS)
 """keys nerfstudio reads through float() or int(), so a numeric string there is a number"""
 BOOLEAN_FRAME_KEYS = ("held_out",)
 
@@ -224,7 +275,31 @@ def _extras(frame: dict, i: int) -> dict:
         if key in frame and not isinstance(frame[key], bool):
             raise TransformsError(f"frame {i} ({frame.get('file_path')}): {key} must be a boolean (true or false), "
                                   f"got {json_value(frame[key])}")
-    return {k: frame[k] for k in frame if k not in ("file_path", "transform_matrix")}
+    return {k: frame[k] for k in frame if k not in ("file_path", "transform_matrix", "camera_model", *DISTORTION_KEYS)}
+
+
+def _lens(data: dict, frame: dict, i: int) -> Lens | None:
+    """The frame's (else the top level's) lens: its camera_model and distortion coefficients (None: a pinhole).
+
+    A file with coefficients and no camera_model (instant-ngp) is OpenCV's pinhole model; a model dpi cannot
+    undistort (equirectangular, ...) is a TransformsError naming it and the models read."""
+    model = frame.get("camera_model", data.get("camera_model"))
+    name = str(model).upper() if model is not None else None
+    if name is not None and name not in CAMERA_MODELS:
+        raise TransformsError(f"{_where(data, frame, i, 'camera_model')}: camera_model {json_value(model)} is not "
+                              f"one dpi reads ({', '.join(CAMERA_MODELS)}); convert the images to one first")
+    values = {k: _number(data, frame, i, k) for k in DISTORTION_KEYS if k in frame or k in data}
+    fisheye = name in FISHEYE_MODELS
+    if fisheye and ("p1" in values or "p2" in values):
+        raise TransformsError(f"{_where(data, frame, i, 'p1')}: the fisheye model has no tangential terms p1, p2")
+    if not fisheye and values.get("k4"):
+        raise TransformsError(f"{_where(data, frame, i, 'k4')}: k4 belongs to OPENCV_FISHEYE, not {name or 'OPENCV'}")
+    if name in PINHOLE_MODELS and any(values.values()):
+        raise TransformsError(f"{_where(data, frame, i, 'camera_model')}: camera_model {name} has no distortion, "
+                              f"yet the file gives {', '.join(k for k, v in values.items() if v)}")
+    if not any(values.values()):
+        return None
+    return Lens(fisheye, **values)
 
 
 def _frame_camera(data: dict, frame: dict, i: int, default_size: tuple[int, int] | None) -> Camera:
@@ -251,7 +326,8 @@ def _frame_camera(data: dict, frame: dict, i: int, default_size: tuple[int, int]
                               "(fl_x or camera_angle_x)")
     cx = _number(data, frame, i, "cx") if "cx" in frame or "cx" in data else width / 2
     cy = _number(data, frame, i, "cy") if "cy" in frame or "cy" in data else height / 2
-    return Camera(_matrix(frame, i), width, height, fx, fy, cx, cy, frame["file_path"], _extras(frame, i))
+    return Camera(_matrix(frame, i), width, height, fx, fy, cx, cy, frame["file_path"], _extras(frame, i),
+                  _lens(data, frame, i))
 
 
 def read_transforms(data: dict, default_size: tuple[int, int] | None = None) -> list[tuple[str, Camera]]:
@@ -285,6 +361,7 @@ def write_transforms(frames: list[tuple[str, Camera]]) -> dict:
             "transform_matrix": cam.c2w.tolist(),
             "w": cam.width, "h": cam.height,
             "fl_x": cam.fx, "fl_y": cam.fy, "cx": cam.cx, "cy": cam.cy,
+            **(cam.lens.to_json() if cam.lens else {}),
             **cam.extras,
         })
     return {"camera_model": "OPENCV", "frames": out}

@@ -29,7 +29,8 @@ import numpy as np
 import yaml
 
 from dpi.atomic import write_json
-from dpi.cameras import Camera, TransformsError, camera_problem, json_value, read_cameras, read_transforms
+from dpi.cameras import (DISTORTION_KEYS, Camera, Lens, TransformsError, camera_problem, json_value, read_cameras,
+                         read_transforms)
 from dpi.consistency import cameras_problem
 from dpi.envmap import EnvmapLayoutError, read_envmap
 from dpi.exr import EXRError, read_exr
@@ -40,7 +41,9 @@ from dpi.mitsuba_xml import MitsubaXMLError, read_mesh_shapes, read_sensors
 SCENE_YAML_KEYS = ("prior", "held_out", "radiance_scale", "object", "notes", "focal_length_px")
 PRIORS = ("indoor", "outdoor")
 GT_NAMES = ("envmap", "albedo", "roughness", "metallic")
-MESH_NAMES = ("mesh.ply", "mesh.obj")
+MESH_NAMES = ("mesh.ply", "mesh.obj", "mesh.glb", "mesh.gltf")
+GLTF_SUFFIXES = (".glb", ".gltf")
+"""mesh formats Mitsuba does not read: the capture stage converts them to PLY (dpi.mesh_convert)"""
 """matched case-insensitively (mesh.PLY), as image suffixes are"""
 PLY_UV_PAIRS = (("u", "v"), ("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
 PLY_HEADER_BYTES = 1 << 16
@@ -159,13 +162,16 @@ def camera_to_json(camera: Camera) -> dict:
     """JSON-ready dict of a Camera (floats survive JSON exactly)."""
     return {"c2w": np.asarray(camera.c2w, dtype=np.float64).tolist(), "width": camera.width,
             "height": camera.height, "fx": camera.fx, "fy": camera.fy, "cx": camera.cx, "cy": camera.cy,
-            "name": camera.name, "extras": camera.extras}
+            "name": camera.name, "extras": camera.extras,
+            **({"lens": {"fisheye": camera.lens.fisheye, **{k: getattr(camera.lens, k) for k in DISTORTION_KEYS}}}
+               if camera.lens else {})}
 
 
 def camera_from_json(d: dict) -> Camera:
     """Camera from the dict written by `camera_to_json`."""
     return Camera(np.asarray(d["c2w"], dtype=np.float64), int(d["width"]), int(d["height"]), float(d["fx"]),
-                  float(d["fy"]), float(d["cx"]), float(d["cy"]), str(d["name"]), dict(d["extras"]))
+                  float(d["fy"]), float(d["cx"]), float(d["cy"]), str(d["name"]), dict(d["extras"]),
+                  Lens(**d["lens"]) if d.get("lens") else None)
 
 
 def natural_key(name: str) -> tuple:
@@ -310,7 +316,8 @@ def named_files(folder: Path, names: tuple[str, ...]) -> list[Path]:
 
 
 def _mesh_file(root: Path, options: dict) -> Path | None:
-    """The given mesh: mesh.ply / mesh.obj (any case), else scene.xml's mesh shape (the one named `object` if several)."""
+    """The given mesh: mesh.ply / .obj / .glb / .gltf (any case), else scene.xml's mesh shape (the one named `object`
+    if several)."""
     given = named_files(root, MESH_NAMES)
     if len(given) > 1:
         raise CaptureError(f"{given[1]}: ambiguous mesh, {given[0].name} is also given")
@@ -349,8 +356,14 @@ def _ply_vertex_properties(path: Path) -> set[str]:
 
 
 def mesh_has_uv(path: str | os.PathLike) -> bool:
-    """Whether a PLY (u/v, s/t, texture_u/v vertex properties) or OBJ (`vt` lines) mesh carries UVs."""
+    """Whether a PLY (u/v, s/t, texture_u/v vertex properties), OBJ (`vt` lines) or glTF (TEXCOORD_0, through
+    trimesh) mesh carries UVs."""
     path = Path(path)
+    if path.suffix.lower() in GLTF_SUFFIXES:
+        import trimesh
+
+        mesh = trimesh.load(path, force="mesh", process=False)
+        return getattr(mesh.visual, "uv", None) is not None and len(mesh.visual.uv) == len(mesh.vertices)
     if path.suffix.lower() == ".ply":
         names = _ply_vertex_properties(path)
         return any(u in names and v in names for u, v in PLY_UV_PAIRS)
@@ -462,38 +475,6 @@ def _frame_name(file_path: str) -> str:
     return view_name(Path(name).stem if Path(name).suffix.lower() in IMAGE_SUFFIXES else name)
 
 
-PINHOLE_MODELS = ("PINHOLE", "SIMPLE_PINHOLE", "OPENCV", "RADIAL", "SIMPLE_RADIAL")
-"""camera models whose projection is a pinhole plus (at most) polynomial lens distortion"""
-DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
-
-
-def lens_distortion(path: Path, data: dict) -> None:
-    """Reject a camera model dpi cannot use (fisheye, equirectangular) with one line; warn (CaptureWarning) where
-    the file gives lens distortion, which dpi does not model yet (the images are used as a pinhole took them)."""
-    for i, where in enumerate([data, *data["frames"]]):
-        model = where.get("camera_model")
-        if model is not None and str(model).upper() not in PINHOLE_MODELS:
-            place = "top level" if i == 0 else f"frame {i - 1}"
-            raise CaptureError(f"{path}: {place}: camera_model {model!r} is not a pinhole camera; dpi reads "
-                               f"{', '.join(PINHOLE_MODELS)} (undistort the images to a pinhole first, e.g. COLMAP's "
-                               "image_undistorter)")
-    largest = max((abs(float(w[k])) for w in [data, *data["frames"]] for k in DISTORTION_KEYS if _number(w.get(k))),
-                  default=0.0)
-    if largest > 0:
-        warnings.warn(f"{path}: lens distortion given (largest coefficient {largest:.3g}) is not modelled yet: the "
-                      "images are used as a pinhole camera took them, so silhouettes and highlights near the border "
-                      "are misplaced; undistort the images first (e.g. COLMAP's image_undistorter)",
-                      CaptureWarning, stacklevel=3)
-
-
-def _number(value: object) -> bool:
-    """Whether a JSON value reads as a finite number (nerfstudio writes some as strings)."""
-    try:
-        return math.isfinite(float(value))
-    except (TypeError, ValueError):
-        return False
-
-
 def _transforms_json(path: Path) -> dict:
     """A parsed transforms.json, checked to hold a 'frames' list of frames with a file path and a pose."""
     try:
@@ -510,7 +491,6 @@ def _transforms_json(path: Path) -> dict:
 
 def _transforms_cameras(path: Path, data: dict, names: list[str], size: tuple[int, int]) -> dict[str, Camera]:
     """view name -> camera from transforms.json (`data`, parsed), checking it covers exactly the images."""
-    lens_distortion(path, data)
     try:
         frames = read_transforms(data, default_size=size)
     except TransformsError as exc:

@@ -4,6 +4,8 @@
 scene's `SceneLayout` the files under `results/{scene}/`:
 
     capture.json                       validated capture
+    undistorted/                       its views taken through a lens, as pinhole views (photos with distortion)
+    mesh_given.ply                     its glTF mesh converted to PLY (captures with mesh.glb / mesh.gltf)
     poses/transforms.json, points.ply  cameras from structure from motion       (photo captures)
     masks/{view}.png                   foreground masks                          (photo captures)
     geometry/mesh.ply, mesh_uv.ply     carved surface, and with a UV atlas       (photo captures)
@@ -111,6 +113,16 @@ class SceneLayout:
     def working_dir(self) -> Path:
         """Images and masks at the working resolution (dpi.working), a folder per size."""
         return self.root / "working"
+
+    @property
+    def given_mesh_ply(self) -> Path:
+        """The capture's glTF mesh converted to PLY (dpi.mesh_convert)."""
+        return self.root / "mesh_given.ply"
+
+    @property
+    def undistorted_dir(self) -> Path:
+        """Images and masks of views taken through a lens, undistorted to pinhole views (dpi.undistort)."""
+        return self.root / "undistorted"
 
     def sample_dir(self, method: str, k: int | str = 0) -> Path:
         """Folder of posterior sample k of a method; the initialisation's for method `init`."""

@@ -67,8 +67,14 @@ def check_given_mesh(capture: Capture, cameras: dict[str, Camera], masks: dict[s
 
 
 def capture_stage(capture_dir: str | Path, out_json: str | Path) -> None:
-    """Validate a capture folder once and write its normalised description (capture.json)."""
-    write_capture_json(load_capture(capture_dir), out_json)
+    """Validate a capture folder once and write its normalised description (capture.json), its views taken
+    through a lens undistorted beside it (dpi.undistort) and a glTF mesh converted to PLY (dpi.mesh_convert)."""
+    from dpi.mesh_convert import renderable_mesh
+    from dpi.undistort import undistorted_capture
+
+    scene = SceneLayout(Path(out_json).parent)
+    capture = renderable_mesh(load_capture(capture_dir), scene.given_mesh_ply)
+    write_capture_json(undistorted_capture(capture, scene.undistorted_dir), out_json)
 
 
 def poses_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None, threads: int = 1) -> dict:

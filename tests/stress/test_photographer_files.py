@@ -108,19 +108,33 @@ def test_an_all_white_mask_is_named(tmp_path):
         load_capture(root)
 
 
-@pytest.mark.parametrize("where", ["top", "frame"])
-def test_a_fisheye_camera_model_is_rejected_in_one_line(tmp_path, where):
-    root = make_capture(tmp_path / "cap")
-    edit_transforms(root, lambda d: (d if where == "top" else d["frames"][1]).update(camera_model="OPENCV_FISHEYE"))
-    place = "top level" if where == "top" else "frame 1"
-    with pytest.raises(CaptureError, match=rf"transforms.json: {place}: camera_model 'OPENCV_FISHEYE' is not a pinhole"):
-        load_capture(root)
+@pytest.mark.parametrize("suffix", [".glb", ".gltf"])
+def test_a_gltf_mesh_is_read_and_rendered_as_ply(tmp_path, suffix, mi):
+    """A glTF mesh (nerfstudio and web exports) loads with its UVs and becomes a PLY that Mitsuba renders."""
+    import trimesh
 
+    from dpi.preprocess.stages import capture_stage
+    from dpi.render import Renderer, RenderSettings
 
-def test_lens_distortion_is_not_dropped_silently(tmp_path):
-    from dpi.capture import CaptureWarning
+    root = make_capture(tmp_path / "cap", mesh=False)
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    uv = np.stack([np.arctan2(sphere.vertices[:, 0], sphere.vertices[:, 2]) / (2 * np.pi) + 0.5,
+                   sphere.vertices[:, 1] / 2 + 0.5], -1)
+    sphere.visual = trimesh.visual.TextureVisuals(uv=uv)
+    sphere.export(root / f"mesh{suffix}")
+    capture = load_capture(root)
+    assert capture.mesh.name == f"mesh{suffix}" and capture.mesh_has_uv
+    capture_stage(root, tmp_path / "results" / "capture.json")
+    from dpi.capture import read_capture_json
 
-    root = make_capture(tmp_path / "cap")
-    edit_transforms(root, lambda d: d.update(k1=-0.12, k2="0.03", p1=0.0))
-    with pytest.warns(CaptureWarning, match=r"transforms.json: lens distortion given \(largest coefficient 0.12\)"):
-        load_capture(root)
+    converted = read_capture_json(tmp_path / "results" / "capture.json")
+    assert converted.mesh == tmp_path / "results" / "mesh_given.ply" and converted.mesh_has_uv
+    back = trimesh.load(converted.mesh, process=False)
+    assert np.allclose(back.vertices, sphere.vertices, atol=1e-6) and np.allclose(back.visual.uv, uv, atol=1e-6)
+    cameras = [v.camera for v in converted.views][:1]
+    renderer = Renderer(converted.mesh, cameras, 4, 8, RenderSettings(spp=4))
+    import torch
+
+    image = renderer.render(torch.ones(4, 8, 3), torch.full((8, 8, 3), 0.5), torch.full((8, 8, 1), 0.5),
+                            torch.zeros(8, 8, 1), view=0, seed=0)
+    assert image.shape == (SIZE, SIZE, 3) and float(image.mean()) > 0
