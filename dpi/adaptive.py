@@ -7,7 +7,7 @@ Two decisions, each logged where its result is written and switched off in confi
   mirror-like object shows its illumination) and the remaining samples are not drawn;
 - fewer diffusion steps for diffuse scenes: when the init stage finds rough, non-metallic
   materials everywhere, the renderer only sees a low-pass of the map, so the diffusion methods
-  run `diffuse_steps_factor` of their steps.
+  run `DIFFUSE_STEPS_FACTOR` of their steps.
 """
 
 from __future__ import annotations
@@ -22,8 +22,16 @@ from dpi.exr import read_exr
 from dpi.materials import MaterialTextures
 from pydantic import Field
 
-from dpi.settings import Fraction, Share, Weight, settings, settings_from_dict
+from dpi.settings import Weight, settings, settings_from_dict
 from dpi.spread import normalized_env, sample_variance
+
+
+DIFFUSE_ROUGHNESS = 0.6
+"""init roughness that (at its 25th percentile) makes a scene diffuse: a GGX lobe ~30 deg wide"""
+DIFFUSE_MAX_METALLIC = 0.1
+"""metallic (at its 75th percentile) above which a scene is never treated as diffuse"""
+DIFFUSE_STEPS_FACTOR = 0.5
+"""fraction of the diffusion steps run for a diffuse scene"""
 
 
 @settings
@@ -38,12 +46,6 @@ class AdaptiveConfig:
     """env-map sigma2_sample (as in summary.csv) below which the first samples agree"""
     diffuse_steps: bool = True
     """run fewer diffusion steps when the init stage finds a diffuse object"""
-    diffuse_roughness: Fraction = 0.6
-    """init roughness that (at its 25th percentile) makes a scene diffuse: a GGX lobe ~30 deg wide"""
-    diffuse_max_metallic: Fraction = 0.1
-    """metallic (at its 75th percentile) above which a scene is never treated as diffuse"""
-    diffuse_steps_factor: Share = 0.5
-    """fraction of the diffusion steps run for a diffuse scene"""
 
     @classmethod
     def from_dict(cls, values: dict[str, Any] | None) -> "AdaptiveConfig":
@@ -76,9 +78,9 @@ def plan_steps(init: MaterialTextures, steps: int, cfg: AdaptiveConfig) -> tuple
     seen = f"init roughness p25 {roughness:.2f}, metallic p75 {metallic:.2f}"
     if not cfg.diffuse_steps:
         return steps, f"{seen}; diffuse step reduction off"
-    if roughness >= cfg.diffuse_roughness and metallic <= cfg.diffuse_max_metallic:
-        reduced = max(1, int(round(steps * cfg.diffuse_steps_factor)))
-        return reduced, (f"{seen}: diffuse (roughness >= {cfg.diffuse_roughness:g}), the views see only low "
+    if roughness >= DIFFUSE_ROUGHNESS and metallic <= DIFFUSE_MAX_METALLIC:
+        reduced = max(1, int(round(steps * DIFFUSE_STEPS_FACTOR)))
+        return reduced, (f"{seen}: diffuse (roughness >= {DIFFUSE_ROUGHNESS:g}), the views see only low "
                          f"frequencies of the map; {reduced} of {steps} diffusion steps")
     return steps, f"{seen}: not diffuse; all {steps} diffusion steps"
 

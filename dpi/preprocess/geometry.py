@@ -27,11 +27,26 @@ from dpi.preprocess.hull import (
     support_plane,
     visual_hull,
 )
-from dpi.settings import Count, Fraction, Rate, Steps, Weight, settings
+from dpi.settings import Count, Fraction, Steps, Weight, settings
 
 if TYPE_CHECKING:
     from dpi.preprocess.stereo import StereoConfig
 
+
+
+MIN_COMPONENT = 20.0
+"""components with a diagonal below this percent of the whole are removed"""
+OBJECT_IN_FRAME = True
+"""the whole object is inside every image: a voxel outside a view's frame is outside the object"""
+PHOTO_SIZE = 480
+"""longer side (px) of the photos the ground test and stereo match: larger ones are area-downsampled,
+cameras and masks follow (their windows are in pixels and their cost grows with the pixels; None:
+the photos' own size). The silhouettes carve at full size"""
+REMESH_EDGE = None
+"""target edge length of the remeshing, percent of the bounding-box diagonal (None: the length
+whose equilateral triangles keep the face budget)"""
+SMOOTHING_STEPS = 10
+"""Taubin smoothing iterations"""
 
 
 @settings
@@ -44,23 +59,14 @@ class GeometryConfig:
     """voxels along the side of the search box (coarse pass)"""
     outside_votes: Steps = 2
     """views that must see a voxel outside its silhouette to carve it (tolerates outside_votes - 1 bad masks)"""
-    object_in_frame: bool = True
-    """the whole object is inside every image: a voxel outside a view's frame is outside the object"""
     min_view_fraction: Fraction = 0.5
     """without object_in_frame: a voxel inside fewer than this fraction of the views' frames is outside"""
     margin: Weight = 0.08
     """margin around the coarse hull's box, as a fraction of its size"""
-    smoothing_steps: Steps = 10
-    """Taubin smoothing iterations"""
     target_faces: Count = 20000
     """face budget of the decimated mesh"""
     remesh_iterations: Steps = 3
     """isotropic remeshing iterations (0: none)"""
-    remesh_edge: Rate | None = None
-    """target edge length of the remeshing, percent of the bounding-box diagonal (None: the length
-    whose equilateral triangles keep the face budget)"""
-    min_component: Weight = 20.0
-    """components with a diagonal below this percent of the whole are removed"""
     support_plane: bool = True
     """when every camera looks from above, cut the hull at the plane of the object's lowest rim points (a
     low quantile over the views), so the underside no camera sees does not stay a cone
@@ -72,10 +78,6 @@ class GeometryConfig:
     """carve what multi-view stereo sees as empty inside the hull (needs the photos; dpi.preprocess.stereo)"""
     stereo_settings: dict[str, Any] = field(default_factory=dict)
     """fields of dpi.preprocess.stereo.StereoConfig (plane sweep, filtering, carving)"""
-    photo_size: Annotated[int, Field(ge=16)] | None = 480
-    """longer side (px) of the photos the ground test and stereo match: larger ones are area-downsampled,
-    cameras and masks follow (their windows are in pixels and their cost grows with the pixels; None:
-    the photos' own size). The silhouettes carve at full size"""
 
     def __post_init__(self):
         """Check `stereo_settings` with the config (an error names `stereo_settings.<key>`)."""
@@ -105,21 +107,21 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray, cfg: GeometryConfig) -> 
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=vertices.astype(np.float64), face_matrix=faces.astype(np.int32)))
     ms.meshing_remove_duplicate_vertices()
-    ms.meshing_remove_connected_component_by_diameter(mincomponentdiag=pymeshlab.PercentageValue(cfg.min_component))
+    ms.meshing_remove_connected_component_by_diameter(mincomponentdiag=pymeshlab.PercentageValue(MIN_COMPONENT))
     ms.meshing_repair_non_manifold_edges()
     ms.meshing_repair_non_manifold_vertices()
     ms.meshing_close_holes(maxholesize=100)
-    if cfg.smoothing_steps:
-        ms.apply_coord_taubin_smoothing(stepsmoothnum=cfg.smoothing_steps)
+    if SMOOTHING_STEPS:
+        ms.apply_coord_taubin_smoothing(stepsmoothnum=SMOOTHING_STEPS)
     if ms.current_mesh().face_number() > cfg.target_faces:
         ms.meshing_decimation_quadric_edge_collapse(targetfacenum=cfg.target_faces, preservenormal=True,
                                                     preservetopology=True, optimalplacement=True)
     if cfg.remesh_iterations:
-        if cfg.remesh_edge is None:
+        if REMESH_EDGE is None:
             area = ms.get_geometric_measures()["surface_area"]
             target = pymeshlab.PureValue(float(np.sqrt(4 * area / (np.sqrt(3) * cfg.target_faces))))
         else:
-            target = pymeshlab.PercentageValue(cfg.remesh_edge)
+            target = pymeshlab.PercentageValue(REMESH_EDGE)
         ms.meshing_isotropic_explicit_remeshing(iterations=cfg.remesh_iterations, targetlen=target)
     ms.meshing_repair_non_manifold_edges()
     ms.meshing_remove_unreferenced_vertices()
@@ -134,7 +136,7 @@ def carve_hull(cameras: list[Camera], masks: list[np.ndarray],
                cfg: GeometryConfig) -> tuple[np.ndarray, np.ndarray, float, dict]:
     """The visual hull with the config's carving settings (dpi.preprocess.hull.visual_hull)."""
     return visual_hull(cameras, masks, cfg.resolution, cfg.coarse_resolution, cfg.outside_votes,
-                       cfg.min_view_fraction, cfg.object_in_frame, cfg.margin)
+                       cfg.min_view_fraction, OBJECT_IN_FRAME, cfg.margin)
 
 
 def working_photos(cameras: list[Camera], masks: list[np.ndarray], images: list[np.ndarray],
@@ -180,7 +182,7 @@ def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray], cfg: Geo
     start = time.perf_counter()
     field, origin, size, box = carve_hull(cameras, masks, cfg)
     up = seen_from_above(cameras, field, origin, size)
-    photos = working_photos(cameras, masks, images, cfg.photo_size) if images is not None else None
+    photos = working_photos(cameras, masks, images, PHOTO_SIZE) if images is not None else None
     if cfg.ground and photos is not None and up is not None:
         ground_start = time.perf_counter()
         masks, photos, ground = without_ground(masks, photos, up, marching_cubes(field, origin, size),

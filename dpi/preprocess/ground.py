@@ -7,13 +7,13 @@ whose induced warp of the neighbour views best matches them (median NCC), search
 size images from two bounding-box diagonals below the object to a quarter diagonal above its lowest
 point, then refined at full size. Band pixels whose rays miss the plane, or whose point no neighbour
 sees, do not count. A plain ground matches at no height: when fewer than `ground_fit` of the
-band pixels reach `ground_seed` under the best plane, nothing is removed.
+band pixels reach `GROUND_SEED` under the best plane, nothing is removed.
 
-**The test.** A masked pixel sees the ground when its NCC under that plane reaches `ground_seed`,
-or `ground_grow` in a region connected to such a pixel (hysteresis), and beats its best NCC at
+**The test.** A masked pixel sees the ground when its NCC under that plane reaches `GROUND_SEED`,
+or `GROUND_GROW` in a region connected to such a pixel (hysteresis), and beats its best NCC at
 any depth inside the carved hull (`OBJECT_PLANES`, ending `CLEARANCE` pixels above the ground):
 smooth shading on the object can match a wrong warp, but its own depth matches better. Regions
-under `ground_min_pixels` are dropped. Where an NCC window straddles the silhouette, the ground's
+under `GROUND_MIN_PIXELS` are dropped. Where an NCC window straddles the silhouette, the ground's
 half of it matches, so the object's outermost pixels (up to half a window) may go with the ground.
 """
 
@@ -26,6 +26,13 @@ from dpi.cameras import Camera
 from dpi.consistency import raycasting_scene
 from dpi.preprocess.hull import axes_centre
 from dpi.preprocess.stereo import Matcher, StereoConfig, camera_rays, grey, hull_depth_range, neighbour_views
+
+GROUND_GROW = 0.7
+"""NCC at which a masked pixel connected to a seed sees the ground too"""
+GROUND_MIN_PIXELS = 20
+"""ground regions smaller than this (pixels) stay in the mask"""
+GROUND_SEED = 0.95
+"""NCC under the ground plane's homography at which a masked pixel sees the ground"""
 
 FIT_VIEWS = 8
 """views the ground's height is fitted on (evenly spread over the capture)"""
@@ -129,7 +136,7 @@ def fit_ground(greys: list[np.ndarray], cameras: list[Camera], masks: list[np.nd
                up: np.ndarray, lowest: float, diagonal: float, cfg: StereoConfig) -> tuple[float, float]:
     """(height, match) of the ground plane best matching the background near the object (highest median
     NCC), whose lowest carved point is at height `lowest` and whose box has the given diagonal; match:
-    the fraction of those background pixels that reach `ground_seed` under it."""
+    the fraction of those background pixels that reach `GROUND_SEED` under it."""
     views = list(range(0, len(cameras), max(len(cameras) // FIT_VIEWS, 1)))
     bands = [background_band(m) for m in masks]
     pixel = pixel_footprint(cameras)
@@ -142,7 +149,7 @@ def fit_ground(greys: list[np.ndarray], cameras: list[Camera], masks: list[np.nd
     scores = band_scores(greys, cameras, bands, neighbours, views, up, fine, cfg)
     k = int(np.argmax(_medians(scores)))
     seen = np.isfinite(scores[k])
-    return float(fine[k]), float((scores[k][seen] >= cfg.ground_seed).mean()) if seen.any() else 0.0
+    return float(fine[k]), float((scores[k][seen] >= GROUND_SEED).mean()) if seen.any() else 0.0
 
 
 def ground_pixels(greys: list[np.ndarray], cameras: list[Camera], masks: list[np.ndarray],
@@ -163,9 +170,9 @@ def ground_pixels(greys: list[np.ndarray], cameras: list[Camera], masks: list[np
         near, far = hull_depth_range(scene, cam, 2 * float(np.linalg.norm(hull[0] - cam.center, axis=1).max()))
         far = np.where(plane_depth > 0, np.minimum(far, plane_depth - clearance), far)
         candidate = mask & (on_plane > range_scores(matcher, near, far, OBJECT_PLANES))
-        ground = apply_hysteresis_threshold(np.where(candidate, on_plane, -1.0), cfg.ground_grow, cfg.ground_seed)
+        ground = apply_hysteresis_threshold(np.where(candidate, on_plane, -1.0), GROUND_GROW, GROUND_SEED)
         count, labels, stats, _ = cv2.connectedComponentsWithStats(ground.astype(np.uint8), connectivity=8)
-        big = [k for k in range(1, count) if stats[k, cv2.CC_STAT_AREA] >= cfg.ground_min_pixels]
+        big = [k for k in range(1, count) if stats[k, cv2.CC_STAT_AREA] >= GROUND_MIN_PIXELS]
         out.append(np.isin(labels, big))
     return out
 

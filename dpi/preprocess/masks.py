@@ -44,11 +44,28 @@ from dpi.images import (
     write_mask,
 )
 from dpi.preprocess.hull import marching_cubes, visible_sphere, visual_hull
-from dpi.settings import Count, Fraction, Rate, Steps, Weight, settings
+from dpi.settings import Fraction, settings
 
 log = logging.getLogger(__name__)
 
 METHODS = ("auto", "grabcut", "key")
+
+
+GRABCUT_ITERATIONS = 5
+
+HULL_CORE = 0.12
+"""the points' hull shrunk by this fraction of its size is foreground for sure (a region; 0: off)"""
+HULL_MARGIN = 0.05
+"""growth of the projected object points' hull that is probably foreground, as a fraction of its size"""
+KEY_MAX_SPREAD = 0.06
+"""the background is uniform when the border's colours (sRGB, 0-1) spread less than this"""
+KEY_THRESHOLD = 0.1
+"""keying: a pixel is foreground when its sRGB colour is farther than this from the key colour"""
+MIN_POINTS = 30
+"""with fewer object points the first prior is the sphere alone"""
+OUTLIER_STD_RATIO = 2.0
+"""object points farther from their neighbours than the mean plus this many standard deviations
+are dropped before the hull (open3d's statistical outlier removal; 0: keep all)"""
 
 
 @settings
@@ -59,20 +76,6 @@ class MaskConfig:
     """auto (keying on a uniform background, else GrabCut) | grabcut | key"""
     sphere_fraction: Fraction = 0.7
     """first GrabCut prior: the disc of this fraction of the sphere every camera sees whole is probably foreground"""
-    hull_margin: Weight = 0.05
-    """growth of the projected object points' hull that is probably foreground, as a fraction of its size"""
-    hull_core: Weight = 0.12
-    """the points' hull shrunk by this fraction of its size is foreground for sure (a region; 0: off)"""
-    min_points: Count = 30
-    """with fewer object points the first prior is the sphere alone"""
-    outlier_std_ratio: Rate = 2.0
-    """object points farther from their neighbours than the mean plus this many standard deviations
-    are dropped before the hull (open3d's statistical outlier removal; 0: keep all)"""
-    grabcut_iterations: Steps = 5
-    key_max_spread: Weight = 0.06
-    """the background is uniform when the border's colours (sRGB, 0-1) spread less than this"""
-    key_threshold: Fraction = 0.1
-    """keying: a pixel is foreground when its sRGB colour is farther than this from the key colour"""
     fill_holes_below: Fraction = 0.01
     """holes smaller than this fraction of the mask's area are filled"""
     consensus_votes: list[float] = field(default_factory=lambda: [0.25, 0.125])
@@ -167,12 +170,12 @@ def first_prior(camera: Camera, sphere: tuple[np.ndarray, float], cfg: MaskConfi
     yy, xx = np.mgrid[: camera.height, : camera.width]
     region = (xx + 0.5 - xy[0, 0]) ** 2 + (yy + 0.5 - xy[0, 1]) ** 2 <= r * r
     core = np.zeros_like(region)
-    hull = points_hull(camera, points) if points is not None and len(points) >= cfg.min_points else None
+    hull = points_hull(camera, points) if points is not None and len(points) >= MIN_POINTS else None
     if hull is not None:
         size = max(np.sqrt(hull.sum()), 1.0)
-        region |= _grow(hull, int(round(cfg.hull_margin * size)))
-        if cfg.hull_core > 0:
-            core = _shrink(hull, int(round(cfg.hull_core * size)))
+        region |= _grow(hull, int(round(HULL_MARGIN * size)))
+        if HULL_CORE > 0:
+            core = _shrink(hull, int(round(HULL_CORE * size)))
     labels = np.where(region, cv2.GC_PR_FGD, cv2.GC_PR_BGD).astype(np.uint8)
     labels[core] = cv2.GC_FGD
     _border_background(labels)
@@ -230,11 +233,11 @@ def object_mask(image: np.ndarray, camera: Camera, cfg: MaskConfig, sphere: tupl
     colour, spread = border_colour(image8)
     method = cfg.method
     if method == "auto":
-        method = "key" if spread < cfg.key_max_spread else "grabcut"
+        method = "key" if spread < KEY_MAX_SPREAD else "grabcut"
     if method == "key":
-        mask = key_mask(image8, colour, max(cfg.key_threshold, 2 * spread))
+        mask = key_mask(image8, colour, max(KEY_THRESHOLD, 2 * spread))
     else:
-        mask = grabcut(image8, first_prior(camera, sphere, cfg, points), cfg.grabcut_iterations)
+        mask = grabcut(image8, first_prior(camera, sphere, cfg, points), GRABCUT_ITERATIONS)
     return clean_mask(mask, cfg.fill_holes_below), method
 
 
@@ -282,7 +285,7 @@ def refine_masks(images8: list[np.ndarray | None], cameras: list[Camera], masks:
             if image8 is None:
                 continue
             width = max(2, int(round(band * np.sqrt(outline.sum()))))
-            masks[i] = clean_mask(grabcut(image8, band_prior(outline, width), cfg.grabcut_iterations),
+            masks[i] = clean_mask(grabcut(image8, band_prior(outline, width), GRABCUT_ITERATIONS),
                                   cfg.fill_holes_below)
             methods[i] = "grabcut"
             if mask_iou(masks[i], outline) < 0.5:  # GrabCut lost the object: keep the views' consensus
@@ -311,10 +314,10 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
     centre, radius = visible_sphere(views)
     sphere = (centre, cfg.sphere_fraction * radius)
     if points is not None:
-        points = drop_outliers(points, cfg.outlier_std_ratio)
+        points = drop_outliers(points, OUTLIER_STD_RATIO)
     first = [object_mask(picture, camera, cfg, sphere, points) for picture, camera in zip(pictures, views)]
     masks, methods = [m for m, _ in first], [method for _, method in first]
-    use_points = points is not None and len(points) >= cfg.min_points
+    use_points = points is not None and len(points) >= MIN_POINTS
     summary = {"views": {}, "prior": "sphere and sparse points" if use_points else "sphere", "consensus_rounds": 0}
     if "grabcut" in methods and cfg.consensus_votes:
         to_cut = [to_uint8(p) if method == "grabcut" else None for p, method in zip(pictures, methods)]

@@ -48,39 +48,41 @@ class SfMError(RuntimeError):
         self.summary = summary or {}
 
 
+EXHAUSTIVE_MAX_IMAGES = 120
+"""largest capture matched exhaustively under matcher=auto"""
+INIT_MIN_INLIERS = 50
+"""verified matches the initial image pair needs (COLMAP's default 100 suits large photos)"""
+MIN_POSE_INLIERS = 30
+"""2D-3D inliers a further image needs to be registered (COLMAP's default)"""
+MIN_TRACK_LENGTH = 3
+"""sparse points seen in fewer images are dropped"""
+OBJECT_VIEW_FRACTION = 0.75
+"""a sparse point is on the object when at least this fraction of the cameras has it in view"""
+REJECT_OFF_CENTRE = True
+"""drop registered views that do not have the object (the point all cameras look at) in frame:
+in a walk-around capture those are misregistrations (e.g. on repetitive backgrounds)"""
+SEQUENTIAL_OVERLAP = 15
+"""neighbours (in file order) each image is matched with by the sequential matcher"""
+PEAK_THRESHOLD = 0.004
+"""SIFT contrast threshold (COLMAP's default 0.0067 finds few features in small or soft images)"""
+MAX_REPROJECTION_ERROR_PX = 1.5
+"""a mean reprojection error above this is an error"""
+
+
 @settings
 class SfMConfig:
     """Settings of the COLMAP pipeline and of the checks on its result."""
 
     matcher: str = "auto"
-    """auto (exhaustive up to exhaustive_max_images images, else sequential) | exhaustive | sequential"""
-    exhaustive_max_images: Count = 120
-    """largest capture matched exhaustively under matcher=auto"""
-    sequential_overlap: Count = 15
-    """neighbours (in file order) each image is matched with by the sequential matcher"""
+    """auto (exhaustive up to EXHAUSTIVE_MAX_IMAGES images, else sequential) | exhaustive | sequential"""
     max_image_size: Annotated[int, Field(ge=64)] = 1600
     """images are downscaled to this longest side for feature extraction"""
     max_features: Count = 8192
     """SIFT features per image"""
-    peak_threshold: Rate = 0.004
-    """SIFT contrast threshold (COLMAP's default 0.0067 finds few features in small or soft images)"""
-    init_min_inliers: Count = 50
-    """verified matches the initial image pair needs (COLMAP's default 100 suits large photos)"""
-    min_pose_inliers: Count = 30
-    """2D-3D inliers a further image needs to be registered (COLMAP's default)"""
     focal_length_px: Rate | None = None
     """known focal length in pixels (fixed during mapping); None: estimated (EXIF or 1.2 x image size first)"""
     min_registered_fraction: Fraction = 0.9
     """fewer registered images than this fraction of the capture is an error"""
-    max_reprojection_error_px: Rate = 1.5
-    """a mean reprojection error above this is an error"""
-    object_view_fraction: Fraction = 0.75
-    """a sparse point is on the object when at least this fraction of the cameras has it in view"""
-    min_track_length: Annotated[int, Field(ge=2)] = 3
-    """sparse points seen in fewer images are dropped"""
-    reject_off_centre: bool = True
-    """drop registered views that do not have the object (the point all cameras look at) in frame:
-    in a walk-around capture those are misregistrations (e.g. on repetitive backgrounds)"""
     seed: int = 0
 
 
@@ -163,7 +165,7 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
     extraction.num_threads = threads
     extraction.max_image_size = cfg.max_image_size
     extraction.sift.max_num_features = cfg.max_features
-    extraction.sift.peak_threshold = cfg.peak_threshold
+    extraction.sift.peak_threshold = PEAK_THRESHOLD
     pycolmap.extract_features(database, image_dir, image_names=[p.name for p in images],
                               camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
                               extraction_options=extraction, device=device)
@@ -174,12 +176,12 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
     matching.num_threads = threads
     matcher = cfg.matcher
     if matcher == "auto":
-        matcher = "exhaustive" if len(images) <= cfg.exhaustive_max_images else "sequential"
+        matcher = "exhaustive" if len(images) <= EXHAUSTIVE_MAX_IMAGES else "sequential"
     if matcher == "exhaustive":
         pycolmap.match_exhaustive(database, matching_options=matching, device=device)
     else:
         pairing = pycolmap.SequentialPairingOptions()
-        pairing.overlap = cfg.sequential_overlap
+        pairing.overlap = SEQUENTIAL_OVERLAP
         pairing.num_threads = threads
         pycolmap.match_sequential(database, matching_options=matching, pairing_options=pairing, device=device)
     times["match_s"] = time.perf_counter() - start
@@ -190,8 +192,8 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
     options.random_seed = cfg.seed
     options.mapper.random_seed = cfg.seed
     options.triangulation.random_seed = cfg.seed
-    options.mapper.init_min_num_inliers = cfg.init_min_inliers
-    options.mapper.abs_pose_min_num_inliers = cfg.min_pose_inliers
+    options.mapper.init_min_num_inliers = INIT_MIN_INLIERS
+    options.mapper.abs_pose_min_num_inliers = MIN_POSE_INLIERS
     options.min_model_size = 3
     if cfg.focal_length_px:
         options.ba_refine_focal_length = False
@@ -217,9 +219,9 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
                        f"min_registered_fraction={cfg.min_registered_fraction}{several}", summary)
     if len(models) > 1:
         log.warning("%d disconnected models %s: using the largest; the other images get no camera", len(models), sizes)
-    if summary["mean_reprojection_error_px"] > cfg.max_reprojection_error_px:
+    if summary["mean_reprojection_error_px"] > MAX_REPROJECTION_ERROR_PX:
         raise SfMError(f"{image_dir}: mean reprojection error {summary['mean_reprojection_error_px']:.2f} px "
-                       f"exceeds max_reprojection_error_px={cfg.max_reprojection_error_px}", summary)
+                       f"exceeds max_reprojection_error_px={MAX_REPROJECTION_ERROR_PX}", summary)
 
     cameras = {}
     for image in model.images.values():
@@ -229,7 +231,7 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
         name = Path(image.name).stem
         cameras[name] = colmap_to_camera(image.cam_from_world().matrix(), cam.width, cam.height, *_pinhole(cam),
                                          name)
-    rejected = off_centre_views(cameras) if cfg.reject_off_centre else []
+    rejected = off_centre_views(cameras) if REJECT_OFF_CENTRE else []
     if rejected:
         log.warning("dropping %d views that do not look at the object (misregistered): %s", len(rejected), rejected)
         cameras = {n: c for n, c in cameras.items() if n not in rejected}
@@ -241,8 +243,8 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
     pts = [(p.xyz, p.color, p.track.length()) for p in model.points3D.values()]
     xyz = np.array([p[0] for p in pts], dtype=np.float64).reshape(-1, 3)
     rgb = np.array([p[1] for p in pts], dtype=np.float64).reshape(-1, 3) / 255.0
-    keep = np.array([p[2] >= cfg.min_track_length for p in pts], dtype=bool)
-    on_object = object_points(xyz[keep], list(cameras.values()), cfg.object_view_fraction)
+    keep = np.array([p[2] >= MIN_TRACK_LENGTH for p in pts], dtype=bool)
+    on_object = object_points(xyz[keep], list(cameras.values()), OBJECT_VIEW_FRACTION)
     summary["object_points"] = int(on_object.sum())
     return SparseModel(cameras, xyz[keep], rgb[keep], on_object, summary)
 

@@ -39,14 +39,29 @@ from dpi.consistency import raycasting_scene
 from dpi.settings import Count, Fraction, Steps, Weight, settings
 
 
+BAND_VOXELS = 3.0
+"""truncation of the carving distance, in hull voxels"""
+MARGIN_VOXELS = 0.5
+"""the carving distance must exceed this (hull voxels): depth noise does not shave the hull"""
+MAX_INCIDENCE_DEG = 70.0
+"""depths whose surface (the depth map's own normal) is seen more than this from head-on are dropped
+(a window on a grazing surface spans more depth than the sweep resolves; 90: off)"""
+MIN_CONSISTENT = 2
+"""neighbour depth maps that must agree with a depth (within `consistency` of it)"""
+BEST_OF = 4
+"""a plane's score is the mean NCC of its best `best_of` neighbours (occlusion-robust)"""
+BEYOND = 0.5
+"""planes continue this fraction of the hull's depth extent past its far side (holes)"""
+
+
+
+
 @settings
 class StereoConfig:
     """Settings of the plane sweep, the depth filters and the carving."""
 
     neighbours: Count = 6
     """views each depth map is matched against (nearest viewing directions)"""
-    best_of: Count = 4
-    """a plane's score is the mean NCC of its best `best_of` neighbours (occlusion-robust)"""
     planes: Annotated[int, Field(ge=2)] = 64
     """depth planes over the hull's depth range per view (first pass)"""
     refine: Steps = 9
@@ -61,37 +76,20 @@ class StereoConfig:
     """mean NCC a depth must reach"""
     blur_px: Weight = 1.0
     """Gaussian blur (pixels) of the images before matching: noise and aliased texture do not match"""
-    min_consistent: Count = 2
-    """neighbour depth maps that must agree with a depth (within `consistency` of it)"""
     consistency: Weight = 0.01
     """relative depth difference under which two views agree"""
-    beyond: Weight = 0.5
-    """planes continue this fraction of the hull's depth extent past its far side (holes)"""
     highlight_ratio: Weight = 1.3
     """pixels brighter than this times their surroundings' mean (and 3 px around) get no depth (0: off)"""
-    band_voxels: Weight = 3.0
-    """truncation of the carving distance, in hull voxels"""
-    margin_voxels: Weight = 0.5
-    """the carving distance must exceed this (hull voxels): depth noise does not shave the hull"""
     votes: Count = 3
     """views that must have a depth at a voxel for it to be carved"""
     max_baseline_deg: Annotated[float, Field(gt=0, le=180)] = 50.0
     """neighbours see the object's centre within this angle of the reference view"""
-    max_incidence_deg: Annotated[float, Field(ge=0, le=90)] = 70.0
-    """depths whose surface (the depth map's own normal) is seen more than this from head-on are dropped
-    (a window on a grazing surface spans more depth than the sweep resolves; 90: off)"""
     passes: Count = 2
     """rounds of depth maps and carving, each swept inside the surface the previous one carved: depths
     in front of it are no longer hypotheses, so cavities the first round half opened open further"""
     ground_fit: Fraction = 0.02
     """the ground test (dpi.preprocess.ground) runs only when at least this fraction of the background
-    pixels near the object reach `ground_seed` under the fitted ground plane (a plain ground: none)"""
-    ground_seed: Annotated[float, Field(ge=-1, le=1)] = 0.95
-    """NCC under the ground plane's homography at which a masked pixel sees the ground"""
-    ground_grow: Annotated[float, Field(ge=-1, le=1)] = 0.7
-    """NCC at which a masked pixel connected to a seed sees the ground too"""
-    ground_min_pixels: Steps = 20
-    """ground regions smaller than this (pixels) stay in the mask"""
+    pixels near the object reach its `GROUND_SEED` under the fitted ground plane (a plain ground: none)"""
 
 
 def grey(image: np.ndarray, blur_px: float) -> np.ndarray:
@@ -196,7 +194,7 @@ class Matcher:
             ncc = ((_box(self.a * b, window) - self.mean_a * mean_b) / torch.sqrt(self.var_a * var_b))[:, 0]
             valid = (depth > 1e-3) & (x >= 0) & (x < cam.width) & (y >= 0) & (y < cam.height)
             per_view.append(torch.where(valid, ncc, torch.tensor(-1.0)))
-        best_of = min(self.cfg.best_of, len(per_view))
+        best_of = min(BEST_OF, len(per_view))
         return torch.stack(per_view).topk(best_of, dim=0).values.mean(0)
 
     def best(self, z: torch.Tensor, allowed: torch.Tensor, batch: int = 16) -> tuple[torch.Tensor, torch.Tensor]:
@@ -225,7 +223,7 @@ def sweep_depth(ref: np.ndarray, camera: Camera, others: list[tuple[np.ndarray, 
     crop_inside = torch.from_numpy(inside[rows, cols])
     crop_near = torch.from_numpy(np.where(inside, near, 0)[rows, cols])
     z_lo, z_hi = float(near[inside].min()), float(far[inside].max())
-    z_hi += cfg.beyond * (z_hi - z_lo)
+    z_hi += BEYOND * (z_hi - z_lo)
     planes = torch.linspace(z_lo, z_hi, cfg.planes)
     step = float(planes[1] - planes[0])
     shape = crop_inside.shape
@@ -271,7 +269,7 @@ def consistent(depths: list[np.ndarray], cameras: list[Camera], neighbours: list
             seen, z = observed_depth(depths[j], cameras[j], points)
             agree += (seen > 0) & (np.abs(seen - z) <= cfg.consistency * z)
         kept = np.zeros_like(depth)
-        kept[valid] = np.where(agree >= cfg.min_consistent, depth[valid], 0.0)
+        kept[valid] = np.where(agree >= MIN_CONSISTENT, depth[valid], 0.0)
         out.append(kept)
     return out
 
@@ -350,8 +348,8 @@ def depth_maps(cameras: list[Camera], images: list[np.ndarray], masks: list[np.n
         for i, cam in enumerate(cameras):
             depth, _ = sweep_depth(greys[i], cam, [(greys[j], cameras[j]) for j in neighbours[i]], *ranges[i], wcfg)
             keep = usable[i]
-            if cfg.max_incidence_deg < 90:
-                keep = keep & ~grazing(depth, cam, cfg.max_incidence_deg)  # not in place: keep may be masks[i]
+            if MAX_INCIDENCE_DEG < 90:
+                keep = keep & ~grazing(depth, cam, MAX_INCIDENCE_DEG)  # not in place: keep may be masks[i]
             depths.append(np.where(keep, depth, 0.0).astype(np.float32))
         return depths
 
@@ -366,8 +364,8 @@ def carve_with_depths(field: np.ndarray, origin: np.ndarray, size: float, camera
                       depths: list[np.ndarray], cfg: StereoConfig) -> np.ndarray:
     """The carved field (negative inside) with what the depth maps see as empty removed (`free_space`)."""
     points = origin + np.stack(np.indices(field.shape), -1) * size
-    near = field < cfg.band_voxels * size
+    near = field < BAND_VOXELS * size
     out = field.copy()
-    free = free_space(points[near], depths, cameras, cfg.band_voxels * size, cfg.votes)
-    out[near] = np.maximum(field[near], free - cfg.margin_voxels * size)
+    free = free_space(points[near], depths, cameras, BAND_VOXELS * size, cfg.votes)
+    out[near] = np.maximum(field[near], free - MARGIN_VOXELS * size)
     return out
