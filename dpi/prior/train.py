@@ -16,7 +16,6 @@ import math
 import time
 from dataclasses import asdict, field, fields
 from pathlib import Path
-from typing import Annotated
 
 import torch
 from tqdm import tqdm
@@ -42,7 +41,6 @@ from dpi.prior.unet import (
 from dpi.settings import (
     Count,
     Fraction,
-    Loose,
     MapHeight,
     Rate,
     SettingsError,
@@ -57,6 +55,9 @@ LR_SCHEDULES = ("constant", "cosine")
 """learning-rate schedules after the warm-up (`learning_rate`)"""
 DEFAULT_MODEL = "small_32x64"
 """the network (a name in dpi.prior.unet.SMALL_CONFIGS) a prior is trained with unless told otherwise"""
+
+
+CLIP_MULTIPLES = (3.0, 30.0)  # clip levels, in multiples of the median luminance
 
 
 @settings
@@ -85,7 +86,6 @@ class TrainConfig:
     encoding: str = "log"  # 'log' (log radiance around the median) or 'paper' (the family's tone curve)
     amp: bool = True  # bfloat16 autocast of the forward pass on CUDA (ignored on the CPU)
     clip_fraction: Fraction = 0.0  # share of each batch clipped like 8-bit panoramas (dpi.prior.data.clip_highlights)
-    clip_multiples: Annotated[tuple[float, float], Loose] = (3.0, 30.0)  # clip levels, in multiples of the median luminance
     real_data: str | None = None  # real panoramas (a folder or a set packed by `dpi panorama-set`) mixed in
     real_fraction: Fraction = 0.25  # share of each batch drawn from `real_data`
 
@@ -233,7 +233,7 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
         x0 = data.batch(cfg.batch_size, generator)
         if cfg.clip_fraction:
             x0 = clip_highlights(x0, data.encoding, median_target(cfg.family, data.encoding), cfg.clip_fraction,
-                                 cfg.clip_multiples, generator)
+                                 CLIP_MULTIPLES, generator)
         t = torch.randint(0, cfg.num_timesteps, (cfg.batch_size,), generator=generator, device=cfg.device)
         noise = torch.randn(x0.shape, generator=generator, device=cfg.device)
         with torch.autocast("cuda", dtype=torch.bfloat16, enabled=cuda and cfg.amp):

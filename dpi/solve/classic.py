@@ -3,7 +3,7 @@
 Each sample starts from the initialisation's roughness and metallic, a reset (grey) albedo and
 the init map perturbed by log-normal noise drawn from the sample's seed, then fits map and
 materials jointly with the prior's penalty. The penalty weight is set so that both loss terms
-have the same magnitude at the start (times `prior_weight_ratio`).
+have the same magnitude at the start (times `PRIOR_WEIGHT_RATIO`).
 """
 
 from __future__ import annotations
@@ -22,13 +22,15 @@ from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
 
 
+PRIOR_WEIGHT_RATIO = 1.0
+"""prior weight relative to the balanced one (1: equal magnitude at the start)"""
+
+
 @settings
 class ClassicConfig:
     """Settings of an optimisation-based prior method."""
 
     optimize: OptimizeConfig = field(default_factory=lambda: OptimizeConfig(iterations=150, views_per_step=2))
-    prior_weight_ratio: Weight = 1.0
-    """prior weight relative to the balanced one (1: equal magnitude at the start)"""
     start_noise: Weight = 0.5
     """std of the log-normal perturbation of the starting map (makes samples differ)"""
 
@@ -57,7 +59,7 @@ def classic_sample(problem: InverseProblem, method: str, init: Decomposition, cf
         with torch.no_grad():
             env0 = log_env.exp()
             data0 = float(problem.data_loss(env0, materials, problem.train_ids, seed))
-            weight = balanced_weight(data0, float(prior(env0)), cfg.prior_weight_ratio)
+            weight = balanced_weight(data0, float(prior(env0)), PRIOR_WEIGHT_RATIO)
     trace.info["prior_weight"] = weight
     log_env, materials = fit(problem, log_env, materials, cfg.optimize, seed, trace, prior, weight, progress,
                              checkpoint)

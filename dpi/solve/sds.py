@@ -5,7 +5,7 @@ to the rendering-loss gradient the score-distillation gradient (Poole et al. 202
   grad_sds = w * (eps_theta(x_t, t) - eps),  x_t = sqrt(abar_t) x + sqrt(1 - abar_t) eps,
 for a random t and eps (no backpropagation through the network), and Adam updates x and the
 materials. `w` is set so the two gradients have the same max-abs at the start (times
-`sds_weight_ratio`).
+`SDS_WEIGHT_RATIO`).
 """
 
 from __future__ import annotations
@@ -27,7 +27,6 @@ from dpi.settings import (
     Fraction,
     Rate,
     Steps,
-    Weight,
     settings,
     settings_from_dict,
 )
@@ -37,6 +36,9 @@ from dpi.solve.optimize import all_finite
 from dpi.solve.prior_space import estimate_radiance_scale, prior_to_env
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
+
+
+SDS_WEIGHT_RATIO = 1.0
 
 
 @settings
@@ -50,7 +52,6 @@ class SDSConfig(MaterialRates):
     t_min: Fraction = 0.02
     t_max: Fraction = 0.98
     """range of diffusion times, as fractions of the schedule"""
-    sds_weight_ratio: Weight = 1.0
     radiance_scale: Rate | None = None
 
     @classmethod
@@ -96,7 +97,7 @@ def sds_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
         loss.backward()
         direction = sds_gradient(prior, x.detach(), generator, cfg.t_min, cfg.t_max)
         if weight is None:
-            weight = cfg.sds_weight_ratio * float(x.grad.abs().max()) / max(float(direction.abs().max()), 1e-12)
+            weight = SDS_WEIGHT_RATIO * float(x.grad.abs().max()) / max(float(direction.abs().max()), 1e-12)
             trace.info["sds_weight"] = weight
         x.grad += weight * direction
         if not all_finite(free):

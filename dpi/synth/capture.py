@@ -50,6 +50,9 @@ from dpi.synth.textures import procedural_materials
 EVALUATION_SEED_STREAM = 7_919  # ground-truth maps draw from default_rng([this, seed]); datasets from [seed, chunk], seed 0
 
 
+FOV_DEG = 35.0
+
+
 @settings
 class SynthConfig:
     """Parameters of one synthetic capture."""
@@ -62,7 +65,6 @@ class SynthConfig:
     """every n-th view is held out for novel-view evaluation (0: none)"""
     width: ImageSize = 64
     height: ImageSize = 64
-    fov_deg: Annotated[float, Field(gt=0, lt=180)] = 35.0
     camera_distance: Rate = 4.0
     elevations_deg: Annotated[tuple[Elevation, ...], Loose] = (10.0, 35.0)
     arc_deg: Annotated[float, Field(gt=0, le=360)] = 360.0
@@ -186,7 +188,7 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
 
     poses = orbit(cfg.views, cfg.camera_distance, cfg.elevations_deg, phase_deg=cfg.seed * 7.0, arc_deg=cfg.arc_deg)
     names = [f"r_{i:03d}" for i in range(cfg.views)]
-    cameras = [from_fov(p, cfg.width, cfg.height, cfg.fov_deg, n) for p, n in zip(poses, names)]
+    cameras = [from_fov(p, cfg.width, cfg.height, FOV_DEG, n) for p, n in zip(poses, names)]
     for i, cam in enumerate(cameras):
         cam.extras["held_out"] = bool(cfg.held_out_every) and i % cfg.held_out_every == cfg.held_out_every - 1
 

@@ -14,7 +14,6 @@ from pydantic import Field
 
 from dpi.materials import MaterialTextures
 from dpi.settings import (
-    Fraction,
     SettingsError,
     Share,
     Weight,
@@ -33,6 +32,13 @@ LR_SUN_UV = 0.003
 """Adam rate of the sun's map coordinates (u spans 360 deg, v 180 deg)"""
 
 
+MIN_ROUGHNESS = GLOSSY_ROUGHNESS
+"""auto leaves it off for an init that `is_glossy` at this threshold: a glossy object mirrors the light,
+the views resolve its sun, and the sun's share prior only costs accuracy there"""
+MIN_SHARE = 0.05
+"""the sun is kept only when that excess carries at least this share of the init map's energy"""
+
+
 @settings
 class SunSettings:
     """A parametric sun next to the prior's sky (method_params.dps.sun)."""
@@ -41,11 +47,6 @@ class SunSettings:
     """on, off, or auto (on for samplers that model a sun, with the outdoor prior, for objects that are not glossy)"""
     radius_deg: Annotated[float, Field(gt=0, le=90)] = 25.0
     """radius around the init's brightest texel whose excess energy becomes the sun"""
-    min_roughness: Fraction = GLOSSY_ROUGHNESS
-    """auto leaves it off for an init that `is_glossy` at this threshold: a glossy object mirrors the light,
-    the views resolve its sun, and the sun's share prior only costs accuracy there"""
-    min_share: Fraction = 0.05
-    """the sun is kept only when that excess carries at least this share of the init map's energy"""
     share: Share = 0.55
     """the share of the map's energy the sun's prior expects: the median over the outdoor generator's clear
     skies with the sun above 10 deg (0.5-0.6 per elevation band; lower under clouds)"""
@@ -70,5 +71,5 @@ def wants_sun(settings: SunSettings, sampler_models_sun: bool, family: str, mate
     """Whether a sample gets a parametric sun (the module's rule for `mode`)."""
     if settings.mode != "auto":
         return settings.mode == "on"
-    return (sampler_models_sun and family in SUN_FAMILIES and not is_glossy(materials, settings.min_roughness)
-            and sun.share >= settings.min_share)
+    return (sampler_models_sun and family in SUN_FAMILIES and not is_glossy(materials, MIN_ROUGHNESS)
+            and sun.share >= MIN_SHARE)
