@@ -1,0 +1,179 @@
+"""A capture folder's files: images (views named by stem, ordered naturally, EXR over LDR), masks and ground truth,
+each checked once."""
+
+from __future__ import annotations
+
+import os
+import re
+import unicodedata
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from dpi.capture.model import CaptureError, CaptureWarning
+from dpi.envmap import EnvmapLayoutError, read_envmap
+from dpi.exr import EXRError, read_exr
+from dpi.images import HDR_SUFFIXES, IMAGE_SUFFIXES, LDR_SUFFIXES, ImageError, decode_ldr, read_image, read_mask
+
+CLIPPED_WARNING_FRACTION = 0.01
+"""an LDR image with at least this fraction of pixels at white gets a warning"""
+
+
+MIN_IMAGE_SIZE = 8
+"""an image smaller than this (px) on either side holds no shading to fit"""
+
+
+GT_NAMES = ("envmap", "albedo", "roughness", "metallic")
+
+
+def check_root(root: Path) -> None:
+    """Fail unless the capture folder exists."""
+    if not root.is_dir():
+        raise CaptureError(f"{root}: capture folder does not exist")
+
+
+OS_CLUTTER = ("thumbs.db", "ehthumbs.db", "desktop.ini", "icon\r")
+"""files operating systems leave in a folder of photos (besides dot files such as .DS_Store), skipped"""
+
+
+def view_name(name: str) -> str:
+    """A view's name in one Unicode normal form (NFC): macOS writes file names decomposed, JSON files composed."""
+    return unicodedata.normalize("NFC", name)
+
+
+def natural_key(name: str) -> tuple:
+    """Sort key that orders digit runs by value, so "2" sorts before "10"."""
+    return tuple(int(part) if part.isdigit() else part for part in re.split(r"(\d+)", name))
+
+
+def stems(folder: Path, what: str) -> dict[str, Path]:
+    """view name (the stem, NFC) -> file of the images in a folder; EXR wins over an LDR copy, other duplicates
+    are errors; dot files and OS_CLUTTER are skipped."""
+    found: dict[str, Path] = {}
+    for path in sorted(folder.iterdir()):
+        if path.name.startswith(".") or path.name.lower() in OS_CLUTTER or path.is_dir():
+            continue
+        if path.suffix.lower() not in IMAGE_SUFFIXES:
+            raise CaptureError(f"{path}: unsupported {what} suffix {path.suffix!r} (use {', '.join(IMAGE_SUFFIXES)})")
+        stem = view_name(path.stem)
+        other = found.get(stem)
+        if other is None:
+            found[stem] = path
+        elif (path.suffix.lower() in HDR_SUFFIXES) == (other.suffix.lower() in HDR_SUFFIXES):
+            raise CaptureError(f"{path}: ambiguous {what}: {other.name} has the same name")
+        elif path.suffix.lower() in HDR_SUFFIXES:
+            found[stem] = path
+    return found
+
+
+def image_files(root: Path) -> dict[str, Path]:
+    """view name -> image file, in natural order; fails on a missing or empty images/ folder."""
+    folder = root / "images"
+    if not folder.is_dir():
+        raise CaptureError(f"{folder}: missing images folder (required)")
+    images = stems(folder, "image")
+    if not images:
+        raise CaptureError(f"{folder}: images folder is empty (expected {', '.join(IMAGE_SUFFIXES)} files)")
+    return {name: images[name] for name in sorted(images, key=natural_key)}
+
+
+def named_files(folder: Path, names: tuple[str, ...]) -> list[Path]:
+    """The files of `folder` named one of `names` when case is ignored (mesh.PLY for mesh.ply), in that order."""
+    files = [p for p in sorted(folder.iterdir()) if p.is_file()] if folder.is_dir() else []
+    return [p for name in names for p in files if p.name.lower() == name]
+
+
+def check_images(images: dict[str, Path]) -> tuple[int, int]:
+    """Decode every image (finite, non-negative, with signal, all the same size); returns (width, height)."""
+    size, first = None, None
+    for path in images.values():
+        try:
+            image = read_image(path)
+        except ImageError as exc:
+            raise CaptureError(str(exc)) from exc
+        height, width = image.shape[:2]
+        if min(width, height) < MIN_IMAGE_SIZE:
+            raise CaptureError(f"{path}: image is {width}x{height} px; dpi needs at least {MIN_IMAGE_SIZE} px on each "
+                               "side (a photo or a render of the object, not a thumbnail)")
+        check_signal(path, image)
+        if size is None:
+            size, first = (width, height), path
+        elif (width, height) != size:
+            raise CaptureError(f"{path}: image size {width}x{height} differs from {first.name} ({size[0]}x{size[1]})")
+    return size
+
+
+def check_signal(path: Path, image: np.ndarray) -> None:
+    """Fail on an image without signal (all black, or every pixel clipped: at white for PNG/JPG, at one value
+    for EXR); warn with the fraction when at least CLIPPED_WARNING_FRACTION of an LDR image's pixels are white."""
+    peak = float(image.max())
+    if peak == 0:
+        raise CaptureError(f"{path}: image is all black (every pixel 0): nothing to fit")
+    ldr = path.suffix.lower() in LDR_SUFFIXES
+    white = 1.0 if ldr else peak
+    clipped = float((image >= white).any(axis=-1).mean())
+    if clipped == 1.0:
+        raise CaptureError(f"{path}: every pixel is clipped at {white:g} (saturated): no shading to fit")
+    if ldr and clipped >= CLIPPED_WARNING_FRACTION:
+        warnings.warn(f"{path}: {100 * clipped:.1f}% of the pixels are clipped at white; the fit takes them as "
+                      "exact, so shading there is underestimated", CaptureWarning, stacklevel=2)
+
+
+def mask_files(root: Path, images: dict[str, Path], size: tuple[int, int],
+                given: dict[str, Path] | None = None) -> dict[str, Path] | None:
+    """view name -> mask file: `given` (transforms.json's mask_path) or masks/ (None without either), checking one
+    non-empty mask of the right size per image."""
+    folder = root / "masks"
+    if given is None and not folder.is_dir():
+        return None
+    masks = given if given is not None else stems(folder, "mask")
+    for name in masks:
+        if name not in images:
+            raise CaptureError(f"{masks[name]}: mask has no matching image in images/")
+    for name in images:
+        if name not in masks:
+            raise CaptureError(f"{folder}: missing mask for image {images[name].name} (expected {name}.png)")
+        try:
+            mask = read_mask(masks[name])
+        except ImageError as exc:
+            raise CaptureError(str(exc)) from exc
+        if (mask.shape[1], mask.shape[0]) != size:
+            raise CaptureError(f"{masks[name]}: mask size {mask.shape[1]}x{mask.shape[0]} != "
+                               f"image size {size[0]}x{size[1]}")
+        if not mask.any():
+            top = float(decode_ldr(masks[name]).max()) if masks[name].suffix.lower() in LDR_SUFFIXES else 0.0
+            hint = (f"; its largest value is {round(top * 255)} of 255: masks stored as 0/1 must be scaled to 0/255"
+                    if 0 < top <= 1 / 255 + 1e-6 else "")
+            raise CaptureError(f"{masks[name]}: empty mask (no foreground pixel){hint}")
+        if mask.all():
+            raise CaptureError(f"{masks[name]}: mask is all foreground (every pixel white): a mask is white on the "
+                               "object and black on the background")
+    return masks
+
+
+def gt_files(root: Path) -> dict[str, Path]:
+    """name -> ground-truth EXR (gt/{name}.exr, any case), each read as every stage reads it (`read_ground_truth`)."""
+    gt = {}
+    for name in GT_NAMES:
+        for path in named_files(root / "gt", (f"{name}.exr",))[:1]:
+            try:
+                read_ground_truth(path, name)
+            except (EXRError, EnvmapLayoutError) as exc:
+                raise CaptureError(str(exc)) from exc
+            gt[name] = path
+    return gt
+
+
+def read_ground_truth(path: str | os.PathLike, name: str, log: bool = False) -> np.ndarray:
+    """A ground-truth map, the one reader of gt/*.exr: the envmap (H, 2H, 3) through `dpi.envmap.read_envmap`
+    (any layout it reads; `log` prints its changes), a texture (albedo (H, W, 3), grey repeated; roughness,
+    metallic (H, W, 1), the first channel, as `MaterialTextures.load`); NaN, Inf or negative values are an
+    EXRError naming the file."""
+    if name == "envmap":
+        return read_envmap(path, log=log)
+    data = read_exr(path)
+    if not np.isfinite(data).all() or (data < 0).any():
+        raise EXRError(f"{path}: ground truth {name} has NaN, Inf or negative values")
+    channels = 3 if name == "albedo" else 1
+    return np.repeat(data, 3, axis=-1) if data.shape[-1] < channels else data[..., :channels]

@@ -1,0 +1,106 @@
+"""The given mesh: mesh.ply / .obj / .glb / .gltf or scene.xml's shape, checked to load with faces, and whether it
+carries UVs."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from dpi.capture.folder import named_files
+from dpi.capture.model import CaptureError
+from dpi.mitsuba_xml import MitsubaXMLError, read_mesh_shapes
+
+MESH_NAMES = ("mesh.ply", "mesh.obj", "mesh.glb", "mesh.gltf")
+"""matched case-insensitively (mesh.PLY), as image suffixes are"""
+
+
+GLTF_SUFFIXES = (".glb", ".gltf")
+"""mesh formats Mitsuba does not read: the capture stage converts them to PLY (dpi.mesh_convert)"""
+
+
+PLY_UV_PAIRS = (("u", "v"), ("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
+
+
+PLY_HEADER_BYTES = 1 << 16
+
+
+def mesh_file(root: Path, options: dict) -> Path | None:
+    """The given mesh: mesh.ply / .obj / .glb / .gltf (any case), else scene.xml's mesh shape (the one named `object`
+    if several)."""
+    given = named_files(root, MESH_NAMES)
+    if len(given) > 1:
+        raise CaptureError(f"{given[1]}: ambiguous mesh, {given[0].name} is also given")
+    if given:
+        return given[0]
+    scene = root / "scene.xml"
+    if not scene.is_file():
+        return None
+    try:
+        shapes = read_mesh_shapes(scene)
+    except MitsubaXMLError as exc:
+        raise CaptureError(str(exc)) from exc
+    if len(shapes) > 1:
+        chosen = [s for s in shapes if options.get("object") in (s.id, s.filename.stem)]
+        if len(chosen) != 1:
+            raise CaptureError(f"{scene}: {len(shapes)} mesh shapes ({', '.join(s.filename.name for s in shapes)}); "
+                               f"name the object's shape id or file stem with `object` in scene.yaml")
+        shapes = chosen
+    return shapes[0].filename if shapes else None
+
+
+def ply_vertex_properties(path: Path) -> set[str]:
+    """Names of the vertex properties in a PLY header (empty if it is not a PLY file)."""
+    with open(path, "rb") as f:
+        head = f.read(PLY_HEADER_BYTES)
+    if not head.startswith(b"ply"):
+        return set()
+    names, in_vertex = set(), False
+    for line in head.split(b"end_header")[0].decode("ascii", "replace").splitlines():
+        words = line.split()
+        if words[:1] == ["element"]:
+            in_vertex = words[1:2] == ["vertex"]
+        elif words[:1] == ["property"] and in_vertex:
+            names.add(words[-1])
+    return names
+
+
+def mesh_has_uv(path: str | os.PathLike) -> bool:
+    """Whether a PLY (u/v, s/t, texture_u/v vertex properties), OBJ (`vt` lines) or glTF (TEXCOORD_0, through
+    trimesh) mesh carries UVs."""
+    path = Path(path)
+    if path.suffix.lower() in GLTF_SUFFIXES:
+        import trimesh
+
+        mesh = trimesh.load(path, force="mesh", process=False)
+        return getattr(mesh.visual, "uv", None) is not None and len(mesh.visual.uv) == len(mesh.vertices)
+    if path.suffix.lower() == ".ply":
+        names = ply_vertex_properties(path)
+        return any(u in names and v in names for u, v in PLY_UV_PAIRS)
+    with open(path, "rb") as f:
+        return any(line[:3] in (b"vt ", b"vt\t") for line in f)
+
+
+def check_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh's vertices and faces, failing unless the file loads with trimesh, has faces indexing its
+    vertices, and finite vertices and UVs."""
+    import trimesh
+
+    if not path.is_file():
+        raise CaptureError(f"{path}: mesh file does not exist")
+    try:
+        mesh = trimesh.load(path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many exception types for bad files
+        raise CaptureError(f"{path}: unreadable mesh ({exc})") from exc
+    if len(getattr(mesh, "faces", [])) == 0:
+        raise CaptureError(f"{path}: mesh has no faces")
+    bad = int((~np.isfinite(mesh.vertices)).any(axis=1).sum())
+    if bad:
+        raise CaptureError(f"{path}: {bad} of {len(mesh.vertices)} mesh vertices have NaN or Inf coordinates")
+    if mesh.faces.min() < 0 or mesh.faces.max() >= len(mesh.vertices):
+        raise CaptureError(f"{path}: faces index vertices outside 0..{len(mesh.vertices) - 1}")
+    uv = getattr(mesh.visual, "uv", None)
+    if uv is not None and not np.isfinite(uv).all():
+        raise CaptureError(f"{path}: mesh UVs contain NaN or Inf values")
+    return np.asarray(mesh.vertices), np.asarray(mesh.faces)
