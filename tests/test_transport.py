@@ -12,8 +12,8 @@ from dpi.capture import load_capture
 from dpi.materials import MaterialTextures
 from dpi.render import RenderSettings, texture_plugin
 from dpi.solve.problem import InverseProblem, ProblemSettings
-from dpi.solve.transport import (TransportSettings, guide_map, record_transport, record_view, roughness_levels,
-                                 texel_weights, texture_weights, transport_pixels)
+from dpi.solve.transport import TransportSettings, guide_map, record_transport, record_view, roughness_levels
+from dpi.solve.transport.record import texel_weights, texture_weights, transport_pixels
 
 HEIGHT, SIZE = 8, 8
 

@@ -26,78 +26,37 @@ at the brightest texels (a sun): the product of the two halves' residuals does n
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
-from functools import cached_property
-from typing import Annotated
 
 import numpy as np
 import torch
-from pydantic import Field
 
 from dpi.materials import MaterialTextures
 from dpi.render import SEED_MODULUS, texture_plugin
-from dpi.settings import Count, settings
 from dpi.solve.problem import InverseProblem
+from dpi.solve.transport.operator import AlbedoLookup, LightTransport, resize_map
+from dpi.solve.transport.settings import HALVES, TransportSettings, roughness_levels, transport_height
 
-MAX_TRANSPORT_HEIGHT = 32
-"""the largest map (rows) a transport takes by default (the shipped priors' size): its normal equations take
-(2 H^2)^2 x 3 floats (100 MB at 32 rows, 1.6 GB at 64) and its direct light one shadow ray per texel per camera
-sample, so its recording and products grow with the texels (4x from 16 to 32 rows)"""
-HALVES = 2
-"""independent recordings of every transport (module notes)"""
 BRIGHT_SHARE = 0.5
 """the brightest texels that hold this share of the guide map's energy get extra direct-light draws ..."""
+
+
 BRIGHT_SPP = 16
 """... this many more per pixel (a sun's column of T is most of the image: its noise is most of T's)"""
+
+
 FOOTPRINT = 64
 """points of a pixel's area the direct light and the albedo lookup are seen through (each texel through one)"""
+
+
 CHUNK_LANES = 1 << 20
 """lanes of one Dr.Jit launch of the direct light (camera samples x cells)"""
+
+
 GUIDE_FLOOR = 0.25
 """the guide map for next-event directions is the map plus this share of its mean: every texel keeps a
 chance to be sampled, so T stays unbiased and useful for maps brighter elsewhere"""
-
-
-Halves = Annotated[int, Field(ge=HALVES, multiple_of=HALVES)]
-"""samples split evenly between the transport's two halves"""
-
-
-@settings
-class TransportSettings:
-    """How the light transport is recorded (method_params.dps.<sampler>.transport)."""
-
-    spp: Halves = 16
-    """paths per pixel for the light after the first bounce (split between the two halves)"""
-    direct_spp: Halves = 4
-    """camera samples per pixel of the direct light, each with one shadow ray per texel (split between the halves)"""
-    pixels: Count = 2048
-    """most foreground pixels of the training views recorded: beyond it, an even random subset"""
-    roughness_levels: Annotated[int, Field(ge=0, le=8)] = 0
-    """besides the materials' own roughness, the transport under this many more: the texture shifted to medians
-    from a mirror's to a matte's (`roughness_levels`), recorded in the same pass (only the BSDF's values differ);
-    none on a rough object (docs/studies.md)"""
-    max_height: Annotated[int, Field(ge=2, le=MAX_TRANSPORT_HEIGHT)] = 16
-    """most rows of the maps the transport takes (`transport_height`): a rough object's views fix the light's low
-    frequencies only, and the recording's cost grows with the texels (docs/studies.md)"""
-
-
-ROUGHNESS_RANGE = (0.05, 0.9)
-"""the medians the roughness levels span, evenly in log GGX alpha (alpha = roughness^2: a lobe's width), from a
-mirror to a matte surface"""
-
-
-def roughness_levels(roughness: torch.Tensor, count: int) -> list[torch.Tensor]:
-    """The roughness textures a transport is recorded under: the given one, then `count` copies shifted so that
-    their medians spread evenly in log alpha over ROUGHNESS_RANGE (its detail kept, clamped to the valid range)."""
-    from dpi.materials import RANGES
-
-    centre = float(roughness.detach().median())
-    low, high = (math.log(r ** 2) for r in ROUGHNESS_RANGE)
-    medians = [math.exp((low + (high - low) * i / max(count - 1, 1)) / 2) for i in range(count)]
-    return [roughness.detach().clone(), *((roughness.detach() - centre + m).clamp(*RANGES["roughness"])
-                                          for m in medians)]
 
 
 def texel_weights(directions: np.ndarray, height: int) -> tuple[np.ndarray, np.ndarray]:
@@ -350,14 +309,6 @@ def bright_texels(guide: np.ndarray, share: float) -> np.ndarray:
     return np.sort(order[:count]) if count <= energy.size // 8 else np.zeros(0, np.int64)
 
 
-def mis_weight(pdf_a, pdf_b):
-    """The power heuristic, as Mitsuba's integrators weigh two sampling techniques."""
-    import drjit as dr
-
-    a2, b2 = dr.square(pdf_a), dr.square(pdf_b)
-    return dr.detach(dr.select(pdf_a > 0, a2 / (a2 + b2), 0))
-
-
 def record_paths(setup: ViewSetup, accumulator: Accumulator, level: int, spp: int, max_depth: int, seed: int,
                  rng: np.random.Generator) -> None:
     """Everything but `record_direct`'s part, along prb's paths (`spp` per pixel, alternately in the two halves):
@@ -366,6 +317,7 @@ def record_paths(setup: ViewSetup, accumulator: Accumulator, level: int, spp: in
     second point on. The first surface point's BSDF weight is split into its base colour's slope and offset.
     The scene's roughness must be the level's (its BSDF samples the paths)."""
     import drjit as dr
+    from mitsuba.ad.integrators.common import mis_weight  # the power heuristic, as prb weighs its techniques
 
     mi, height = setup.mi, setup.height
     rows = np.repeat(np.arange(len(setup.pixels)), spp)
@@ -486,190 +438,6 @@ def transport_pixels(problem: InverseProblem, limit: int, rng: np.random.Generat
     return {v: np.sort(rng.choice(p, max(1, int(round(share * len(p)))), replace=False)) for v, p in foreground.items()}
 
 
-def apply_light(matrix: torch.Tensor, light: torch.Tensor) -> torch.Tensor:
-    """(..., 3, P, N) transports times a (3, N) map, per channel: (..., 3, P) (a batch of matrix-vector products
-    over contiguous blocks, at memory speed)."""
-    batch = matrix.reshape(-1, 3, *matrix.shape[-2:])
-    vectors = light.to(matrix.dtype).expand(batch.shape[0], 3, -1).reshape(-1, matrix.shape[-1], 1)
-    out = torch.bmm(batch.reshape(-1, *matrix.shape[-2:]), vectors)
-    return out.reshape(*matrix.shape[:-1])
-
-
-@dataclass
-class AlbedoLookup:
-    """The albedo each recorded pixel sees, as a sparse (pixels, texels) matrix of bilinear weights in COO form:
-    `apply` maps a texture to the pixels, `adjoint` back."""
-
-    rows: torch.Tensor
-    texels: torch.Tensor
-    weights: torch.Tensor
-    shape: tuple[int, int]
-
-    def apply(self, texture: torch.Tensor) -> torch.Tensor:
-        """(texels, C) -> (pixels, C) (differentiable)."""
-        out = torch.zeros(self.shape[0], texture.shape[1], dtype=texture.dtype)
-        return out.index_add(0, self.rows, self.weights.to(texture.dtype)[:, None] * texture[self.texels])
-
-    def adjoint(self, values: torch.Tensor) -> torch.Tensor:
-        """(pixels, C) -> (texels, C): the transpose of `apply`."""
-        out = torch.zeros(self.shape[1], values.shape[1], dtype=values.dtype)
-        return out.index_add(0, self.texels, self.weights.to(values.dtype)[:, None] * values[self.rows])
-
-    def squared(self) -> "AlbedoLookup":
-        """The matrix of squared weights (for the diagonal of W^T D W)."""
-        return AlbedoLookup(self.rows, self.texels, self.weights.square(), self.shape)
-
-
-@dataclass
-class NormalEquations:
-    """A sum of squared residuals as a quadratic form in the map: sum_p (M_p L - y_p)^2 = L^T G L - 2 b^T L + k
-    per channel, G (3, N, N), b (3, N), over `count` residuals (pixels x channels)."""
-
-    gram: torch.Tensor
-    rhs: torch.Tensor
-    constant: float
-    count: int
-
-    def apply(self, x: torch.Tensor) -> torch.Tensor:
-        """G x per channel, x (3, N)."""
-        return torch.bmm(self.gram, x[:, :, None].to(self.gram.dtype))[..., 0]
-
-    def diagonal(self) -> torch.Tensor:
-        """(3, N) the diagonal of G (a preconditioner's)."""
-        return self.gram.diagonal(dim1=1, dim2=2)
-
-    def energy(self, x: torch.Tensor) -> float:
-        """x^T G x summed over the channels, x (3, N)."""
-        return float((x * self.apply(x)).sum())
-
-    def sum_squares(self, env: torch.Tensor) -> torch.Tensor:
-        """Sum of squared residuals under an (H, 2H, 3) map (differentiable)."""
-        flat = env.reshape(-1, 3).T.to(torch.float64)
-        quadratic = (flat * self.apply(flat)).sum()
-        return quadratic - 2 * (self.rhs * flat).sum() + self.constant
-
-    def mean_squares(self, env: torch.Tensor) -> torch.Tensor:
-        """Mean squared residual per pixel and channel (differentiable, at least 0)."""
-        return (self.sum_squares(env) / self.count).clamp_min(0).to(env.dtype)
-
-    def exposure(self, env: torch.Tensor) -> float:
-        """The least-squares global scale c of the map (c L fits best; 1 when none is positive)."""
-        flat = env.detach().reshape(-1, 3).T.to(torch.float64)
-        den = self.energy(flat)
-        num = float((self.rhs * flat).sum())
-        return num / den if den > 0 and num > 0 else 1.0
-
-
-@dataclass
-class LightTransport:
-    """The training views' transport at the recorded pixels (module notes), per roughness level: slope A and
-    offset B, (2, levels, HALVES, 3, P, N) float32; the albedo each pixel sees (a sparse (P, R^2) lookup); the
-    views' values (P, 3); the levels' roughness textures and the materials it was recorded with."""
-
-    matrix: torch.Tensor
-    lookup: AlbedoLookup
-    observed: torch.Tensor
-    height: int
-    roughness: list[torch.Tensor]
-    """the roughness texture of each level (level 0: the materials')"""
-    materials: MaterialTextures
-    foreground: int
-    """foreground pixels of the training views (the recorded ones are all of them or a subset)"""
-    seconds: float
-    """wall time of the recording"""
-
-    @property
-    def slope(self) -> torch.Tensor:
-        """A: (levels, HALVES, 3, P, N)."""
-        return self.matrix[0]
-
-    @property
-    def offset(self) -> torch.Tensor:
-        """B: (levels, HALVES, 3, P, N)."""
-        return self.matrix[1]
-
-    @property
-    def pixels(self) -> int:
-        """Recorded pixels."""
-        return self.observed.shape[0]
-
-    @property
-    def weight(self) -> float:
-        """Foreground pixels per recorded pixel: a data term over the subset, times this, stands for all."""
-        return self.foreground / self.pixels
-
-    @property
-    def nbytes(self) -> int:
-        """Memory the recording keeps."""
-        return sum(t.element_size() * t.numel() for t in (self.matrix, self.observed, self.lookup.rows,
-                                                          self.lookup.texels, self.lookup.weights))
-
-    def seen_albedo(self, albedo: torch.Tensor) -> torch.Tensor:
-        """(P, 3) the albedo each recorded pixel sees, from an (R, R, 3) texture (differentiable)."""
-        return self.lookup.apply(albedo.reshape(-1, 3))
-
-    def halves(self, env: torch.Tensor, albedo: torch.Tensor, level: int | slice = 0) -> torch.Tensor:
-        """(..., HALVES, P, 3) each half's image of the recorded pixels under a map, an albedo and a roughness
-        level (a slice: several, leading dimension; differentiable)."""
-        light = env.reshape(-1, 3).T
-        a = self.seen_albedo(albedo).T.to(self.slope.dtype)
-        return (a * apply_light(self.slope[level], light) + apply_light(self.offset[level], light)).transpose(-1, -2)
-
-    @cached_property
-    def mean(self) -> torch.Tensor:
-        """The halves' mean transport: (2, levels, 3, P, N) (slope, offset), kept once asked for."""
-        return self.matrix.mean(dim=2)
-
-    def image(self, env: torch.Tensor, albedo: torch.Tensor, level: int = 0) -> torch.Tensor:
-        """(P, 3) the recorded pixels' image under a map, an albedo and a roughness level: the halves' mean
-        (differentiable)."""
-        light = env.reshape(-1, 3).T
-        a = self.seen_albedo(albedo).T.to(self.matrix.dtype)
-        return (a * apply_light(self.mean[0, level], light) + apply_light(self.mean[1, level], light)).T
-
-    def sum_squares(self, env: torch.Tensor, albedo: torch.Tensor, level: int = 0) -> torch.Tensor:
-        """Sum over the recorded pixels of the squared residual, without the recording's noise: the product of
-        the two halves' residuals (unbiased; module notes). A value to compare, not a loss to descend: it is not
-        bounded below (halves that disagree make it negative), so `fit_loss` is the one to optimise."""
-        first, second = self.halves(env, albedo, level) - self.observed.to(self.slope.dtype)
-        return (first * second).sum()
-
-    def fit_loss(self, env: torch.Tensor, albedo: torch.Tensor, level: int = 0) -> torch.Tensor:
-        """Sum over the recorded pixels of the squared residual of the halves' mean image (differentiable): convex,
-        and above `sum_squares` by the recording's variance (an optimiser following the halves' product would
-        pull them apart, into the recording's noise)."""
-        return (self.image(env, albedo, level) - self.observed.to(self.slope.dtype)).square().sum()
-
-    def level_sum_squares(self, env: torch.Tensor, albedo: torch.Tensor) -> torch.Tensor:
-        """(levels,) `sum_squares` under each roughness level."""
-        with torch.no_grad():
-            residual = self.halves(env, albedo, slice(None)) - self.observed.to(self.slope.dtype)
-            return (residual[:, 0] * residual[:, 1]).sum(dim=(1, 2)).double()
-
-    def image_equations(self, albedo: torch.Tensor, level: int = 0) -> NormalEquations:
-        """`fit_loss` as normal equations in the map under a fixed albedo and roughness level: of the halves'
-        mean transport M_p = a_p A_p + B_p, G = M^T M and b = M^T y."""
-        a = self.seen_albedo(albedo.detach()).T[:, :, None].to(self.slope.dtype)
-        matrix = a * self.mean[0, level] + self.mean[1, level]  # (3, P, N)
-        observed = self.observed.T
-        rhs = (matrix.transpose(1, 2) @ observed.to(matrix.dtype)[:, :, None])[..., 0].double()
-        return NormalEquations((matrix.transpose(1, 2) @ matrix).double(), rhs,
-                               float(observed.double().square().sum()), observed.numel())
-
-
-def transport_height(env_height: int, max_height: int = MAX_TRANSPORT_HEIGHT) -> int:
-    """The rows of the maps a transport takes: the problem's map, at most `max_height` (a finer map is sampled at
-    that size and upsampled; its finer detail is the path-traced refinement's)."""
-    return min(env_height, max_height)
-
-
-def resize_map(env: np.ndarray, height: int) -> np.ndarray:
-    """An (H, 2H, 3) map area-resampled to `height` rows (itself when it has them)."""
-    from dpi.images import resize
-
-    return env if env.shape[0] == height else resize(torch.from_numpy(env), height, 2 * height).numpy()
-
-
 def record_transport(problem: InverseProblem, materials: MaterialTextures, env: torch.Tensor,
                      settings: TransportSettings, seed: int) -> LightTransport:
     """The light transport of the training views' foreground pixels (at most settings.pixels of them) under
@@ -693,7 +461,6 @@ def record_transport(problem: InverseProblem, materials: MaterialTextures, env: 
     size = problem.settings.texture_size
     lookup = AlbedoLookup(torch.from_numpy(np.concatenate(rows)), torch.from_numpy(np.concatenate(cols)),
                           torch.from_numpy(np.concatenate(weights)), (first, size * size))
-    return LightTransport(torch.cat(matrices, dim=4), lookup, torch.cat(observed), height, roughness_levels(materials.roughness, settings.roughness_levels),
-                          materials.detached(),
+    levels = roughness_levels(materials.roughness, settings.roughness_levels)
+    return LightTransport(torch.cat(matrices, dim=4), lookup, torch.cat(observed), height, levels, materials.detached(),
                           sum(int(problem.masks[v].sum()) for v in problem.train_ids), time.perf_counter() - start)
-

@@ -1,0 +1,66 @@
+"""How a light transport is recorded (its settings, the roughness levels) and the map size it takes."""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated
+
+import torch
+from pydantic import Field
+
+from dpi.settings import Count, settings
+
+MAX_TRANSPORT_HEIGHT = 32
+"""the largest map (rows) a transport takes by default (the shipped priors' size): its normal equations take
+(2 H^2)^2 x 3 floats (100 MB at 32 rows, 1.6 GB at 64) and its direct light one shadow ray per texel per camera
+sample, so its recording and products grow with the texels (4x from 16 to 32 rows)"""
+
+
+HALVES = 2
+"""independent recordings of every transport (module notes)"""
+
+
+Halves = Annotated[int, Field(ge=HALVES, multiple_of=HALVES)]
+"""samples split evenly between the transport's two halves"""
+
+
+@settings
+class TransportSettings:
+    """How the light transport is recorded (method_params.dps.<sampler>.transport)."""
+
+    spp: Halves = 16
+    """paths per pixel for the light after the first bounce (split between the two halves)"""
+    direct_spp: Halves = 4
+    """camera samples per pixel of the direct light, each with one shadow ray per texel (split between the halves)"""
+    pixels: Count = 2048
+    """most foreground pixels of the training views recorded: beyond it, an even random subset"""
+    roughness_levels: Annotated[int, Field(ge=0, le=8)] = 0
+    """besides the materials' own roughness, the transport under this many more: the texture shifted to medians
+    from a mirror's to a matte's (`roughness_levels`), recorded in the same pass (only the BSDF's values differ);
+    none on a rough object (docs/studies.md)"""
+    max_height: Annotated[int, Field(ge=2, le=MAX_TRANSPORT_HEIGHT)] = 16
+    """most rows of the maps the transport takes (`transport_height`): a rough object's views fix the light's low
+    frequencies only, and the recording's cost grows with the texels (docs/studies.md)"""
+
+
+ROUGHNESS_RANGE = (0.05, 0.9)
+"""the medians the roughness levels span, evenly in log GGX alpha (alpha = roughness^2: a lobe's width), from a
+mirror to a matte surface"""
+
+
+def roughness_levels(roughness: torch.Tensor, count: int) -> list[torch.Tensor]:
+    """The roughness textures a transport is recorded under: the given one, then `count` copies shifted so that
+    their medians spread evenly in log alpha over ROUGHNESS_RANGE (its detail kept, clamped to the valid range)."""
+    from dpi.materials import RANGES
+
+    centre = float(roughness.detach().median())
+    low, high = (math.log(r ** 2) for r in ROUGHNESS_RANGE)
+    medians = [math.exp((low + (high - low) * i / max(count - 1, 1)) / 2) for i in range(count)]
+    return [roughness.detach().clone(), *((roughness.detach() - centre + m).clamp(*RANGES["roughness"])
+                                          for m in medians)]
+
+
+def transport_height(env_height: int, max_height: int = MAX_TRANSPORT_HEIGHT) -> int:
+    """The rows of the maps a transport takes: the problem's map, at most `max_height` (a finer map is sampled at
+    that size and upsampled; its finer detail is the path-traced refinement's)."""
+    return min(env_height, max_height)
