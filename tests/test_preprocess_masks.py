@@ -137,3 +137,20 @@ def test_clean_mask_keeps_the_largest_part_and_big_holes():
     mask[0:2, 38:40] = True  # speck: dropped
     out = clean_mask(mask, fill_holes_below=0.05)
     assert out[10:12, 10:12].all() and not out[18:28, 18:28].any() and not out[0:2, 38:40].any()
+
+
+def test_a_mask_that_disagrees_with_the_others_is_found():
+    """Masks of a sphere from eight views agree with the hull they carve; one shifted mask does not."""
+    import trimesh
+
+    from dpi.cameras import from_fov, orbit
+    from dpi.preprocess.masks import MASK_AGREEMENT, mask_agreement, mesh_silhouette
+
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    cameras = [from_fov(c2w, 48, 48, 40.0) for c2w in orbit(8, 4.0, (15.0, 35.0))]
+    masks = [mesh_silhouette(c, np.asarray(sphere.vertices), np.asarray(sphere.faces)) for c in cameras]
+    masks[3] = np.roll(masks[3], 12, axis=1)
+    agreement = np.array(mask_agreement(cameras, masks, 48))
+    relative = agreement / np.median(agreement)  # as derive_masks judges a view: against its peers
+    assert relative[3] < 0.6 * MASK_AGREEMENT
+    assert (np.delete(relative, 3) >= MASK_AGREEMENT).all(), agreement

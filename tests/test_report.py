@@ -18,7 +18,8 @@ from dpi.evaluation.relighting import RELIGHT_MAPS, relit_name
 from dpi.evaluation.summary import write_csv
 from dpi.evaluation.report import Page, build_report, quality_section, roughness_section
 from dpi.exr import read_exr, write_exr
-from dpi.layout import INIT, Layout, view_file
+from dpi.atomic import write_json
+from dpi.layout import INIT, SUMMARY_FILE, Layout, view_file
 from dpi.stages import capture_stage, uncertainty_stage
 
 METHODS = {INIT: 1, "none": 2, "dps": 2}
@@ -88,6 +89,11 @@ def results(tmp_path_factory, tiny_capture) -> Layout:
                     scene.envmap_figure)
         uncertainty_stage(scene.root, [(m, [scene.sample_dir(m, k) for k in range(n)]) for m, n in METHODS.items()
                                        if n >= 2], scene.uncertainty_figure)
+    first = layout.scene(next(iter(ROUGHNESS)))  # its masks as the masks stage summarises derived ones
+    views = read_capture_json(first.capture_json).views
+    flags = {v.name: {"method": "grabcut", "agreement": 0.5 if i == 1 else 0.95, "reliable": i != 1}
+             for i, v in enumerate(views)}
+    write_json(first.masks / SUMMARY_FILE, {"views": flags})
     write_summary(layout.summary, summary_rows())
     return layout
 
@@ -131,6 +137,10 @@ def test_every_image_of_the_report_loads_in_chromium(results, tmp_path):
         assert {f"{scene} {what}" for what in ("input views", "env maps", "uncertainty", "textures",
                                                      "held-out views", "relit views")} <= alts
     assert all(not img["src"].startswith(("/", "file:", "http")) for img in written.images)
+    first = next(iter(ROUGHNESS))
+    assert f"{first} masks" in alts and not any(f"{scene} masks" in alts for scene in list(ROUGHNESS)[1:])
+    flagged = read_capture_json(results.scene(first).capture_json).views[1].name
+    assert f"derived masks of 1 of" in page.read_text() and f"unreliable ({flagged})" in page.read_text()
 
     loaded = Images(chromium_dom(page, tmp_path))
     assert loaded.table and len(loaded.images) == len(written.images)

@@ -113,6 +113,25 @@ def view_strip(images: list[np.ndarray], names: list[str], held_out: list[bool],
     save_figure(axes[0][0].figure, path)
 
 
+def mask_gallery(images: list[np.ndarray], masks: list[np.ndarray], titles: list[str], flagged: list[bool],
+                 path: str | Path, columns: int = 8) -> None:
+    """PNG of linear (H, W, 3) photos, sRGB-encoded, each with its mask's outline: green, or red and a red frame
+    where the mask is flagged unreliable."""
+    columns = min(columns, len(images))
+    axes = _panels(math.ceil(len(images) / columns), columns, 1.5, 1.7)
+    for ax, image, mask, title, bad in zip(axes.flat, images, masks, titles, flagged):
+        colour = HELD_OUT_COLOR if bad else "#1a9850"
+        ax.imshow(linear_to_srgb(image), interpolation="nearest")
+        if mask.any() and not mask.all():
+            ax.contour(mask.astype(float), levels=[0.5], colors=[colour], linewidths=1.0)
+        ax.set_title(title, fontsize=7, color=HELD_OUT_COLOR if bad else "black")
+        for spine in ax.spines.values():
+            spine.set(edgecolor=colour if bad else "black", linewidth=3 if bad else 0.5)
+    for ax in axes.flat[len(images):]:
+        ax.axis("off")
+    save_figure(axes[0][0].figure, path)
+
+
 def texture_grid(rows: list[tuple[str, dict[str, np.ndarray]]], path: str | Path) -> None:
     """PNG grid: one row per (label, textures); albedo sRGB-encoded, roughness and metallic grey in [0, 1]."""
     axes = _panels(len(rows), len(TEXTURE_NAMES), 1.8, 1.9)

@@ -20,14 +20,14 @@ import numpy as np
 
 from dpi.atomic import write_text
 from dpi.capture import Capture, capture_warnings, complete_capture, read_capture_json, read_ground_truth
-from dpi.evaluation.figures import (MethodPoint, Rerender, quality_diversity_plot, relit_grid,
+from dpi.evaluation.figures import (MethodPoint, Rerender, mask_gallery, quality_diversity_plot, relit_grid,
                                     rerender_grid, roughness_diversity_plot, texture_grid, view_strip)
 from dpi.evaluation.relighting import RELIGHT_MAPS, channel_scaled, relit_name
 from dpi.evaluation.metric_table import metric_table, missing_reason, number, read_summary
 from dpi.evaluation.sample_metrics import masked_srgb
 from dpi.exr import read_exr
 from dpi.images import read_image, read_mask
-from dpi.layout import TEXTURE_NAMES, Layout, SceneLayout, texture_file, view_file
+from dpi.layout import SUMMARY_FILE, TEXTURE_NAMES, Layout, SceneLayout, texture_file, view_file
 from dpi.synth.capture import read_marker
 from dpi.working import working_capture
 
@@ -215,6 +215,8 @@ def scene_section(scene_name: str, scene: SceneLayout, rows: list[dict[str, str]
                          f"The {len(capture.views)} input views (sRGB, at the capture's normalised exposure); "
                          "held-out views, used only for evaluation, are framed and titled in red."))
 
+    parts += mask_gallery_section(scene_name, scene, capture, exposure, page)
+
     path = page.png(scene_name, "envmaps")
     shutil.copyfile(scene.envmap_figure, path)
     reference = capture.gt.get("envmap")
@@ -262,6 +264,31 @@ def scene_section(scene_name: str, scene: SceneLayout, rows: list[dict[str, str]
     else:
         parts.append("<p class='note'>No held-out views: nothing to re-render.</p>")
     return "\n".join(parts)
+
+
+def mask_gallery_section(scene_name: str, scene: SceneLayout, capture: Capture, exposure: float,
+                         page: Page) -> list[str]:
+    """Where the masks were derived: every photo with its mask's outline and the mask's agreement with the hull
+    the masks carve together, and a warning naming the views whose masks are unreliable (dpi.preprocess.masks)."""
+    summary_file = scene.masks / SUMMARY_FILE
+    if not summary_file.is_file():
+        return []
+    views = json.loads(summary_file.read_text())["views"]
+    shown = [v for v in capture.views if v.name in views and v.mask is not None]
+    flagged = [not views[v.name].get("reliable", True) for v in shown]
+    titles = [f"{v.name}\n{views[v.name]['agreement']:.2f}" if "agreement" in views[v.name] else v.name for v in shown]
+    path = page.png(scene_name, "masks")
+    mask_gallery([read_image(v.image) / exposure for v in shown], [read_mask(v.mask) for v in shown], titles, flagged,
+                 path)
+    parts = [f"<p class='warning'><b>Warning:</b> the derived masks of {sum(flagged)} of {len(shown)} views are "
+             f"unreliable ({escape(', '.join(v.name for v, bad in zip(shown, flagged) if bad))}): they disagree with "
+             "what the other views' masks carve, or fell back to the hull's projection. Check them before trusting "
+             "the decompositions.</p>"] if any(flagged) else []
+    parts.append(_figure(page.link(path), f"{scene_name} masks",
+                         "The derived masks: each photo with its mask's outline and, below its name, the mask's "
+                         "agreement (IoU) with the projection of the hull the masks carve together; unreliable "
+                         "masks are outlined and framed in red."))
+    return parts
 
 
 def relit_rows(scene: SceneLayout, capture: Capture, methods: list[str]) -> list[tuple[str, list[tuple[str, np.ndarray]]]]:

@@ -20,6 +20,12 @@ projection is the mask.
 
 Either way the largest connected component is kept and small holes are filled; holes larger
 than `fill_holes_below` of the object (the hole of a torus) are kept.
+
+**Confidence.** Each final mask is compared with the projection of the hull that all the masks carve
+(a voxel goes only where several views see it outside): its IoU with that outline is the view's
+`agreement`. The hull of a few views is fatter than the object, so a mask is judged against its peers: one
+that is the consensus fallback, or agrees less than `MASK_AGREEMENT` times the median view, is unreliable;
+the summary, the log and the report name those views.
 """
 
 from __future__ import annotations
@@ -295,6 +301,25 @@ def refine_masks(images8: list[np.ndarray | None], cameras: list[Camera], masks:
     return masks, methods
 
 
+MASK_AGREEMENT = 0.85
+"""a mask is reliable when its IoU with the projection of the hull the masks carve together reaches this share
+of the median view's"""
+AGREEMENT_VOTE_SHARE = 0.25
+"""share of the views that must see a voxel outside their masks to carve it, for the agreement's hull"""
+
+
+def mask_agreement(cameras: list[Camera], masks: list[np.ndarray], resolution: int) -> list[float] | None:
+    """Each view's IoU with the projection of the hull carved where AGREEMENT_VOTE_SHARE of the views see a voxel
+    outside their masks (None when no hull can be carved, e.g. masks that share no object)."""
+    votes = max(2, int(round(AGREEMENT_VOTE_SHARE * len(cameras))))
+    try:
+        outlines = consensus_outlines(cameras, masks, votes, resolution)
+    except ValueError as exc:
+        log.warning("mask agreement not measured: %s", exc)
+        return None
+    return [mask_iou(mask, outline) for mask, outline in zip(masks, outlines)]
+
+
 def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: str | Path,
                  cfg: MaskConfig | None = None, points: np.ndarray | None = None) -> dict:
     """Write one mask PNG per view (out_dir/{view}.png) and return a summary (prior, method per view, areas).
@@ -325,13 +350,24 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
         masks = refined
         methods = [old if new == "kept" else new for old, new in zip(methods, new_methods)]
         summary["consensus_rounds"] = len(cfg.consensus_votes)
+    agreement = mask_agreement(views, masks, cfg.consensus_resolution) if len(views) >= 3 else None
+    floor = None if agreement is None else MASK_AGREEMENT * float(np.median(agreement))
     if (width, height) != full:
         masks = [resize_mask(mask, *full) for mask in masks]
-    for name, mask, method in zip(names, masks, methods):
+    for i, (name, mask, method) in enumerate(zip(names, masks, methods)):
         if not mask.any():
             raise ValueError(f"{images[name]}: empty foreground mask ({method}); check the capture or the mask settings")
         write_mask(out_dir / f"{name}.png", mask)
-        summary["views"][name] = {"method": method, "foreground_fraction": round(float(mask.mean()), 4)}
+        view = {"method": method, "foreground_fraction": round(float(mask.mean()), 4)}
+        if agreement is not None:
+            view["agreement"] = round(agreement[i], 4)
+            view["reliable"] = method != "consensus hull" and agreement[i] >= floor
+        summary["views"][name] = view
+    summary["unreliable"] = [n for n, v in summary["views"].items() if not v.get("reliable", True)]
+    if summary["unreliable"]:
+        log.warning("masks unreliable for %d of %d views (%s): they disagree with what the other views' masks carve "
+                    "or fell back to the hull's projection; look at them before trusting a decomposition",
+                    len(summary["unreliable"]), len(names), ", ".join(summary["unreliable"]))
     return summary
 
 
