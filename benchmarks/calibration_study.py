@@ -29,10 +29,23 @@ from typing import Any
 
 import numpy as np
 
-from dpi.studies.engine import (TEXT_COLUMNS, Job, append_row, dps_variants, job_settings, mean_std_cells, pool,
-                                prepare_job, read_rows, results_csv, run_job, work_dir,
-                                workflow_config)
-from dpi.studies.scenes import calibration_scenes as scenes, repeat_scene, repeat_synth
+from dpi.studies.engine import (
+    TEXT_COLUMNS,
+    Job,
+    append_row,
+    dps_variants,
+    job_settings,
+    mean_std_cells,
+    pool,
+    prepare_job,
+    read_rows,
+    results_csv,
+    run_job,
+    work_dir,
+    workflow_config,
+)
+from dpi.studies.scenes import calibration_scenes as scenes
+from dpi.studies.scenes import repeat_scene, repeat_synth
 
 WORK = work_dir("calibration_study")
 REPEATS = 3
@@ -66,7 +79,7 @@ def sample_jobs(args: argparse.Namespace, config: dict) -> dict[tuple[str, str, 
 def group_row(key: tuple[str, str, str, int], rows: list[dict[str, Any]], jobs: list[Job]) -> dict[str, Any]:
     """The study's row of one group of samples: means of the sample metrics, spread and calibration."""
     from dpi.capture import load_capture
-    from dpi.exr import read_exr
+    from dpi.io.exr import read_exr
     from dpi.spread import calibration, normalized_env, sample_variance
 
     scene, method, sampler, repeat = key

@@ -43,8 +43,8 @@ from dpi.layout import INIT
 from dpi.materials import MaterialTextures
 from dpi.prior.sample import load_scene_prior
 from dpi.render import Renderer, RenderSettings
-from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, start_run
 from dpi.solve.decomposition import Decomposition
+from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, start_run
 from dpi.solve.dps.state import DPSRun
 from dpi.solve.problem import InverseProblem, ProblemSettings
 from dpi.studies.demo_costs import DEMO, capture_at, demo_pipeline, preset_setting
@@ -122,7 +122,7 @@ def data_term_costs(problem: InverseProblem, init: Decomposition, repeats: int) 
     """Print the data term over all training views, evaluated with its gradient w.r.t. the map and the albedo:
     path traced against the recorded light transport (dpi.solve.transport; a map finer than it area-sampled to
 its rows), and what one recording costs."""
-    from dpi.images import resize
+    from dpi.io.images import resize
     from dpi.solve.transport import record_transport
 
     materials, views = init.materials, problem.train_ids

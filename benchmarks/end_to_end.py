@@ -23,7 +23,8 @@ import time
 import yaml
 
 from dpi.layout import SYNTH_MARKER
-from dpi.studies.engine import CHECKOUT as ROOT, append_row, results_csv, settings_hash, work_dir
+from dpi.studies.engine import CHECKOUT as ROOT
+from dpi.studies.engine import append_row, results_csv, settings_hash, work_dir
 
 WORK = work_dir("end_to_end")
 CSV = results_csv("end_to_end")

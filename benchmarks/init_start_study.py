@@ -26,10 +26,24 @@ from typing import Any
 
 import numpy as np
 
-from dpi.studies.engine import append_row, prepare_capture, read_rows, results_csv, settings_hash, work_dir, \
-    workflow_config
-from dpi.studies.scenes import (POSTERIOR_SCENES, RESOLUTION_SCENES, calibration_scenes, repeat_scene, repeat_synth,
-                                resolution_config, resolution_root)
+from dpi.studies.engine import (
+    append_row,
+    prepare_capture,
+    read_rows,
+    results_csv,
+    settings_hash,
+    work_dir,
+    workflow_config,
+)
+from dpi.studies.scenes import (
+    POSTERIOR_SCENES,
+    RESOLUTION_SCENES,
+    calibration_scenes,
+    repeat_scene,
+    repeat_synth,
+    resolution_config,
+    resolution_root,
+)
 
 CSV = results_csv("init_start_study")
 COLUMNS = ("study", "scene", "roughness", "metallic", "start_roughness", "start_metallic", "pilot_loss",
@@ -57,12 +71,12 @@ def study_scenes(study: str, repeats: int) -> tuple[Path, dict[str, Any], dict[s
 def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth: dict[str, Any]) -> list[dict]:
     """The init's fit from each start on one scene, scored on the held-out views; a row per start."""
     from dpi.evaluation.sample_metrics import novel_view_metrics, render_held_out
+    from dpi.inverse_stages import SolveSettings, load_problem
     from dpi.layout import INIT
     from dpi.pipeline import Pipeline
     from dpi.seeding import seed_for
     from dpi.solve.decomposition import Decomposition
     from dpi.solve.init import closing_loss, roughness_p25, start_fit
-    from dpi.stages import SolveSettings, load_problem
 
     problem = load_problem(prepare_capture(root, scene, synth, threads=2), SolveSettings.from_config(config, 2))
     cfg = Pipeline(config).init_settings

@@ -2,7 +2,7 @@
 
 A synthetic capture (pinhole, with ground truth) is copied three times: `pinhole` as rendered; `undistorted`
 with every image and mask distorted by a known barrel lens (k1, k2) and the lens written into its
-transforms.json, so the capture stage undistorts it (dpi.undistort); `ignored` distorted the same way but
+transforms.json, so the capture stage undistorts it (dpi.capture.undistort); `ignored` distorted the same way but
 without the coefficients, as a user who drops them would run it. Each gets its own initialisation through
 the workflow's stage functions, scored on the held-out views. Rows per (variant, seed) go to
 benchmarks/results/lens_study.csv; it prints mean +- std per variant.
@@ -20,14 +20,23 @@ from pathlib import Path
 import numpy as np
 
 from dpi.cameras import Lens, read_cameras
-from dpi.exr import write_exr
-from dpi.images import read_image, read_mask, write_mask
-from dpi.stages import SolveSettings, evaluate_stage, init_stage
-from dpi.studies.engine import (append_row, mean_std_cells, prepare_capture, read_rows, results_csv,
-                                settings_hash, study_layout, work_dir, workflow_config)
-from dpi.studies.scenes import SIZE
-from dpi.undistort import distort_image
+from dpi.capture.undistort import distort_image
+from dpi.inverse_stages import SolveSettings, evaluate_stage, init_stage
+from dpi.io.exr import write_exr
+from dpi.io.images import read_image, read_mask, write_mask
 from dpi.preprocess.stages import capture_stage
+from dpi.studies.engine import (
+    append_row,
+    mean_std_cells,
+    prepare_capture,
+    read_rows,
+    results_csv,
+    settings_hash,
+    study_layout,
+    work_dir,
+    workflow_config,
+)
+from dpi.studies.scenes import SIZE
 
 WORK = work_dir("lens_study")
 CSV = results_csv("lens_study")

@@ -20,7 +20,7 @@ import numpy as np
 
 from dpi.capture import read_capture_json, read_ground_truth
 from dpi.evaluation.metrics import env_metrics
-from dpi.exr import read_exr
+from dpi.io.exr import read_exr
 from dpi.layout import ENV_FILE
 from dpi.spread import mean_log_map
 from dpi.studies.engine import settings_hash, write_rows

@@ -18,9 +18,9 @@ import time
 import numpy as np
 
 from dpi import backend
-from dpi.envmap import texel_solid_angles
-from dpi.images import luminance, write_srgb
 from dpi.evaluation.metrics import tonemap
+from dpi.io.images import luminance, write_srgb
+from dpi.light.envmap import texel_solid_angles
 from dpi.prior.outdoor import SCENE_KINDS, outdoor_envmap
 
 TOP_FRACTION = 0.005

@@ -4,7 +4,7 @@ preset's init, one dps sample and its evaluation are timed on the demo and on a 
 The network check builds `dpi.prior.unet.PAPER_CONFIG` with random weights, saves it as a raw
 guided-diffusion state dict, loads it back through `load_checkpoint` and times a forward (and a
 forward + backward) of one 128 x 256 map. The stages run through the workflow's own stage functions
-(dpi.stages) with the preset's settings; Mitsuba's variant is the config's `auto` (cuda_ad_rgb on a GPU).
+(dpi.inverse_stages) with the preset's settings; Mitsuba's variant is the config's `auto` (cuda_ad_rgb on a GPU).
 A smoke run on the CPU: `--presets draft --skip-network`.
 
     python benchmarks/paper_preset_gpu.py [--scenes demo blob_sun] [--presets default paper] [--out OUT] [--work DIR]
@@ -86,7 +86,7 @@ def network_check(height: int, device: torch.device) -> list[dict[str, Any]]:
 
 def demo_capture(root: Path) -> Path:
     """The bundled demo as a study scene: copied under root/captures, validated into capture.json."""
-    from dpi.stages import capture_stage
+    from dpi.inverse_stages import capture_stage
 
     layout = study_layout(root)
     if not layout.capture_dir("demo").exists():
@@ -101,7 +101,7 @@ def scene_rows(root: Path, scene: str, config: dict, threads: int,
                sampler: str | None = None) -> list[dict[str, Any]]:
     """Init (unless one is there), one dps sample (with `sampler`, else the config's) and its evaluation of one
     scene under `config`; a row per stage with its metrics."""
-    from dpi.stages import SolveSettings, evaluate_stage, init_stage, sample_stage
+    from dpi.inverse_stages import SolveSettings, evaluate_stage, init_stage, sample_stage
 
     settings = SolveSettings.from_config(config, threads)
     start = time.perf_counter()

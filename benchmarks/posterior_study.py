@@ -7,7 +7,7 @@ arc, under a sun map, an indoor room and a map clipped to the paper's tone-curve
 8-bit test panoramas). The `glossy` group is a shiny metal object seen from all around, where a
 free fit already recovers the light and a prior can only tie. Each scene gets one initialisation;
 each method then draws one sample per seed through the workflow's own stage functions
-(dpi.stages) with config.yaml's settings (preset applied), and the workflow's evaluation scores it.
+(dpi.inverse_stages) with config.yaml's settings (preset applied), and the workflow's evaluation scores it.
 
     .venv/bin/python benchmarks/posterior_study.py [--scenes ...] [--methods ...] [--seeds 0 1 2] [--jobs 2]
 
@@ -23,8 +23,15 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from dpi.studies.engine import SAMPLE_COLUMNS, dps_variants, mean_std_cells, method_jobs, run_job, run_study, \
-    workflow_config
+from dpi.studies.engine import (
+    SAMPLE_COLUMNS,
+    dps_variants,
+    mean_std_cells,
+    method_jobs,
+    run_job,
+    run_study,
+    workflow_config,
+)
 from dpi.studies.scenes import POSTERIOR_SCENES
 
 ROOT = Path(__file__).resolve().parent.parent

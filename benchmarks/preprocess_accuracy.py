@@ -24,15 +24,15 @@ from pathlib import Path
 import numpy as np
 from tabulate import tabulate
 
-from dpi.images import read_mask
-from dpi.studies.engine import append_row, settings_hash
+from dpi.cameras import read_cameras
 from dpi.consistency import mask_iou
+from dpi.io.images import read_mask
+from dpi.layout import SYNTH_MARKER, SceneLayout
 from dpi.preprocess.accuracy import align_mesh, chamfer, pose_errors
 from dpi.preprocess.geometry import read_mesh
 from dpi.preprocess.sfm import SfMError
-from dpi.cameras import read_cameras
 from dpi.preprocess.stages import capture_stage, geometry_stage, masks_stage, poses_stage, uv_stage
-from dpi.layout import SYNTH_MARKER, SceneLayout
+from dpi.studies.engine import append_row, settings_hash
 from dpi.synth.capture import SynthConfig, make_synthetic_capture
 from dpi.synth.shapes import SHAPES
 

@@ -30,11 +30,11 @@ from scipy import linalg
 from torch.nn import functional as F
 
 from dpi import backend
-from dpi.envmap import top_energy_share
-from dpi.images import linear_to_srgb, luminance
+from dpi.io.images import linear_to_srgb, luminance
+from dpi.light.envmap import top_energy_share
+from dpi.light.tonecurve import Encoding
 from dpi.prior.data import median_target, read_dataset, to_prior_space
 from dpi.prior.procedural import checked_envmaps
-from dpi.tonecurve import Encoding
 from dpi.prior.sample import DEFAULT_MODELS, MODELS_DIR, draw_samples, load_prior, write_grid
 
 HELD_OUT_SEED = 1000
@@ -106,7 +106,7 @@ def luminance_over_median(x: torch.Tensor, encoding: Encoding) -> torch.Tensor:
 
 
 def top_energy_shares(x: torch.Tensor, encoding: Encoding) -> np.ndarray:
-    """dpi.envmap.top_energy_share of each prior-space map (B, 3, H, W)."""
+    """dpi.light.envmap.top_energy_share of each prior-space map (B, 3, H, W)."""
     radiance = encoding.to_radiance(x).permute(0, 2, 3, 1).numpy()
     return np.array([top_energy_share(env) for env in radiance])
 

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from dpi.cameras import from_fov, orbit
-from dpi.exr import read_exr
+from dpi.io.exr import read_exr
 from dpi.materials import MaterialTextures
 from dpi.render import Renderer, RenderSettings
 from dpi.synth.capture import SynthConfig, make_synthetic_capture

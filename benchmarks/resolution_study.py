@@ -27,9 +27,19 @@ from typing import Any
 import numpy as np
 import torch
 
-from dpi.studies.engine import (Job, job_settings, mean_std_cells, results_csv, run_job, run_study, study_layout,
-                                work_dir)
-from dpi.studies.scenes import RESOLUTION_SCENES as SCENES, resolution_config as size_config, resolution_root
+from dpi.studies.engine import (
+    Job,
+    job_settings,
+    mean_std_cells,
+    results_csv,
+    run_job,
+    run_study,
+    study_layout,
+    work_dir,
+)
+from dpi.studies.scenes import RESOLUTION_SCENES as SCENES
+from dpi.studies.scenes import resolution_config as size_config
+from dpi.studies.scenes import resolution_root
 
 WORK = work_dir("resolution_study")
 CSV = results_csv("resolution_study")
@@ -71,10 +81,10 @@ def summary(rows: list[dict[str, Any]]) -> list[str]:
 def truth_at_size(capture_json: Path, gt_dir: Path, height: int, texture: int) -> float:
     """Held-out view PSNR of the true materials under the true map resampled to `height` rows."""
     from dpi.evaluation.sample_metrics import novel_view_metrics, render_held_out
+    from dpi.inverse_stages import load_problem
     from dpi.relight import prepare_envmap
     from dpi.solve.decomposition import Decomposition
     from dpi.solve.problem import SolveSettings
-    from dpi.stages import load_problem
 
     config = size_config(height, texture)
     problem = load_problem(capture_json, SolveSettings.from_config(config, 2))

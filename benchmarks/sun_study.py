@@ -30,15 +30,22 @@ from typing import Any
 
 import numpy as np
 
-
 from dpi.capture import load_capture
-from dpi.envmap import texel_directions, top_energy_share
-from dpi.exr import read_exr
-from dpi.images import luminance
-from dpi.skies import sun_direction
+from dpi.io.exr import read_exr
+from dpi.io.images import luminance
+from dpi.light.envmap import texel_directions, top_energy_share
+from dpi.light.skies import sun_direction
 from dpi.solve.dps import DPSConfig
-from dpi.studies.engine import (Job, dps_variants, job_settings, mean_std_cells, method_jobs, run_job, run_study,
-                                workflow_config)
+from dpi.studies.engine import (
+    Job,
+    dps_variants,
+    job_settings,
+    mean_std_cells,
+    method_jobs,
+    run_job,
+    run_study,
+    workflow_config,
+)
 from dpi.studies.scenes import SIZE
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -68,13 +75,13 @@ def true_light_sample(job: Job) -> None:
     """The `true_light` reference's sample folder (module notes), unless it is there."""
     import torch
 
-    from dpi.envmap import read_envmap
+    from dpi.inverse_stages import SolveSettings, load_problem
+    from dpi.light.envmap import read_envmap
     from dpi.prior.data import resize_area
     from dpi.solve.decomposition import Decomposition
     from dpi.solve.init import starting_materials
     from dpi.solve.optimize import fit
     from dpi.solve.trace import Trace
-    from dpi.stages import SolveSettings, load_problem
 
     files = job.layout.scene(job.scene)
     if files.sample_files(job.label, job.seed)["trace"].exists():

@@ -23,9 +23,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from dpi.inverse_stages import SolveSettings, load_problem
 from dpi.layout import INIT, TEXTURE_NAMES
 from dpi.solve.decomposition import Decomposition
-from dpi.stages import SolveSettings, load_problem
 
 TOLERANCE = 1.05
 """a sample counts as fitting worse than the init when its MSE exceeds the init's by more than this factor

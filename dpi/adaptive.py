@@ -16,15 +16,13 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
-
-from dpi.atomic import write_json
-from dpi.exr import read_exr
-from dpi.materials import MaterialTextures
 from pydantic import Field
 
+from dpi.io.atomic import write_json
+from dpi.io.exr import read_exr
+from dpi.materials import MaterialTextures
 from dpi.settings import Weight, settings, settings_from_dict
 from dpi.spread import normalized_env, sample_variance
-
 
 DIFFUSE_ROUGHNESS = 0.6
 """init roughness that (at its 25th percentile) makes a scene diffuse: a GGX lobe ~30 deg wide"""

@@ -5,7 +5,7 @@ transforms.json (nerfstudio / NeRF-synthetic): camera x right, y up, looking alo
 pixel intrinsics (fx, fy, cx, cy) with the origin at the image's top-left corner. Mitsuba's
 sensors look along +z with x pointing left, so `to_mitsuba` flips the x and z axes. A photo's lens
 distortion (`Lens`, OpenCV's models as COLMAP and nerfstudio name them) is read here and removed from the
-images once, at capture time (dpi.undistort); every later stage sees pinhole cameras.
+images once, at capture time (dpi.capture.undistort); every later stage sees pinhole cameras.
 """
 
 from __future__ import annotations

@@ -32,7 +32,7 @@ import yaml
 from dpi.capture import PRIORS, CaptureError
 from dpi.config_validation import ConfigError
 from dpi.preprocess.sfm import SfMError
-from dpi.prior.cli import register as register_prior_commands
+from dpi.prior.commands import register as register_prior_commands
 
 
 def _pipeline(args: argparse.Namespace):
@@ -112,8 +112,8 @@ def cmd_preprocess(args: argparse.Namespace) -> None:
 
 def cmd_init(args: argparse.Namespace) -> None:
     """Rule init."""
+    from dpi.inverse_stages import init_stage
     from dpi.layout import INIT
-    from dpi.stages import init_stage
 
     pipeline = _pipeline(args)
     scene = pipeline.layout.scene(args.scene)
@@ -123,8 +123,8 @@ def cmd_init(args: argparse.Namespace) -> None:
 
 def cmd_sample(args: argparse.Namespace) -> None:
     """Rule sample."""
+    from dpi.inverse_stages import sample_stage
     from dpi.layout import INIT
-    from dpi.stages import sample_stage
 
     pipeline = _pipeline(args)
     scene = pipeline.layout.scene(args.scene)
@@ -137,7 +137,7 @@ def cmd_sample(args: argparse.Namespace) -> None:
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
     """Rules evaluate and evaluate_init."""
-    from dpi.stages import evaluate_stage
+    from dpi.inverse_stages import evaluate_stage
 
     pipeline = _pipeline(args)
     scene = pipeline.layout.scene(args.scene)
@@ -161,7 +161,7 @@ def existing_evaluations(pipeline) -> list[Path]:
 
 def cmd_summary(args: argparse.Namespace) -> None:
     """Rule summary, over the metric files present."""
-    from dpi.stages import summary_stage
+    from dpi.inverse_stages import summary_stage
 
     pipeline = _pipeline(args)
     evaluations = existing_evaluations(pipeline)
@@ -186,7 +186,7 @@ def cmd_tables(args: argparse.Namespace) -> None:
 def cmd_report(args: argparse.Namespace) -> None:
     """Rules envmap_figure and uncertainty (each scene, over the samples present) and report."""
     from dpi.evaluation.report import build_report
-    from dpi.stages import envmap_figure_stage, uncertainty_stage
+    from dpi.inverse_stages import envmap_figure_stage, uncertainty_stage
 
     pipeline = _pipeline(args)
     layout = pipeline.layout

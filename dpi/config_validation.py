@@ -23,8 +23,8 @@ from typing import Any
 
 import yaml
 from jsonschema import Draft202012Validator
-from pydantic import TypeAdapter
 from jsonschema.exceptions import ValidationError, best_match
+from pydantic import TypeAdapter
 
 from dpi.adaptive import AdaptiveConfig
 from dpi.capture import PRIORS
@@ -35,8 +35,8 @@ from dpi.preprocess.uv import UVConfig
 from dpi.prior.train import PriorJobConfig
 from dpi.render import RenderSettings
 from dpi.settings import SettingsError, check_keys, settings_from_dict
-from dpi.solve.methods import METHODS, method_config
 from dpi.solve.init import InitConfig
+from dpi.solve.methods import METHODS, method_config
 from dpi.solve.problem import ProblemSettings
 from dpi.synth.capture import SynthConfig
 

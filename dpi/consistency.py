@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from dpi.cameras import Camera, pixel_rays
-from dpi.images import resize_mask, working_size
+from dpi.io.images import resize_mask, working_size
 
 CHECK_SIZE = 64
 """longer side (px) of the silhouettes and masks compared"""

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from dpi.images import luminance
+from dpi.io.images import luminance
 
 MIDDLE_GREY = 0.18
 """the foreground level of a capture in normalised units (photographic middle grey)"""

@@ -116,12 +116,12 @@ class SceneLayout:
 
     @property
     def given_mesh_ply(self) -> Path:
-        """The capture's glTF mesh converted to PLY (dpi.mesh_convert)."""
+        """The capture's glTF mesh converted to PLY (dpi.capture.mesh_convert)."""
         return self.root / "mesh_given.ply"
 
     @property
     def undistorted_dir(self) -> Path:
-        """Images and masks of views taken through a lens, undistorted to pinhole views (dpi.undistort)."""
+        """Images and masks of views taken through a lens, undistorted to pinhole views (dpi.capture.undistort)."""
         return self.root / "undistorted"
 
     def sample_dir(self, method: str, k: int | str = 0) -> Path:

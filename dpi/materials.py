@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from dpi.exr import read_exr, write_exr
-from dpi.images import resize
+from dpi.io.exr import read_exr, write_exr
+from dpi.io.images import resize
 from dpi.layout import TEXTURE_NAMES, texture_file
 from dpi.settings import Rate, settings
 

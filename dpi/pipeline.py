@@ -36,8 +36,8 @@ from dpi.layout import Layout, package_data
 from dpi.prior.sample import DEFAULT_FAMILY, DEFAULT_MODELS
 from dpi.prior.train import PriorJobConfig
 from dpi.settings import apply_preset
-from dpi.solve.methods import REGISTRY, method_config
 from dpi.solve.init import InitConfig
+from dpi.solve.methods import REGISTRY, method_config
 from dpi.solve.problem import SolveSettings
 from dpi.synth.capture import SynthConfig
 

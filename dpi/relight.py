@@ -18,13 +18,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from dpi.atomic import write_json
 from dpi.cameras import Camera, from_fov, orbit
 from dpi.capture import complete_capture, read_capture_json
-from dpi.envmap import read_envmap, rotate_azimuth
-from dpi.exr import write_exr
-from dpi.images import resize, write_srgb
+from dpi.io.atomic import write_json
+from dpi.io.exr import write_exr
+from dpi.io.images import resize, write_srgb
 from dpi.layout import ENV_FILE, SceneLayout
+from dpi.light.envmap import read_envmap, rotate_azimuth
 from dpi.materials import RANGES, MaterialTextures
 from dpi.render import Renderer, RenderSettings
 from dpi.settings import Elevation, MapHeight, Rate, Steps, settings

@@ -18,7 +18,7 @@ from pydantic import Field
 
 from dpi import backend
 from dpi.cameras import Camera, pixel_rays, to_mitsuba
-from dpi.envmap import pad_for_mitsuba
+from dpi.light.envmap import pad_for_mitsuba
 from dpi.settings import Count, settings
 
 ENV_KEY = "emitter.data"

@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from dpi.envmap import texel_solid_angles
 from dpi.exposure import robust_level
-from dpi.images import luminance, resize, tonemap
+from dpi.io.images import luminance, resize, tonemap
+from dpi.light.envmap import texel_solid_angles
 
 
 def median_level(env: np.ndarray) -> float:

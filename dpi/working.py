@@ -16,17 +16,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from dpi.atomic import write_json
 from dpi.capture import Capture, View
-from dpi.exr import write_exr
-from dpi.images import read_image, read_mask, resize, resize_mask, working_size
+from dpi.capture.model import source_stamp
+from dpi.io.atomic import write_json
+from dpi.io.exr import write_exr
+from dpi.io.images import read_image, read_mask, resize, resize_mask, working_size
 
 MANIFEST = "working.json"
-
-
-def source_stamp(view: View) -> list:
-    """What identifies a view's sources: paths, sizes and modification times of image and mask."""
-    return [[str(p), p.stat().st_size, p.stat().st_mtime_ns] for p in (view.image, view.mask) if p is not None]
 
 
 def working_capture(capture: Capture, resolution: int | None, folder: str | Path) -> Capture:

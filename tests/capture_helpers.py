@@ -12,8 +12,8 @@ import OpenEXR
 import trimesh
 
 from dpi.cameras import Camera, from_fov, orbit, write_transforms
-from dpi.exr import write_exr
-from dpi.images import write_mask, write_srgb
+from dpi.io.exr import write_exr
+from dpi.io.images import write_mask, write_srgb
 
 NAMES = ("r_0", "r_1", "r_2", "r_3")
 FRAME_PATHS = ("images/r_0.png", "./images/r_1", "r_2", "images/r_3.exr")

@@ -10,11 +10,11 @@ import pytest
 import trimesh
 from capture_helpers import NAMES, SIZE, cameras, edit_transforms, garbage, image, make_capture, raw_exr
 
-from dpi.capture import (Capture, CaptureError, inspect_capture, load_capture, read_capture_json,
-                         write_capture_json)
 from dpi.cameras import look_at
-from dpi.exr import write_exr
-from dpi.images import write_mask, write_srgb
+from dpi.capture import Capture, CaptureError, inspect_capture, load_capture, read_capture_json, write_capture_json
+from dpi.io.exr import write_exr
+from dpi.io.images import write_mask, write_srgb
+
 
 @pytest.fixture
 def capture_root(tmp_path: Path) -> Path:

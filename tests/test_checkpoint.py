@@ -6,6 +6,7 @@ from contextlib import contextmanager
 
 import pytest
 import torch
+from test_dps import tiny_prior
 
 from dpi.capture import load_capture
 from dpi.render import RenderSettings
@@ -17,7 +18,6 @@ from dpi.solve.optimize import FreeEnvMap, OptimizeConfig, fit_env_model
 from dpi.solve.priors import smoothness_penalty
 from dpi.solve.problem import InverseProblem, ProblemSettings
 from dpi.solve.trace import Trace
-from test_dps import tiny_prior
 
 FIT = OptimizeConfig(iterations=7, views_per_step=1)
 CLOSE = dict(rtol=1e-4, atol=1e-5)  # Dr.Jit's parallel gradient atomics: equal up to float rounding

@@ -6,10 +6,10 @@ import os
 import subprocess
 
 import yaml
+from workflow_helpers import REPO, SNAKEMAKE, planned_jobs
 
 from dpi.cli import main
 from dpi.pipeline import merge, read_yaml, resolve_config
-from workflow_helpers import REPO, SNAKEMAKE, planned_jobs
 
 TOP_LEVEL = REPO / "config.yaml"
 

@@ -6,6 +6,7 @@ import torch
 import yaml
 
 from dpi.capture import load_capture
+from dpi.light.tonecurve import TONE_CURVES
 from dpi.prior.diffusion import base_diffusion
 from dpi.prior.sample import Prior
 from dpi.prior.unet import SMALL_CONFIGS, UNetModel
@@ -14,7 +15,6 @@ from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample
 from dpi.solve.dps.paper import PaperSettings, rho_schedule, scale_to_bound
 from dpi.solve.init import InitConfig, path_traced_init
 from dpi.solve.problem import InverseProblem, ProblemSettings
-from dpi.tonecurve import TONE_CURVES
 
 
 def tiny_prior(height: int = 8) -> Prior:

@@ -4,8 +4,14 @@ import numpy as np
 import pytest
 import torch
 
-from dpi.envmap import (direction_to_texel, pad_equirect, pad_for_mitsuba, texel_directions, texel_solid_angles,
-                        unpad_from_mitsuba)
+from dpi.light.envmap import (
+    direction_to_texel,
+    pad_equirect,
+    pad_for_mitsuba,
+    texel_directions,
+    texel_solid_angles,
+    unpad_from_mitsuba,
+)
 
 
 def eval_emitter(mi, emitter, directions):
@@ -55,7 +61,7 @@ def test_padding_layouts(extra):
 
 
 def test_sunsky_sun_lands_in_its_texel_with_ground_below(mi):
-    from dpi.skies import SkyParams, sun_direction, sunsky_envmap
+    from dpi.light.skies import SkyParams, sun_direction, sunsky_envmap
 
     env = sunsky_envmap(16, SkyParams(sun_elevation_deg=30.0, sun_azimuth_deg=100.0))
     assert env.shape == (16, 32, 3) and np.isfinite(env).all() and (env >= 0).all()

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from dpi.capture import CaptureError, load_capture, write_capture_json
-from dpi.envmap import EnvmapLayoutError, equirect, read_envmap
-from dpi.exr import read_exr, write_exr
+from dpi.io.exr import read_exr, write_exr
+from dpi.light.envmap import EnvmapLayoutError, equirect, read_envmap
 from dpi.relight import RelightConfig, relight_sample
 from dpi.render import RenderSettings
 

@@ -3,8 +3,8 @@
 import numpy as np
 from PIL import Image
 
-from dpi.exr import write_exr
 from dpi.evaluation.figures import display_env, envmap_grid
+from dpi.io.exr import write_exr
 
 
 def test_display_aligns_scale_to_the_reference():

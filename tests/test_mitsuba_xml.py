@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from dpi.cameras import from_mitsuba_matrix, look_at
-from dpi.mitsuba_xml import MitsubaXMLError, read_mesh_shapes, read_sensors, transform_matrix
+from dpi.io.mitsuba_xml import MitsubaXMLError, read_mesh_shapes, read_sensors, transform_matrix
 
 LOOKATS = [((0.0, 0.5, 4.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0)),
            ((-1.2, 0.5, 1.2), (0.4, 0.45, 0.5), (0.0, 1.0, 0.0)),

@@ -7,13 +7,13 @@ import json
 import numpy as np
 import pytest
 import yaml
+from test_preprocess_masks import sphere_view
 
 from dpi.cameras import from_fov, orbit, write_transforms
 from dpi.cli import main
-from dpi.images import read_mask, write_srgb
 from dpi.consistency import mask_iou
+from dpi.io.images import read_mask, write_srgb
 from dpi.preprocess.stages import needed_stages
-from test_preprocess_masks import sphere_view
 
 FAST = {"preprocess": {"geometry": {"resolution": 48, "coarse_resolution": 24, "target_faces": 3000,
                                     "remesh_iterations": 1},

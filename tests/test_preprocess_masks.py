@@ -8,11 +8,18 @@ import numpy as np
 import pytest
 
 from dpi.cameras import from_fov, orbit, pixel_rays
-from dpi.images import srgb_to_linear
 from dpi.consistency import mask_iou
+from dpi.io.images import srgb_to_linear
 from dpi.preprocess.hull import visible_sphere
-from dpi.preprocess.masks import (MaskConfig, clean_mask, derive_masks, drop_outliers, mesh_silhouette,
-                                  object_mask, refine_masks)
+from dpi.preprocess.masks import (
+    MaskConfig,
+    clean_mask,
+    derive_masks,
+    drop_outliers,
+    mesh_silhouette,
+    object_mask,
+    refine_masks,
+)
 from dpi.synth.backdrop import backdrop_texture
 
 SIZE = 64
@@ -101,7 +108,7 @@ def test_consensus_round_removes_one_views_background_patch(cameras):
     masks[2][:28, :28] = True  # a patch of background taken for the object (joined to it below)
     masks[2][20:40, 15:25] = True
     cfg = MaskConfig(consensus_votes=[0.25], consensus_bands=[0.08], consensus_resolution=48)
-    from dpi.images import to_uint8
+    from dpi.io.images import to_uint8
 
     refined, methods = refine_masks([to_uint8(im) for im in images], list(cameras), masks, cfg)
     assert mask_iou(masks[2], truths[2]) < 0.8
@@ -113,7 +120,7 @@ def test_consensus_round_removes_one_views_background_patch(cameras):
 def test_consensus_prior_without_points(cameras, tmp_path, max_size):
     """Masks from the sphere prior and two consensus rounds; computed on smaller images (max_size) they
     come back at the photos' size and as accurate."""
-    from dpi.images import read_mask, write_srgb
+    from dpi.io.images import read_mask, write_srgb
 
     images, truths = {}, {}
     for i, cam in enumerate(cameras):

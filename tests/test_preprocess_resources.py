@@ -6,7 +6,6 @@ from __future__ import annotations
 import re
 
 import numpy as np
-
 from workflow_helpers import snakemake, write_config
 
 
@@ -21,7 +20,7 @@ def planned_resources(output: str) -> dict[str, dict[str, str]]:
 
 
 def test_preprocess_rules_request_configured_resources(tmp_path):
-    from dpi.images import write_srgb
+    from dpi.io.images import write_srgb
 
     for i in range(3):
         write_srgb(tmp_path / "captures" / "photos" / "images" / f"{i}.png", np.full((8, 8, 3), 0.3, np.float32))

@@ -58,7 +58,7 @@ def test_normalise_recovers_the_object_frame():
 
 
 def test_featureless_images_fail_with_a_clear_error(tmp_path):
-    from dpi.images import write_srgb
+    from dpi.io.images import write_srgb
 
     for i in range(3):
         write_srgb(tmp_path / "images" / f"{i}.png", np.full((32, 32, 3), 0.2 + 0.1 * i, np.float32))

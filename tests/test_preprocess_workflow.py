@@ -56,12 +56,12 @@ def photo_run(tmp_path_factory) -> Path:
 
 
 def test_photo_capture_is_derived_and_fitted(photo_run):
+    from dpi.cameras import read_cameras
     from dpi.capture import read_capture_json
-    from dpi.images import read_mask
     from dpi.consistency import mask_iou
+    from dpi.io.images import read_mask
     from dpi.preprocess.accuracy import align_mesh, chamfer, pose_errors
     from dpi.preprocess.geometry import read_mesh
-    from dpi.cameras import read_cameras
 
     capture_dir, results = photo_run / "captures" / "photo", photo_run / "results" / "photo"
     assert not (capture_dir / "transforms.json").exists() and not (capture_dir / "masks").exists()

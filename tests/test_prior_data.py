@@ -7,11 +7,23 @@ import pytest
 import torch
 from PIL import Image
 
-from dpi.exr import write_exr
-from dpi.prior.data import (MEDIAN_TARGETS, EnvmapDataset, augment, clip_highlights, list_panoramas, median_target,
-                            radiance_scale, read_dataset, read_panorama, resize_area, roll_columns, split_files,
-                            to_prior_space)
-from dpi.tonecurve import family_encoding
+from dpi.io.exr import write_exr
+from dpi.light.tonecurve import family_encoding
+from dpi.prior.data import (
+    MEDIAN_TARGETS,
+    EnvmapDataset,
+    augment,
+    clip_highlights,
+    list_panoramas,
+    median_target,
+    radiance_scale,
+    read_dataset,
+    read_panorama,
+    resize_area,
+    roll_columns,
+    split_files,
+    to_prior_space,
+)
 
 ENCODINGS = [("outdoor", "paper"), ("indoor", "paper"), ("outdoor", "log")]
 
@@ -49,7 +61,7 @@ def test_log_encoding_holds_a_sun() -> None:
 @pytest.mark.parametrize("family,encoding", ENCODINGS)
 def test_clip_highlights_clips_luminance_at_a_multiple_of_the_median(family: str, encoding: str) -> None:
     """Chosen maps lose everything above `level` x median luminance, with its hue; the rest are untouched."""
-    from dpi.images import luminance
+    from dpi.io.images import luminance
 
     enc = family_encoding(family, encoding)
     target = median_target(family, enc)

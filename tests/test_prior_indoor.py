@@ -5,10 +5,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dpi.images import luminance
+from dpi.io.images import luminance
 from dpi.prior.indoor import (
-    RectEmitter, Room, SpotLight, cast_rays, direct_irradiance, indoor_envmaps, rect_irradiance, render_room,
-    subtexel_directions, window_texture,
+    RectEmitter,
+    Room,
+    SpotLight,
+    cast_rays,
+    direct_irradiance,
+    indoor_envmaps,
+    rect_irradiance,
+    render_room,
+    subtexel_directions,
+    window_texture,
 )
 from dpi.prior.procedural import check_envmap
 

@@ -7,15 +7,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from dpi.envmap import direction_to_texel, texel_solid_angles
-from dpi.sunlight import draw_sun_np
-from dpi.images import luminance
-from dpi.prior.daylight import (Daylight, irradiance, overcast, physical_daylight, random_sun_elevation,
-                                upper_hemisphere)
+from dpi.io.images import luminance
+from dpi.light.envmap import direction_to_texel, texel_solid_angles
+from dpi.light.skies import SkyParams, sun_direction, sunsky_envmap
+from dpi.light.sunlight import draw_sun_np
+from dpi.prior.daylight import Daylight, irradiance, overcast, physical_daylight, random_sun_elevation, upper_hemisphere
 from dpi.prior.outdoor import SCENE_KINDS, landscape_envmap, outdoor_envmap
 from dpi.prior.procedural import check_envmap
 from dpi.prior.street import FACADE, GROUND, Facades, Street, cast, occluded, street_envmap
-from dpi.skies import SkyParams, sun_direction, sunsky_envmap
 
 UP = np.array([[0.0, 1.0, 0.0]])
 

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 import torch
 
-from dpi.exr import write_exr
-from dpi.images import luminance
+from dpi.io.exr import write_exr
+from dpi.io.images import luminance
+from dpi.light.tonecurve import family_encoding
 from dpi.prior.data import EXPOSURE_JITTER, EnvmapDataset, recolour
 from dpi.prior.panoramas import MANIFEST, Panorama, build_panorama_set, panorama_files, read_manifest, sha256_of
-from dpi.tonecurve import family_encoding
 
 
 def panorama(seed: int) -> np.ndarray:

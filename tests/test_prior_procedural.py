@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from dpi.exr import read_exr
 from dpi.cli import main
+from dpi.io.exr import read_exr
 from dpi.prior.outdoor import outdoor_envmap, spherical_noise
 from dpi.prior.procedural import EnvmapCheckError, check_envmap, luminance, make_envmap_dataset
 

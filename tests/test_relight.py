@@ -9,9 +9,9 @@ import torch
 
 from dpi.capture import load_capture, write_capture_json
 from dpi.cli import main
-from dpi.envmap import direction_to_texel, rotate_azimuth, texel_directions
-from dpi.exr import EXRError, read_exr, write_exr
-from dpi.images import linear_to_srgb, read_image
+from dpi.io.exr import EXRError, read_exr, write_exr
+from dpi.io.images import linear_to_srgb, read_image
+from dpi.light.envmap import direction_to_texel, rotate_azimuth, texel_directions
 from dpi.materials import MaterialTextures
 from dpi.relight import MaterialEdit, RelightConfig, relight_sample
 from dpi.render import RenderSettings

@@ -53,7 +53,7 @@ def test_albedo_gradient_matches_finite_differences(sphere_ply):
 
 def test_mirror_sphere_shows_the_bright_texel_where_expected(sphere_ply):
     """A mirror ball reflects a bright env texel at the point whose normal halves view and light."""
-    from dpi.envmap import texel_directions
+    from dpi.light.envmap import texel_directions
 
     H, size = 16, 64
     cam = from_fov(look_at([0, 0, 5.0], [0, 0, 0]), size, size, 30.0)

@@ -15,12 +15,12 @@ from dpi.capture import read_capture_json
 from dpi.evaluation.figures import envmap_grid
 from dpi.evaluation.metric_table import direction, metric_table
 from dpi.evaluation.relighting import RELIGHT_MAPS, relit_name
-from dpi.evaluation.summary import write_csv
 from dpi.evaluation.report import Page, build_report, quality_section, roughness_section
-from dpi.exr import read_exr, write_exr
-from dpi.atomic import write_json
+from dpi.evaluation.summary import write_csv
+from dpi.inverse_stages import capture_stage, uncertainty_stage
+from dpi.io.atomic import write_json
+from dpi.io.exr import read_exr, write_exr
 from dpi.layout import INIT, SUMMARY_FILE, Layout, view_file
-from dpi.stages import capture_stage, uncertainty_stage
 
 METHODS = {INIT: 1, "none": 2, "dps": 2}
 ROUGHNESS = {"glossy": 0.1, "rough": 0.6}
@@ -140,7 +140,7 @@ def test_every_image_of_the_report_loads_in_chromium(results, tmp_path):
     first = next(iter(ROUGHNESS))
     assert f"{first} masks" in alts and not any(f"{scene} masks" in alts for scene in list(ROUGHNESS)[1:])
     flagged = read_capture_json(results.scene(first).capture_json).views[1].name
-    assert f"derived masks of 1 of" in page.read_text() and f"unreliable ({flagged})" in page.read_text()
+    assert "derived masks of 1 of" in page.read_text() and f"unreliable ({flagged})" in page.read_text()
 
     loaded = Images(chromium_dom(page, tmp_path))
     assert loaded.table and len(loaded.images) == len(written.images)

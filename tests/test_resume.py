@@ -11,7 +11,6 @@ import time
 
 import numpy as np
 import pytest
-
 from workflow_helpers import REPO, SNAKEMAKE, TINY_CONFIG, planned_jobs, snakemake, write_config
 
 pytestmark = pytest.mark.slow
@@ -25,7 +24,7 @@ OUTPUTS = ["envmap.exr", "albedo.exr", "roughness.exr", "metallic.exr"]
 
 
 def read_outputs(sample_dir):
-    from dpi.exr import read_exr
+    from dpi.io.exr import read_exr
 
     return {name: read_exr(sample_dir / name) for name in OUTPUTS}
 

@@ -11,22 +11,22 @@ import pytest
 import torch
 
 from dpi.capture import load_capture
+from dpi.light.tonecurve import LogEncoding
 from dpi.materials import MaterialTextures
 from dpi.prior.diffusion import base_diffusion
 from dpi.prior.sample import Prior, draw_samples
 from dpi.prior.unet import SMALL_CONFIGS, UNetModel
 from dpi.render import RenderSettings
-from dpi.solve.decomposition import Decomposition
 from dpi.settings import SettingsError, settings_from_dict
+from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, start_run
 from dpi.solve.dps.map_solve import PRIOR_STD, Resampling, posterior_variance
 from dpi.solve.dps.proximal import ProximalSettings
 from dpi.solve.init import InitConfig, path_traced_init
-from dpi.solve.problem import InverseProblem, ProblemSettings
 from dpi.solve.prior_space import prior_to_env
-from dpi.solve.sun import map_energy, sun_direction_of, sun_env
+from dpi.solve.problem import InverseProblem, ProblemSettings
+from dpi.solve.sun_model import map_energy, sun_direction_of, sun_env
 from dpi.solve.transport import AlbedoLookup, LightTransport
-from dpi.tonecurve import LogEncoding
 
 
 def log_prior(height: int = 8) -> Prior:
@@ -259,8 +259,8 @@ def test_unknown_sampler_is_an_error():
 
 
 def test_sample_stage_draws_a_dps_sample(tiny_capture, tmp_path):
+    from dpi.inverse_stages import SolveSettings, capture_stage, init_stage, sample_stage
     from dpi.prior.train import save_atomic
-    from dpi.stages import SolveSettings, capture_stage, init_stage, sample_stage
 
     prior = log_prior()
     checkpoint = tmp_path / "prior.pt"
@@ -299,10 +299,10 @@ def test_a_written_dps_map_holds_one_sun_drawn_as_a_disc(tiny_capture, problem_a
     """A sample's map, with a second sun in the prior's sky, written and read back from envmap.exr: one
     sun-like spot, in the fitted sun's direction, its energy in a few texels of the 64-row map (a disc, not a
     block carried up from a coarser grid), the second sun's energy merged into it."""
-    from dpi.envmap import read_envmap, texel_solid_angles
-    from dpi.images import luminance
+    from dpi.io.images import luminance
+    from dpi.light.envmap import read_envmap, texel_solid_angles
+    from dpi.light.sunlight import find_spots
     from dpi.solve.dps.loop import start_run
-    from dpi.sunlight import find_spots
 
     _, coarse = problem_and_init
     problem = InverseProblem(load_capture(tiny_capture), ProblemSettings(env_height=64, texture_size=8),

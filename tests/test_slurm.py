@@ -14,7 +14,6 @@ import time
 
 import pytest
 import yaml
-
 from workflow_helpers import REPO, SNAKEMAKE, TINY_CONFIG, snakemake, write_config
 
 pytestmark = [pytest.mark.slurm, pytest.mark.slow]

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from dpi.envmap import texel_directions, texel_solid_angles
+from dpi.light.envmap import texel_directions, texel_solid_angles
 from dpi.solve.dps import DPSConfig
 from dpi.solve.smooth_gain import SmoothGain, sh_basis
 

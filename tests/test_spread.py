@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from dpi.envmap import texel_solid_angles
-from dpi.exr import read_exr, write_exr
+from dpi.io.exr import read_exr, write_exr
 from dpi.layout import SceneLayout, decomposition_files
+from dpi.light.envmap import texel_solid_angles
 from dpi.spread import albedo_std_map, calibration, log_std_map, mean_log_map, sphere_mean
 
 H = 8
@@ -76,7 +76,7 @@ def test_mean_maps_scores_are_the_truths_when_the_samples_straddle_it(tmp_path):
 
 
 def test_uncertainty_stage_writes_each_methods_maps_and_figure(tmp_path):
-    from dpi.stages import uncertainty_stage
+    from dpi.inverse_stages import uncertainty_stage
 
     scene = SceneLayout(tmp_path / "scene")
     for k, factor in enumerate((4.0, 1.0)):

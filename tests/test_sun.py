@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import torch
 
-from dpi.envmap import direction_to_uv, texel_directions, texel_solid_angles
-from dpi.solve.sun import extract_sun, map_energy, share_penalty, sun_direction_of, sun_env, wrap_uv_
-from dpi.sunlight import AUREOLE_SHARE, find_spots, merge_spots_into_sun
+from dpi.light.envmap import direction_to_uv, texel_directions, texel_solid_angles
+from dpi.light.sunlight import AUREOLE_SHARE, find_spots, merge_spots_into_sun
+from dpi.solve.sun_model import extract_sun, map_energy, share_penalty, sun_direction_of, sun_env, wrap_uv_
 
 
 @pytest.mark.parametrize("height", [8, 32, 128])

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from dpi.capture import load_capture
-from dpi.exr import read_exr
-from dpi.images import read_mask
+from dpi.io.exr import read_exr
+from dpi.io.images import read_mask
 from dpi.layout import SYNTH_MARKER
 from dpi.synth.capture import SynthConfig, ground_truth_envmap, make_synthetic_capture
 from dpi.synth.shapes import SHAPES, make_shape

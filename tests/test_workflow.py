@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from dpi.exr import read_exr
 from workflow_helpers import TINY_CONFIG, planned_jobs, snakemake, write_config
+
+from dpi.io.exr import read_exr
 
 pytestmark = pytest.mark.slow
 
@@ -124,7 +124,7 @@ def test_dpi_commands_give_the_workflow_files(workdir, tmp_path, monkeypatch):
     import numpy as np
 
     from dpi.cli import main
-    from dpi.exr import read_exr
+    from dpi.io.exr import read_exr
     from dpi.layout import INIT, SceneLayout
 
     wd = tmp_path / "wd"

@@ -4,9 +4,8 @@ import numpy as np
 import pytest
 
 from dpi.capture import load_capture
-from dpi.exr import read_exr
-from dpi.images import read_image, read_mask
-from dpi.images import working_size
+from dpi.io.exr import read_exr
+from dpi.io.images import read_image, read_mask, working_size
 from dpi.working import working_capture
 
 
@@ -48,7 +47,7 @@ def test_a_capture_no_larger_than_the_resolution_is_used_as_it_is(tiny_capture, 
 def test_a_changed_source_image_is_resampled_again(tiny_capture, tmp_path):
     import shutil
 
-    from dpi.exr import write_exr
+    from dpi.io.exr import write_exr
 
     root = tmp_path / "cap"
     shutil.copytree(tiny_capture, root)
@@ -67,10 +66,10 @@ def test_evaluation_and_report_work_at_the_working_resolution(tiny_capture, tmp_
 
     from dpi.capture import complete_capture, read_capture_json
     from dpi.evaluation.report import evaluated_capture, held_out_rerenders
+    from dpi.inverse_stages import capture_stage, evaluate_stage
     from dpi.layout import SceneLayout
     from dpi.render import RenderSettings
     from dpi.solve.problem import ProblemSettings, SolveSettings
-    from dpi.stages import capture_stage, evaluate_stage
 
     scene = SceneLayout(tmp_path / "results" / "tiny")
     capture_stage(tiny_capture, scene.capture_json)

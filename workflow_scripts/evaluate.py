@@ -3,9 +3,9 @@ held-out re-renders."""
 
 from pathlib import Path
 
+from dpi.inverse_stages import SolveSettings, evaluate_stage
+from dpi.io.logs import log_to
 from dpi.layout import INIT
-from dpi.logs import log_to
-from dpi.stages import SolveSettings, evaluate_stage
 
 w = snakemake.wildcards
 method, k = getattr(w, "method", INIT), int(getattr(w, "k", 0))

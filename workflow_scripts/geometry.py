@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from dpi.logs import log_to
+from dpi.io.logs import log_to
 from dpi.preprocess.stages import geometry_stage
 
 inputs = snakemake.input

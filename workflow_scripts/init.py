@@ -2,8 +2,8 @@
 
 from pathlib import Path
 
-from dpi.logs import log_to
-from dpi.stages import SolveSettings, init_stage
+from dpi.inverse_stages import SolveSettings, init_stage
+from dpi.io.logs import log_to
 
 with log_to(snakemake.log[0]):
     init_stage(snakemake.input.capture, Path(snakemake.output.trace).parent, snakemake.wildcards.scene,

@@ -1,7 +1,7 @@
 """Rule envmap_dataset: generate one family's procedural env-map dataset."""
 
 from dpi import backend
-from dpi.logs import log_to
+from dpi.io.logs import log_to
 from dpi.prior.procedural import make_envmap_dataset
 
 with log_to(snakemake.log[0]):

@@ -1,7 +1,7 @@
 """Rule masks: foreground masks of a capture's views (GrabCut with a sparse-point prior, or keying)."""
 
 from dpi.capture import CaptureError
-from dpi.logs import log_to
+from dpi.io.logs import log_to
 from dpi.preprocess.stages import masks_stage
 
 inputs = snakemake.input

@@ -3,7 +3,7 @@
 from pathlib import Path
 
 from dpi.capture import CaptureError
-from dpi.logs import log_to
+from dpi.io.logs import log_to
 from dpi.preprocess.stages import poses_stage
 
 with log_to(snakemake.log[0], one_line=(CaptureError,)):

@@ -3,8 +3,8 @@
 from pathlib import Path
 
 from dpi.evaluation.report import build_report
+from dpi.io.logs import log_to
 from dpi.layout import Layout
-from dpi.logs import log_to
 
 with log_to(snakemake.log[0]):
     layout = Layout(**{k: Path(v) for k, v in snakemake.params.layout.items()})

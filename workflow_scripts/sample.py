@@ -3,8 +3,8 @@
 from pathlib import Path
 
 from dpi.adaptive import AdaptiveConfig
-from dpi.logs import log_to
-from dpi.stages import SolveSettings, sample_stage
+from dpi.inverse_stages import SolveSettings, sample_stage
+from dpi.io.logs import log_to
 
 w = snakemake.wildcards
 with log_to(snakemake.log[0]):

@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from dpi.logs import log_to
+from dpi.io.logs import log_to
 from dpi.synth.capture import SynthConfig, make_synthetic_capture
 
 with log_to(snakemake.log[0]):

@@ -1,7 +1,7 @@
 """Rule train_prior: train (resuming) a prior on a dataset folder and export its EMA weights."""
 
 from dpi import backend
-from dpi.logs import log_to
+from dpi.io.logs import log_to
 from dpi.prior.train import PriorJobConfig, train_and_export
 
 with log_to(snakemake.log[0]):

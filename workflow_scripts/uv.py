@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from dpi.logs import log_to
+from dpi.io.logs import log_to
 from dpi.preprocess.stages import uv_stage
 
 with log_to(snakemake.log[0]):

@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from dpi.capture.model import CaptureError, CaptureWarning
-from dpi.envmap import EnvmapLayoutError, read_envmap
-from dpi.exr import EXRError, read_exr
-from dpi.images import HDR_SUFFIXES, IMAGE_SUFFIXES, LDR_SUFFIXES, ImageError, decode_ldr, read_image, read_mask
+from dpi.io.exr import EXRError, read_exr
+from dpi.io.images import HDR_SUFFIXES, IMAGE_SUFFIXES, LDR_SUFFIXES, ImageError, decode_ldr, read_image, read_mask
+from dpi.light.envmap import EnvmapLayoutError, read_envmap
 
 CLIPPED_WARNING_FRACTION = 0.01
 """an LDR image with at least this fraction of pixels at white gets a warning"""
@@ -166,7 +166,7 @@ def gt_files(root: Path) -> dict[str, Path]:
 
 
 def read_ground_truth(path: str | os.PathLike, name: str, log: bool = False) -> np.ndarray:
-    """A ground-truth map, the one reader of gt/*.exr: the envmap (H, 2H, 3) through `dpi.envmap.read_envmap`
+    """A ground-truth map, the one reader of gt/*.exr: the envmap (H, 2H, 3) through `dpi.light.envmap.read_envmap`
     (any layout it reads; `log` prints its changes), a texture (albedo (H, W, 3), grey repeated; roughness,
     metallic (H, W, 1), the first channel, as `MaterialTextures.load`); NaN, Inf or negative values are an
     EXRError naming the file."""

@@ -17,7 +17,7 @@ from dpi.capture.model import Capture, CaptureError, CaptureWarning, View
 from dpi.capture.scene_yaml import read_scene_options
 from dpi.capture.transforms import frame_masks, names_masks, read_transforms_json, transforms_cameras
 from dpi.consistency import cameras_problem
-from dpi.images import read_mask
+from dpi.io.images import read_mask
 from dpi.layout import SceneLayout
 
 MIN_TRAIN_VIEWS = 3

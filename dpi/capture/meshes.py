@@ -10,14 +10,14 @@ import numpy as np
 
 from dpi.capture.folder import named_files
 from dpi.capture.model import CaptureError
-from dpi.mitsuba_xml import MitsubaXMLError, read_mesh_shapes
+from dpi.io.mitsuba_xml import MitsubaXMLError, read_mesh_shapes
 
 MESH_NAMES = ("mesh.ply", "mesh.obj", "mesh.glb", "mesh.gltf")
 """matched case-insensitively (mesh.PLY), as image suffixes are"""
 
 
 GLTF_SUFFIXES = (".glb", ".gltf")
-"""mesh formats Mitsuba does not read: the capture stage converts them to PLY (dpi.mesh_convert)"""
+"""mesh formats Mitsuba does not read: the capture stage converts them to PLY (dpi.capture.mesh_convert)"""
 
 
 PLY_UV_PAIRS = (("u", "v"), ("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))

@@ -8,7 +8,7 @@ from pathlib import Path
 from dpi.cameras import Camera
 from dpi.capture.model import CaptureError
 from dpi.capture.transforms import fit_camera
-from dpi.mitsuba_xml import MitsubaXMLError, read_sensors
+from dpi.io.mitsuba_xml import MitsubaXMLError, read_sensors
 
 
 def camera_xml(root: Path) -> Path | None:

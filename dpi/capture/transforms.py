@@ -9,7 +9,7 @@ from pathlib import Path, PurePosixPath
 from dpi.cameras import Camera, TransformsError, camera_problem, read_transforms
 from dpi.capture.folder import view_name
 from dpi.capture.model import CaptureError
-from dpi.images import IMAGE_SUFFIXES
+from dpi.io.images import IMAGE_SUFFIXES
 
 ASPECT_TOLERANCE = 1e-3
 

@@ -13,14 +13,17 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from dpi.atomic import atomic_path  # noqa: E402
 from dpi.capture import read_ground_truth  # noqa: E402
-from dpi.envmap import read_envmap  # noqa: E402
-from dpi.images import linear_to_srgb, luminance  # noqa: E402
-from dpi.exposure import middle_grey_gain  # noqa: E402
-from dpi.layout import TEXTURE_NAMES  # noqa: E402
 from dpi.evaluation.metrics import aligned_env  # noqa: E402
-from dpi.images import tonemap  # noqa: E402
+from dpi.exposure import middle_grey_gain  # noqa: E402
+from dpi.io.atomic import atomic_path  # noqa: E402
+from dpi.io.images import (  # noqa: E402
+    linear_to_srgb,
+    luminance,
+    tonemap,  # noqa: E402
+)
+from dpi.layout import TEXTURE_NAMES  # noqa: E402
+from dpi.light.envmap import read_envmap  # noqa: E402
 
 HELD_OUT_COLOR = "#d62728"
 SCENE_MARKERS = "osD^vPX*"
@@ -53,7 +56,7 @@ def display_env(env: np.ndarray, reference: np.ndarray | None) -> np.ndarray:
 
 def envmap_grid(rows: list[tuple[str, list[Path]]], path: str | Path, reference: Path | None = None) -> None:
     """PNG grid: one row per (label, env EXRs), ground truth on top when given; maps scale-aligned to it. Every
-    map is read by `dpi.envmap.read_envmap`, so a ground truth in an authors' layout (256 x 257) is drawn H x 2H."""
+    map is read by `dpi.light.envmap.read_envmap`, so a ground truth in an authors' layout (256 x 257) is drawn H x 2H."""
     ref = read_ground_truth(reference, "envmap") if reference else None
     table = ([("ground truth", [reference])] if reference else []) + rows
     axes = _panels(len(table), max(len(files) for _, files in table), 2.4, 1.4)

@@ -17,7 +17,7 @@ import torch
 from skimage.metrics import structural_similarity
 
 from dpi.exposure import middle_grey_gain, robust_level
-from dpi.images import luminance, resize, tonemap
+from dpi.io.images import luminance, resize, tonemap
 
 EPS = 1e-6
 """log-space guard, relative to a map's level"""

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from dpi.images import resize
+from dpi.io.images import resize
 from dpi.prior.data import radiance_scale
 from dpi.prior.diffusion import training_losses
 from dpi.prior.sample import Prior

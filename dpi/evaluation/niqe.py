@@ -27,9 +27,9 @@ from PIL import Image
 from scipy.ndimage import correlate1d
 from scipy.special import gamma
 
-from dpi.images import linear_to_srgb, luminance
-from dpi.layout import package_data
 from dpi.evaluation.metrics import resize_area
+from dpi.io.images import linear_to_srgb, luminance
+from dpi.layout import package_data
 from dpi.spread import normalized_env
 
 PRISTINE_MODEL = package_data("niqe_pristine.npz")

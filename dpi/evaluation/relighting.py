@@ -23,7 +23,7 @@ import torch
 
 from dpi.capture import read_ground_truth
 from dpi.evaluation.metrics import missing, psnr, ssim
-from dpi.images import linear_to_srgb
+from dpi.io.images import linear_to_srgb
 from dpi.layout import TEXTURE_NAMES
 from dpi.materials import MaterialTextures, resize_texture
 from dpi.render import Renderer

@@ -18,15 +18,24 @@ from urllib.parse import quote
 
 import numpy as np
 
-from dpi.atomic import write_text
 from dpi.capture import Capture, capture_warnings, complete_capture, read_capture_json, read_ground_truth
-from dpi.evaluation.figures import (MethodPoint, Rerender, mask_gallery, quality_diversity_plot, relit_grid,
-                                    rerender_grid, roughness_diversity_plot, texture_grid, view_strip)
-from dpi.evaluation.relighting import RELIGHT_MAPS, channel_scaled, relit_name
+from dpi.evaluation.figures import (
+    MethodPoint,
+    Rerender,
+    mask_gallery,
+    quality_diversity_plot,
+    relit_grid,
+    rerender_grid,
+    roughness_diversity_plot,
+    texture_grid,
+    view_strip,
+)
 from dpi.evaluation.metric_table import metric_table, missing_reason, number, read_summary
+from dpi.evaluation.relighting import RELIGHT_MAPS, channel_scaled, relit_name
 from dpi.evaluation.sample_metrics import masked_srgb
-from dpi.exr import read_exr
-from dpi.images import read_image, read_mask
+from dpi.io.atomic import write_text
+from dpi.io.exr import read_exr
+from dpi.io.images import read_image, read_mask
 from dpi.layout import SUMMARY_FILE, TEXTURE_NAMES, Layout, SceneLayout, texture_file, view_file
 from dpi.synth.capture import read_marker
 from dpi.working import working_capture

@@ -16,13 +16,13 @@ import numpy as np
 import torch
 
 from dpi.capture import read_ground_truth
-from dpi.evaluation.metrics import PSNR_CAP, aligned_env, albedo_mse, env_metrics, missing, psnr, ssim
+from dpi.evaluation.metrics import PSNR_CAP, albedo_mse, aligned_env, env_metrics, missing, psnr, ssim
 from dpi.evaluation.naturalness import naturalness
-from dpi.evaluation.relighting import RELIGHT_HEIGHT, relight_held_out, relight_metrics
 from dpi.evaluation.niqe import ENV_HEIGHT, env_niqe
 from dpi.evaluation.perceptual import ALEXNET_WEIGHTS, LPIPS_MIN_SIZE, lpips_distance, missing_weights, pretrained_lpips
+from dpi.evaluation.relighting import RELIGHT_HEIGHT, relight_held_out, relight_metrics
 from dpi.exposure import MIDDLE_GREY
-from dpi.images import linear_to_srgb
+from dpi.io.images import linear_to_srgb
 from dpi.prior.sample import Prior, load_scene_prior
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.problem import InverseProblem

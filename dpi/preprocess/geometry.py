@@ -145,7 +145,7 @@ def working_photos(cameras: list[Camera], masks: list[np.ndarray], images: list[
     downsampled; None or smaller views: as they are)."""
     import torch
 
-    from dpi.images import resize, resize_mask, working_size
+    from dpi.io.images import resize, resize_mask, working_size
 
     out = ([], [], [])
     for camera, mask, image in zip(cameras, masks, images):
@@ -163,7 +163,7 @@ def without_ground(masks: list[np.ndarray], photos: tuple[list[Camera], list[np.
                    ) -> tuple[list[np.ndarray], tuple[list[Camera], list[np.ndarray], list[np.ndarray]], dict]:
     """The full-size masks and the `working_photos` without the pixels that see the ground, found at the
     working photos' size (dpi.preprocess.ground.remove_ground), and the ground test's summary."""
-    from dpi.images import resize_mask
+    from dpi.io.images import resize_mask
     from dpi.preprocess.ground import remove_ground
 
     cameras, small, images = photos
@@ -232,7 +232,7 @@ def write_mesh_ply(path: str | Path, vertices: np.ndarray, faces: np.ndarray) ->
     """A mesh without UVs as a binary PLY (written by trimesh, atomically)."""
     import trimesh
 
-    from dpi.atomic import atomic_path
+    from dpi.io.atomic import atomic_path
 
     with atomic_path(path) as tmp:
         trimesh.Trimesh(vertices, faces, process=False).export(tmp, file_type="ply")

@@ -41,7 +41,7 @@ from pydantic import Field
 
 from dpi.cameras import Camera
 from dpi.consistency import mask_iou
-from dpi.images import (
+from dpi.io.images import (
     read_image,
     resize,
     resize_mask,

@@ -30,7 +30,7 @@ from PIL import Image, ImageOps
 from pydantic import Field
 
 from dpi.cameras import Camera
-from dpi.images import exif_orientation
+from dpi.io.images import exif_orientation
 from dpi.preprocess.hull import axes_centre, visible_sphere
 from dpi.settings import Count, Fraction, Rate, settings
 
@@ -343,7 +343,7 @@ def normalise(model: SparseModel) -> SparseModel:
 
 def write_points_ply(path: str | Path, points: np.ndarray, colors: np.ndarray, on_object: np.ndarray) -> None:
     """Sparse points as an ASCII PLY (x, y, z, red, green, blue, object flag)."""
-    from dpi.atomic import write_text
+    from dpi.io.atomic import write_text
 
     lines = ["ply", "format ascii 1.0", f"element vertex {len(points)}", "property float x", "property float y",
              "property float z", "property uchar red", "property uchar green", "property uchar blue",

@@ -15,11 +15,18 @@ import time
 from pathlib import Path
 from typing import Any
 
-from dpi.atomic import write_json
 from dpi.cameras import Camera, read_cameras, write_transforms
-from dpi.capture import (Capture, CaptureError, camera_fit_problem, inspect_capture, load_capture, read_capture_json,
-                         write_capture_json)
-from dpi.images import read_mask
+from dpi.capture import (
+    Capture,
+    CaptureError,
+    camera_fit_problem,
+    inspect_capture,
+    load_capture,
+    read_capture_json,
+    write_capture_json,
+)
+from dpi.io.atomic import write_json
+from dpi.io.images import read_mask
 from dpi.layout import SUMMARY_FILE, SceneLayout, geometry_files, poses_files
 from dpi.settings import settings_from_dict
 
@@ -68,9 +75,9 @@ def check_given_mesh(capture: Capture, cameras: dict[str, Camera], masks: dict[s
 
 def capture_stage(capture_dir: str | Path, out_json: str | Path) -> None:
     """Validate a capture folder once and write its normalised description (capture.json), its views taken
-    through a lens undistorted beside it (dpi.undistort) and a glTF mesh converted to PLY (dpi.mesh_convert)."""
-    from dpi.mesh_convert import renderable_mesh
-    from dpi.undistort import undistorted_capture
+    through a lens undistorted beside it (dpi.capture.undistort) and a glTF mesh converted to PLY (dpi.capture.mesh_convert)."""
+    from dpi.capture.mesh_convert import renderable_mesh
+    from dpi.capture.undistort import undistorted_capture
 
     scene = SceneLayout(Path(out_json).parent)
     capture = renderable_mesh(load_capture(capture_dir), scene.given_mesh_ply)
@@ -169,7 +176,7 @@ def geometry_stage(capture_json: str | Path, out_dir: str | Path, settings: dict
     if cfg.stereo or cfg.ground:
         import torch
 
-        from dpi.images import read_image
+        from dpi.io.images import read_image
 
         torch.set_num_threads(max(1, threads))
         paths = {v.name: v.image for v in capture.views}

@@ -38,7 +38,6 @@ from dpi.cameras import Camera
 from dpi.consistency import raycasting_scene
 from dpi.settings import Count, Fraction, Steps, Weight, settings
 
-
 BAND_VOXELS = 3.0
 """truncation of the carving distance, in hull voxels"""
 MARGIN_VOXELS = 0.5
@@ -96,7 +95,7 @@ def grey(image: np.ndarray, blur_px: float) -> np.ndarray:
     """Luminance of a linear RGB image, sRGB-encoded (matching works on perceptual contrast) and blurred."""
     import cv2
 
-    from dpi.images import linear_to_srgb, luminance
+    from dpi.io.images import linear_to_srgb, luminance
 
     out = linear_to_srgb(np.clip(luminance(image), 0, 1)).astype(np.float32)
     return cv2.GaussianBlur(out, (0, 0), blur_px) if blur_px > 0 else out
@@ -299,7 +298,7 @@ def highlights(image: np.ndarray, mask: np.ndarray, ratio: float) -> np.ndarray:
     times the mean of their masked surroundings (Gaussian, 8 px), grown by 3 px."""
     import cv2
 
-    from dpi.images import luminance
+    from dpi.io.images import luminance
 
     lum = cv2.GaussianBlur(luminance(image).astype(np.float32), (0, 0), 2)
     weight = mask.astype(np.float32)

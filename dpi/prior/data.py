@@ -2,7 +2,7 @@
 
 Radiance convention (also stored in every checkpoint): each map L is divided by a per-map scale
 s = median luminance(L) / median_target, so its median luminance becomes `median_target`, then
-mapped to [-1, 1] by the prior's encoding (dpi.tonecurve): log radiance (median_target 1), or the
+mapped to [-1, 1] by the prior's encoding (dpi.light.tonecurve): log radiance (median_target 1), or the
 paper's tone curve x = 2 a (L / s)^(1/gamma) - 1 (median_target per family, `MEDIAN_TARGETS`).
 Going back, `encoding.with_scale(s).to_radiance(x)` gives HDR radiance for any chosen scene
 scale s. Augmentation is the paper's, a random horizontal roll (rotation about the up axis) and a
@@ -20,9 +20,9 @@ import numpy as np
 import torch
 from torch.nn import functional as F
 
-from dpi.atomic import atomic_path
-from dpi.images import IMAGE_SUFFIXES, luminance, read_image
-from dpi.tonecurve import Encoding, encoding_from_dict
+from dpi.io.atomic import atomic_path
+from dpi.io.images import IMAGE_SUFFIXES, luminance, read_image
+from dpi.light.tonecurve import Encoding, encoding_from_dict
 
 PANORAMA_SUFFIXES = IMAGE_SUFFIXES + (".hdr",)
 MEDIAN_TARGETS = {"outdoor": 0.3, "indoor": 0.05}
@@ -36,7 +36,7 @@ WHITE_BALANCE_JITTER = 0.08
 
 
 def read_panorama(path: str | Path) -> np.ndarray:
-    """Linear float32 (h, w, 3) from .exr/.png/.jpg (via dpi.images) or Radiance .hdr (via Mitsuba's Bitmap)."""
+    """Linear float32 (h, w, 3) from .exr/.png/.jpg (via dpi.io.images) or Radiance .hdr (via Mitsuba's Bitmap)."""
     path = Path(path)
     if path.suffix.lower() != ".hdr":
         return read_image(path)

@@ -1,9 +1,9 @@
 """Daylight over procedural outdoor scenes: a sky radiance map plus the sun as a direction and an irradiance.
 
-The physical sky and sun come from Mitsuba's `sunsky` (`dpi.skies.sunsky_envmap`): the sun-to-sky
+The physical sky and sun come from Mitsuba's `sunsky` (`dpi.light.skies.sunsky_envmap`): the sun-to-sky
 ratio is the model's, never clamped. The sun is kept apart from the sky so that scene geometry can
 shade surfaces with it (n.s times its irradiance) and hide it; `add_sun` draws it back as a disc with
-its aureole (dpi.sunlight), its power preserved. Broken clouds dim the sun; an overcast deck
+its aureole (dpi.light.sunlight), its power preserved. Broken clouds dim the sun; an overcast deck
 hides it and spreads the sky's total irradiance times a transmittance over a CIE-overcast-like dome.
 All maps are (H, 2H, 3) in dpi's +Y-up convention; a `Daylight` sky is zero below the horizon.
 """
@@ -14,10 +14,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from dpi.envmap import direction_to_texel, texel_angles, texel_directions, texel_solid_angles
-from dpi.images import luminance
-from dpi.skies import SkyParams, sun_direction, sunsky_envmap
-from dpi.sunlight import draw_sun_np
+from dpi.io.images import luminance
+from dpi.light.envmap import direction_to_texel, texel_angles, texel_directions, texel_solid_angles
+from dpi.light.skies import SkyParams, sun_direction, sunsky_envmap
+from dpi.light.sunlight import draw_sun_np
 
 LOW_SUN_PROBABILITY = 0.3  # share of suns drawn between 0.5 and 10 degrees of elevation
 CLOUD_WHITE = np.array([1.0, 0.98, 0.95])
@@ -120,7 +120,7 @@ def overcast(light: Daylight, rng: np.random.Generator, transmittance: float) ->
 
 
 def add_sun(env: np.ndarray, light: Daylight, visible: bool) -> np.ndarray:
-    """The map with the sun drawn as a disc with its aureole (dpi.sunlight), its power kept, unless something
+    """The map with the sun drawn as a disc with its aureole (dpi.light.sunlight), its power kept, unless something
     hides it."""
     if not visible or not light.sun_irradiance.any():
         return env

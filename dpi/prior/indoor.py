@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dpi.envmap import directions_from_angles
+from dpi.light.envmap import directions_from_angles
 
 WALL_COLOURS = np.array([[0.85, 0.83, 0.78], [0.7, 0.75, 0.8], [0.8, 0.7, 0.55], [0.6, 0.7, 0.6], [0.9, 0.9, 0.9]])
 FLOOR_COLOURS = np.array([[0.45, 0.3, 0.18], [0.3, 0.3, 0.3], [0.6, 0.55, 0.45], [0.2, 0.15, 0.1]])

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from dpi.envmap import direction_to_texel, texel_angles, texel_directions
-from dpi.images import with_luminance
+from dpi.io.images import with_luminance
+from dpi.light.envmap import direction_to_texel, texel_angles, texel_directions
 from dpi.prior.daylight import Daylight, add_sun, irradiance, random_daylight, spherical_noise, upper_hemisphere
 from dpi.prior.street import SNOW, SNOW_PROBABILITY, random_street, street_envmap
 

@@ -16,8 +16,8 @@ import unicodedata
 from dataclasses import dataclass, fields
 from pathlib import Path
 
+from dpi.light.tonecurve import Encoding
 from dpi.prior.data import EnvmapDataset, list_panoramas
-from dpi.tonecurve import Encoding
 
 MANIFEST = Path(__file__).resolve().parents[1] / "data" / "panoramas.csv"
 SPLITS = ("train", "held_out")

@@ -9,15 +9,14 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
+import torch
 from tqdm import tqdm
 
-import torch
-
-from dpi.atomic import write_json
-from dpi.exr import write_exr
-from dpi.images import luminance
+from dpi.io.atomic import write_json
+from dpi.io.exr import write_exr
+from dpi.io.images import luminance
+from dpi.light.tonecurve import Encoding
 from dpi.prior.data import EnvmapDataset, median_target, to_prior_space
-from dpi.tonecurve import Encoding
 
 MAX_DYNAMIC_RANGE = 1e8  # max / median luminance above this is implausible for our generators
 

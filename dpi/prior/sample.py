@@ -9,13 +9,13 @@ import numpy as np
 import torch
 from PIL import Image
 
-from dpi.atomic import atomic_path, write_json
 from dpi.capture import PRIORS
-from dpi.exr import write_exr
+from dpi.io.atomic import atomic_path, write_json
+from dpi.io.exr import write_exr
 from dpi.layout import package_data
+from dpi.light.tonecurve import Encoding, encoding_from_dict
 from dpi.prior.diffusion import Diffusion, base_diffusion, evenly_spaced_timesteps, respaced, sample
 from dpi.prior.unet import UNetModel, load_checkpoint
-from dpi.tonecurve import Encoding, encoding_from_dict
 
 MODELS_DIR = package_data("models")
 """the shipped priors (and their training logs), inside the package"""

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dpi.envmap import direction_to_texel, directions_from_angles
-from dpi.images import with_luminance
+from dpi.io.images import with_luminance
+from dpi.light.envmap import direction_to_texel, directions_from_angles
 from dpi.prior.daylight import Daylight, add_sun, irradiance
 
 SUPERSAMPLE = 2  # primary rays per texel along each axis

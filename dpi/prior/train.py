@@ -1,7 +1,7 @@
 """Training a diffusion prior on a folder of env maps: Adam, EMA, resumable atomic checkpoints, logs.
 
 A checkpoint is a dict: 'format', 'config' (UNetConfig), 'family', 'height', 'tone' (the encoding's
-parameters, dpi.tonecurve, and median_target), 'diffusion' (num_timesteps, schedule), 'model', 'ema',
+parameters, dpi.light.tonecurve, and median_target), 'diffusion' (num_timesteps, schedule), 'model', 'ema',
 'optimizer', 'step', 'wall_seconds', 'train' (TrainConfig). `export_model` strips it to EMA weights
 (fp16) for shipping. Next to the checkpoint go `{stem}.log.jsonl` (one line per logged step) and
 `{stem}_samples/`. On a GPU the maps live on the device and the forward pass runs in bfloat16
@@ -20,7 +20,8 @@ from pathlib import Path
 import torch
 from tqdm import tqdm
 
-from dpi.atomic import atomic_path
+from dpi.io.atomic import atomic_path
+from dpi.light.tonecurve import family_encoding
 from dpi.prior.data import EnvmapDataset, clip_highlights, median_target, read_dataset
 from dpi.prior.diffusion import (
     base_diffusion,
@@ -48,7 +49,6 @@ from dpi.settings import (
     settings,
     settings_from_dict,
 )
-from dpi.tonecurve import family_encoding
 
 CHECKPOINT_FORMAT = "dpi-prior-v1"
 LR_SCHEDULES = ("constant", "cosine")

@@ -20,7 +20,7 @@ from typing import Any
 
 import torch
 
-from dpi.atomic import atomic_path
+from dpi.io.atomic import atomic_path
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
 

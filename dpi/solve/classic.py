@@ -21,7 +21,6 @@ from dpi.solve.priors import make_prior
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
 
-
 PRIOR_WEIGHT_RATIO = 1.0
 """prior weight relative to the balanced one (1: equal magnitude at the start)"""
 

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import torch
 
-from dpi.envmap import read_envmap
-from dpi.exr import write_exr
+from dpi.io.exr import write_exr
 from dpi.layout import ENV_FILE, SAMPLE_TRACE
+from dpi.light.envmap import read_envmap
 from dpi.materials import MaterialTextures
 from dpi.solve.trace import Trace
 

@@ -26,7 +26,7 @@ import torch
 from pydantic import Field
 from torch import nn
 
-from dpi.envmap import pad_equirect
+from dpi.light.envmap import pad_equirect
 from dpi.settings import Count, Steps, settings
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.init import starting_materials

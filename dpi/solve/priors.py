@@ -12,7 +12,8 @@ from typing import Callable
 
 import torch
 
-from dpi.images import luminance
+from dpi.io.images import luminance
+
 
 def global_norm_penalty(env: torch.Tensor, reference_median: float) -> torch.Tensor:
     """(log median luminance - log reference)^2."""

@@ -18,7 +18,7 @@ import torch
 
 from dpi.capture import Capture
 from dpi.exposure import MIDDLE_GREY, capture_exposure
-from dpi.images import read_image, read_mask, resize
+from dpi.io.images import read_image, read_mask, resize
 from dpi.layout import SAMPLE_TRACE
 from dpi.materials import MaterialTextures
 from dpi.render import Renderer, RenderSettings

@@ -37,7 +37,6 @@ from dpi.solve.prior_space import estimate_radiance_scale, prior_to_env
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
 
-
 SDS_WEIGHT_RATIO = 1.0
 
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from dpi.envmap import texel_directions
+from dpi.light.envmap import texel_directions
 from dpi.solve.optimize import LOG_ENV_RANGE, EnvModel
 
 MAX_ORDER = 2

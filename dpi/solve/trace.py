@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from dpi.atomic import write_json
+from dpi.io.atomic import write_json
 
 
 @dataclass

@@ -1,5 +1,5 @@
 """The one engine the studies run on: a study is a list of jobs (scene, method, dps variant, seed) drawn
-and scored through the workflow's own stage functions (dpi.stages) into rows of a CSV.
+and scored through the workflow's own stage functions (dpi.inverse_stages) into rows of a CSV.
 
 Every row carries the commit it was made at and a hash of its resolved settings (the scene's synthetic
 capture, the method's settings, the workflow sections a sample reads). A job's row is reused only when one
@@ -127,7 +127,7 @@ def workflow_config(env_height: int | None = None) -> dict[str, Any]:
 
 def prepare_capture(root: Path, scene: str, synth: dict, threads: int) -> Path:
     """The scene's capture and validated capture.json (made once, then reused); the latter's path."""
-    from dpi.stages import capture_stage
+    from dpi.inverse_stages import capture_stage
     from dpi.synth.capture import SynthConfig, make_synthetic_capture
 
     layout = study_layout(root)
@@ -142,7 +142,7 @@ def prepare_capture(root: Path, scene: str, synth: dict, threads: int) -> Path:
 
 def prepare_job(job: Job) -> None:
     """A job's scene: capture, capture.json and initialisation (made once, then reused)."""
-    from dpi.stages import SolveSettings, init_stage
+    from dpi.inverse_stages import SolveSettings, init_stage
 
     prepare_capture(job.root, job.scene, job.synth, threads=2)
     files = job.layout.scene(job.scene)
@@ -154,7 +154,7 @@ def prepare_job(job: Job) -> None:
 def run_job(job: Job) -> dict[str, Any]:
     """Draw (except for the init) and evaluate one sample; its row (SAMPLE_COLUMNS)."""
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-    from dpi.stages import SolveSettings, evaluate_stage, sample_stage
+    from dpi.inverse_stages import SolveSettings, evaluate_stage, sample_stage
 
     files, sample_dir = job.layout.scene(job.scene), job.sample_dir
     settings = SolveSettings.from_config(job.config, threads=1)

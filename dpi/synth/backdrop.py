@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dpi.envmap import direction_to_texel, texel_directions, texel_solid_angles
+from dpi.light.envmap import direction_to_texel, texel_directions, texel_solid_angles
 
 BACKGROUNDS = ("env", "textured", "plain")
 TILE = 64

@@ -21,11 +21,12 @@ import yaml
 from pydantic import Field
 from tqdm import tqdm
 
-from dpi.atomic import write_json, write_text
 from dpi.cameras import from_fov, orbit, write_transforms
-from dpi.exr import read_exr, write_exr
-from dpi.images import luminance, write_mask, write_srgb
+from dpi.io.atomic import write_json, write_text
+from dpi.io.exr import read_exr, write_exr
+from dpi.io.images import luminance, write_mask, write_srgb
 from dpi.layout import SYNTH_MARKER
+from dpi.light.skies import SkyParams, sunsky_envmap
 from dpi.prior.procedural import generator
 from dpi.render import Renderer, RenderSettings
 from dpi.settings import (
@@ -42,7 +43,6 @@ from dpi.settings import (
     settings,
     settings_from_dict,
 )
-from dpi.skies import SkyParams, sunsky_envmap
 from dpi.synth.backdrop import BACKGROUNDS, add_detail, composite_backdrop
 from dpi.synth.shapes import make_shape, write_ply
 from dpi.synth.textures import procedural_materials

@@ -116,7 +116,7 @@ def make_shape(name: str, resolution: int = 48, seed: int = 0) -> TriangleMesh:
 def write_ply(path: str | Path, mesh: TriangleMesh) -> None:
     """Write a PLY with per-vertex UVs through Mitsuba's own writer, so Mitsuba reads it back exactly."""
     from dpi import backend
-    from dpi.atomic import atomic_path
+    from dpi.io.atomic import atomic_path
 
     mi = backend.mitsuba()
     m = mi.Mesh("mesh", len(mesh.vertices), len(mesh.faces), has_vertex_normals=False, has_vertex_texcoords=True)

@@ -17,11 +17,11 @@ import pytest
 import trimesh
 from capture_helpers import NAMES, SIZE, edit_transforms, make_capture, raw_exr
 
+from dpi.cameras import to_mitsuba
 from dpi.capture import CaptureError, CaptureWarning, inspect_capture, load_capture, read_scene_options
 from dpi.exposure import capture_exposure
-from dpi.cameras import to_mitsuba
-from dpi.images import read_image, read_mask
-from dpi.stages import capture_stage
+from dpi.inverse_stages import capture_stage
+from dpi.io.images import read_image, read_mask
 
 RNG = np.random.default_rng(7)
 CODES = RNG.integers(0, 256, (SIZE, SIZE, 3), dtype=np.uint8)

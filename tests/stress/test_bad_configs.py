@@ -14,9 +14,9 @@ from capture_helpers import make_capture
 from workflow_helpers import REPO, SNAKEMAKE, TINY_CONFIG, write_config
 
 from dpi.config_validation import ConfigError, check_config
+from dpi.inverse_stages import SolveSettings, sample_stage
 from dpi.pipeline import CONFIG_SCHEMA, DEFAULT_CONFIG, read_yaml
 from dpi.settings import apply_preset
-from dpi.stages import SolveSettings, sample_stage
 
 SHIPPED = read_yaml(DEFAULT_CONFIG)
 

@@ -18,7 +18,7 @@ from capture_helpers import edit_transforms, make_capture
 
 from dpi.capture import CaptureError, load_capture
 from dpi.consistency import OPENCV_TO_GL, check_cameras, check_masks, overlaps, raycasting_scene, silhouettes
-from dpi.images import read_mask, write_mask
+from dpi.io.images import read_mask, write_mask
 
 VIEWS = ("r_000", "r_001", "r_002", "r_003", "r_004")
 
@@ -141,11 +141,12 @@ def test_helper_and_reference_layout_captures_pass(tmp_path):
 def test_derived_masks_are_checked_against_a_given_mesh(tmp_path):
     """Photos of the unit sphere with cameras and a given mesh twice its size: validation passes (the mesh
     projects into the images), the derived masks then stop the masks stage with one line naming their folder."""
-    from dpi.cameras import from_fov, orbit, write_transforms
-    from dpi.images import write_srgb
-    from dpi.preprocess.stages import masks_stage
-    from dpi.stages import capture_stage
     from test_preprocess_masks import sphere_view
+
+    from dpi.cameras import from_fov, orbit, write_transforms
+    from dpi.inverse_stages import capture_stage
+    from dpi.io.images import write_srgb
+    from dpi.preprocess.stages import masks_stage
 
     root = tmp_path / "capture"
     cameras = [from_fov(c2w, 32, 32, 40.0, f"v{i}") for i, c2w in enumerate(orbit(6, 6.0, (10.0, 35.0)))]
@@ -167,9 +168,9 @@ def test_derived_masks_are_checked_against_a_given_mesh(tmp_path):
 def test_cameras_from_structure_from_motion_are_checked_against_a_given_mesh(tmp_path, monkeypatch, frame_scale):
     """A capture with masks and a mesh but no cameras: the poses stage checks what structure from motion returns
     (stubbed: the true cameras, or the same in a frame twice the size) before writing it."""
+    from dpi.inverse_stages import capture_stage
     from dpi.preprocess import sfm
     from dpi.preprocess.stages import poses_stage
-    from dpi.stages import capture_stage
 
     root = make_capture(tmp_path / "scene", transforms=False)
     (root / "scene.yaml").write_text("held_out: [r_3]\n")

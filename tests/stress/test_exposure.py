@@ -13,18 +13,18 @@ import pytest
 import torch
 
 from dpi.capture import load_capture
-from dpi.exposure import MIDDLE_GREY, capture_exposure
-from dpi.exr import read_exr, write_exr
-from dpi.evaluation.sample_metrics import evaluate_sample
 from dpi.evaluation.figures import display_env
 from dpi.evaluation.metrics import PSNR_CAP, env_metrics
-from dpi.spread import normalized_env
 from dpi.evaluation.niqe import env_niqe
+from dpi.evaluation.sample_metrics import evaluate_sample
+from dpi.exposure import MIDDLE_GREY, capture_exposure
+from dpi.inverse_stages import SolveSettings, capture_stage, evaluate_stage, init_stage, sample_stage
+from dpi.io.exr import read_exr, write_exr
+from dpi.materials import MaterialTextures
 from dpi.render import RenderSettings
 from dpi.solve.decomposition import Decomposition
-from dpi.materials import MaterialTextures
 from dpi.solve.problem import InverseProblem, ProblemSettings
-from dpi.stages import SolveSettings, capture_stage, evaluate_stage, init_stage, sample_stage
+from dpi.spread import normalized_env
 
 SCALES = (1e-8, 1e-4, 1.0, 1e4, 1e8)
 SETTINGS = SolveSettings(RenderSettings(spp=4, threads=1), ProblemSettings(env_height=4, texture_size=8))

@@ -7,13 +7,13 @@ import json
 import cv2
 import numpy as np
 import pytest
-
 from capture_helpers import SIZE, cameras, edit_transforms, make_capture
+
 from dpi.cameras import Camera, Lens, from_fov, look_at
 from dpi.capture import CaptureError, camera_from_json, camera_to_json, load_capture, read_capture_json
-from dpi.images import read_image, read_mask
+from dpi.capture.undistort import distort_image, intrinsics, undistort_image
+from dpi.io.images import read_image, read_mask
 from dpi.preprocess.stages import capture_stage
-from dpi.undistort import distort_image, intrinsics, undistort_image
 
 BARREL = Lens(k1=-0.12, k2=0.03, p1=0.001, p2=-0.002)
 FISHEYE = Lens(fisheye=True, k1=0.05, k2=-0.01, k3=0.002, k4=0.0)

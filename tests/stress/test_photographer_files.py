@@ -6,11 +6,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from capture_helpers import NAMES, SIZE, edit_transforms, make_capture, sphere_mask
 from PIL import Image, ImageOps
 
-from capture_helpers import NAMES, SIZE, edit_transforms, make_capture, sphere_mask
 from dpi.capture import CaptureError, inspect_capture, load_capture
-from dpi.images import decode_ldr, read_mask, write_mask
+from dpi.io.images import decode_ldr, read_mask, write_mask
 from dpi.preprocess.sfm import upright_copies
 
 

@@ -6,8 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dpi.cameras import Camera, look_at, read_transforms, write_transforms
-from dpi.envmap import direction_to_texel, directions_from_angles, texel_directions
-from dpi.tonecurve import TONE_CURVES, LogEncoding
+from dpi.light.envmap import direction_to_texel, directions_from_angles, texel_directions
+from dpi.light.tonecurve import TONE_CURVES, LogEncoding
 
 finite = st.floats(min_value=-50, max_value=50, allow_nan=False)
 

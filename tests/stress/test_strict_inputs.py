@@ -19,8 +19,8 @@ from PIL import Image
 from workflow_helpers import REPO, SNAKEMAKE, write_config
 
 from dpi.capture import CaptureError, CaptureWarning, inspect_capture, load_capture
-from dpi.images import read_mask
-from dpi.stages import capture_stage
+from dpi.inverse_stages import capture_stage
+from dpi.io.images import read_mask
 
 
 def test_numeric_strings_are_numbers_where_nerfstudio_reads_them(tmp_path):
@@ -111,7 +111,7 @@ def test_mesh_file_names_ignore_case(tmp_path):
 
 def test_ground_truth_in_the_authors_layout_passes(tmp_path):
     """An envmap with a wrap column (H x 2H+1) validates, as the evaluation reads it."""
-    from dpi.exr import write_exr
+    from dpi.io.exr import write_exr
 
     root = make_capture(tmp_path / "scene")
     env = np.random.default_rng(0).uniform(0.5, 2.0, (4, 8, 3)).astype(np.float32)

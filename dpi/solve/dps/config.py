@@ -28,7 +28,7 @@ from dpi.solve.dps.paper import PaperSettings, paper_step
 from dpi.solve.dps.proximal import ProximalSettings, proximal_step
 from dpi.solve.dps.refine import RefineSettings
 from dpi.solve.dps.state import DPSRun, DPSState
-from dpi.solve.dps.sun import SunSettings
+from dpi.solve.dps.sun_choice import SunSettings
 from dpi.solve.init import is_glossy
 
 StepFunction = Callable[[DPSRun, DPSState, int], dict[str, Any]]

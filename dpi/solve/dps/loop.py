@@ -27,11 +27,11 @@ from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.config import SAMPLERS, DPSConfig
 from dpi.solve.dps.refine import refine
 from dpi.solve.dps.state import DPSRun, DPSState
-from dpi.solve.dps.sun import LR_SUN, LR_SUN_UV, wants_sun
+from dpi.solve.dps.sun_choice import LR_SUN, LR_SUN_UV, wants_sun
 from dpi.solve.init import starting_materials
 from dpi.solve.prior_space import env_to_prior, estimate_radiance_scale
 from dpi.solve.problem import InverseProblem
-from dpi.solve.sun import extract_sun, sun_summary
+from dpi.solve.sun_model import extract_sun, sun_summary
 from dpi.solve.trace import Trace
 
 CHECKPOINT_EVERY = 10

@@ -24,7 +24,7 @@ steps would absorb the map's errors. From then on, every `level_every` steps, th
 the recorded level that fits the views best. It starts from the init map noised to `start_noise`
 (SDEdit). The refinement (dpi.solve.dps.refine) then path-traces all the materials.
 
-With a sun (dpi.solve.dps.sun) the map is the prior's sky plus a parametric sun; its position and
+With a sun (dpi.solve.dps.sun_choice) the map is the prior's sky plus a parametric sun; its position and
 irradiance are fitted with the rest, and a prior on its share of the map's energy settles what the
 views cannot (a diffuse object barely tells a sun from a bright patch of sky around it).
 """
@@ -58,7 +58,7 @@ from dpi.solve.dps.state import (
     recentre_,
 )
 from dpi.solve.optimize import all_finite
-from dpi.solve.sun import share_penalty, sun_env, wrap_uv_
+from dpi.solve.sun_model import share_penalty, sun_env, wrap_uv_
 from dpi.solve.transport import LightTransport, TransportSettings
 
 MAX_EXPOSURE_STEP = 3.0

@@ -13,7 +13,8 @@ from typing import Any
 
 import torch
 
-from dpi.images import luminance
+from dpi.io.images import luminance
+from dpi.light.sunlight import merge_spots_into_sun
 from dpi.materials import MaterialTextures
 from dpi.prior.diffusion import (
     Diffusion,
@@ -24,11 +25,10 @@ from dpi.prior.diffusion import (
 from dpi.prior.sample import Prior
 from dpi.settings import Share, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.dps.sun import SunSettings
+from dpi.solve.dps.sun_choice import SunSettings
 from dpi.solve.prior_space import resample_env
 from dpi.solve.problem import InverseProblem
-from dpi.solve.sun import sun_env
-from dpi.sunlight import merge_spots_into_sun
+from dpi.solve.sun_model import sun_env
 
 
 @settings
@@ -40,7 +40,7 @@ class SamplerSettings:
     less starts from the init map noised to that level (SDEdit) and runs that fraction of the steps"""
 
     models_sun = False
-    """whether sun mode auto gives this sampler's samples a parametric sun (dpi.solve.dps.sun)"""
+    """whether sun mode auto gives this sampler's samples a parametric sun (dpi.solve.dps.sun_choice)"""
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> Any:
@@ -81,7 +81,7 @@ class DPSRun:
     first_index: int
     """schedule index of the first executed step (the last index, or lower when starting from the noised init)"""
     sun: SunSettings | None = None
-    """the map's parametric sun next to the prior's sky (dpi.solve.sun), None without one"""
+    """the map's parametric sun next to the prior's sky (dpi.solve.sun_model), None without one"""
     init: Decomposition | None = None
     """the initialisation the sample starts from"""
 
@@ -108,7 +108,7 @@ class DPSRun:
 
     def written_env(self, radiance: torch.Tensor, state: "DPSState") -> tuple[torch.Tensor, torch.Tensor, int]:
         """The sample's map at the problem's height: with a sun, any bright spot the prior drew in the sky is
-        moved into the fitted sun (dpi.sunlight.merge_spots_into_sun), so one sun remains; returns the map, the
+        moved into the fitted sun (dpi.light.sunlight.merge_spots_into_sun), so one sun remains; returns the map, the
         sun's irradiance (zero without one) and the number of spots merged."""
         height = self.problem.settings.env_height
         sky = self.sky(radiance, state, height)

@@ -185,6 +185,6 @@ class LightTransport:
 
 def resize_map(env: np.ndarray, height: int) -> np.ndarray:
     """An (H, 2H, 3) map area-resampled to `height` rows (itself when it has them)."""
-    from dpi.images import resize
+    from dpi.io.images import resize
 
     return env if env.shape[0] == height else resize(torch.from_numpy(env), height, 2 * height).numpy()

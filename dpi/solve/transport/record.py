@@ -62,7 +62,7 @@ chance to be sampled, so T stays unbiased and useful for maps brighter elsewhere
 def texel_weights(directions: np.ndarray, height: int) -> tuple[np.ndarray, np.ndarray]:
     """Texel indices (n, 4) into an (H, 2H) map and bilinear weights (n, 4) of Mitsuba's envmap lookup at
     world directions (n, 3): columns at u = atan2(x, -z) / 2pi are texel centres, rows at v = acos(y) / pi
-    span the poles (row r at v = r / (H - 1)), azimuth wraps (dpi.envmap documents the map's layout)."""
+    span the poles (row r at v = r / (H - 1)), azimuth wraps (dpi.light.envmap documents the map's layout)."""
     width = 2 * height
     d = np.asarray(directions, np.float64)
     u = np.mod(np.arctan2(d[:, 0], -d[:, 2]) / (2 * np.pi), 1.0)
@@ -300,8 +300,8 @@ def record_direct(setup: ViewSetup, spp: int, seed: int, cells: np.ndarray) -> n
 def bright_texels(guide: np.ndarray, share: float) -> np.ndarray:
     """The fewest texels that carry `share` of the guide map's energy (luminance x solid angle), if they are
     at most an eighth of the map (a sun, a window); none for a map whose light is spread out."""
-    from dpi.envmap import texel_solid_angles
-    from dpi.images import luminance
+    from dpi.io.images import luminance
+    from dpi.light.envmap import texel_solid_angles
 
     energy = (luminance(guide) * texel_solid_angles(guide.shape[0])).reshape(-1)
     order = np.argsort(energy)[::-1]

@@ -1,4 +1,4 @@
-"""Settings and decision of `dps`'s parametric sun (its geometry: dpi.solve.sun).
+"""Settings and decision of `dps`'s parametric sun (its geometry: dpi.solve.sun_model).
 
 With a sun the sampled map is the prior's sky plus a point of irradiance at a fitted position; it
 starts from the init map's brightest region. Whether a sample gets one is `mode`: on, off, or auto
@@ -21,7 +21,7 @@ from dpi.settings import (
     settings_from_dict,
 )
 from dpi.solve.init import GLOSSY_ROUGHNESS, is_glossy
-from dpi.solve.sun import SunExtraction
+from dpi.solve.sun_model import SunExtraction
 
 SUN_MODES = ("auto", "on", "off")
 SUN_FAMILIES = ("outdoor",)

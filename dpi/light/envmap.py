@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from dpi.exr import EXRError, read_exr
-from dpi.images import luminance, resize
+from dpi.io.exr import EXRError, read_exr
+from dpi.io.images import luminance, resize
 
 
 def texel_angles(height: int) -> tuple[np.ndarray, np.ndarray]:

@@ -10,8 +10,8 @@ import numpy as np
 import torch
 from PIL import Image
 
-from dpi.atomic import atomic_path
-from dpi.exr import EXRError, read_exr
+from dpi.io.atomic import atomic_path
+from dpi.io.exr import EXRError, read_exr
 
 LDR_SUFFIXES = (".png", ".jpg", ".jpeg")
 HDR_SUFFIXES = (".exr",)

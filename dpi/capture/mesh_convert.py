@@ -7,8 +7,9 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from dpi.atomic import atomic_path
-from dpi.capture import GLTF_SUFFIXES, Capture
+from dpi.capture.meshes import GLTF_SUFFIXES
+from dpi.capture.model import Capture
+from dpi.io.atomic import atomic_path
 
 
 def renderable_mesh(capture: Capture, ply: str | Path) -> Capture:

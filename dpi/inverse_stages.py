@@ -1,6 +1,6 @@
-"""Pipeline stages as functions of paths and typed settings: what each Snakemake rule (and the `dpi`
-command) runs. Each reads its inputs, calls the library, and writes its outputs atomically where
-dpi.layout says. The preprocessing group's stages are in dpi.preprocess.stages (capture_stage is
+"""The inverse and evaluation stages as functions of paths and typed settings: what each Snakemake rule (and
+the `dpi` command) runs after the capture. Each reads its inputs, calls the library, and writes its outputs
+atomically where dpi.layout says. The preprocessing group's stages are in dpi.preprocess.stages (capture_stage is
 importable from here too), the settings of a workflow config come from dpi.pipeline.
 """
 
@@ -12,22 +12,22 @@ from typing import Any
 
 from dpi import backend
 from dpi.adaptive import AdaptiveConfig
-from dpi.atomic import write_json
 from dpi.capture import complete_capture, read_capture_json
 from dpi.evaluation.figures import envmap_grid, uncertainty_grid
 from dpi.evaluation.relighting import relight_held_out
 from dpi.evaluation.sample_metrics import evaluate_sample, render_held_out
 from dpi.evaluation.summary import sample_rows, summarize, write_csv
 from dpi.exposure import MIDDLE_GREY
-from dpi.exr import read_exr, write_exr
+from dpi.io.atomic import write_json
+from dpi.io.exr import read_exr, write_exr
 from dpi.layout import INIT, INIT_TRACE, SAMPLE_TRACE, SceneLayout, decomposition_files, view_file
 from dpi.preprocess.stages import capture_stage  # noqa: F401  (the first stage of every scene)
 from dpi.prior.sample import load_scene_prior
 from dpi.seeding import seed_for
-from dpi.spread import albedo_std_map, log_std_map, mean_log_map
 from dpi.solve.init import InitConfig, path_traced_init
 from dpi.solve.methods import REGISTRY, SampleJob, method_config
 from dpi.solve.problem import InverseProblem, SolveSettings
+from dpi.spread import albedo_std_map, log_std_map, mean_log_map
 from dpi.working import working_capture
 
 RESUME_FILE = ".resume.pt"

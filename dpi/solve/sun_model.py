@@ -4,7 +4,7 @@ Outdoor light is a sky plus a sun carrying about half its energy in a few hundre
 of the sphere. A free or prior-guided map spreads that energy over a blurred blob (a diffuse
 object barely tells the two apart), so `dps` can model the sun apart from the sky: a sun of
 irradiance E (RGB) at map coordinates (u, v), drawn as a disc of the sun's angular size with its
-aureole (dpi.sunlight), so that its energy is E at any map size and it stays differentiable in
+aureole (dpi.light.sunlight), so that its energy is E at any map size and it stays differentiable in
 (u, v). `extract_sun` moves the excess energy of a map's brightest region into such a sun; the sampler
 then fits both.
 """
@@ -17,9 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from dpi.envmap import direction_to_uv, texel_solid_angles
-from dpi.images import luminance
-from dpi.sunlight import direction_of_uv, draw_sun, peel_brightest
+from dpi.io.images import luminance
+from dpi.light.envmap import direction_to_uv, texel_solid_angles
+from dpi.light.sunlight import direction_of_uv, draw_sun, peel_brightest
 
 
 @dataclass(frozen=True)
@@ -43,7 +43,7 @@ def solid_angles(height: int, dtype: torch.dtype = torch.float32) -> torch.Tenso
 
 def extract_sun(env: torch.Tensor, radius_deg: float = 25.0) -> SunExtraction:
     """The excess of the map over its surroundings within `radius_deg` of the brightest texel, as a sun
-    (dpi.sunlight.peel_brightest); the sun sits at the energy-weighted centroid of the excess."""
+    (dpi.light.sunlight.peel_brightest); the sun sits at the energy-weighted centroid of the excess."""
     spot = peel_brightest(env, radius_deg)
     uv = torch.as_tensor(direction_to_uv(spot.direction.numpy()), dtype=env.dtype)
     return SunExtraction(spot.sky, uv, spot.irradiance, spot.share)
@@ -51,12 +51,12 @@ def extract_sun(env: torch.Tensor, radius_deg: float = 25.0) -> SunExtraction:
 
 def sun_env(uv: torch.Tensor, irradiance: torch.Tensor, height: int) -> torch.Tensor:
     """(H, 2H, 3) map of a sun of `irradiance` (3,) at map coordinates `uv` (2,), drawn as a disc with its
-    aureole (dpi.sunlight): its energy is `irradiance` on any map, differentiable in both."""
+    aureole (dpi.light.sunlight): its energy is `irradiance` on any map, differentiable in both."""
     return draw_sun(direction_of_uv(uv), irradiance, height)
 
 
 def sun_direction_of(uv: torch.Tensor) -> np.ndarray:
-    """World direction of map coordinates (u, v) (Mitsuba's convention, as dpi.envmap)."""
+    """World direction of map coordinates (u, v) (Mitsuba's convention, as dpi.light.envmap)."""
     return direction_of_uv(torch.as_tensor(uv, dtype=torch.float64).detach()).numpy()
 
 

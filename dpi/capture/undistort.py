@@ -3,7 +3,7 @@ the pinhole camera with the same intrinsics, written beside capture.json, so eve
 geometry, init, the methods, evaluation) works on pinhole views.
 
 The copies are linear EXR (images) and EXR masks, written atomically and reused while their source is
-unchanged (dpi.working's stamp); pixels the pinhole sees beyond the photo's edge are black and outside the
+unchanged (the views' source stamps); pixels the pinhole sees beyond the photo's edge are black and outside the
 mask."""
 
 from __future__ import annotations
@@ -15,12 +15,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from dpi.atomic import write_json
 from dpi.cameras import Camera, Lens
-from dpi.capture import Capture, View
-from dpi.exr import write_exr
-from dpi.images import read_image, read_mask
-from dpi.working import source_stamp
+from dpi.capture.model import Capture, View, source_stamp
+from dpi.io.atomic import write_json
+from dpi.io.exr import write_exr
+from dpi.io.images import read_image, read_mask
 
 MANIFEST = "undistorted.json"
 

@@ -59,7 +59,7 @@ def read_exr(path: str | os.PathLike) -> np.ndarray:
 
 def write_exr(path: str | os.PathLike, image: np.ndarray, half: bool = False) -> None:
     """Write (H, W), (H, W, 1) or (H, W, 3) linear data as an EXR (float32 or half), atomically."""
-    from dpi.atomic import atomic_path
+    from dpi.io.atomic import atomic_path
 
     path = Path(path)
     image = np.asarray(image)

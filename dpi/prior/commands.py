@@ -6,9 +6,9 @@ import argparse
 import json
 
 from dpi.capture import PRIORS
+from dpi.light.tonecurve import ENCODINGS
 from dpi.prior.train import DEFAULT_MODEL, LR_SCHEDULES, PriorJobConfig, TrainConfig
 from dpi.settings import field_default
-from dpi.tonecurve import ENCODINGS
 
 
 def _threads(n: int) -> None:
@@ -25,8 +25,8 @@ def cmd_make_envmaps(args: argparse.Namespace) -> None:
 
     backend.mitsuba(threads=args.threads)
     if args.packed:
+        from dpi.light.tonecurve import family_encoding
         from dpi.prior.procedural import make_packed_dataset
-        from dpi.tonecurve import family_encoding
 
         manifest = make_packed_dataset(args.family, args.count, args.height, args.out,
                                        family_encoding(args.family, args.encoding), seed=args.seed)
@@ -37,8 +37,8 @@ def cmd_make_envmaps(args: argparse.Namespace) -> None:
 
 def cmd_pack_envmaps(args: argparse.Namespace) -> None:
     """Pack a folder of env maps into one .npz in prior space (to train elsewhere)."""
+    from dpi.light.tonecurve import family_encoding
     from dpi.prior.data import EnvmapDataset
-    from dpi.tonecurve import family_encoding
 
     data = EnvmapDataset.from_folder(args.data, args.height, args.family, family_encoding(args.family, args.encoding))
     data.save(args.out)
@@ -47,8 +47,8 @@ def cmd_pack_envmaps(args: argparse.Namespace) -> None:
 
 def cmd_panorama_set(args: argparse.Namespace) -> None:
     """Build a packed training (or held-out) set from a folder of real panoramas, checked against the manifest."""
+    from dpi.light.tonecurve import family_encoding
     from dpi.prior.panoramas import build_panorama_set
-    from dpi.tonecurve import family_encoding
 
     data = build_panorama_set(args.data, args.family, args.height, family_encoding(args.family, args.encoding),
                               args.split)
@@ -155,7 +155,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Stand-alone entry point: `python -m dpi.prior.cli <command> ...`."""
+    """Stand-alone entry point: `python -m dpi.prior.commands <command> ...`."""
     parser = argparse.ArgumentParser(prog="dpi-prior", description=__doc__)
     register(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(argv)

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from dpi.envmap import texel_directions, texel_solid_angles
-from dpi.images import luminance
+from dpi.io.images import luminance
+from dpi.light.envmap import texel_directions, texel_solid_angles
 
 SUN_RADIUS_DEG = 0.2665
 """half the sun's mean angular diameter as seen from the Earth (0.533 deg)"""
@@ -149,6 +149,6 @@ def merge_spots_into_sun(sky: torch.Tensor, irradiance: torch.Tensor, detail_hei
 
 
 def direction_of_uv(uv: torch.Tensor) -> torch.Tensor:
-    """Unit world direction (3,) of map coordinates (u, v), differentiable (Mitsuba's convention, dpi.envmap)."""
+    """Unit world direction (3,) of map coordinates (u, v), differentiable (Mitsuba's convention, dpi.light.envmap)."""
     phi, theta = 2 * math.pi * uv[0], math.pi * uv[1]
     return torch.stack([torch.sin(phi) * torch.sin(theta), torch.cos(theta), -torch.cos(phi) * torch.sin(theta)])
