@@ -80,7 +80,7 @@ def grouped_table(rows: list[Row], keys: tuple[str, ...], metrics: tuple[Metric,
             cell = "-" if s is None else f"{s[0]:{m.fmt}}"
             cell = f"**{cell}**" if (g, m.column) in best else cell
             if s is not None and m.spread and len(groups[g]) > 1:
-                cell += f" ± {s[1]:{m.fmt}}"
+                cell += f" ± {s[1]:{m.fmt.lstrip('+')}}"
             cells.append(cell)
         body.append(cells)
     return markdown([*keys, "n", *(m.header for m in metrics)], body)
@@ -183,6 +183,18 @@ def tradeoff(root: Path) -> str:
     return markdown(["setting", "s/sample", "env PSNR [dB]", "albedo MSE", "view PSNR [dB]", "Pareto"], body)
 
 
+def lens(root: Path) -> str:
+    """Lens study: a capture through a barrel lens, undistorted by dpi or its distortion ignored, against its
+    pinhole twin; the view PSNR also paired with the twin's of the same seed."""
+    rows = latest(read_rows(root / RESULTS / "lens_study.csv", ("variant",)), ("variant", "seed"))
+    twin = {r["seed"]: r["novel_psnr"] for r in rows if r["variant"] == "pinhole"}
+    for row in rows:
+        row["paired"] = row["novel_psnr"] - twin[row["seed"]] if row["seed"] in twin else None
+    metrics = (VIEW, Metric("view PSNR - pinhole's [dB]", "paired", "+.2f"), ENV, ALBEDO)
+    order = ("pinhole", "undistorted", "ignored")
+    return grouped_table(rows, ("variant",), metrics, order=lambda k: order.index(k[0]) if k[0] in order else 9)
+
+
 def presets(root: Path) -> str:
     """The quality presets of dpi's default config, each with the settings it fills (dpi.settings.apply_preset)."""
     from copy import deepcopy
@@ -209,7 +221,7 @@ def presets(root: Path) -> str:
 
 TABLES: dict[str, Callable[[Path], str]] = {
     "presets": presets, "posterior": posterior, "calibration": calibration, "fig9": fig9_ratios, "train_fit": train_fit,
-    "resolution": resolution, "roughness": roughness, "tradeoff": tradeoff,
+    "resolution": resolution, "roughness": roughness, "tradeoff": tradeoff, "lens": lens,
 }
 """every generated table by the name its markers use"""
 
