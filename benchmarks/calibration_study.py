@@ -29,21 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from dpi.studies.engine import (
-    TEXT_COLUMNS,
-    Job,
-    append_row,
-    dps_variants,
-    job_settings,
-    mean_std_cells,
-    pool,
-    prepare_job,
-    read_rows,
-    results_csv,
-    run_job,
-    work_dir,
-    workflow_config,
-)
+from dpi.studies.engine import (TEXT_COLUMNS, Job, append_row, dps_variants, job_settings, mean_std_cells, pool,
+                                prepare_job, read_rows, results_csv, run_job, work_dir, workflow_config)
 from dpi.studies.scenes import calibration_scenes as scenes
 from dpi.studies.scenes import repeat_scene, repeat_synth
 

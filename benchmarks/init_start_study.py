@@ -26,24 +26,10 @@ from typing import Any
 
 import numpy as np
 
-from dpi.studies.engine import (
-    append_row,
-    prepare_capture,
-    read_rows,
-    results_csv,
-    settings_hash,
-    work_dir,
-    workflow_config,
-)
-from dpi.studies.scenes import (
-    POSTERIOR_SCENES,
-    RESOLUTION_SCENES,
-    calibration_scenes,
-    repeat_scene,
-    repeat_synth,
-    resolution_config,
-    resolution_root,
-)
+from dpi.studies.engine import (append_row, prepare_capture, read_rows, results_csv, settings_hash, work_dir,
+                                workflow_config)
+from dpi.studies.scenes import (POSTERIOR_SCENES, RESOLUTION_SCENES, calibration_scenes, repeat_scene, repeat_synth,
+                                resolution_config, resolution_root)
 
 CSV = results_csv("init_start_study")
 COLUMNS = ("study", "scene", "roughness", "metallic", "start_roughness", "start_metallic", "pilot_loss",

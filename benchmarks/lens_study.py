@@ -25,17 +25,8 @@ from dpi.inverse_stages import SolveSettings, evaluate_stage, init_stage
 from dpi.io.exr import write_exr
 from dpi.io.images import read_image, read_mask, write_mask
 from dpi.preprocess.stages import capture_stage
-from dpi.studies.engine import (
-    append_row,
-    mean_std_cells,
-    prepare_capture,
-    read_rows,
-    results_csv,
-    settings_hash,
-    study_layout,
-    work_dir,
-    workflow_config,
-)
+from dpi.studies.engine import (append_row, mean_std_cells, prepare_capture, read_rows, results_csv, settings_hash,
+                                study_layout, work_dir, workflow_config)
 from dpi.studies.scenes import SIZE
 
 WORK = work_dir("lens_study")

@@ -21,7 +21,7 @@ from dpi import backend
 from dpi.evaluation.metrics import tonemap
 from dpi.io.images import luminance, write_srgb
 from dpi.light.envmap import texel_solid_angles
-from dpi.prior.outdoor import SCENE_KINDS, outdoor_envmap
+from dpi.worlds.outdoor import SCENE_KINDS, outdoor_envmap
 
 TOP_FRACTION = 0.005
 SHEET_COLUMNS = 4

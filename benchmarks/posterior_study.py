@@ -23,15 +23,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from dpi.studies.engine import (
-    SAMPLE_COLUMNS,
-    dps_variants,
-    mean_std_cells,
-    method_jobs,
-    run_job,
-    run_study,
-    workflow_config,
-)
+from dpi.studies.engine import (SAMPLE_COLUMNS, dps_variants, mean_std_cells, method_jobs, run_job, run_study,
+                                workflow_config)
 from dpi.studies.scenes import POSTERIOR_SCENES
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -24,9 +24,9 @@ from dpi.evaluation.naturalness import naturalness, prior_image
 from dpi.evaluation.niqe import env_niqe
 from dpi.prior.data import read_panorama
 from dpi.prior.panoramas import panorama_files
-from dpi.prior.procedural import checked_envmaps
 from dpi.prior.sample import DEFAULT_MODELS, draw_samples, load_prior, write_grid
 from dpi.studies.engine import append_row, settings_hash
+from dpi.worlds.families import checked_envmaps
 
 RESULTS = Path(__file__).resolve().parent / "results"
 HELD_OUT_SEED = 1000

@@ -27,16 +27,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from dpi.studies.engine import (
-    Job,
-    job_settings,
-    mean_std_cells,
-    results_csv,
-    run_job,
-    run_study,
-    study_layout,
-    work_dir,
-)
+from dpi.studies.engine import (Job, job_settings, mean_std_cells, results_csv, run_job, run_study, study_layout,
+                                work_dir)
 from dpi.studies.scenes import RESOLUTION_SCENES as SCENES
 from dpi.studies.scenes import resolution_config as size_config
 from dpi.studies.scenes import resolution_root

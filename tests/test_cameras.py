@@ -3,17 +3,8 @@
 import numpy as np
 import pytest
 
-from dpi.cameras import (
-    Camera,
-    from_fov,
-    from_mitsuba_matrix,
-    look_at,
-    orbit,
-    pixel_rays,
-    read_transforms,
-    to_mitsuba,
-    write_transforms,
-)
+from dpi.cameras import (Camera, from_fov, from_mitsuba_matrix, look_at, orbit, pixel_rays, read_transforms, to_mitsuba,
+                         write_transforms)
 
 
 def test_look_at_is_a_rotation_looking_at_the_target():

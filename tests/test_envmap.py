@@ -4,14 +4,8 @@ import numpy as np
 import pytest
 import torch
 
-from dpi.light.envmap import (
-    direction_to_texel,
-    pad_equirect,
-    pad_for_mitsuba,
-    texel_directions,
-    texel_solid_angles,
-    unpad_from_mitsuba,
-)
+from dpi.light.envmap import (direction_to_texel, pad_equirect, pad_for_mitsuba, texel_directions, texel_solid_angles,
+                              unpad_from_mitsuba)
 
 
 def eval_emitter(mi, emitter, directions):

@@ -10,16 +10,8 @@ import pytest
 from PIL import Image
 
 from dpi.io.exr import EXRError, read_exr, write_exr
-from dpi.io.images import (
-    ImageError,
-    linear_to_srgb,
-    read_image,
-    read_mask,
-    srgb_to_linear,
-    to_uint8,
-    write_mask,
-    write_srgb,
-)
+from dpi.io.images import (ImageError, linear_to_srgb, read_image, read_mask, srgb_to_linear, to_uint8, write_mask,
+                           write_srgb)
 
 
 def ramp(height: int = 4, width: int = 6) -> np.ndarray:

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from dpi.evaluation.naturalness import NaturalnessConfig, naturalness
-from dpi.prior.outdoor import outdoor_envmap
 from dpi.prior.sample import load_default_prior
+from dpi.worlds.outdoor import outdoor_envmap
 
 FAST = NaturalnessConfig(timesteps=(200, 500), seeds=(0,))
 

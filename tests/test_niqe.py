@@ -5,7 +5,7 @@ import pytest
 from skimage import data
 
 from dpi.evaluation.niqe import env_niqe, niqe, pristine_model
-from dpi.prior.outdoor import outdoor_envmap
+from dpi.worlds.outdoor import outdoor_envmap
 
 
 def test_pristine_model_is_a_covariance():

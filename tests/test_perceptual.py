@@ -6,18 +6,8 @@ import numpy as np
 import pytest
 import torch
 
-from dpi.evaluation.perceptual import (
-    ALEXNET_WEIGHTS,
-    INCEPTION_WEIGHTS,
-    WEIGHTS_ENV,
-    azimuth_rolls,
-    frechet_distance,
-    import_torchvision,
-    lpips_distance,
-    lpips_network,
-    missing_weights,
-    weights_dir,
-)
+from dpi.evaluation.perceptual import (ALEXNET_WEIGHTS, INCEPTION_WEIGHTS, WEIGHTS_ENV, azimuth_rolls, frechet_distance,
+                                       import_torchvision, lpips_distance, lpips_network, missing_weights, weights_dir)
 from dpi.evaluation.sample_metrics import lpips_network as evaluation_lpips
 
 

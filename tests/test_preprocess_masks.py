@@ -11,15 +11,8 @@ from dpi.cameras import from_fov, orbit, pixel_rays
 from dpi.consistency import mask_iou
 from dpi.io.images import srgb_to_linear
 from dpi.preprocess.hull import visible_sphere
-from dpi.preprocess.masks import (
-    MaskConfig,
-    clean_mask,
-    derive_masks,
-    drop_outliers,
-    mesh_silhouette,
-    object_mask,
-    refine_masks,
-)
+from dpi.preprocess.masks import (MaskConfig, clean_mask, derive_masks, drop_outliers, mesh_silhouette, object_mask,
+                                  refine_masks)
 from dpi.synth.backdrop import backdrop_texture
 
 SIZE = 64

@@ -9,15 +9,8 @@ import numpy as np
 import pytest
 
 from dpi.cameras import from_fov, look_at, orbit
-from dpi.preprocess.stereo import (
-    StereoConfig,
-    camera_rays,
-    carve_with_depths,
-    free_space,
-    highlights,
-    hull_depth_range,
-    sweep_depth,
-)
+from dpi.preprocess.stereo import (StereoConfig, camera_rays, carve_with_depths, free_space, highlights,
+                                   hull_depth_range, sweep_depth)
 
 SIZE = 64
 

@@ -9,21 +9,9 @@ from PIL import Image
 
 from dpi.io.exr import write_exr
 from dpi.light.tonecurve import family_encoding
-from dpi.prior.data import (
-    MEDIAN_TARGETS,
-    EnvmapDataset,
-    augment,
-    clip_highlights,
-    list_panoramas,
-    median_target,
-    radiance_scale,
-    read_dataset,
-    read_panorama,
-    resize_area,
-    roll_columns,
-    split_files,
-    to_prior_space,
-)
+from dpi.prior.data import (MEDIAN_TARGETS, EnvmapDataset, augment, clip_highlights, list_panoramas, median_target,
+                            radiance_scale, read_dataset, read_panorama, resize_area, roll_columns, split_files,
+                            to_prior_space)
 
 ENCODINGS = [("outdoor", "paper"), ("indoor", "paper"), ("outdoor", "log")]
 

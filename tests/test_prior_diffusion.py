@@ -6,21 +6,9 @@ import numpy as np
 import pytest
 import torch
 
-from dpi.prior.diffusion import (
-    base_diffusion,
-    eps_with_random_roll,
-    evenly_spaced_timesteps,
-    linear_betas,
-    model_log_variance,
-    model_timesteps,
-    p_mean_variance,
-    predict_x0,
-    q_sample,
-    random_roll_shift,
-    respaced,
-    sample,
-    training_losses,
-)
+from dpi.prior.diffusion import (base_diffusion, eps_with_random_roll, evenly_spaced_timesteps, linear_betas,
+                                 model_log_variance, model_timesteps, p_mean_variance, predict_x0, q_sample,
+                                 random_roll_shift, respaced, sample, training_losses)
 from dpi.prior.unet import SMALL_CONFIGS, UNetConfig, UNetModel
 
 

@@ -6,19 +6,10 @@ import numpy as np
 import pytest
 
 from dpi.io.images import luminance
-from dpi.prior.indoor import (
-    RectEmitter,
-    Room,
-    SpotLight,
-    cast_rays,
-    direct_irradiance,
-    indoor_envmaps,
-    rect_irradiance,
-    render_room,
-    subtexel_directions,
-    window_texture,
-)
-from dpi.prior.procedural import check_envmap
+from dpi.worlds.families import check_envmap
+from dpi.worlds.indoor import (RectEmitter, Room, SpotLight, cast_rays, direct_irradiance, indoor_envmaps,
+                               rect_irradiance, render_room, window_texture)
+from dpi.worlds.raycast import subtexel_directions
 
 SIZE = np.array([6.0, 3.0, 6.0])
 X, Y, Z = np.eye(3)

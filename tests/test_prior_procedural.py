@@ -9,8 +9,10 @@ import pytest
 
 from dpi.cli import main
 from dpi.io.exr import read_exr
-from dpi.prior.outdoor import outdoor_envmap, spherical_noise
-from dpi.prior.procedural import EnvmapCheckError, check_envmap, luminance, make_envmap_dataset
+from dpi.io.images import luminance
+from dpi.prior.procedural import make_envmap_dataset
+from dpi.worlds.families import EnvmapCheckError, check_envmap
+from dpi.worlds.outdoor import outdoor_envmap, spherical_noise
 
 
 def test_outdoor_map_is_valid_and_seeded() -> None:

@@ -5,15 +5,8 @@ from __future__ import annotations
 import pytest
 import torch
 
-from dpi.prior.unet import (
-    PAPER_CONFIG,
-    SMALL_CONFIGS,
-    CheckpointError,
-    UNetConfig,
-    UNetModel,
-    attention_ds_from_resolutions,
-    load_checkpoint,
-)
+from dpi.prior.unet import (PAPER_CONFIG, SMALL_CONFIGS, CheckpointError, UNetConfig, UNetModel,
+                            attention_ds_from_resolutions, load_checkpoint)
 
 
 def resblock_keys(prefix: str, cin: int, cout: int, emb: int, scale_shift: bool) -> dict[str, tuple]:

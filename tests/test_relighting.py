@@ -8,16 +8,8 @@ import torch
 
 from dpi.capture import load_capture
 from dpi.evaluation.metrics import PSNR_CAP
-from dpi.evaluation.relighting import (
-    RELIGHT_MAPS,
-    RELIGHT_METRICS,
-    channel_scaled,
-    ground_truth_materials,
-    relight_held_out,
-    relight_map,
-    relight_metrics,
-    relight_scores,
-)
+from dpi.evaluation.relighting import (RELIGHT_MAPS, RELIGHT_METRICS, channel_scaled, ground_truth_materials,
+                                       relight_held_out, relight_map, relight_metrics, relight_scores)
 from dpi.light.envmap import top_energy_share
 from dpi.materials import MaterialTextures
 from dpi.render import RenderSettings

@@ -5,16 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from dpi.studies.engine import (
-    PROVENANCE,
-    SAMPLE_COLUMNS,
-    Job,
-    append_row,
-    current_commit,
-    read_rows,
-    run_study,
-    settings_hash,
-)
+from dpi.studies.engine import (PROVENANCE, SAMPLE_COLUMNS, Job, append_row, current_commit, read_rows, run_study,
+                                settings_hash)
 from dpi.studies.tables import latest
 
 SCORED: list[tuple] = []

@@ -42,7 +42,7 @@ RELIGHT_METRICS = ("relight_psnr_h", "relight_psnr_l", "relight_ssim")
 @lru_cache(maxsize=None)
 def relight_map(name: str) -> np.ndarray:
     """The (RELIGHT_HEIGHT, 2 RELIGHT_HEIGHT, 3) map `name` of RELIGHT_MAPS (drawn once per process)."""
-    from dpi.prior.procedural import generator
+    from dpi.worlds.families import generator
 
     family, seed = RELIGHT_MAPS[name]
     env = generator(family)(RELIGHT_HEIGHT, np.random.default_rng([RELIGHT_SEED_STREAM, seed]), 1)[0]

@@ -20,13 +20,7 @@ import numpy as np
 from pydantic import Field
 
 from dpi.cameras import Camera
-from dpi.preprocess.hull import (
-    cut_below,
-    marching_cubes,
-    seen_from_above,
-    support_plane,
-    visual_hull,
-)
+from dpi.preprocess.hull import cut_below, marching_cubes, seen_from_above, support_plane, visual_hull
 from dpi.settings import Count, Fraction, Steps, Weight, settings
 
 if TYPE_CHECKING:

@@ -14,15 +14,8 @@ gives the s that puts a radiance map L (e.g. the initialisation) on that convent
 """
 
 from dpi.prior.data import radiance_scale
-from dpi.prior.diffusion import (
-                                 Diffusion,
-                                 eps_with_random_roll,
-                                 model_output_with_random_roll,
-                                 model_timesteps,
-                                 p_mean_variance,
-                                 p_sample_step,
-                                 predict_x0,
-)
+from dpi.prior.diffusion import (Diffusion, eps_with_random_roll, model_output_with_random_roll, model_timesteps,
+                                 p_mean_variance, p_sample_step, predict_x0)
 from dpi.prior.sample import Prior, load_default_prior, load_prior
 
 __all__ = [

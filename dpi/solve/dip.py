@@ -30,14 +30,8 @@ from dpi.light.envmap import pad_equirect
 from dpi.settings import Count, Steps, settings
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.init import starting_materials
-from dpi.solve.optimize import (
-    LOG_ENV_RANGE,
-    EnvModel,
-    OptimizeConfig,
-    fit_env_model,
-    flat_config,
-    method_config_from_dict,
-)
+from dpi.solve.optimize import (LOG_ENV_RANGE, EnvModel, OptimizeConfig, fit_env_model, flat_config,
+                                method_config_from_dict)
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
 

@@ -20,16 +20,7 @@ import torch
 from tqdm import tqdm
 
 from dpi.materials import MaterialRates, MaterialTextures
-from dpi.settings import (
-    Count,
-    Loose,
-    Rate,
-    Steps,
-    check_keys,
-    check_values,
-    settings,
-    settings_from_dict,
-)
+from dpi.settings import Count, Loose, Rate, Steps, check_keys, check_values, settings, settings_from_dict
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace

@@ -27,25 +27,13 @@ from dpi.io.exr import read_exr, write_exr
 from dpi.io.images import luminance, write_mask, write_srgb
 from dpi.layout import SYNTH_MARKER
 from dpi.light.skies import SkyParams, sunsky_envmap
-from dpi.prior.procedural import generator
 from dpi.render import Renderer, RenderSettings
-from dpi.settings import (
-    Count,
-    Elevation,
-    Fraction,
-    ImageSize,
-    Loose,
-    MapHeight,
-    Rate,
-    Steps,
-    TextureSize,
-    Weight,
-    settings,
-    settings_from_dict,
-)
+from dpi.settings import (Count, Elevation, Fraction, ImageSize, Loose, MapHeight, Rate, Steps, TextureSize, Weight,
+                          settings, settings_from_dict)
 from dpi.synth.backdrop import BACKGROUNDS, add_detail, composite_backdrop
 from dpi.synth.shapes import make_shape, write_ply
 from dpi.synth.textures import procedural_materials
+from dpi.worlds.families import generator
 
 EVALUATION_SEED_STREAM = 7_919  # ground-truth maps draw from default_rng([this, seed]); datasets from [seed, chunk], seed 0
 

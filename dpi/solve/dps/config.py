@@ -14,15 +14,7 @@ from typing import Annotated, Any, Callable
 from pydantic import Field
 
 from dpi.materials import MaterialRates
-from dpi.settings import (
-    Count,
-    Rate,
-    SettingsError,
-    build,
-    check_keys,
-    settings,
-    settings_from_dict,
-)
+from dpi.settings import Count, Rate, SettingsError, build, check_keys, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.paper import PaperSettings, paper_step
 from dpi.solve.dps.proximal import ProximalSettings, proximal_step

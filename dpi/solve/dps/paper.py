@@ -14,14 +14,7 @@ import numpy as np
 import torch
 
 from dpi.settings import Count, Fraction, Rate, SettingsError, Weight, settings
-from dpi.solve.dps.state import (
-    DPSRun,
-    DPSState,
-    Laps,
-    SamplerSettings,
-    finite,
-    network_step,
-)
+from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerSettings, finite, network_step
 from dpi.solve.optimize import all_finite
 
 RHO_SCHEDULES = ("linear", "step", "constant")

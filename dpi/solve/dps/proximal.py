@@ -39,24 +39,8 @@ import torch
 
 from dpi.settings import Count, Fraction, Rate, Share, Steps, Weight, settings
 from dpi.solve.dps.data_term import current_level, sample_transport, set_level
-from dpi.solve.dps.map_solve import (
-    PRIOR_STD,
-    MapPrior,
-    Resampling,
-    cached_resampling,
-    posterior_variance,
-    solve_map,
-)
-from dpi.solve.dps.state import (
-    DPSRun,
-    DPSState,
-    Laps,
-    SamplerSettings,
-    finite,
-    log_radiance,
-    predict_x0,
-    recentre_,
-)
+from dpi.solve.dps.map_solve import PRIOR_STD, MapPrior, Resampling, cached_resampling, posterior_variance, solve_map
+from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerSettings, finite, log_radiance, predict_x0, recentre_
 from dpi.solve.optimize import all_finite
 from dpi.solve.sun_model import share_penalty, sun_env, wrap_uv_
 from dpi.solve.transport import LightTransport, TransportSettings

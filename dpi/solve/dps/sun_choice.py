@@ -13,13 +13,7 @@ from typing import Annotated, Any
 from pydantic import Field
 
 from dpi.materials import MaterialTextures
-from dpi.settings import (
-    SettingsError,
-    Share,
-    Weight,
-    settings,
-    settings_from_dict,
-)
+from dpi.settings import SettingsError, Share, Weight, settings, settings_from_dict
 from dpi.solve.init import GLOSSY_ROUGHNESS, is_glossy
 from dpi.solve.sun_model import SunExtraction
 

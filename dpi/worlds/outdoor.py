@@ -1,9 +1,9 @@
 """Procedural outdoor environment maps: a mixture of landscapes, urban street canyons and overcast days.
 
-Every scene is lit by one `Daylight` (`dpi.prior.daylight`: Mitsuba's sunsky, broken clouds or an
+Every scene is lit by one `Daylight` (`dpi.worlds.daylight`: Mitsuba's sunsky, broken clouds or an
 overcast deck) and keeps a true HDR sun wherever nothing hides it. A landscape is the sky over a
 tinted, textured Lambertian ground with a silhouette (hills, mountains, city blocks or a tree
-line) on the horizon; an urban scene is a ray-cast street canyon (`dpi.prior.street`). Overcast
+line) on the horizon; an urban scene is a ray-cast street canyon (`dpi.worlds.street`). Overcast
 scenes use either geometry. Everything is in dpi's (H, 2H, 3) +Y-up convention.
 """
 
@@ -13,8 +13,8 @@ import numpy as np
 
 from dpi.io.images import with_luminance
 from dpi.light.envmap import direction_to_texel, texel_angles, texel_directions
-from dpi.prior.daylight import Daylight, add_sun, irradiance, random_daylight, spherical_noise, upper_hemisphere
-from dpi.prior.street import SNOW, SNOW_PROBABILITY, random_street, street_envmap
+from dpi.worlds.daylight import Daylight, add_sun, irradiance, random_daylight, spherical_noise, upper_hemisphere
+from dpi.worlds.street import SNOW, SNOW_PROBABILITY, random_street, street_envmap
 
 SCENE_KINDS = {"urban": 0.4, "landscape": 0.4, "overcast": 0.2}
 GROUND_TINTS = {  # linear RGB; only the chromaticity counts

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dpi.light.envmap import directions_from_angles
+from dpi.worlds.raycast import slabs, subtexel_directions
 
 WALL_COLOURS = np.array([[0.85, 0.83, 0.78], [0.7, 0.75, 0.8], [0.8, 0.7, 0.55], [0.6, 0.7, 0.6], [0.9, 0.9, 0.9]])
 FLOOR_COLOURS = np.array([[0.45, 0.3, 0.18], [0.3, 0.3, 0.3], [0.6, 0.55, 0.45], [0.2, 0.15, 0.1]])
@@ -143,7 +143,7 @@ def outdoor_band(rng: np.random.Generator, daylight: float) -> np.ndarray:
     The median, not the mean, so that a sun in the band stays an HDR peak on top of the daylight
     instead of dimming every window.
     """
-    from dpi.prior.outdoor import outdoor_envmap
+    from dpi.worlds.outdoor import outdoor_envmap
 
     band = outdoor_envmap(16, rng)[4:12].astype(np.float64)
     return band * daylight / max(float(np.median(band)), 1e-6)
@@ -251,40 +251,15 @@ def random_room(rng: np.random.Generator) -> Room:
 # Ray casting
 
 
-def subtexel_directions(height: int, n: int) -> np.ndarray:
-    """(H, 2H, n*n, 3) ray directions on an n x n grid of equal solid angle inside each texel."""
-    offsets = (np.arange(n) + 0.5) / n
-    cos_edges = np.cos(np.arange(height + 1) / height * np.pi)
-    cos_t = cos_edges[:-1, None] + offsets[None] * (cos_edges[1:] - cos_edges[:-1])[:, None]  # (H, n)
-    phi = (np.arange(2 * height)[:, None] + offsets[None]) / (2 * height) * 2 * np.pi  # (2H, n)
-    theta = np.arccos(np.clip(cos_t, -1, 1))
-    dirs = directions_from_angles(theta[:, None, :, None], phi[None, :, None, :])  # (H, 2H, n, n, 3)
-    return dirs.reshape(height, 2 * height, n * n, 3)
-
-
 def ray_slabs(origin: np.ndarray, dirs: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, ...]:
     """(entry t, exit t, entry axis, exit axis) (N,) of rays from `origin` along `dirs` (N, 3) through box [lo, hi]."""
-    t_near, t_far = np.full(len(dirs), -np.inf), np.full(len(dirs), np.inf)
-    near_axis, far_axis = np.zeros(len(dirs), int), np.zeros(len(dirs), int)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        for k in range(3):
-            inv = 1.0 / dirs[:, k]
-            t_lo, t_hi = (lo[k] - origin[k]) * inv, (hi[k] - origin[k]) * inv
-            entry, exit_ = np.fmin(t_lo, t_hi), np.fmax(t_lo, t_hi)
-            near_axis[entry > t_near], far_axis[exit_ < t_far] = k, k
-            t_near, t_far = np.fmax(t_near, entry), np.fmin(t_far, exit_)
-    return t_near, t_far, near_axis, far_axis
+    return slabs(origin[None], dirs, lo, hi)
 
 
 def segment_blocked(start: np.ndarray, end: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Whether the segments start -> end (broadcast, ..., 3) pass through box [lo, hi] (slab test, axis by axis)."""
-    t_near, t_far = 0.0, 1.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        for k in range(3):
-            inv = 1.0 / (end[..., k] - start[..., k])
-            t_lo, t_hi = (lo[k] - start[..., k]) * inv, (hi[k] - start[..., k]) * inv
-            t_near, t_far = np.fmax(t_near, np.fmin(t_lo, t_hi)), np.fmin(t_far, np.fmax(t_lo, t_hi))
-    return t_near <= t_far
+    """Whether the segments start -> end (broadcast, ..., 3) pass through box [lo, hi]."""
+    t_near, t_far, _, _ = slabs(start, end - start, lo, hi)
+    return np.fmax(t_near, 0.0) <= np.fmin(t_far, 1.0)
 
 
 def rect_texture(emitter: RectEmitter, s: np.ndarray, t: np.ndarray) -> np.ndarray:

@@ -19,8 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from dpi.io.images import with_luminance
-from dpi.light.envmap import direction_to_texel, directions_from_angles
-from dpi.prior.daylight import Daylight, add_sun, irradiance
+from dpi.light.envmap import direction_to_texel
+from dpi.worlds.daylight import Daylight, add_sun, irradiance
+from dpi.worlds.raycast import slabs, subtexel_directions, texel_mean
 
 SUPERSAMPLE = 2  # primary rays per texel along each axis
 STREET_EXTENT = 300.0  # metres along the street, either way, beyond which no building stands
@@ -200,11 +201,8 @@ def facade_distance(row: Facades, origins: np.ndarray, dirs: np.ndarray) -> np.n
 
 
 def box_distance(lo: np.ndarray, hi: np.ndarray, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
-    """Ray parameter (K, N) where rays enter boxes with corners lo, hi (K, 3) (slab test); inf where they miss."""
-    safe = np.where(dirs == 0, 1e-12, dirs)
-    t1 = (lo[:, None] - origins[None]) / safe[None]
-    t2 = (hi[:, None] - origins[None]) / safe[None]
-    entry, exit_ = np.minimum(t1, t2).max(-1), np.maximum(t1, t2).min(-1)
+    """Ray parameter (K, N) where rays enter boxes with corners lo, hi (K, 3); inf where they miss."""
+    entry, exit_, _, _ = slabs(origins[None], dirs[None], lo[:, None], hi[:, None])
     return np.where((entry < exit_) & (entry > 0), entry, np.inf)
 
 
@@ -320,21 +318,6 @@ def sun_irradiance(street: Street, light: Daylight, hits: Hits, frame: np.ndarra
     return (cosine * lit)[:, None] * light.sun_irradiance
 
 
-def subtexel_directions(height: int) -> np.ndarray:
-    """World directions (H*s, 2H*s, 3) of SUPERSAMPLE x SUPERSAMPLE sub-texel centres per texel."""
-    s = SUPERSAMPLE
-    theta = (np.arange(height * s) + 0.5) / (height * s) * np.pi
-    phi = (np.arange(2 * height * s) + 0.5) / (2 * height * s) * 2 * np.pi
-    return directions_from_angles(theta[:, None], phi[None, :])
-
-
-def texel_mean(values: np.ndarray, height: int) -> np.ndarray:
-    """Average (H, 2H, ...) over each texel's sub-texel samples of values (H*s * 2H*s, ...)."""
-    s = SUPERSAMPLE
-    blocks = values.reshape(height, s, 2 * height, s, *values.shape[1:])
-    return blocks.mean((1, 3))
-
-
 def fresnel(f0: np.ndarray, cosine: np.ndarray) -> np.ndarray:
     """Schlick's reflectance for normal-incidence reflectance f0 at incidence cosines."""
     return f0 + (1 - f0) * (1 - cosine) ** 5
@@ -353,18 +336,19 @@ def street_envmap(light: Daylight, street: Street) -> np.ndarray:
     """(H, 2H, 3) map seen from the eye of a street canyon under `light`; the sun is there unless something hides it."""
     height = light.sky.shape[0]
     frame = street_frame(street.azimuth)
-    dirs = subtexel_directions(height).reshape(-1, 3)
+    dirs = subtexel_directions(height, SUPERSAMPLE).reshape(-1, 3)
     hits = cast(street, dirs @ frame.T)
     solid = (hits.surface != SKY)[:, None]
-    sky = light.sky * (1 - texel_mean(solid.astype(float), height))
+    sky = light.sky * (1 - texel_mean(solid.astype(float), height, SUPERSAMPLE))
     albedo, f0 = surface_albedo(street, hits)
     world_normals = NORMALS @ frame  # the street's axis normals in world coordinates
     sun = sun_irradiance(street, light, hits, frame)
     ambient = irradiance(sky, world_normals)[hits.normal]
-    first = texel_mean(albedo * (ambient + sun) / np.pi * solid, height)  # geometry lit once, for the bounce
+    lit_once = albedo * (ambient + sun) / np.pi * solid
+    first = texel_mean(lit_once, height, SUPERSAMPLE)  # geometry lit once, for the bounce
     ambient = ambient + irradiance(first, world_normals)[hits.normal]
     reflectance, reflected = window_reflection(dirs, world_normals[hits.normal], f0, sky + first)
     radiance = (1 - reflectance[:, None]) * albedo * (ambient + sun) / np.pi + reflectance[:, None] * reflected
-    env = sky + texel_mean(radiance * solid, height)
+    env = sky + texel_mean(radiance * solid, height, SUPERSAMPLE)
     eye = np.array([[0.0, 0.0, street.eye_height]])
     return add_sun(env, light, visible=not occluded(street, eye, (frame @ light.sun)[None])[0])

@@ -1,0 +1,1 @@
+"""Procedural worlds the priors train on: daylight skies, outdoor landscapes and streets, furnished rooms, drawn by one raycaster into HDR equirect maps."""
