@@ -21,35 +21,18 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-import torch
 
+from dpi.evaluation.train_fit import ground_truth as truth
+from dpi.evaluation.train_fit import training_fit
 from dpi.inverse_stages import SolveSettings, load_problem
-from dpi.layout import INIT, TEXTURE_NAMES
-from dpi.solve.decomposition import Decomposition
+from dpi.layout import INIT
 
 TOLERANCE = 1.05
 """a sample counts as fitting worse than the init when its MSE exceeds the init's by more than this factor
-(the renders' own noise at 1024 spp is a few percent of the MSE)"""
+(the estimate's spread at SPP)"""
 SPP = 1024
-"""samples per pixel of the re-renders: at 64 spp the render's own noise was 60 % of the truth's MSE on the posterior
-study (0.00125 against 0.00051 at 1024) and grows with how peaked a map is, so it ranked maps by their noise"""
-
-
-def training_mse(problem, decomposition, spp: int) -> float:
-    """Foreground mean squared error of the training views re-rendered with a decomposition, in the problem's loss
-    space (InverseProblem.view_loss)."""
-    with torch.no_grad():
-        return float(np.mean([float(problem.view_loss(problem.render(decomposition.env, decomposition.materials, v,
-                                                                     seed=17 + v, spp=spp), v))
-                              for v in problem.train_ids]))
-
-
-def truth(problem) -> Decomposition | None:
-    """The capture's ground truth (gt/, a decomposition folder) at the problem's sizes in its units, or None
-    without a complete gt/."""
-    if not {"envmap", *TEXTURE_NAMES} <= set(problem.capture.gt):
-        return None
-    return problem.load_decomposition(Path(problem.capture.gt["envmap"]).parent)
+"""samples per pixel of each of a view's two re-renders (dpi.evaluation.train_fit removes their noise; more
+samples make the estimate steadier)"""
 
 
 def main() -> None:
@@ -74,14 +57,14 @@ def main() -> None:
             continue
         files = layout.scene(scene)
         problem = load_problem(capture_json, SolveSettings.from_config(config, threads=args.threads))
-        init = training_mse(problem, problem.load_decomposition(files.sample_dir(INIT)), args.spp)
+        init = training_fit(problem, problem.load_decomposition(files.sample_dir(INIT)), args.spp, 17)
         reference = truth(problem)
-        truth_mse = training_mse(problem, reference, args.spp) if reference is not None else float("nan")
+        truth_mse = training_fit(problem, reference, args.spp, 17) if reference is not None else float("nan")
         for method_dir in sorted(p for p in capture_json.parent.iterdir() if p.is_dir() and p.name not in
                                  (INIT, "eval", "logs", "benchmarks", "working")
                                  and (args.methods is None or p.name in args.methods)):
             for sample in sorted(p for p in method_dir.iterdir() if (p / "envmap.exr").is_file()):
-                mse = training_mse(problem, problem.load_decomposition(sample), args.spp)
+                mse = training_fit(problem, problem.load_decomposition(sample), args.spp, 17)
                 rows.append({"scene": scene, "method": method_dir.name, "sample": sample.name, "mse": mse,
                              "init_mse": init, "truth_mse": truth_mse})
     if args.out:

@@ -21,6 +21,7 @@ from dpi.evaluation.naturalness import naturalness
 from dpi.evaluation.niqe import ENV_HEIGHT, env_niqe
 from dpi.evaluation.perceptual import ALEXNET_WEIGHTS, LPIPS_MIN_SIZE, lpips_distance, missing_weights, pretrained_lpips
 from dpi.evaluation.relighting import RELIGHT_HEIGHT, relight_held_out, relight_metrics
+from dpi.evaluation.train_fit import ground_truth, training_fit
 from dpi.exposure import MIDDLE_GREY
 from dpi.io.images import linear_to_srgb
 from dpi.prior.sample import Prior, load_scene_prior
@@ -39,7 +40,10 @@ NOTES = {"novel_view": NOVEL_VIEW_NOTE,
          "albedo": "per-channel least-squares scale alignment",
          "relight": f"held-out cameras, true and estimated materials under dpi's {RELIGHT_HEIGHT}-row outdoor (sun) "
                     "and indoor relighting maps; per-channel least-squares scale over the foreground; PSNR-H on "
-                    "linear HDR (peak: the truth's maximum), PSNR-L and SSIM on sRGB clipped to [0, 1]"}
+                    "linear HDR (peak: the truth's maximum), PSNR-L and SSIM on sRGB clipped to [0, 1]",
+         "train_fit": "training views re-rendered twice (independent seeds), mean product of the two foreground "
+                      "residuals in the data term's loss space; train_fit_over_truth divides it by the true "
+                      "decomposition's, rendered alike"}
 
 
 def lpips_network() -> torch.nn.Module | str:
@@ -101,6 +105,18 @@ def ground_truth_metrics(decomposition: Decomposition, gt: dict[str, Path]) -> d
     return out
 
 
+def train_fit_metrics(problem: InverseProblem, decomposition: Decomposition, spp: int, seed: int) -> dict[str, Any]:
+    """The decomposition's training-view fit (dpi.evaluation.train_fit) and its ratio to the truth's, where the
+    capture has a complete gt/."""
+    fit = training_fit(problem, decomposition, spp, seed)
+    truth = ground_truth(problem)
+    if truth is None:
+        return {"train_fit": fit, "train_fit_over_truth": missing("no complete gt/ (envmap and textures)")}
+    reference = training_fit(problem, truth, spp, seed)
+    return {"train_fit": fit, "train_fit_over_truth": fit / reference if reference > 0 else missing("the truth fits "
+                                                                                                        "exactly")}
+
+
 def evaluate_sample(problem: InverseProblem, decomposition: Decomposition, spp: int, seed: int,
                     seconds: float | None, prior: Prior | None = None,
                     renders: dict[str, np.ndarray] | None = None,
@@ -116,6 +132,7 @@ def evaluate_sample(problem: InverseProblem, decomposition: Decomposition, spp: 
     metrics = {**novel_view_metrics(problem, renders),
                **ground_truth_metrics(problem.to_scene_units(decomposition), problem.capture.gt),
                **relight_metrics(problem, relit),
+               **train_fit_metrics(problem, decomposition, spp, seed),
                "env_niqe": env_niqe(env),
                "env_naturalness": naturalness(env, prior or load_scene_prior(problem.capture.options)),
                "sample_seconds": seconds if seconds is not None else missing("no trace")}
