@@ -16,6 +16,7 @@ from dpi.capture.mitsuba_scene import camera_xml, xml_cameras
 from dpi.capture.model import Capture, CaptureError, CaptureWarning, View
 from dpi.capture.scene_yaml import read_scene_options
 from dpi.capture.transforms import frame_masks, names_masks, read_transforms_json, transforms_cameras
+from dpi.capture.undistort import with_cameras
 from dpi.consistency import cameras_problem
 from dpi.io.images import read_mask
 from dpi.layout import SceneLayout
@@ -60,7 +61,7 @@ def complete_capture(capture: Capture, scene: SceneLayout) -> Capture:
             raise FileNotFoundError(f"{path}: the capture has no {key}; run the preprocessing stages first "
                                     "(`dpi preprocess`, or the workflow)")
         if key == "cameras":
-            derived["cameras"] = read_cameras(path)
+            capture = with_cameras(capture, read_cameras(path), scene.undistorted_dir)
         elif key == "masks":
             derived["masks"] = {p.stem: p for p in path.glob("*.png")}
         else:

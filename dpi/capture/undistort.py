@@ -87,3 +87,9 @@ def undistorted_capture(capture: Capture, folder: str | Path) -> Capture:
     if changed:
         write_json(manifest_path, manifest)
     return replace(capture, views=views)
+
+
+def with_cameras(capture: Capture, cameras: dict[str, Camera], folder: str | Path) -> Capture:
+    """The capture with derived `cameras` (structure from motion's; views without one dropped) and, where they
+    carry a fitted lens, its views undistorted into `folder` (the poses stage writes the copies first)."""
+    return undistorted_capture(capture.with_derived(cameras=cameras), folder)

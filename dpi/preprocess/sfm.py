@@ -29,7 +29,7 @@ import numpy as np
 from PIL import Image, ImageOps
 from pydantic import Field
 
-from dpi.cameras import Camera
+from dpi.cameras import Camera, Lens
 from dpi.io.images import exif_orientation
 from dpi.preprocess.hull import axes_centre, visible_sphere
 from dpi.settings import Count, Fraction, Rate, settings
@@ -67,6 +67,8 @@ PEAK_THRESHOLD = 0.004
 """SIFT contrast threshold (COLMAP's default 0.0067 finds few features in small or soft images)"""
 MAX_REPROJECTION_ERROR_PX = 1.5
 """a mean reprojection error above this is an error"""
+MIN_LENS_SHIFT_PX = 0.25
+"""a fitted lens distortion that moves the image's corner by less than this (pixels) is dropped"""
 
 
 @settings
@@ -99,21 +101,33 @@ class SparseModel:
 
 
 def colmap_to_camera(cam_from_world: np.ndarray, width: int, height: int, fx: float, fy: float, cx: float,
-                     cy: float, name: str) -> Camera:
+                     cy: float, name: str, lens: Lens | None = None) -> Camera:
     """dpi Camera (OpenGL camera-to-world) from COLMAP's 3x4 world-to-camera matrix (OpenCV axes)."""
     w2c = np.eye(4)
     w2c[:3, :4] = np.asarray(cam_from_world, dtype=np.float64)
     return Camera(np.linalg.inv(w2c) @ CV_TO_GL, int(width), int(height), float(fx), float(fy), float(cx),
-                  float(cy), name)
+                  float(cy), name, lens=lens)
 
 
-def _pinhole(camera) -> tuple[float, float, float, float]:
-    """(fx, fy, cx, cy) of a COLMAP pinhole camera model."""
+def lens_shift_px(lens: Lens, width: int, height: int, focal: float) -> float:
+    """How far (pixels) the lens moves the image's corner: the size of the distortion the photos show."""
+    corner = np.array([width / 2 / focal]), np.array([height / 2 / focal])
+    x, y = lens.distort(*corner)
+    return float(focal * np.hypot(x - corner[0], y - corner[1])[0])
+
+
+def _intrinsics(camera) -> tuple[float, float, float, float, Lens | None]:
+    """(fx, fy, cx, cy, lens) of a COLMAP camera model; a fitted radial distortion that moves no pixel by
+    MIN_LENS_SHIFT_PX is dropped (the photos need no lens model)."""
     params = np.asarray(camera.params, dtype=np.float64)
     if camera.model_name == "SIMPLE_PINHOLE":
-        return params[0], params[0], params[1], params[2]
+        return params[0], params[0], params[1], params[2], None
     if camera.model_name == "PINHOLE":
-        return params[0], params[1], params[2], params[3]
+        return params[0], params[1], params[2], params[3], None
+    if camera.model_name in ("SIMPLE_RADIAL", "RADIAL"):
+        lens = Lens(k1=float(params[3]), k2=float(params[4]) if camera.model_name == "RADIAL" else 0.0)
+        keep = lens_shift_px(lens, camera.width, camera.height, params[0]) >= MIN_LENS_SHIFT_PX
+        return params[0], params[0], params[1], params[2], lens if keep else None
     raise SfMError(f"unexpected COLMAP camera model {camera.model_name}")
 
 
@@ -156,11 +170,11 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
 
     start = time.perf_counter()
     reader = pycolmap.ImageReaderOptions()
-    reader.camera_model = "SIMPLE_PINHOLE"
+    reader.camera_model = "SIMPLE_RADIAL"  # a pinhole and one radial term, fitted with the poses (COLMAP's default)
     if cfg.focal_length_px:
         with Image.open(images[0]) as im:
             width, height = im.size
-        reader.camera_params = f"{cfg.focal_length_px},{width / 2},{height / 2}"
+        reader.camera_params = f"{cfg.focal_length_px},{width / 2},{height / 2},0"
     extraction = pycolmap.FeatureExtractionOptions()
     extraction.num_threads = threads
     extraction.max_image_size = cfg.max_image_size
@@ -229,8 +243,10 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
             continue
         cam = model.cameras[image.camera_id]
         name = Path(image.name).stem
-        cameras[name] = colmap_to_camera(image.cam_from_world().matrix(), cam.width, cam.height, *_pinhole(cam),
-                                         name)
+        fx, fy, cx, cy, lens = _intrinsics(cam)
+        cameras[name] = colmap_to_camera(image.cam_from_world().matrix(), cam.width, cam.height, fx, fy, cx, cy, name,
+                                         lens)
+        summary["lens"] = lens.to_json() if lens else None
     rejected = off_centre_views(cameras) if REJECT_OFF_CENTRE else []
     if rejected:
         log.warning("dropping %d views that do not look at the object (misregistered): %s", len(rejected), rejected)
@@ -328,7 +344,7 @@ def transform_camera(camera: Camera, scale: float, rotation: np.ndarray, centre:
     c2w[:3, :3] = rotation @ camera.c2w[:3, :3]
     c2w[:3, 3] = scale * rotation @ (camera.c2w[:3, 3] - centre)
     return Camera(c2w, camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy, camera.name,
-                  dict(camera.extras))
+                  dict(camera.extras), camera.lens)
 
 
 def normalise(model: SparseModel) -> SparseModel:

@@ -16,8 +16,15 @@ from pathlib import Path
 from typing import Any
 
 from dpi.cameras import Camera, read_cameras, write_transforms
-from dpi.capture import (Capture, CaptureError, camera_fit_problem, inspect_capture, load_capture, read_capture_json,
-                         write_capture_json)
+from dpi.capture import (
+    Capture,
+    CaptureError,
+    camera_fit_problem,
+    inspect_capture,
+    load_capture,
+    read_capture_json,
+    write_capture_json,
+)
 from dpi.io.atomic import write_json
 from dpi.io.images import read_mask
 from dpi.layout import SUMMARY_FILE, SceneLayout, geometry_files, poses_files
@@ -80,6 +87,7 @@ def capture_stage(capture_dir: str | Path, out_json: str | Path) -> None:
 def poses_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None, threads: int = 1) -> dict:
     """Structure from motion on the capture's images into out_dir: cameras (transforms.json), sparse points
     and a summary (dpi.layout.poses_files)."""
+    from dpi.capture.undistort import with_cameras
     from dpi.preprocess.sfm import SfMConfig, SfMError, normalise, run_sfm, write_points_ply
 
     capture = read_capture_json(capture_json)
@@ -114,9 +122,21 @@ def poses_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | 
         write_json(files["summary"], {**model.summary, "error": str(exc)})
         raise
     write_points_ply(files["points"], model.points, model.colors, model.on_object)
+    with_cameras(capture, model.cameras, SceneLayout(Path(capture_json).parent).undistorted_dir)  # a fitted lens
     write_json(files["summary"], model.summary)
     write_json(files["cameras"], write_transforms(frames))
     return model.summary
+
+
+def pinhole_capture(capture_json: str | Path, cameras_json: str | Path | None) -> Capture:
+    """The capture with structure from motion's cameras (when derived), its views undistorted where the poses
+    stage fitted a lens: what the masks and geometry stages work on."""
+    from dpi.capture.undistort import with_cameras
+
+    capture = read_capture_json(capture_json)
+    if cameras_json is None:
+        return capture
+    return with_cameras(capture, read_cameras(cameras_json), SceneLayout(Path(capture_json).parent).undistorted_dir)
 
 
 def set_threads(threads: int) -> None:
@@ -134,8 +154,8 @@ def masks_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | 
     from dpi.preprocess.sfm import read_points_ply
 
     set_threads(threads)
-    capture = read_capture_json(capture_json)
-    cameras = read_cameras(cameras_json) if cameras_json else {v.name: v.camera for v in capture.views if v.camera}
+    capture = pinhole_capture(capture_json, cameras_json)
+    cameras = {v.name: v.camera for v in capture.views if v.camera}
     points = None
     if points_ply:
         xyz, _, on_object = read_points_ply(points_ply)
@@ -157,8 +177,8 @@ def geometry_stage(capture_json: str | Path, out_dir: str | Path, settings: dict
     from dpi.preprocess.geometry import GeometryConfig, reconstruct_surface, write_mesh_ply
 
     set_threads(threads)
-    capture = read_capture_json(capture_json)
-    cameras = read_cameras(cameras_json) if cameras_json else {v.name: v.camera for v in capture.views if v.camera}
+    capture = pinhole_capture(capture_json, cameras_json)
+    cameras = {v.name: v.camera for v in capture.views if v.camera}
     masks = ({p.stem: p for p in Path(masks_dir).glob("*.png")} if masks_dir
              else {v.name: v.mask for v in capture.views if v.mask})
     names = [v.name for v in capture.views if v.name in cameras and v.name in masks]

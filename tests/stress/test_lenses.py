@@ -101,3 +101,45 @@ def test_the_capture_stage_writes_pinhole_views(tmp_path):
     stamp = (tmp_path / "results" / "undistorted" / "images" / "r_0.exr").stat().st_mtime_ns
     capture_stage(root, tmp_path / "results" / "capture.json")  # unchanged sources: the copies are reused
     assert (tmp_path / "results" / "undistorted" / "images" / "r_0.exr").stat().st_mtime_ns == stamp
+
+
+def test_a_fitted_lens_is_kept_only_where_it_moves_pixels():
+    from types import SimpleNamespace
+
+    from dpi.preprocess.sfm import MIN_LENS_SHIFT_PX, _intrinsics, lens_shift_px
+
+    # k1 alone moves the corner (r = half diagonal / f) by f k1 r^3
+    focal, width, height = 500.0, 640, 480
+    r = np.hypot(width / 2, height / 2) / focal
+    assert np.isclose(lens_shift_px(Lens(k1=0.01), width, height, focal), focal * 0.01 * r**3)
+    tiny = SimpleNamespace(model_name="SIMPLE_RADIAL", params=[focal, 320.0, 240.0, 1e-5], width=width, height=height)
+    real = SimpleNamespace(model_name="SIMPLE_RADIAL", params=[focal, 320.0, 240.0, -0.05], width=width, height=height)
+    assert _intrinsics(tiny)[4] is None and focal * 1e-5 * r**3 < MIN_LENS_SHIFT_PX
+    assert _intrinsics(real) == (focal, focal, 320.0, 240.0, Lens(k1=-0.05))
+
+
+def test_derived_cameras_with_a_lens_give_the_later_stages_pinhole_views(tmp_path):
+    """Structure from motion fitted a lens (poses/transforms.json): the masks, geometry and inverse stages see
+    the views undistorted, with pinhole cameras."""
+    from dpi.cameras import write_transforms
+    from dpi.capture import complete_capture
+    from dpi.capture.undistort import with_cameras
+    from dpi.layout import SceneLayout
+
+    root = make_capture(tmp_path / "cap", transforms=False)
+    scene = SceneLayout(tmp_path / "results")
+    capture_stage(root, scene.capture_json)
+    capture = read_capture_json(scene.capture_json)
+    fitted = {v.name: c for v, c in zip(capture.views, cameras())}
+    for camera in fitted.values():
+        camera.lens = Lens(k1=-0.1)
+    scene.poses["cameras"].parent.mkdir(parents=True, exist_ok=True)
+    scene.poses["cameras"].write_text(json.dumps(write_transforms([(f"images/{n}.png", c) for n, c in fitted.items()])))
+    scene.geometry["mesh_uv"].parent.mkdir(parents=True, exist_ok=True)
+    scene.geometry["mesh_uv"].write_bytes(b"")  # the uv stage's output: only its path matters here
+    with_cameras(capture, fitted, scene.undistorted_dir)  # as the poses stage does, once
+    completed = complete_capture(capture, scene)
+    assert all(v.camera.lens is None and v.image.parent == scene.undistorted_dir / "images" for v in completed.views)
+    original = read_image(root / "images" / "r_0.png")
+    expected = undistort_image(original, fitted["r_0"], Lens(k1=-0.1))
+    assert np.allclose(read_image(completed.views[0].image), expected, atol=1e-6)
