@@ -42,11 +42,11 @@ from dpi.capture import load_capture
 from dpi.layout import INIT
 from dpi.materials import MaterialTextures
 from dpi.prior.sample import load_scene_prior
-from dpi.render import Renderer, RenderSettings
+from dpi.render import RenderConfig, Renderer
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, start_run
 from dpi.solve.dps.state import DPSRun
-from dpi.solve.problem import InverseProblem, ProblemSettings
+from dpi.solve.problem import InverseProblem, ProblemConfig
 from dpi.studies.demo_costs import DEMO, capture_at, demo_pipeline, preset_setting
 
 PIPELINE = demo_pipeline()
@@ -77,8 +77,8 @@ def make_run(sampler: str, threads: int, seed: int) -> tuple[DPSRun, Iterator[di
     """The demo's problem at the default setting, the init, the prior, and the sampler's step loop."""
     base = preset_setting()
     capture = load_capture(capture_at(base.resolution, threads, PIPELINE.layout.results / "benchmarks"))
-    problem = InverseProblem(capture, ProblemSettings(env_height=base.env_height, texture_size=base.texture_size),
-                             RenderSettings(spp=base.spp, threads=threads))
+    problem = InverseProblem(capture, ProblemConfig(env_height=base.env_height, texture_size=base.texture_size),
+                             RenderConfig(spp=base.spp, threads=threads))
     init = problem.load_decomposition(PIPELINE.layout.scene(DEMO).sample_dir(INIT))
     cfg = DPSConfig.from_dict({"sampler": sampler, "steps": base.steps})
     run, state = start_run(problem, load_scene_prior(capture.options, PIPELINE.prior_checkpoint(DEMO)), init, cfg, seed)

@@ -57,14 +57,14 @@ def study_scenes(study: str, repeats: int) -> tuple[Path, dict[str, Any], dict[s
 def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth: dict[str, Any]) -> list[dict]:
     """The init's fit from each start on one scene, scored on the held-out views; a row per start."""
     from dpi.evaluation.sample_metrics import novel_view_metrics, render_held_out
-    from dpi.inverse_stages import SolveSettings, load_problem
+    from dpi.inverse_stages import SolveConfig, load_problem
     from dpi.layout import INIT
     from dpi.pipeline import Pipeline
     from dpi.seeding import seed_for
     from dpi.solve.decomposition import Decomposition
     from dpi.solve.init import closing_loss, roughness_p25, start_fit
 
-    problem = load_problem(prepare_capture(root, scene, synth, threads=2), SolveSettings.from_config(config, 2))
+    problem = load_problem(prepare_capture(root, scene, synth, threads=2), SolveConfig.from_config(config, 2))
     cfg = Pipeline(config).init_settings
     rows = []
     for start in (cfg.start, cfg.glossy_start):

@@ -21,7 +21,7 @@ import numpy as np
 
 from dpi.cameras import Lens, read_cameras
 from dpi.capture.undistort import distort_image
-from dpi.inverse_stages import SolveSettings, evaluate_stage, init_stage
+from dpi.inverse_stages import SolveConfig, evaluate_stage, init_stage
 from dpi.io.exr import write_exr
 from dpi.io.images import read_image, read_mask, write_mask
 from dpi.preprocess.stages import capture_stage
@@ -61,7 +61,7 @@ def run(seed: int, lens: Lens, config: dict) -> list[dict]:
     for variant in VARIANTS[1:]:
         distorted_twin(layout.capture_dir("pinhole"), layout.capture_dir(variant), lens, variant == "undistorted")
         shutil.copy(layout.synth_marker("pinhole"), layout.synth_marker(variant))
-    settings = SolveSettings.from_config(config, threads=2)
+    settings = SolveConfig.from_config(config, threads=2)
     rows = []
     for variant in VARIANTS:
         files = layout.scene(variant)

@@ -101,9 +101,9 @@ def scene_rows(root: Path, scene: str, config: dict, threads: int,
                sampler: str | None = None) -> list[dict[str, Any]]:
     """Init (unless one is there), one dps sample (with `sampler`, else the config's) and its evaluation of one
     scene under `config`; a row per stage with its metrics."""
-    from dpi.inverse_stages import SolveSettings, evaluate_stage, init_stage, sample_stage
+    from dpi.inverse_stages import SolveConfig, evaluate_stage, init_stage, sample_stage
 
-    settings = SolveSettings.from_config(config, threads)
+    settings = SolveConfig.from_config(config, threads)
     start = time.perf_counter()
     capture_json = demo_capture(root) if scene == "demo" else prepare_capture(root, scene, SCENES[scene][1], threads)
     files = study_layout(root).scene(scene)

@@ -18,7 +18,7 @@ import torch
 from dpi.cameras import from_fov, orbit
 from dpi.io.exr import read_exr
 from dpi.materials import MaterialTextures
-from dpi.render import Renderer, RenderSettings
+from dpi.render import RenderConfig, Renderer
 from dpi.synth.capture import SynthConfig, make_synthetic_capture
 
 DEMO = Path(__file__).resolve().parent.parent / "captures" / "demo"
@@ -61,7 +61,7 @@ def main() -> None:
         cams = [from_fov(p, size, size, 35.0) for p in orbit(args.views_per_step, 4.0, (10.0, 35.0))]
         for spp in args.spp:
             renderer = Renderer(DEMO / "mesh.ply", cams, args.env_height, 64,
-                                RenderSettings(spp=spp, threads=args.threads))
+                                RenderConfig(spp=spp, threads=args.threads))
             step = time_render_step(renderer, env, mats, args.repeats)
             rays = size * size * spp / step / 1e6
             print(f"{size:>4}x{size:<4} {spp:>5} {step:>19.3f} {step * args.views_per_step:>19.3f} {rays:>8.2f}")

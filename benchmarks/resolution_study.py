@@ -76,10 +76,10 @@ def truth_at_size(capture_json: Path, gt_dir: Path, height: int, texture: int) -
     from dpi.inverse_stages import load_problem
     from dpi.relight import prepare_envmap
     from dpi.solve.decomposition import Decomposition
-    from dpi.solve.problem import SolveSettings
+    from dpi.solve.problem import SolveConfig
 
     config = size_config(height, texture)
-    problem = load_problem(capture_json, SolveSettings.from_config(config, 2))
+    problem = load_problem(capture_json, SolveConfig.from_config(config, 2))
     truth = Decomposition.load(gt_dir, texture)
     env = torch.from_numpy(prepare_envmap(truth.env.numpy(), height))
     renders = render_held_out(problem, problem.to_solver_units(Decomposition(env, truth.materials)),

@@ -1,6 +1,6 @@
 """Env-map diversity of `dps` samples against material roughness (the paper's Fig. 9), over repeats.
 
-Renders one object at each roughness under the same natural light (dpi.studies.roughness.SweepSettings); each
+Renders one object at each roughness under the same natural light (dpi.studies.roughness.SweepConfig); each
 repeat has its own capture noise, init and sample seed stream and draws `--samples` (default 6) dps samples
 with the shipped outdoor prior (dps at its defaults, `--steps` respaced steps). Rows (roughness, metallic,
 repeat, samples, env_sigma2_sample) go to benchmarks/results/roughness_study.csv, the plot beside it; it prints
@@ -23,14 +23,14 @@ from pathlib import Path
 import numpy as np
 
 from dpi.studies.engine import settings_hash, write_rows
-from dpi.studies.roughness import SweepSettings, roughness_point
+from dpi.studies.roughness import SweepConfig, roughness_point
 
 ROOT = Path(__file__).resolve().parent.parent
 CSV = ROOT / "benchmarks" / "results" / "roughness_study.csv"
 COLUMNS = ("roughness", "metallic", "repeat", "samples", "env_sigma2_sample")
 
 
-def point(task: tuple[float, int], folder: str, settings: SweepSettings) -> dict[str, float]:
+def point(task: tuple[float, int], folder: str, settings: SweepConfig) -> dict[str, float]:
     """One (roughness, repeat) of the study (a pool task; one render thread)."""
     from dpi.prior.sample import load_default_prior
 
@@ -63,13 +63,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--roughness", type=float, nargs="+", default=[0.05, 0.2, 0.5, 0.9])
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--samples", type=int, default=SweepSettings.samples)
+    parser.add_argument("--samples", type=int, default=SweepConfig.samples)
     parser.add_argument("--steps", type=int, default=50)
     parser.add_argument("--jobs", type=int, default=2, help="(roughness, repeat) points run side by side")
     parser.add_argument("--out", type=Path, default=CSV)
     args = parser.parse_args()
 
-    defaults = SweepSettings()
+    defaults = SweepConfig()
     settings = replace(defaults, samples=args.samples, dps=replace(defaults.dps, steps=args.steps))
     tasks = [(r, k) for r in args.roughness for k in range(args.repeats)]
     start = time.perf_counter()

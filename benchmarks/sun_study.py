@@ -67,7 +67,7 @@ def true_light_sample(job: Job) -> None:
     """The `true_light` reference's sample folder (module notes), unless it is there."""
     import torch
 
-    from dpi.inverse_stages import SolveSettings, load_problem
+    from dpi.inverse_stages import SolveConfig, load_problem
     from dpi.light.envmap import read_envmap
     from dpi.prior.data import resize_area
     from dpi.solve.decomposition import Decomposition
@@ -78,7 +78,7 @@ def true_light_sample(job: Job) -> None:
     files = job.layout.scene(job.scene)
     if files.sample_files(job.label, job.seed)["trace"].exists():
         return
-    problem = load_problem(files.capture_json, SolveSettings.from_config(job.config, threads=1))
+    problem = load_problem(files.capture_json, SolveConfig.from_config(job.config, threads=1))
     gt = torch.from_numpy(read_envmap(problem.capture.gt["envmap"])).float().permute(2, 0, 1)
     env = resize_area(gt, problem.settings.env_height).permute(1, 2, 0)
     init = problem.load_decomposition(files.sample_dir("init"))

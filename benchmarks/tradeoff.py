@@ -23,10 +23,10 @@ from dpi.capture import load_capture
 from dpi.evaluation.sample_metrics import evaluate_sample
 from dpi.layout import INIT, INIT_TRACE
 from dpi.prior.sample import load_scene_prior
-from dpi.render import RenderSettings
+from dpi.render import RenderConfig
 from dpi.solve.dps import dps_sample
 from dpi.solve.init import path_traced_init
-from dpi.solve.problem import InverseProblem, ProblemSettings
+from dpi.solve.problem import InverseProblem, ProblemConfig
 from dpi.studies.demo_costs import DEMO, Setting, capture_at, demo_pipeline, preset_setting
 from dpi.studies.engine import PROVENANCE, current_commit, settings_hash
 from dpi.studies.pareto import pareto_front
@@ -41,8 +41,8 @@ SWEEPS = {"steps": [25, 50, 100, 250, 1000], "spp": [4, 16, 64], "resolution": [
 def run(setting: Setting, init_dir: Path, prior, threads: int, seed: int) -> dict[str, float]:
     """One dps sample at `setting`: seconds and errors against ground truth and held-out views."""
     capture = load_capture(capture_at(setting.resolution, threads, OUT))
-    problem = InverseProblem(capture, ProblemSettings(env_height=setting.env_height, texture_size=setting.texture_size),
-                             RenderSettings(spp=setting.spp, threads=threads))
+    problem = InverseProblem(capture, ProblemConfig(env_height=setting.env_height, texture_size=setting.texture_size),
+                             RenderConfig(spp=setting.spp, threads=threads))
     init = problem.load_decomposition(init_dir)
     base = PIPELINE.method_settings("dps")
     cfg = replace(base, steps=setting.steps, refine=replace(base.refine, iterations=setting.refine_iterations),
@@ -93,8 +93,8 @@ def main() -> None:
     demo = load_capture(capture_at(base.resolution, args.threads, OUT))
     init_dir = OUT / f"tradeoff_{INIT}"
     if not (init_dir / INIT_TRACE).exists():
-        problem = InverseProblem(demo, ProblemSettings(base.env_height, base.texture_size),
-                                 RenderSettings(spp=base.spp, threads=args.threads))
+        problem = InverseProblem(demo, ProblemConfig(base.env_height, base.texture_size),
+                                 RenderConfig(spp=base.spp, threads=args.threads))
         problem.save_decomposition(path_traced_init(problem, PIPELINE.init_settings, seed=0, progress=False),
                                    init_dir, INIT_TRACE)
     prior = load_scene_prior(demo.options, PIPELINE.prior_checkpoint(DEMO))

@@ -24,7 +24,7 @@ import numpy as np
 
 from dpi.evaluation.train_fit import ground_truth as truth
 from dpi.evaluation.train_fit import training_fit
-from dpi.inverse_stages import SolveSettings, load_problem
+from dpi.inverse_stages import SolveConfig, load_problem
 from dpi.layout import INIT
 
 TOLERANCE = 1.05
@@ -56,7 +56,7 @@ def main() -> None:
         if args.scenes is not None and scene not in args.scenes:
             continue
         files = layout.scene(scene)
-        problem = load_problem(capture_json, SolveSettings.from_config(config, threads=args.threads))
+        problem = load_problem(capture_json, SolveConfig.from_config(config, threads=args.threads))
         init = training_fit(problem, problem.load_decomposition(files.sample_dir(INIT)), args.spp, 17)
         reference = truth(problem)
         truth_mse = training_fit(problem, reference, args.spp, 17) if reference is not None else float("nan")

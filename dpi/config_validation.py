@@ -33,14 +33,14 @@ from dpi.preprocess.masks import MaskConfig
 from dpi.preprocess.sfm import SfMConfig
 from dpi.preprocess.uv import UVConfig
 from dpi.prior.train import PriorJobConfig
-from dpi.render import RenderSettings
+from dpi.render import RenderConfig
 from dpi.settings import SettingsError, check_keys, settings_from_dict
 from dpi.solve.init import InitConfig
 from dpi.solve.methods import METHODS, method_config
-from dpi.solve.problem import ProblemSettings
+from dpi.solve.problem import ProblemConfig
 from dpi.synth.capture import SynthConfig
 
-SECTIONS: dict[str, type] = {"render": RenderSettings, "problem": ProblemSettings, "init": InitConfig,
+SECTIONS: dict[str, type] = {"render": RenderConfig, "problem": ProblemConfig, "init": InitConfig,
                               "adaptive": AdaptiveConfig, "preprocess.sfm": SfMConfig, "preprocess.masks": MaskConfig,
                               "preprocess.geometry": GeometryConfig, "preprocess.uv": UVConfig}
 """config sections (key paths) each owned by one settings dataclass: their schema is generated from it, and it

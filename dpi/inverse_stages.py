@@ -26,7 +26,7 @@ from dpi.prior.sample import load_scene_prior
 from dpi.seeding import seed_for
 from dpi.solve.init import InitConfig, path_traced_init
 from dpi.solve.methods import REGISTRY, SampleJob, method_config
-from dpi.solve.problem import InverseProblem, SolveSettings
+from dpi.solve.problem import InverseProblem, SolveConfig
 from dpi.spread import albedo_std_map, log_std_map, mean_log_map
 from dpi.working import working_capture
 
@@ -35,7 +35,7 @@ RESUME_FILE = ".resume.pt"
 killed job's outputs and the rerun continues from it (dpi.solve.checkpoint)"""
 
 
-def load_problem(capture_json: str | Path, settings: SolveSettings) -> InverseProblem:
+def load_problem(capture_json: str | Path, settings: SolveConfig) -> InverseProblem:
     """The inverse problem of a validated capture, completed by the cameras, masks and UV mesh that
     preprocessing derived where the capture lacks them (in the scene's results folder, next to capture.json),
     at the working resolution (`problem.resolution`)."""
@@ -51,7 +51,7 @@ def load_problem(capture_json: str | Path, settings: SolveSettings) -> InversePr
 
 
 def init_stage(capture_json: str | Path, out_dir: str | Path, scene: str, init_cfg: dict[str, Any],
-               settings: SolveSettings, progress: bool = True) -> None:
+               settings: SolveConfig, progress: bool = True) -> None:
     """Path-traced initialisation of one scene into out_dir (envmap.exr, textures, log.json)."""
     problem = load_problem(capture_json, settings)
     result = path_traced_init(problem, InitConfig.from_dict(init_cfg), seed_for(scene, INIT), progress,
@@ -61,7 +61,7 @@ def init_stage(capture_json: str | Path, out_dir: str | Path, scene: str, init_c
 
 
 def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | Path, scene: str, method: str,
-                 k: int, method_cfg: dict[str, Any], settings: SolveSettings, prior_checkpoint: str | Path | None = None,
+                 k: int, method_cfg: dict[str, Any], settings: SolveConfig, prior_checkpoint: str | Path | None = None,
                  adaptive: AdaptiveConfig | None = None, progress: bool = True) -> None:
     """Posterior sample k of a method for one scene, into out_dir (envmap, textures, trace.json).
 
@@ -84,7 +84,7 @@ def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | 
 
 
 def evaluate_stage(capture_json: str | Path, sample_dir: str | Path, out_json: str | Path, scene: str,
-                   method: str, k: int, spp: int, settings: SolveSettings,
+                   method: str, k: int, spp: int, settings: SolveConfig,
                    prior_checkpoint: str | Path | None = None, views_dir: str | Path | None = None) -> None:
     """Metrics of one sample against held-out views and ground truth, as JSON, with the scene's object
     (scene.yaml `object`, else the scene), its ground-truth env map (for the summary's set metrics) and the

@@ -38,7 +38,7 @@ from dpi.prior.train import PriorJobConfig
 from dpi.settings import apply_preset
 from dpi.solve.init import InitConfig
 from dpi.solve.methods import REGISTRY, method_config
-from dpi.solve.problem import SolveSettings
+from dpi.solve.problem import SolveConfig
 from dpi.synth.capture import SynthConfig
 
 DEFAULT_CONFIG = package_data("config.yaml")
@@ -111,9 +111,9 @@ class Pipeline:
         """A method's settings dataclass, built from its entry."""
         return method_config(method, self.method_params(method))
 
-    def solve_settings(self, threads: int | None = None) -> SolveSettings:
+    def solve_settings(self, threads: int | None = None) -> SolveConfig:
         """Renderer and problem settings shared by init, methods and evaluation, on `threads` threads."""
-        return SolveSettings.from_config(self.config, threads)
+        return SolveConfig.from_config(self.config, threads)
 
     @property
     def init_settings(self) -> InitConfig:

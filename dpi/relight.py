@@ -26,7 +26,7 @@ from dpi.io.images import resize, write_srgb
 from dpi.layout import ENV_FILE, SceneLayout
 from dpi.light.envmap import read_envmap, rotate_azimuth
 from dpi.materials import RANGES, MaterialTextures
-from dpi.render import Renderer, RenderSettings
+from dpi.render import RenderConfig, Renderer
 from dpi.settings import Elevation, MapHeight, Rate, Steps, settings
 from dpi.solve.decomposition import Decomposition
 
@@ -102,7 +102,7 @@ def orbit_cameras(reference: list[Camera], mesh: str | os.PathLike, count: int, 
 
 
 def relight(mesh: str | os.PathLike, cameras: list[Camera], env: np.ndarray, materials: MaterialTextures,
-            render: RenderSettings, seed: int = 0) -> list[np.ndarray]:
+            render: RenderConfig, seed: int = 0) -> list[np.ndarray]:
     """Linear images (h, w, 3), one per camera, of the textured mesh under `env` (H, 2H, 3)."""
     renderer = Renderer(mesh, cameras, env.shape[0], materials.albedo.shape[0], render)
     env_t = torch.from_numpy(np.ascontiguousarray(env, dtype=np.float32))
@@ -119,7 +119,7 @@ def write_views(out_dir: str | os.PathLike, names: list[str], images: list[np.nd
 
 
 def relight_sample(capture_json: str | os.PathLike, sample_dir: str | os.PathLike, out_dir: str | os.PathLike,
-                   cfg: RelightConfig, render: RenderSettings) -> list[str]:
+                   cfg: RelightConfig, render: RenderConfig) -> list[str]:
     """Re-render the decomposition in `sample_dir` as `cfg` says into `out_dir`; returns the view names."""
     capture = complete_capture(read_capture_json(capture_json), SceneLayout(Path(capture_json).parent))
     if capture.mesh is None or not capture.mesh_has_uv:

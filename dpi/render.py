@@ -31,7 +31,7 @@ SEED_MODULUS = 2**32 - 8192
 
 
 @settings
-class RenderSettings:
+class RenderConfig:
     """Path-tracing settings of the measurement operator."""
 
     spp: Count = 16
@@ -68,8 +68,8 @@ class Renderer:
     """
 
     def __init__(self, mesh_path: str | Path, cameras: list[Camera], env_height: int, texture_size: int,
-                 settings: RenderSettings | None = None):
-        self.settings = settings or RenderSettings()
+                 settings: RenderConfig | None = None):
+        self.settings = settings or RenderConfig()
         self.mi = backend.mitsuba(self.settings.variant, self.settings.threads)
         # dr.wrap picks the Dr.Jit backend from the tensors' device: cuda_ad_rgb needs them on the GPU
         self.device = torch.device("cuda") if self.mi.variant().startswith("cuda") else None

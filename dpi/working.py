@@ -1,7 +1,7 @@
 """The working resolution of the inverse stages: a capture's images and masks area-downsampled once.
 
 Photos are 1600-4000 px; init, methods and evaluation render every view at the size they fit, so
-they work on copies whose longer side is `ProblemSettings.resolution` px (None: the capture's own).
+they work on copies whose longer side is `ProblemConfig.resolution` px (None: the capture's own).
 The copies (linear EXR images and masks) and the cameras, scaled to them, live in the scene's
 results folder (`SceneLayout.working_dir`), written once per size and source, atomically, and
 reused by every later job; a changed source image is resampled again.

@@ -9,14 +9,14 @@ import torch
 from test_dps import tiny_prior
 
 from dpi.capture import load_capture
-from dpi.render import RenderSettings
+from dpi.render import RenderConfig
 from dpi.solve.checkpoint import run_key
 from dpi.solve.dip import DeepImagePrior, DIPConfig
 from dpi.solve.dps import DPSConfig, dps_sample
 from dpi.solve.init import InitConfig, path_traced_init, starting_materials
 from dpi.solve.optimize import FreeEnvMap, OptimizeConfig, fit_env_model
 from dpi.solve.priors import smoothness_penalty
-from dpi.solve.problem import InverseProblem, ProblemSettings
+from dpi.solve.problem import InverseProblem, ProblemConfig
 from dpi.solve.trace import Trace
 
 FIT = OptimizeConfig(iterations=7, views_per_step=1)
@@ -31,8 +31,8 @@ class Interrupted(Exception):
 
 @pytest.fixture(scope="module")
 def problem_and_init(tiny_capture):
-    problem = InverseProblem(load_capture(tiny_capture), ProblemSettings(env_height=4, texture_size=8),
-                             RenderSettings(spp=4, threads=2))
+    problem = InverseProblem(load_capture(tiny_capture), ProblemConfig(env_height=4, texture_size=8),
+                             RenderConfig(spp=4, threads=2))
     return problem, path_traced_init(problem, InitConfig(iterations=2), seed=0, progress=False)
 
 

@@ -10,11 +10,11 @@ from dpi.light.tonecurve import TONE_CURVES
 from dpi.prior.diffusion import base_diffusion
 from dpi.prior.sample import Prior
 from dpi.prior.unet import SMALL_CONFIGS, UNetModel
-from dpi.render import RenderSettings
+from dpi.render import RenderConfig
 from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample
-from dpi.solve.dps.paper import PaperSettings, rho_schedule, scale_to_bound
+from dpi.solve.dps.paper import PaperConfig, rho_schedule, scale_to_bound
 from dpi.solve.init import InitConfig, path_traced_init
-from dpi.solve.problem import InverseProblem, ProblemSettings
+from dpi.solve.problem import InverseProblem, ProblemConfig
 
 
 def tiny_prior(height: int = 8) -> Prior:
@@ -25,11 +25,11 @@ def tiny_prior(height: int = 8) -> Prior:
 
 
 def test_rho_schedules_known_answers():
-    linear = rho_schedule(PaperSettings(), 10)
+    linear = rho_schedule(PaperConfig(), 10)
     assert np.allclose(linear[:5], 0.1) and linear[-1] == pytest.approx(1.0) and (np.diff(linear) >= 0).all()
-    step = rho_schedule(PaperSettings(rho_schedule="step"), 10)
+    step = rho_schedule(PaperConfig(rho_schedule="step"), 10)
     assert np.allclose(step[:5], 0.1) and np.allclose(step[5:], 1.0)
-    assert np.allclose(rho_schedule(PaperSettings(rho_schedule="constant", rho_start=0.3), 4), 0.3)
+    assert np.allclose(rho_schedule(PaperConfig(rho_schedule="constant", rho_start=0.3), 4), 0.3)
     with pytest.raises(ValueError, match="paper.rho_schedule: must be one of linear, step, constant"):
         DPSConfig.from_dict({"paper": {"rho_schedule": "cosine"}})
 
@@ -57,7 +57,7 @@ def test_settings_are_grouped_and_each_key_is_checked_where_it_lives():
         DPSConfig.from_dict({"proximal": {"transport": {"spp": 3}}})
     with pytest.raises(ValueError, match="proximal.start_noise: must be > 0, got 0"):
         DPSConfig.from_dict({"proximal": {"start_noise": 0}})
-    with pytest.raises(ValueError, match="proximal.lr_mapp: unknown ProximalSettings setting; did you mean 'lr_map'"):
+    with pytest.raises(ValueError, match="proximal.lr_mapp: unknown ProximalConfig setting; did you mean 'lr_map'"):
         DPSConfig.from_dict({"proximal": {"lr_mapp": 0.1}})
     with pytest.raises(ValueError, match="refine: must be a mapping"):
         DPSConfig.from_dict({"refine": 3})
@@ -87,8 +87,8 @@ def test_guidance_is_scaled_to_its_bound():
 
 @pytest.fixture(scope="module")
 def problem_and_init(tiny_capture):
-    problem = InverseProblem(load_capture(tiny_capture), ProblemSettings(env_height=4, texture_size=8),
-                             RenderSettings(spp=4, threads=2))
+    problem = InverseProblem(load_capture(tiny_capture), ProblemConfig(env_height=4, texture_size=8),
+                             RenderConfig(spp=4, threads=2))
     return problem, path_traced_init(problem, InitConfig(iterations=2), seed=0, progress=False)
 
 

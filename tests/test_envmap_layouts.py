@@ -10,7 +10,7 @@ from dpi.capture import CaptureError, load_capture, write_capture_json
 from dpi.io.exr import read_exr, write_exr
 from dpi.light.envmap import EnvmapLayoutError, equirect, read_envmap
 from dpi.relight import RelightConfig, relight_sample
-from dpi.render import RenderSettings
+from dpi.render import RenderConfig
 
 
 def smooth_map(height: int, width: int) -> np.ndarray:
@@ -82,7 +82,7 @@ def test_authors_layout_validates_evaluates_and_relights(wrapped_capture, tiny_c
     assert metrics["env_psnr"] > 20  # the round trip loses only the azimuthal detail of the pair average
     write_capture_json(capture, tmp_path / "capture.json")
     names = relight_sample(tmp_path / "capture.json", wrapped_capture / "gt", tmp_path / "relit",
-                           RelightConfig(envmap=str(wrapped_capture / "gt" / "envmap.exr")), RenderSettings(spp=4, threads=2))
+                           RelightConfig(envmap=str(wrapped_capture / "gt" / "envmap.exr")), RenderConfig(spp=4, threads=2))
     assert names and all((tmp_path / "relit" / f"{n}.exr").is_file() for n in names)
 
 

@@ -12,7 +12,7 @@ from dpi.cli import main
 from dpi.layout import INIT, Layout, package_data
 from dpi.pipeline import DEFAULT_CONFIG, Pipeline, merge, read_yaml, resolve_config
 from dpi.prior.sample import DEFAULT_FAMILY, DEFAULT_MODELS
-from dpi.render import RenderSettings
+from dpi.render import RenderConfig
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -43,8 +43,8 @@ def test_layers_defaults_then_local_config_then_files_then_preset(tmp_path):
 def test_a_left_out_key_means_its_dataclass_default():
     pipeline = Pipeline(resolve_config())
     assert "max_depth" not in pipeline.config["render"]
-    assert pipeline.solve_settings(3).render == RenderSettings(spp=pipeline.config["render"]["spp"], threads=3)
-    assert pipeline.describe()["render"]["max_depth"] == RenderSettings().max_depth
+    assert pipeline.solve_settings(3).render == RenderConfig(spp=pipeline.config["render"]["spp"], threads=3)
+    assert pipeline.describe()["render"]["max_depth"] == RenderConfig().max_depth
 
 
 def test_the_schema_holds_no_defaults():

@@ -14,9 +14,9 @@ from dpi.io.images import linear_to_srgb, read_image
 from dpi.light.envmap import direction_to_texel, rotate_azimuth, texel_directions
 from dpi.materials import MaterialTextures
 from dpi.relight import MaterialEdit, RelightConfig, relight_sample
-from dpi.render import RenderSettings
+from dpi.render import RenderConfig
 
-RENDER = RenderSettings(spp=32, threads=2)
+RENDER = RenderConfig(spp=32, threads=2)
 
 
 @pytest.fixture(scope="module")

@@ -12,9 +12,9 @@ from dpi.evaluation.relighting import (RELIGHT_MAPS, RELIGHT_METRICS, channel_sc
                                        relight_held_out, relight_map, relight_metrics, relight_scores)
 from dpi.light.envmap import top_energy_share
 from dpi.materials import MaterialTextures
-from dpi.render import RenderSettings
+from dpi.render import RenderConfig
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.problem import InverseProblem, ProblemSettings
+from dpi.solve.problem import InverseProblem, ProblemConfig
 
 
 def test_per_channel_scale_is_least_squares_over_the_foreground():
@@ -46,8 +46,8 @@ def test_relighting_maps_are_an_outdoor_sun_and_a_room():
 
 @pytest.fixture(scope="module")
 def problem(tiny_capture):
-    return InverseProblem(load_capture(tiny_capture), ProblemSettings(env_height=4, texture_size=8),
-                          RenderSettings(spp=4, threads=2))
+    return InverseProblem(load_capture(tiny_capture), ProblemConfig(env_height=4, texture_size=8),
+                          RenderConfig(spp=4, threads=2))
 
 
 def scores(problem, materials, spp=8, seed=3):

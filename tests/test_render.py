@@ -6,7 +6,7 @@ import torch
 
 from dpi.cameras import Camera, from_fov, look_at
 from dpi.materials import MaterialTextures
-from dpi.render import Renderer, RenderSettings
+from dpi.render import RenderConfig, Renderer
 from dpi.synth.shapes import blob, write_ply
 
 
@@ -24,7 +24,7 @@ def render(renderer, env, mats, view=0, seed=0, spp=None):
 def test_env_gradient_satisfies_linearity(sphere_ply):
     """Radiance is linear in the map, so sum(env * dI/denv) == I for a fixed seed."""
     cam = from_fov(look_at([0, 0, 4.0], [0, 0, 0]), 16, 16, 40.0)
-    r = Renderer(sphere_ply, [cam], 8, 8, RenderSettings(spp=16, threads=2))
+    r = Renderer(sphere_ply, [cam], 8, 8, RenderConfig(spp=16, threads=2))
     env = (torch.rand(8, 16, 3, generator=torch.Generator().manual_seed(0)) + 0.1).requires_grad_(True)
     mats = MaterialTextures.constant(8, albedo=0.6, roughness=0.4)
     image = render(r, env, mats)
@@ -34,7 +34,7 @@ def test_env_gradient_satisfies_linearity(sphere_ply):
 
 def test_albedo_gradient_matches_finite_differences(sphere_ply):
     cam = from_fov(look_at([0, 0, 4.0], [0, 0, 0]), 16, 16, 40.0)
-    r = Renderer(sphere_ply, [cam], 8, 8, RenderSettings(spp=64, threads=2))
+    r = Renderer(sphere_ply, [cam], 8, 8, RenderConfig(spp=64, threads=2))
     env = torch.full((8, 16, 3), 1.0)
     env[2:4, 3:6] = 8.0
     base = MaterialTextures.constant(8, albedo=0.5, roughness=0.6)
@@ -57,7 +57,7 @@ def test_mirror_sphere_shows_the_bright_texel_where_expected(sphere_ply):
 
     H, size = 16, 64
     cam = from_fov(look_at([0, 0, 5.0], [0, 0, 0]), size, size, 30.0)
-    r = Renderer(sphere_ply, [cam], H, 8, RenderSettings(spp=16, max_depth=2, threads=2))
+    r = Renderer(sphere_ply, [cam], H, 8, RenderConfig(spp=16, max_depth=2, threads=2))
     env = torch.full((H, 2 * H, 3), 0.01)
     row, col = 5, 21
     env[row, col] = 1000.0
@@ -75,7 +75,7 @@ def test_mirror_sphere_shows_the_bright_texel_where_expected(sphere_ply):
 def test_silhouette_agrees_with_our_camera_model_off_centre(sphere_ply):
     """Rendered foreground == ray-cast coverage from dpi's own camera model, principal point shifted."""
     cam = Camera(look_at([0.5, 0.8, 4.0], [0, 0, 0]), 40, 30, 45.0, 45.0, 26.0, 12.0)
-    r = Renderer(sphere_ply, [cam], 8, 8, RenderSettings(spp=16, threads=2))
+    r = Renderer(sphere_ply, [cam], 8, 8, RenderConfig(spp=16, threads=2))
     env = torch.ones(8, 16, 3)
     mats = MaterialTextures.constant(8, albedo=0.0, roughness=0.5)
     with torch.no_grad():
@@ -88,7 +88,7 @@ def test_silhouette_agrees_with_our_camera_model_off_centre(sphere_ply):
 
 def test_shape_errors_name_the_tensor(sphere_ply):
     cam = from_fov(look_at([0, 0, 4.0], [0, 0, 0]), 8, 8, 40.0)
-    r = Renderer(sphere_ply, [cam], 8, 8, RenderSettings(spp=1, threads=2))
+    r = Renderer(sphere_ply, [cam], 8, 8, RenderConfig(spp=1, threads=2))
     mats = MaterialTextures.constant(8)
     with pytest.raises(ValueError, match="env"):
         render(r, torch.ones(8, 8, 3), mats)

@@ -16,15 +16,15 @@ from dpi.materials import MaterialTextures
 from dpi.prior.diffusion import base_diffusion
 from dpi.prior.sample import Prior, draw_samples
 from dpi.prior.unet import SMALL_CONFIGS, UNetModel
-from dpi.render import RenderSettings
+from dpi.render import RenderConfig
 from dpi.settings import SettingsError, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, start_run
 from dpi.solve.dps.map_solve import PRIOR_STD, Resampling, posterior_variance
-from dpi.solve.dps.proximal import ProximalSettings
+from dpi.solve.dps.proximal import ProximalConfig
 from dpi.solve.init import InitConfig, path_traced_init
 from dpi.solve.prior_space import prior_to_env
-from dpi.solve.problem import InverseProblem, ProblemSettings
+from dpi.solve.problem import InverseProblem, ProblemConfig
 from dpi.solve.sun_model import map_energy, sun_direction_of, sun_env
 from dpi.solve.transport import AlbedoLookup, LightTransport
 
@@ -42,7 +42,7 @@ class LinearProblem:
 
     def __init__(self, truth: torch.Tensor, views: int = 3, pixels: int = 40, seed: int = 0):
         generator = torch.Generator().manual_seed(seed)
-        self.settings = ProblemSettings(env_height=truth.shape[0], texture_size=4)
+        self.settings = ProblemConfig(env_height=truth.shape[0], texture_size=4)
         texels = truth.shape[0] * truth.shape[1]
         self.operators = [torch.rand(pixels, texels, generator=generator) / texels for _ in range(views)]
         self.images = [a @ truth.reshape(-1, 3) for a in self.operators]
@@ -190,7 +190,7 @@ def test_a_perturbed_solve_moves_the_silent_texels_by_the_priors_uncertainty():
                                             ({"perturb_height": 0}, "perturb_height: must be >= 1, got 0")])
 def test_the_push_settings_are_bounded(values, message):
     with pytest.raises(SettingsError, match=f"^{message}$"):
-        settings_from_dict(ProximalSettings, values)
+        settings_from_dict(ProximalConfig, values)
 
 
 def test_a_solve_fits_the_views_by_a_field_on_the_transports_grid():
@@ -212,8 +212,8 @@ def test_a_solve_fits_the_views_by_a_field_on_the_transports_grid():
 
 @pytest.fixture(scope="module")
 def problem_and_init(tiny_capture):
-    problem = InverseProblem(load_capture(tiny_capture), ProblemSettings(env_height=4, texture_size=8),
-                             RenderSettings(spp=4, threads=2))
+    problem = InverseProblem(load_capture(tiny_capture), ProblemConfig(env_height=4, texture_size=8),
+                             RenderConfig(spp=4, threads=2))
     return problem, path_traced_init(problem, InitConfig(iterations=10), seed=0, progress=False)
 
 
@@ -259,7 +259,7 @@ def test_unknown_sampler_is_an_error():
 
 
 def test_sample_stage_draws_a_dps_sample(tiny_capture, tmp_path):
-    from dpi.inverse_stages import SolveSettings, capture_stage, init_stage, sample_stage
+    from dpi.inverse_stages import SolveConfig, capture_stage, init_stage, sample_stage
     from dpi.prior.train import save_atomic
 
     prior = log_prior()
@@ -268,7 +268,7 @@ def test_sample_stage_draws_a_dps_sample(tiny_capture, tmp_path):
                  "height": 8, "tone": {**prior.encoding.to_dict(), "median_target": 1.0},
                  "diffusion": {"num_timesteps": 1000, "schedule": "linear"}, "model": prior.model.state_dict(),
                  "ema": None, "step": 0}, checkpoint)
-    settings = SolveSettings.from_config({"render": {"spp": 4}, "problem": {"env_height": 4, "texture_size": 8}}, 2)
+    settings = SolveConfig.from_config({"render": {"spp": 4}, "problem": {"env_height": 4, "texture_size": 8}}, 2)
     capture_stage(tiny_capture, tmp_path / "capture.json")
     init_stage(tmp_path / "capture.json", tmp_path / "init", "tiny", {"iterations": 3}, settings, progress=False)
     sample_stage(tmp_path / "capture.json", tmp_path / "init", tmp_path / "dps", "tiny", "dps", 0,
@@ -305,8 +305,8 @@ def test_a_written_dps_map_holds_one_sun_drawn_as_a_disc(tiny_capture, problem_a
     from dpi.solve.dps.loop import start_run
 
     _, coarse = problem_and_init
-    problem = InverseProblem(load_capture(tiny_capture), ProblemSettings(env_height=64, texture_size=8),
-                             RenderSettings(spp=4, threads=2))
+    problem = InverseProblem(load_capture(tiny_capture), ProblemConfig(env_height=64, texture_size=8),
+                             RenderConfig(spp=4, threads=2))
     env = torch.nn.functional.interpolate(coarse.env.permute(2, 0, 1)[None], size=(64, 128), mode="nearest")
     init = Decomposition(env[0].permute(1, 2, 0), coarse.materials, coarse.trace)
     prior = log_prior()

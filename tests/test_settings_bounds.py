@@ -9,11 +9,11 @@ import torch
 from pydantic import TypeAdapter
 
 from dpi.capture import load_capture
-from dpi.render import RenderSettings
+from dpi.render import RenderConfig
 from dpi.settings import SettingsError
 from dpi.solve.dps import DPSConfig, dps_sample
 from dpi.solve.init import InitConfig, path_traced_init
-from dpi.solve.problem import InverseProblem, ProblemSettings
+from dpi.solve.problem import InverseProblem, ProblemConfig
 from tests.test_dps import tiny_prior
 
 CHEAP = {"steps": 4, "iterations": 3, "pixels": 256, "spp": 4, "direct_spp": 2, "strip_frames": 3}
@@ -97,8 +97,8 @@ def test_the_bounds_cover_the_settings_a_sample_reads():
 
 @pytest.fixture(scope="module")
 def problem_and_init(tiny_capture):
-    problem = InverseProblem(load_capture(tiny_capture), ProblemSettings(env_height=4, texture_size=8),
-                             RenderSettings(spp=4, threads=2))
+    problem = InverseProblem(load_capture(tiny_capture), ProblemConfig(env_height=4, texture_size=8),
+                             RenderConfig(spp=4, threads=2))
     return problem, path_traced_init(problem, InitConfig(iterations=2), seed=0, progress=False)
 
 

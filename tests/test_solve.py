@@ -8,7 +8,7 @@ import torch
 
 from dpi.capture import load_capture
 from dpi.materials import MaterialTextures
-from dpi.render import RenderSettings
+from dpi.render import RenderConfig
 from dpi.settings import SettingsError
 from dpi.solve.classic import ClassicConfig, balanced_weight, classic_sample
 from dpi.solve.decomposition import Decomposition
@@ -17,14 +17,14 @@ from dpi.solve.init import (CLOSING_STEPS, START_ALBEDO, InitConfig, closing_los
                             roughness_p25, starting_materials)
 from dpi.solve.optimize import AdamFit, FreeEnvMap, OptimizeConfig, fit
 from dpi.solve.priors import chromaticity_penalty, global_norm_penalty, make_prior, smoothness_penalty
-from dpi.solve.problem import InverseProblem, ProblemSettings, to_loss_space
+from dpi.solve.problem import InverseProblem, ProblemConfig, to_loss_space
 from dpi.solve.trace import Trace
 
 
 @pytest.fixture(scope="module")
 def problem(tiny_capture):
-    return InverseProblem(load_capture(tiny_capture), ProblemSettings(env_height=4, texture_size=8),
-                          RenderSettings(spp=4, threads=2))
+    return InverseProblem(load_capture(tiny_capture), ProblemConfig(env_height=4, texture_size=8),
+                          RenderConfig(spp=4, threads=2))
 
 
 def test_priors_known_answers():

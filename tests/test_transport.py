@@ -10,9 +10,9 @@ import torch
 
 from dpi.capture import load_capture
 from dpi.materials import MaterialTextures
-from dpi.render import RenderSettings, texture_plugin
-from dpi.solve.problem import InverseProblem, ProblemSettings
-from dpi.solve.transport import TransportSettings, guide_map, record_transport, record_view, roughness_levels
+from dpi.render import RenderConfig, texture_plugin
+from dpi.solve.problem import InverseProblem, ProblemConfig
+from dpi.solve.transport import TransportConfig, guide_map, record_transport, record_view, roughness_levels
 from dpi.solve.transport.record import texel_weights, texture_weights, transport_pixels
 
 HEIGHT, SIZE = 8, 8
@@ -20,8 +20,8 @@ HEIGHT, SIZE = 8, 8
 
 @pytest.fixture(scope="module")
 def problem(tiny_capture):
-    return InverseProblem(load_capture(tiny_capture), ProblemSettings(env_height=HEIGHT, texture_size=SIZE),
-                          RenderSettings(spp=16, threads=2))
+    return InverseProblem(load_capture(tiny_capture), ProblemConfig(env_height=HEIGHT, texture_size=SIZE),
+                          RenderConfig(spp=16, threads=2))
 
 
 def random_map(seed: int, spread: float = 1.0) -> torch.Tensor:
@@ -88,7 +88,7 @@ def render_mean(problem, env, mats, view, seeds=range(3), spp=256) -> np.ndarray
 def recorded(problem):
     """One view's transport at many samples (the image tests) under materials() and two more roughness levels."""
     view = problem.train_ids[0]
-    settings = TransportSettings(spp=128, direct_spp=32, roughness_levels=2)
+    settings = TransportConfig(spp=128, direct_spp=32, roughness_levels=2)
     return view, record_view(problem, view, materials(), guide_map(random_map(0)), settings, seed=3)
 
 
@@ -110,7 +110,7 @@ def test_images_under_other_maps_albedos_and_roughness_like_the_path_tracer(prob
 
 @pytest.fixture(scope="module")
 def transport(problem):
-    return record_transport(problem, materials(), random_map(2), TransportSettings(spp=16, direct_spp=4,
+    return record_transport(problem, materials(), random_map(2), TransportConfig(spp=16, direct_spp=4,
                                                                                   roughness_levels=1), seed=4)
 
 
@@ -192,4 +192,4 @@ def test_pixels_beyond_the_limit_are_an_even_subset_and_weigh_for_the_rest(probl
         assert set(chosen[v]) <= set(everything[v])
         assert len(chosen[v]) == pytest.approx(len(everything[v]) / 4, abs=1)
     with pytest.raises(ValueError, match="direct_spp: must be a multiple of 2"):
-        TransportSettings(direct_spp=3)
+        TransportConfig(direct_spp=3)

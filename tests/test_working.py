@@ -68,13 +68,13 @@ def test_evaluation_and_report_work_at_the_working_resolution(tiny_capture, tmp_
     from dpi.evaluation.report import evaluated_capture, held_out_rerenders
     from dpi.inverse_stages import capture_stage, evaluate_stage
     from dpi.layout import SceneLayout
-    from dpi.render import RenderSettings
-    from dpi.solve.problem import ProblemSettings, SolveSettings
+    from dpi.render import RenderConfig
+    from dpi.solve.problem import ProblemConfig, SolveConfig
 
     scene = SceneLayout(tmp_path / "results" / "tiny")
     capture_stage(tiny_capture, scene.capture_json)
     size = load_capture(tiny_capture).image_size[0] // 2
-    settings = SolveSettings(RenderSettings(spp=4, threads=2), replace(ProblemSettings(env_height=8, texture_size=8),
+    settings = SolveConfig(RenderConfig(spp=4, threads=2), replace(ProblemConfig(env_height=8, texture_size=8),
                                                                           resolution=size))
     evaluate_stage(scene.capture_json, tiny_capture / "gt", scene.evaluation("gt", 0), "tiny", "gt", 0, 8, settings,
                    views_dir=scene.evaluation_views("gt", 0))

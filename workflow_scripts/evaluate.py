@@ -3,7 +3,7 @@ held-out re-renders."""
 
 from pathlib import Path
 
-from dpi.inverse_stages import SolveSettings, evaluate_stage
+from dpi.inverse_stages import SolveConfig, evaluate_stage
 from dpi.io.logs import log_to
 from dpi.layout import INIT
 
@@ -12,5 +12,5 @@ method, k = getattr(w, "method", INIT), int(getattr(w, "k", 0))
 with log_to(snakemake.log[0]):
     evaluate_stage(snakemake.input.capture, Path(snakemake.input.sample).parent, snakemake.output.metrics, w.scene,
                    method, k, snakemake.params.spp,
-                   SolveSettings.from_config(snakemake.params.solve, snakemake.threads), snakemake.input.prior,
+                   SolveConfig.from_config(snakemake.params.solve, snakemake.threads), snakemake.input.prior,
                    views_dir=snakemake.output.views)

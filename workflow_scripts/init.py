@@ -2,9 +2,9 @@
 
 from pathlib import Path
 
-from dpi.inverse_stages import SolveSettings, init_stage
+from dpi.inverse_stages import SolveConfig, init_stage
 from dpi.io.logs import log_to
 
 with log_to(snakemake.log[0]):
     init_stage(snakemake.input.capture, Path(snakemake.output.trace).parent, snakemake.wildcards.scene,
-               snakemake.params.init, SolveSettings.from_config(snakemake.params.solve, snakemake.threads))
+               snakemake.params.init, SolveConfig.from_config(snakemake.params.solve, snakemake.threads))

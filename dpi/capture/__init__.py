@@ -7,25 +7,11 @@ message starts with the offending file; stages downstream only see the resulting
 """
 
 from dpi.capture.folder import read_ground_truth
-from dpi.capture.load import (
-                              camera_fit_problem,
-                              capture_warnings,
-                              complete_capture,
-                              derived_inputs,
-                              inspect_capture,
-                              load_capture,
-)
+from dpi.capture.load import (camera_fit_problem, capture_warnings, complete_capture, derived_inputs, inspect_capture,
+                              load_capture)
 from dpi.capture.meshes import GLTF_SUFFIXES, mesh_has_uv
-from dpi.capture.model import (
-                              Capture,
-                              CaptureError,
-                              CaptureWarning,
-                              View,
-                              camera_from_json,
-                              camera_to_json,
-                              read_capture_json,
-                              write_capture_json,
-)
+from dpi.capture.model import (Capture, CaptureError, CaptureWarning, View, camera_from_json, camera_to_json,
+                               read_capture_json, write_capture_json)
 from dpi.capture.scene_yaml import PRIORS, read_scene_options
 
 __all__ = ["GLTF_SUFFIXES", "PRIORS", "Capture", "CaptureError", "CaptureWarning", "View", "camera_fit_problem",

@@ -19,17 +19,8 @@ from urllib.parse import quote
 import numpy as np
 
 from dpi.capture import Capture, capture_warnings, complete_capture, read_capture_json, read_ground_truth
-from dpi.evaluation.figures import (
-    MethodPoint,
-    Rerender,
-    mask_gallery,
-    quality_diversity_plot,
-    relit_grid,
-    rerender_grid,
-    roughness_diversity_plot,
-    texture_grid,
-    view_strip,
-)
+from dpi.evaluation.figures import (MethodPoint, Rerender, mask_gallery, quality_diversity_plot, relit_grid,
+                                    rerender_grid, roughness_diversity_plot, texture_grid, view_strip)
 from dpi.evaluation.metric_table import metric_table, missing_reason, number, read_summary
 from dpi.evaluation.relighting import RELIGHT_MAPS, channel_scaled, relit_name
 from dpi.evaluation.sample_metrics import masked_srgb

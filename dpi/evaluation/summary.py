@@ -18,29 +18,15 @@ import numpy as np
 from dpi.capture import read_ground_truth
 from dpi.evaluation.metric_table import split_missing
 from dpi.evaluation.metrics import aligned_env, env_metrics, missing, resize_area
-from dpi.evaluation.perceptual import (
-    INCEPTION_WEIGHTS,
-    azimuth_rolls,
-    frechet_distance,
-    inception_features,
-    missing_weights,
-    pretrained_inception,
-)
+from dpi.evaluation.perceptual import (INCEPTION_WEIGHTS, azimuth_rolls, frechet_distance, inception_features,
+                                       missing_weights, pretrained_inception)
 from dpi.evaluation.relighting import RELIGHT_METRICS
 from dpi.io.atomic import atomic_path
 from dpi.io.exr import read_exr
 from dpi.io.images import linear_to_srgb
 from dpi.layout import ENV_FILE, INIT, texture_file
-from dpi.spread import (
-    albedo_std_map,
-    calibration,
-    log_std_map,
-    mean_log_map,
-    normalized_albedo,
-    normalized_env,
-    sample_variance,
-    sphere_mean,
-)
+from dpi.spread import (albedo_std_map, calibration, log_std_map, mean_log_map, normalized_albedo, normalized_env,
+                        sample_variance, sphere_mean)
 
 SUMMARY_METRICS = ("novel_psnr", "novel_ssim", "novel_lpips", "env_psnr", "env_ssim", "env_lpips", "env_niqe",
                    "env_naturalness", "albedo_mse", *RELIGHT_METRICS, "train_fit", "train_fit_over_truth",

@@ -16,15 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from dpi.cameras import Camera, read_cameras, write_transforms
-from dpi.capture import (
-    Capture,
-    CaptureError,
-    camera_fit_problem,
-    inspect_capture,
-    load_capture,
-    read_capture_json,
-    write_capture_json,
-)
+from dpi.capture import (Capture, CaptureError, camera_fit_problem, inspect_capture, load_capture, read_capture_json,
+                         write_capture_json)
 from dpi.io.atomic import write_json
 from dpi.io.images import read_mask
 from dpi.layout import SUMMARY_FILE, SceneLayout, geometry_files, poses_files

@@ -21,7 +21,7 @@ from dpi.exposure import MIDDLE_GREY, capture_exposure
 from dpi.io.images import read_image, read_mask, resize
 from dpi.layout import SAMPLE_TRACE
 from dpi.materials import MaterialTextures
-from dpi.render import Renderer, RenderSettings
+from dpi.render import RenderConfig, Renderer
 from dpi.settings import ImageSize, MapHeight, TextureSize, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 
@@ -29,7 +29,7 @@ LOSS_SPACES = ("linear", "log1p")
 
 
 @settings
-class ProblemSettings:
+class ProblemConfig:
     """Resolution of the unknowns and how the data term is measured."""
 
     env_height: MapHeight = 32
@@ -46,17 +46,17 @@ class ProblemSettings:
 
 
 @settings
-class SolveSettings:
+class SolveConfig:
     """Renderer and unknowns' resolution shared by init, methods and evaluation."""
 
-    render: RenderSettings = field(default_factory=RenderSettings)
-    problem: ProblemSettings = field(default_factory=ProblemSettings)
+    render: RenderConfig = field(default_factory=RenderConfig)
+    problem: ProblemConfig = field(default_factory=ProblemConfig)
 
     @classmethod
-    def from_config(cls, config: dict[str, Any], threads: int | None = None) -> "SolveSettings":
+    def from_config(cls, config: dict[str, Any], threads: int | None = None) -> "SolveConfig":
         """Settings from the `render` and `problem` sections of a workflow config, on `threads` threads."""
-        render = settings_from_dict(RenderSettings, {**config.get("render", {}), "threads": threads})
-        return cls(render, settings_from_dict(ProblemSettings, config.get("problem", {})))
+        render = settings_from_dict(RenderConfig, {**config.get("render", {}), "threads": threads})
+        return cls(render, settings_from_dict(ProblemConfig, config.get("problem", {})))
 
 
 def to_loss_space(image: torch.Tensor, space: str) -> torch.Tensor:
@@ -71,7 +71,7 @@ def to_loss_space(image: torch.Tensor, space: str) -> torch.Tensor:
 class InverseProblem:
     """Observed images/masks of a capture's views and a differentiable renderer over all of them."""
 
-    def __init__(self, capture: Capture, settings: ProblemSettings, render: RenderSettings):
+    def __init__(self, capture: Capture, settings: ProblemConfig, render: RenderConfig):
         if capture.mesh is None or not capture.mesh_has_uv:
             raise ValueError(f"{capture.root}: inverse rendering needs a mesh with UVs")
         missing = [v.name for v in capture.views if v.camera is None]

@@ -142,22 +142,22 @@ def prepare_capture(root: Path, scene: str, synth: dict, threads: int) -> Path:
 
 def prepare_job(job: Job) -> None:
     """A job's scene: capture, capture.json and initialisation (made once, then reused)."""
-    from dpi.inverse_stages import SolveSettings, init_stage
+    from dpi.inverse_stages import SolveConfig, init_stage
 
     prepare_capture(job.root, job.scene, job.synth, threads=2)
     files = job.layout.scene(job.scene)
     if not files.sample_files("init")["trace"].exists():
         init_stage(files.capture_json, files.sample_dir("init"), job.scene, job.config["init"],
-                   SolveSettings.from_config(job.config, 2), progress=False)
+                   SolveConfig.from_config(job.config, 2), progress=False)
 
 
 def run_job(job: Job) -> dict[str, Any]:
     """Draw (except for the init) and evaluate one sample; its row (SAMPLE_COLUMNS)."""
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-    from dpi.inverse_stages import SolveSettings, evaluate_stage, sample_stage
+    from dpi.inverse_stages import SolveConfig, evaluate_stage, sample_stage
 
     files, sample_dir = job.layout.scene(job.scene), job.sample_dir
-    settings = SolveSettings.from_config(job.config, threads=1)
+    settings = SolveConfig.from_config(job.config, threads=1)
     if job.rerun and job.method != "init":
         shutil.rmtree(sample_dir, ignore_errors=True)
     if job.method != "init" and not files.sample_files(job.label, job.seed)["trace"].exists():

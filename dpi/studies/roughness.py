@@ -15,18 +15,18 @@ from pathlib import Path
 from dpi.capture import load_capture
 from dpi.pipeline import resolve_config
 from dpi.prior.sample import Prior
-from dpi.render import RenderSettings
+from dpi.render import RenderConfig
 from dpi.settings import Count, settings
 from dpi.solve.dps import DPSConfig, dps_sample
-from dpi.solve.dps.refine import RefineSettings
+from dpi.solve.dps.refine import RefineConfig
 from dpi.solve.init import InitConfig, path_traced_init
-from dpi.solve.problem import InverseProblem, ProblemSettings
+from dpi.solve.problem import InverseProblem, ProblemConfig
 from dpi.spread import normalized_env, sample_variance
 from dpi.synth.capture import SynthConfig, make_synthetic_capture
 
 
 @settings
-class SweepSettings:
+class SweepConfig:
     """Sizes of one roughness-sweep run: small views and map (32 rows), the workflow's render and init.
 
     The light is a natural map, not Mitsuba's sun-and-sky: a mirror of a featureless sky shows little
@@ -35,10 +35,10 @@ class SweepSettings:
     synth: SynthConfig = field(default_factory=lambda: SynthConfig(views=8, held_out_every=0, width=32, height=32,
                                                                    spp=64, environment="outdoor",
                                                                    environment_seed=31))
-    problem: ProblemSettings = field(default_factory=lambda: ProblemSettings(texture_size=32))
-    render: RenderSettings = field(default_factory=RenderSettings)
+    problem: ProblemConfig = field(default_factory=lambda: ProblemConfig(texture_size=32))
+    render: RenderConfig = field(default_factory=RenderConfig)
     init: InitConfig = field(default_factory=lambda: InitConfig.from_dict(resolve_config()["init"]))
-    dps: DPSConfig = field(default_factory=lambda: DPSConfig(steps=50, refine=RefineSettings(iterations=20)))
+    dps: DPSConfig = field(default_factory=lambda: DPSConfig(steps=50, refine=RefineConfig(iterations=20)))
     samples: Count = 6
     """dps samples per point: a variance from n samples has a relative variance of 2 / (n - 1), so too few let one
     repeat decide Fig. 9's ratio"""
@@ -49,7 +49,7 @@ def material_for(roughness: float) -> dict[str, float]:
     return {"roughness": roughness, "metallic": 1.0 if roughness <= 0.1 else 0.0, "roughness_variation": 0.0}
 
 
-def roughness_point(roughness: float, repeat: int, prior: Prior, folder: str | Path, settings: SweepSettings,
+def roughness_point(roughness: float, repeat: int, prior: Prior, folder: str | Path, settings: SweepConfig,
                     threads: int | None = None) -> dict[str, float]:
     """env sigma2_sample of `samples` dps samples at one roughness; each repeat has its own capture noise,
     init seed and sample seed stream, so repeats are independent."""

@@ -202,13 +202,13 @@ def presets(root: Path) -> str:
     from dpi.pipeline import DEFAULT_CONFIG, read_yaml
     from dpi.settings import apply_preset
     from dpi.solve.dps.config import GLOSSY_REFINE_FACTOR
-    from dpi.solve.problem import ProblemSettings
+    from dpi.solve.problem import ProblemConfig
 
     base = read_yaml(DEFAULT_CONFIG)
     body = []
     for name in base["presets"]:
         config = apply_preset({**deepcopy(base), "preset": name})
-        problem = ProblemSettings(**config["problem"])
+        problem = ProblemConfig(**config["problem"])
         dps = config["method_params"]["dps"]
         refine = dps["refine"]["iterations"]
         body.append([f"`{name}`", str(dps["steps"]), f"{refine} ({refine * GLOSSY_REFINE_FACTOR} on a glossy object)",

@@ -27,7 +27,7 @@ from dpi.io.exr import read_exr, write_exr
 from dpi.io.images import luminance, write_mask, write_srgb
 from dpi.layout import SYNTH_MARKER
 from dpi.light.skies import SkyParams, sunsky_envmap
-from dpi.render import Renderer, RenderSettings
+from dpi.render import RenderConfig, Renderer
 from dpi.settings import (Count, Elevation, Fraction, ImageSize, Loose, MapHeight, Rate, Steps, TextureSize, Weight,
                           settings, settings_from_dict)
 from dpi.synth.backdrop import BACKGROUNDS, add_detail, composite_backdrop
@@ -181,7 +181,7 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
         cam.extras["held_out"] = bool(cfg.held_out_every) and i % cfg.held_out_every == cfg.held_out_every - 1
 
     renderer = Renderer(given / "mesh.ply", cameras, env.shape[0], cfg.texture_size,
-                        RenderSettings(spp=cfg.spp, max_depth=cfg.max_depth, threads=threads))
+                        RenderConfig(spp=cfg.spp, max_depth=cfg.max_depth, threads=threads))
     tensors = [torch.from_numpy(a) for a in (env, materials.albedo, materials.roughness, materials.metallic)]
     other = "png" if cfg.image_format == "exr" else "exr"
     for i, cam in enumerate(tqdm(cameras, desc="render views", disable=not progress)):

@@ -14,7 +14,7 @@ from capture_helpers import make_capture
 from workflow_helpers import REPO, SNAKEMAKE, TINY_CONFIG, write_config
 
 from dpi.config_validation import ConfigError, check_config
-from dpi.inverse_stages import SolveSettings, sample_stage
+from dpi.inverse_stages import SolveConfig, sample_stage
 from dpi.pipeline import CONFIG_SCHEMA, DEFAULT_CONFIG, read_yaml
 from dpi.settings import apply_preset
 
@@ -166,7 +166,7 @@ def test_sample_stage_rejects_a_bad_entry_before_reading_anything(tmp_path):
     """Called outside Snakemake (dpi sample), a bad method entry fails before any input is read or output written."""
     out = tmp_path / "out"
     with pytest.raises(ValueError, match=r"^steps: must be >= 1, got -5$"):
-        sample_stage(tmp_path / "missing.json", tmp_path / "init", out, "s", "dps", 0, {"steps": -5}, SolveSettings())
+        sample_stage(tmp_path / "missing.json", tmp_path / "init", out, "s", "dps", 0, {"steps": -5}, SolveConfig())
     assert not out.exists()
 
 

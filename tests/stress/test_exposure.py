@@ -18,16 +18,16 @@ from dpi.evaluation.metrics import PSNR_CAP, env_metrics
 from dpi.evaluation.niqe import env_niqe
 from dpi.evaluation.sample_metrics import evaluate_sample
 from dpi.exposure import MIDDLE_GREY, capture_exposure
-from dpi.inverse_stages import SolveSettings, capture_stage, evaluate_stage, init_stage, sample_stage
+from dpi.inverse_stages import SolveConfig, capture_stage, evaluate_stage, init_stage, sample_stage
 from dpi.io.exr import read_exr, write_exr
 from dpi.materials import MaterialTextures
-from dpi.render import RenderSettings
+from dpi.render import RenderConfig
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.problem import InverseProblem, ProblemSettings
+from dpi.solve.problem import InverseProblem, ProblemConfig
 from dpi.spread import normalized_env
 
 SCALES = (1e-8, 1e-4, 1.0, 1e4, 1e8)
-SETTINGS = SolveSettings(RenderSettings(spp=4, threads=1), ProblemSettings(env_height=4, texture_size=8))
+SETTINGS = SolveConfig(RenderConfig(spp=4, threads=1), ProblemConfig(env_height=4, texture_size=8))
 RNG = np.random.default_rng(11)
 ESTIMATE = RNG.lognormal(0.0, 1.0, (8, 16, 3)).astype(np.float32)
 REFERENCE = (ESTIMATE * RNG.lognormal(0.0, 0.3, (8, 16, 3))).astype(np.float32)
@@ -70,7 +70,7 @@ def test_env_niqe_does_not_depend_on_the_scale(scale):
 
 def test_exact_match_reports_the_cap_and_says_so(tiny_capture):
     """The ground truth scored against itself: env PSNR is the cap, noted, and the metrics are valid JSON."""
-    problem = InverseProblem(load_capture(tiny_capture), ProblemSettings(env_height=8, texture_size=8), SETTINGS.render)
+    problem = InverseProblem(load_capture(tiny_capture), ProblemConfig(env_height=8, texture_size=8), SETTINGS.render)
     gt = torch.from_numpy(read_exr(tiny_capture / "gt" / "envmap.exr"))
     truth = problem.to_solver_units(Decomposition(gt, MaterialTextures.constant(8)))
     metrics = evaluate_sample(problem, truth, spp=4, seed=0, seconds=1.0)

@@ -6,10 +6,10 @@ import torch
 from dpi.cameras import from_fov, look_at
 from dpi.capture import load_capture
 from dpi.materials import MaterialTextures
-from dpi.render import Renderer, RenderSettings
+from dpi.render import RenderConfig, Renderer
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.optimize import OptimizeConfig, fit
-from dpi.solve.problem import InverseProblem, ProblemSettings
+from dpi.solve.problem import InverseProblem, ProblemConfig
 from dpi.solve.trace import Trace
 from dpi.synth.shapes import blob, write_ply
 
@@ -31,7 +31,7 @@ def grad_of_render(renderer, env, mats):
 
 def test_extreme_hdr_sun_next_to_dim_sky_stays_finite(sphere):
     cam = from_fov(look_at([0, 0, 4.0], [0, 0, 0]), 16, 16, 40.0)
-    r = Renderer(sphere, [cam], 8, 8, RenderSettings(spp=8, threads=2))
+    r = Renderer(sphere, [cam], 8, 8, RenderConfig(spp=8, threads=2))
     env = torch.full((8, 16, 3), 1e-3)
     env[2, 5] = 1e5
     image, g_env, g_alb = grad_of_render(r, env, MaterialTextures.constant(8))
@@ -41,7 +41,7 @@ def test_extreme_hdr_sun_next_to_dim_sky_stays_finite(sphere):
 @pytest.mark.parametrize("roughness,metallic", [(0.02, 0.0), (1.0, 0.0), (0.02, 1.0), (1.0, 1.0)])
 def test_material_extremes_render_finite_gradients(sphere, roughness, metallic):
     cam = from_fov(look_at([0, 0, 4.0], [0, 0, 0]), 16, 16, 40.0)
-    r = Renderer(sphere, [cam], 8, 8, RenderSettings(spp=8, threads=2))
+    r = Renderer(sphere, [cam], 8, 8, RenderConfig(spp=8, threads=2))
     mats = MaterialTextures.constant(8, albedo=0.0 if metallic else 1.0, roughness=roughness, metallic=metallic)
     image, g_env, g_alb = grad_of_render(r, torch.ones(8, 16, 3), mats)
     assert torch.isfinite(image).all() and torch.isfinite(g_env).all() and torch.isfinite(g_alb).all()
@@ -53,7 +53,7 @@ def test_huge_and_tiny_scene_scales(tmp_path, mi, scale):
     mesh.vertices = mesh.vertices * scale
     write_ply(tmp_path / "m.ply", mesh)
     cam = from_fov(look_at([0, 0, 4.0 * scale], [0, 0, 0]), 16, 16, 40.0)
-    r = Renderer(tmp_path / "m.ply", [cam], 8, 8, RenderSettings(spp=4, threads=2))
+    r = Renderer(tmp_path / "m.ply", [cam], 8, 8, RenderConfig(spp=4, threads=2))
     image, g_env, _ = grad_of_render(r, torch.ones(8, 16, 3), MaterialTextures.constant(8))
     assert torch.isfinite(g_env).all() and 0.05 < r.coverage(0).mean() < 0.9
     assert image.mean() > 0
@@ -61,8 +61,8 @@ def test_huge_and_tiny_scene_scales(tmp_path, mi, scale):
 
 @pytest.fixture(scope="module")
 def problem(tiny_capture):
-    return InverseProblem(load_capture(tiny_capture), ProblemSettings(env_height=4, texture_size=8),
-                          RenderSettings(spp=4, threads=2))
+    return InverseProblem(load_capture(tiny_capture), ProblemConfig(env_height=4, texture_size=8),
+                          RenderConfig(spp=4, threads=2))
 
 
 @pytest.mark.parametrize("value", [0.0, 1.0])
@@ -94,7 +94,7 @@ def test_single_view_capture_has_no_novel_views_but_fits(tiny_capture, mi):
 
     capture = load_capture(tiny_capture)
     capture.views = capture.views[:1]
-    p = InverseProblem(capture, ProblemSettings(env_height=4, texture_size=8), RenderSettings(spp=4, threads=2))
+    p = InverseProblem(capture, ProblemConfig(env_height=4, texture_size=8), RenderConfig(spp=4, threads=2))
     d = Decomposition(torch.ones(4, 8, 3), MaterialTextures.constant(8))
     assert novel_view_metrics(p, render_held_out(p, d, spp=4, seed=0))["novel_psnr"].startswith("missing")
     log_env, _ = fit(p, torch.zeros(4, 8, 3), MaterialTextures.constant(8), OptimizeConfig(iterations=2), seed=0,

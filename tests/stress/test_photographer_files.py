@@ -114,7 +114,7 @@ def test_a_gltf_mesh_is_read_and_rendered_as_ply(tmp_path, suffix, mi):
     import trimesh
 
     from dpi.preprocess.stages import capture_stage
-    from dpi.render import Renderer, RenderSettings
+    from dpi.render import RenderConfig, Renderer
 
     root = make_capture(tmp_path / "cap", mesh=False)
     sphere = trimesh.creation.icosphere(subdivisions=2)
@@ -132,7 +132,7 @@ def test_a_gltf_mesh_is_read_and_rendered_as_ply(tmp_path, suffix, mi):
     back = trimesh.load(converted.mesh, process=False)
     assert np.allclose(back.vertices, sphere.vertices, atol=1e-6) and np.allclose(back.visual.uv, uv, atol=1e-6)
     cameras = [v.camera for v in converted.views][:1]
-    renderer = Renderer(converted.mesh, cameras, 4, 8, RenderSettings(spp=4))
+    renderer = Renderer(converted.mesh, cameras, 4, 8, RenderConfig(spp=4))
     import torch
 
     image = renderer.render(torch.ones(4, 8, 3), torch.full((8, 8, 3), 0.5), torch.full((8, 8, 1), 0.5),

@@ -16,11 +16,11 @@ from pydantic import Field
 from dpi.materials import MaterialRates
 from dpi.settings import Count, Rate, SettingsError, build, check_keys, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.dps.paper import PaperSettings, paper_step
-from dpi.solve.dps.proximal import ProximalSettings, proximal_step
-from dpi.solve.dps.refine import RefineSettings
+from dpi.solve.dps.paper import PaperConfig, paper_step
+from dpi.solve.dps.proximal import ProximalConfig, proximal_step
+from dpi.solve.dps.refine import RefineConfig
 from dpi.solve.dps.state import DPSRun, DPSState
-from dpi.solve.dps.sun_choice import SunSettings
+from dpi.solve.dps.sun_choice import SunConfig
 from dpi.solve.init import is_glossy
 
 StepFunction = Callable[[DPSRun, DPSState, int], dict[str, Any]]
@@ -34,13 +34,13 @@ class Sampler:
     step: StepFunction
 
 
-SAMPLERS: dict[str, Sampler] = {"proximal": Sampler(ProximalSettings, proximal_step),
-                                "paper": Sampler(PaperSettings, paper_step)}
+SAMPLERS: dict[str, Sampler] = {"proximal": Sampler(ProximalConfig, proximal_step),
+                                "paper": Sampler(PaperConfig, paper_step)}
 """dps's samplers by name (the `sampler` setting and its section's key); the first is the default"""
 
 SECTIONS: dict[str, Callable[[Any], Any]] = {**{name: s.settings.from_dict for name, s in SAMPLERS.items()},
-                                             "sun": SunSettings.from_dict,
-                                             "refine": partial(settings_from_dict, RefineSettings)}
+                                             "sun": SunConfig.from_dict,
+                                             "refine": partial(settings_from_dict, RefineConfig)}
 """method_params.dps keys that hold a settings section, and the builder of its dataclass from its entry"""
 
 GLOSSY_PROXIMAL = {"inner_steps": 2, "map_solve": 0}
@@ -70,10 +70,10 @@ class DPSConfig(MaterialRates):
     """scene radiance per unit of the prior's normalised radiance (None: estimated from the init)"""
     strip_frames: Count = 8
     """x0_hat snapshots kept for the progress strip"""
-    proximal: ProximalSettings = field(default_factory=ProximalSettings)
-    paper: PaperSettings = field(default_factory=PaperSettings)
-    sun: SunSettings = field(default_factory=SunSettings)
-    refine: RefineSettings = field(default_factory=RefineSettings)
+    proximal: ProximalConfig = field(default_factory=ProximalConfig)
+    paper: PaperConfig = field(default_factory=PaperConfig)
+    sun: SunConfig = field(default_factory=SunConfig)
+    refine: RefineConfig = field(default_factory=RefineConfig)
 
     @property
     def sampler_settings(self) -> Any:

@@ -14,14 +14,14 @@ import numpy as np
 import torch
 
 from dpi.settings import Count, Fraction, Rate, SettingsError, Weight, settings
-from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerSettings, finite, network_step
+from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerConfig, finite, network_step
 from dpi.solve.optimize import all_finite
 
 RHO_SCHEDULES = ("linear", "step", "constant")
 
 
 @settings
-class PaperSettings(SamplerSettings):
+class PaperConfig(SamplerConfig):
     """The paper's guidance (method_params.dps.paper): one view per step from pure noise, as the reference."""
 
     views_per_step: Count = 1
@@ -38,14 +38,14 @@ class PaperSettings(SamplerSettings):
     """fraction of steps run at rho_start"""
 
     @classmethod
-    def from_dict(cls, values: dict[str, Any]) -> "PaperSettings":
+    def from_dict(cls, values: dict[str, Any]) -> "PaperConfig":
         settings = super().from_dict(values)
         if settings.rho_schedule not in RHO_SCHEDULES:
             raise SettingsError("rho_schedule", f"must be one of {', '.join(RHO_SCHEDULES)}, got {settings.rho_schedule!r}")
         return settings
 
 
-def rho_schedule(settings: PaperSettings, n: int) -> np.ndarray:
+def rho_schedule(settings: PaperConfig, n: int) -> np.ndarray:
     """Guidance weight per executed step (n steps, first executed = noisiest)."""
     first = int(round(settings.rho_switch * n))
     rho = np.full(n, settings.rho_start)
@@ -64,7 +64,7 @@ def scale_to_bound(g: torch.Tensor, bound: float) -> torch.Tensor:
 
 def paper_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     """The paper's guided ancestral step (gradient through renderer and network, bounded, times rho_t)."""
-    settings: PaperSettings = run.sampler
+    settings: PaperConfig = run.sampler
     laps, i, gen = Laps(), run.index(n), state.generator
     rho = float(rho_schedule(settings, run.num_steps)[n])
     x = state.x.detach().requires_grad_(True)

@@ -40,10 +40,10 @@ import torch
 from dpi.settings import Count, Fraction, Rate, Share, Steps, Weight, settings
 from dpi.solve.dps.data_term import current_level, sample_transport, set_level
 from dpi.solve.dps.map_solve import PRIOR_STD, MapPrior, Resampling, cached_resampling, posterior_variance, solve_map
-from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerSettings, finite, log_radiance, predict_x0, recentre_
+from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerConfig, finite, log_radiance, predict_x0, recentre_
 from dpi.solve.optimize import all_finite
 from dpi.solve.sun_model import share_penalty, sun_env, wrap_uv_
-from dpi.solve.transport import LightTransport, TransportSettings
+from dpi.solve.transport import LightTransport, TransportConfig
 
 MAX_EXPOSURE_STEP = 3.0
 """largest change of the log-exposure in one data update"""
@@ -55,12 +55,12 @@ SOLVE_CG_ITERATIONS = 10
 
 
 @settings
-class ProximalSettings(SamplerSettings):
+class ProximalConfig(SamplerConfig):
     """The proximal x0-space sampler (method_params.dps.proximal)."""
 
     start_noise: Share = 0.4
-    """starts from the init map noised to 0.4 of the schedule (SDEdit; SamplerSettings)"""
-    transport: TransportSettings = field(default_factory=TransportSettings)
+    """starts from the init map noised to 0.4 of the schedule (SDEdit; SamplerConfig)"""
+    transport: TransportConfig = field(default_factory=TransportConfig)
     """how the data term's light transport is recorded (dpi.solve.transport)"""
     inner_steps: Count = 1
     """joint data updates of map, materials and exposure per reverse step, after the map's solve"""
@@ -127,8 +127,8 @@ def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_h
     proximal terms; the materials and the sun held): its data sum / data_unit is sum / (2 sigma2), prox_weight x
     the mean is sum / (2 r^2). The views' normal equations are formed every GRAM_EVERY steps (the albedo moves
     little in between; the data updates after the solve see the current one). With `perturb` the target is pushed
-    by a coarse random field (ProximalSettings.perturb)."""
-    settings: ProximalSettings = run.sampler
+    by a coarse random field (ProximalConfig.perturb)."""
+    settings: ProximalConfig = run.sampler
     built = state.extra.get("gram")
     if built is None or built[0] != level or n - built[1] >= GRAM_EVERY:
         built = state.extra["gram"] = (level, n, transport.image_equations(state.materials.albedo, level))
@@ -165,7 +165,7 @@ def coarse_correction_(run: DPSRun, state: DPSState, x0_hat: torch.Tensor, heigh
 
 def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     """x0_hat, `inner_steps` joint data updates of (map, materials, exposure) near it, stochastic re-noising."""
-    settings: ProximalSettings = run.sampler
+    settings: ProximalConfig = run.sampler
     laps, i, gen = Laps(), run.index(n), state.generator
     encoding = run.prior.encoding
     record, x0_hat = predict_x0(run, state, n, laps)

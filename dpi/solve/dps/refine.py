@@ -23,7 +23,7 @@ band 2 fits the views better but bends the map away from the truth"""
 
 
 @settings
-class RefineSettings:
+class RefineConfig:
     """Adam settings of the refinement (method_params.dps.refine)."""
 
     iterations: Steps = 200
@@ -40,7 +40,7 @@ class RefineSettings:
                               lr_metallic=rates.lr_metallic)
 
 
-def refine(problem: InverseProblem, env: torch.Tensor, materials: MaterialTextures, settings: RefineSettings,
+def refine(problem: InverseProblem, env: torch.Tensor, materials: MaterialTextures, settings: RefineConfig,
            rates: MaterialRates, seed: int, progress: bool = True) -> tuple[torch.Tensor, MaterialTextures, Trace]:
     """Adam on the materials under `env` with its gain and polish; returns the map, the materials and the trace."""
     trace = Trace()

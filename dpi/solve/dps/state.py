@@ -20,14 +20,14 @@ from dpi.prior.diffusion import Diffusion, model_output_with_random_roll, model_
 from dpi.prior.sample import Prior
 from dpi.settings import Share, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.dps.sun_choice import SunSettings
+from dpi.solve.dps.sun_choice import SunConfig
 from dpi.solve.prior_space import resample_env
 from dpi.solve.problem import InverseProblem
 from dpi.solve.sun_model import sun_env
 
 
 @settings
-class SamplerSettings:
+class SamplerConfig:
     """What every sampler's settings have (each sampler's subclass sets its own defaults)."""
 
     start_noise: Share = 1.0
@@ -75,7 +75,7 @@ class DPSRun:
     """mean squared foreground radiance of the training views (makes the data term relative)"""
     first_index: int
     """schedule index of the first executed step (the last index, or lower when starting from the noised init)"""
-    sun: SunSettings | None = None
+    sun: SunConfig | None = None
     """the map's parametric sun next to the prior's sky (dpi.solve.sun_model), None without one"""
     init: Decomposition | None = None
     """the initialisation the sample starts from"""

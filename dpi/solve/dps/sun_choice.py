@@ -34,7 +34,7 @@ MIN_SHARE = 0.05
 
 
 @settings
-class SunSettings:
+class SunConfig:
     """A parametric sun next to the prior's sky (method_params.dps.sun)."""
 
     mode: str = "auto"
@@ -48,7 +48,7 @@ class SunSettings:
     """weight of (logit share - logit `share`)^2 next to the relative data term (0: the data alone)"""
 
     @classmethod
-    def from_dict(cls, values: dict[str, Any] | bool | str) -> "SunSettings":
+    def from_dict(cls, values: dict[str, Any] | bool | str) -> "SunConfig":
         """Settings from a `sun` entry; a bare mode (`sun: off`, which YAML reads as a boolean) means that mode."""
         if isinstance(values, (bool, str)):
             values = {"mode": values}
@@ -60,7 +60,7 @@ class SunSettings:
         return settings
 
 
-def wants_sun(settings: SunSettings, sampler_models_sun: bool, family: str, materials: MaterialTextures,
+def wants_sun(settings: SunConfig, sampler_models_sun: bool, family: str, materials: MaterialTextures,
               sun: SunExtraction) -> bool:
     """Whether a sample gets a parametric sun (the module's rule for `mode`)."""
     if settings.mode != "auto":

@@ -36,7 +36,7 @@ from dpi.materials import MaterialTextures
 from dpi.render import SEED_MODULUS, texture_plugin
 from dpi.solve.problem import InverseProblem
 from dpi.solve.transport.operator import AlbedoLookup, LightTransport, resize_map
-from dpi.solve.transport.settings import HALVES, TransportSettings, roughness_levels, transport_height
+from dpi.solve.transport.settings import HALVES, TransportConfig, roughness_levels, transport_height
 
 BRIGHT_SHARE = 0.5
 """the brightest texels that hold this share of the guide map's energy get extra direct-light draws ..."""
@@ -405,7 +405,7 @@ class ViewTransport:
 
 
 def record_view(problem: InverseProblem, view: int, materials: MaterialTextures, guide: np.ndarray,
-                settings: TransportSettings, seed: int, pixels: np.ndarray | None = None,
+                settings: TransportConfig, seed: int, pixels: np.ndarray | None = None,
                 height: int | None = None) -> ViewTransport:
     """The transport of `pixels` (default: the view's foreground) under `materials` and the roughness levels
     (module notes) for maps of `height` rows (default the problem's; the guide is at the problem's); seeded."""
@@ -439,7 +439,7 @@ def transport_pixels(problem: InverseProblem, limit: int, rng: np.random.Generat
 
 
 def record_transport(problem: InverseProblem, materials: MaterialTextures, env: torch.Tensor,
-                     settings: TransportSettings, seed: int) -> LightTransport:
+                     settings: TransportConfig, seed: int) -> LightTransport:
     """The light transport of the training views' foreground pixels (at most settings.pixels of them) under
     `materials` and the roughness levels, for maps of `transport_height` rows, with next-event directions guided
     by `env` (the problem's size; module notes)."""

@@ -25,7 +25,7 @@ Halves = Annotated[int, Field(ge=HALVES, multiple_of=HALVES)]
 
 
 @settings
-class TransportSettings:
+class TransportConfig:
     """How the light transport is recorded (method_params.dps.<sampler>.transport)."""
 
     spp: Halves = 16
