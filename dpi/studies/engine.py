@@ -32,7 +32,7 @@ PROVENANCE = ("commit", "settings_hash")
 """the columns every study row ends with"""
 TEXT_COLUMNS = ("scene", "group", "method", "sampler", *PROVENANCE)
 SAMPLE_METRICS = ("novel_psnr", "env_psnr", "env_ssim", "albedo_mse", "relight_psnr_h", "relight_psnr_l",
-                  "relight_ssim")
+                  "relight_ssim", "train_fit", "train_fit_over_truth")
 """the workflow's sample metrics a study row keeps"""
 SAMPLE_COLUMNS = ("scene", "group", "method", "sampler", "seed", *SAMPLE_METRICS, "seconds")
 """the columns of a row of one scored sample (run_job)"""
