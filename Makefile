@@ -5,7 +5,7 @@ VENV ?= .venv
 CORES ?= 2
 PYTEST_ARGS ?=
 
-.PHONY: setup demo test test-fast test-slurm benchmarks tables clean
+.PHONY: setup demo test test-fast test-slurm benchmarks studies tables clean
 
 setup:
 	bash scripts/setup.sh
@@ -22,8 +22,23 @@ test-slurm: setup
 test-fast: setup
 	$(VENV)/bin/python -m pytest -q -m "not slow" $(PYTEST_ARGS)
 
+# the quick benchmarks (minutes): cost of a render step, of a dps step, of the procedural worlds
 benchmarks: setup
 	$(VENV)/bin/python benchmarks/render_step.py
+	$(VENV)/bin/python benchmarks/dps_step.py
+	$(VENV)/bin/python benchmarks/outdoor_generator.py
+
+# the studies behind the docs' tables (hours on 2 cores; a row already there with the same settings is kept),
+# then the tables regenerated from their CSVs
+studies: setup
+	$(VENV)/bin/python benchmarks/posterior_study.py
+	$(VENV)/bin/python benchmarks/train_fit.py results/benchmarks/posterior_study --out benchmarks/results/train_fit.csv
+	$(VENV)/bin/python benchmarks/calibration_study.py
+	$(VENV)/bin/python benchmarks/roughness_study.py
+	$(VENV)/bin/python benchmarks/resolution_study.py
+	$(VENV)/bin/python benchmarks/lens_study.py
+	$(VENV)/bin/python benchmarks/tradeoff.py --presets draft
+	$(VENV)/bin/dpi tables
 
 tables: setup
 	$(VENV)/bin/dpi tables

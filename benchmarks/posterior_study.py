@@ -36,7 +36,7 @@ METHODS = ("init", "none", "smoothness", "sds", "dip", "dps")
 def summary(rows: list[dict[str, Any]]) -> list[str]:
     """Mean +- std per group, method and sampler over scenes and seeds (a cell only where every row has it)."""
     shown = (("novel_psnr", ".2f"), ("env_psnr", ".2f"), ("env_ssim", ".3f"), ("albedo_mse", ".4f"),
-             ("relight_psnr_h", ".2f"), ("relight_psnr_l", ".2f"), ("seconds", ".1f"))
+             ("relight_psnr_h", ".2f"), ("relight_psnr_l", ".2f"), ("train_fit_over_truth", ".2f"), ("seconds", ".1f"))
     lines = [f"{'group':<10} {'method':<12} {'sampler':<12} {'n':>3} " + " ".join(f"{name:>17}" for name, _ in shown)]
     keys = sorted({(r["group"], r["method"], r["sampler"]) for r in rows},
                   key=lambda k: (k[0], METHODS.index(k[1]) if k[1] in METHODS else 99, k[2]))

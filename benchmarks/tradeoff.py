@@ -28,7 +28,7 @@ from dpi.solve.dps import dps_sample
 from dpi.solve.init import path_traced_init
 from dpi.solve.problem import InverseProblem, ProblemConfig
 from dpi.studies.demo_costs import DEMO, Setting, capture_at, demo_pipeline, preset_setting
-from dpi.studies.engine import PROVENANCE, current_commit, settings_hash
+from dpi.studies.engine import PROVENANCE, current_commit, results_csv, settings_hash
 from dpi.studies.pareto import pareto_front
 
 OUT = demo_pipeline().layout.results / "benchmarks"
@@ -123,13 +123,14 @@ def main() -> None:
         if best:
             print(f"  {row['label']}: {row['seconds']:.1f} s, env {row['env_psnr']:.2f} dB, "
                   f"albedo {row['albedo_mse']:.5f}, view {row['view_psnr']:.2f} dB")
-    OUT.mkdir(parents=True, exist_ok=True)
-    with open(OUT / "tradeoff.csv", "w", newline="") as f:
+    table = results_csv("tradeoff")
+    with open(table, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=[*(k for k in rows[0] if k not in PROVENANCE), "pareto", *PROVENANCE])
         writer.writeheader()
         writer.writerows({**row, "pareto": best} for row, best in zip(rows, front))
+    OUT.mkdir(parents=True, exist_ok=True)
     plot(rows, front, OUT / "tradeoff.png")
-    print(f"wrote {OUT / 'tradeoff.csv'} and {OUT / 'tradeoff.png'}")
+    print(f"wrote {table} and {OUT / 'tradeoff.png'}")
 
 
 if __name__ == "__main__":
