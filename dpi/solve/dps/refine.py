@@ -8,8 +8,6 @@ dpi.solve.smooth_gain) and a per-texel polish moving at `lr_texels`, at most abo
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import torch
 
 from dpi.materials import MaterialRates, MaterialTextures
@@ -35,9 +33,6 @@ class RefineConfig:
     """Adam rate of the gain's spherical-harmonic coefficients"""
     lr_texels: Rate = 0.005
     """Adam rate of the per-texel log polish: at most 1 over 200 iterations, so the sample keeps its detail"""
-    light_iterations: Steps = 0
-    """further iterations on the gain and the polish alone, the materials fixed: the light explains what is left
-    of the views instead of the albedo"""
     def optimize(self, rates: MaterialRates) -> OptimizeConfig:
         """The joint fit's settings: the gain's rate for the map's parameters, `rates` for the textures."""
         return OptimizeConfig(iterations=self.iterations, views_per_step=self.views_per_step, lr_env=self.lr_gain,
@@ -50,9 +45,6 @@ def refine(problem: InverseProblem, env: torch.Tensor, materials: MaterialTextur
     """Adam on the materials under `env` with its gain and polish; returns the map, the materials and the trace."""
     trace = Trace()
     model = SmoothGain(env.clamp_min(1e-8).log(), GAIN_ORDER, settings.lr_texels / settings.lr_gain)
-    cfg = settings.optimize(rates)
-    log_env, materials = fit_env_model(problem, model, materials.detached(), cfg, seed, trace, progress=progress)
-    if settings.light_iterations:
-        light = replace(cfg, iterations=settings.light_iterations, optimize_materials=())
-        log_env, materials = fit_env_model(problem, model, materials, light, seed + 1, trace, progress=progress)
+    log_env, materials = fit_env_model(problem, model, materials.detached(), settings.optimize(rates), seed, trace,
+                                       progress=progress)
     return log_env.exp(), materials, trace
