@@ -68,12 +68,14 @@ def cmd_synth(args: argparse.Namespace) -> None:
 
 
 def cmd_validate(args: argparse.Namespace) -> None:
-    """Validate a capture folder; optionally write capture.json."""
-    from dpi.capture import load_capture, write_capture_json
+    """Validate a capture folder; optionally write capture.json as the capture stage does (distortion removed
+    and a glTF mesh converted beside it)."""
+    from dpi.capture import load_capture
+    from dpi.preprocess.stages import capture_stage
 
     capture = load_capture(args.capture)
     if args.out:
-        write_capture_json(capture, args.out)
+        capture_stage(args.capture, args.out)
     print(f"{args.capture}: {len(capture.views)} views ({len(capture.held_out_views)} held out), "
           f"provenance {json.dumps(capture.provenance)}")
 
