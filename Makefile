@@ -32,7 +32,6 @@ benchmarks: setup
 # then the tables regenerated from their CSVs
 studies: setup
 	$(VENV)/bin/python benchmarks/posterior_study.py
-	$(VENV)/bin/python benchmarks/train_fit.py results/benchmarks/posterior_study --out benchmarks/results/train_fit.csv
 	$(VENV)/bin/python benchmarks/calibration_study.py
 	$(VENV)/bin/python benchmarks/roughness_study.py
 	$(VENV)/bin/python benchmarks/resolution_study.py
