@@ -70,12 +70,14 @@ def cmd_synth(args: argparse.Namespace) -> None:
 def cmd_validate(args: argparse.Namespace) -> None:
     """Validate a capture folder; optionally write capture.json as the capture stage does (distortion removed
     and a glTF mesh converted beside it)."""
-    from dpi.capture import load_capture
+    from dpi.capture import load_capture, read_capture_json
     from dpi.preprocess.stages import capture_stage
 
-    capture = load_capture(args.capture)
     if args.out:
         capture_stage(args.capture, args.out)
+        capture = read_capture_json(args.out)
+    else:
+        capture = load_capture(args.capture)
     print(f"{args.capture}: {len(capture.views)} views ({len(capture.held_out_views)} held out), "
           f"provenance {json.dumps(capture.provenance)}")
 

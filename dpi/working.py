@@ -9,17 +9,14 @@ reused by every later job; a changed source image is resampled again.
 
 from __future__ import annotations
 
-import json
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from dpi.capture import Capture, View
-from dpi.capture.model import source_stamp
-from dpi.io.atomic import write_json
-from dpi.io.exr import write_exr
+from dpi.capture import Capture
+from dpi.capture.view_copies import cached_copies, source_stamp
 from dpi.io.images import read_image, read_mask, resize, resize_mask, working_size
 
 MANIFEST = "working.json"
@@ -31,21 +28,9 @@ def working_capture(capture: Capture, resolution: int | None, folder: str | Path
     size = working_size(capture.image_size, resolution)
     if size == tuple(capture.image_size):
         return capture
-    root = Path(folder) / f"{size[0]}x{size[1]}"
-    manifest_path = root / MANIFEST
-    manifest = json.loads(manifest_path.read_text()) if manifest_path.is_file() else {}
-    views, changed = [], False
-    for view in capture.views:
-        image, mask = root / "images" / f"{view.name}.exr", root / "masks" / f"{view.name}.exr"
-        stamp = source_stamp(view)
-        if manifest.get(view.name) != stamp or not image.is_file() or (view.mask and not mask.is_file()):
-            pixels = torch.from_numpy(read_image(view.image))
-            write_exr(image, resize(pixels, size[1], size[0]).numpy())
-            if view.mask is not None:
-                write_exr(mask, resize_mask(read_mask(view.mask), *size).astype(np.float32))
-            manifest[view.name], changed = stamp, True
-        camera = None if view.camera is None else view.camera.resized(*size)
-        views.append(View(view.name, image, mask if view.mask is not None else None, camera, view.held_out))
-    if changed:
-        write_json(manifest_path, manifest)
+    views = cached_copies(
+        capture.views, Path(folder) / f"{size[0]}x{size[1]}", MANIFEST, source_stamp,
+        image=lambda v: resize(torch.from_numpy(read_image(v.image)), size[1], size[0]).numpy(),
+        mask=lambda v: resize_mask(read_mask(v.mask), *size).astype(np.float32),
+        camera=lambda v: None if v.camera is None else v.camera.resized(*size))
     return replace(capture, views=views, image_size=size)

@@ -139,8 +139,3 @@ def write_capture_json(capture: Capture, path: str | os.PathLike) -> None:
 def read_capture_json(path: str | os.PathLike) -> Capture:
     """Read a `capture.json` written by `write_capture_json`."""
     return Capture.from_json(json.loads(Path(path).read_text()))
-
-
-def source_stamp(view: View) -> list:
-    """What identifies a view's sources: paths, sizes and modification times of image and mask."""
-    return [[str(p), p.stat().st_size, p.stat().st_mtime_ns] for p in (view.image, view.mask) if p is not None]

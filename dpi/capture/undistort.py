@@ -1,14 +1,14 @@
-"""Lens distortion removed once, at capture time: each distorted view's image and mask resampled by OpenCV to
-the pinhole camera with the same intrinsics, written beside capture.json, so every later stage (masks,
-geometry, init, the methods, evaluation) works on pinhole views.
+"""Lens distortion removed once: each distorted view's image and mask resampled by OpenCV to the pinhole camera
+with the same intrinsics, written beside capture.json, so every later stage (masks, geometry, init, the methods,
+evaluation) works on pinhole views. A given lens is removed at capture time; one the poses stage fits, right
+after it (`with_cameras`).
 
-The copies are linear EXR (images) and EXR masks, written atomically and reused while their source is
-unchanged (the views' source stamps); pixels the pinhole sees beyond the photo's edge are black and outside the
+The copies are linear EXR (images) and EXR masks (dpi.capture.view_copies), reused while their source is
+unchanged; pixels the pinhole sees beyond the photo's edge are black and outside the
 mask."""
 
 from __future__ import annotations
 
-import json
 from dataclasses import replace
 from pathlib import Path
 
@@ -16,9 +16,8 @@ import cv2
 import numpy as np
 
 from dpi.cameras import Camera, Lens
-from dpi.capture.model import Capture, View, source_stamp
-from dpi.io.atomic import write_json
-from dpi.io.exr import write_exr
+from dpi.capture.model import Capture
+from dpi.capture.view_copies import cached_copies, source_stamp
 from dpi.io.images import read_image, read_mask
 
 MANIFEST = "undistorted.json"
@@ -65,27 +64,13 @@ def undistorted_capture(capture: Capture, folder: str | Path) -> Capture:
     in `folder` and its camera made a pinhole; itself when no camera has a lens."""
     if not any(v.camera is not None and v.camera.lens is not None for v in capture.views):
         return capture
-    folder = Path(folder)
-    manifest_path = folder / MANIFEST
-    manifest = json.loads(manifest_path.read_text()) if manifest_path.is_file() else {}
-    views, changed = [], False
-    for view in capture.views:
-        camera = view.camera
-        if camera is None or camera.lens is None:
-            views.append(view)
-            continue
-        image, mask = folder / "images" / f"{view.name}.exr", folder / "masks" / f"{view.name}.exr"
-        stamp = [source_stamp(view), camera.lens.to_json()]
-        if manifest.get(view.name) != stamp or not image.is_file() or (view.mask and not mask.is_file()):
-            write_exr(image, undistort_image(read_image(view.image), camera, camera.lens))
-            if view.mask is not None:
-                pixels = read_mask(view.mask).astype(np.float32)
-                write_exr(mask, undistort_image(pixels, camera, camera.lens, nearest=True))
-            manifest[view.name], changed = stamp, True
-        views.append(View(view.name, image, mask if view.mask is not None else None, replace(camera, lens=None),
-                          view.held_out))
-    if changed:
-        write_json(manifest_path, manifest)
+    distorted = [v for v in capture.views if v.camera is not None and v.camera.lens is not None]
+    copies = dict(zip((v.name for v in distorted), cached_copies(
+        distorted, folder, MANIFEST, lambda v: [source_stamp(v), v.camera.lens.to_json()],
+        image=lambda v: undistort_image(read_image(v.image), v.camera, v.camera.lens),
+        mask=lambda v: undistort_image(read_mask(v.mask).astype(np.float32), v.camera, v.camera.lens, nearest=True),
+        camera=lambda v: replace(v.camera, lens=None))))
+    views = [copies.get(v.name, v) for v in capture.views]
     return replace(capture, views=views)
 
 

@@ -246,7 +246,8 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
         fx, fy, cx, cy, lens = _intrinsics(cam)
         cameras[name] = colmap_to_camera(image.cam_from_world().matrix(), cam.width, cam.height, fx, fy, cx, cy, name,
                                          lens)
-        summary["lens"] = lens.to_json() if lens else None
+    lens = next(iter(cameras.values())).lens if cameras else None  # one camera for all views (CameraMode.SINGLE)
+    summary["lens"] = lens.to_json() if lens else None
     rejected = off_centre_views(cameras) if REJECT_OFF_CENTRE else []
     if rejected:
         log.warning("dropping %d views that do not look at the object (misregistered): %s", len(rejected), rejected)
