@@ -18,6 +18,7 @@ import shutil
 import subprocess
 from collections.abc import Callable, Iterable
 from concurrent.futures import Executor, ProcessPoolExecutor
+from contextlib import nullcontext
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -116,12 +117,12 @@ class Job:
                               "config": {k: self.config.get(k) for k in SAMPLE_SECTIONS}})
 
 
-def workflow_config(env_height: int | None = None) -> dict[str, Any]:
-    """The workflow's resolved config (defaults and preset) with the studies' texture size, the map at the
+def workflow_config(env_height: int | None = None, texture_size: int = STUDY_TEXTURES) -> dict[str, Any]:
+    """The workflow's resolved config (defaults and preset) with textures of `texture_size`, the map at the
     preset's size or at `env_height` rows."""
     from dpi.pipeline import resolve_config
 
-    sizes = {"texture_size": STUDY_TEXTURES, **({"env_height": env_height} if env_height else {})}
+    sizes = {"texture_size": texture_size, **({"env_height": env_height} if env_height else {})}
     return resolve_config({"problem": sizes})
 
 
@@ -297,25 +298,12 @@ def run_study(jobs: list[Job], out: Path, columns: tuple[str, ...], score: Calla
     done = {of_row(r) for r in read_rows(out, text)}
     todo = [j for j in jobs if j.rerun or of_job(j) not in done]
     print(f"{len(todo)} samples to draw and score ({len(done)} rows already in {out})", flush=True)
-    with pool(min(workers, len(scenes))) or _Inline() as ex:
-        list(ex.map(prepare, scenes))
-    with pool(workers) or _Inline() as ex:
-        for job, row in zip(todo, ex.map(score, todo)):
+    with pool(min(workers, len(scenes))) or nullcontext() as ex:
+        list((ex.map if ex else map)(prepare, scenes))
+    with pool(workers) or nullcontext() as ex:
+        for job, row in zip(todo, (ex.map if ex else map)(score, todo)):
             append_row(out, row, columns, job.settings_hash)
             print("  ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items()),
                   flush=True)
     wanted = {of_job(j) for j in jobs}
     return [r for r in read_rows(out, text) if of_row(r) in wanted]
-
-
-class _Inline:
-    """An executor that maps in this process (workers = 0)."""
-
-    def __enter__(self) -> "_Inline":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        return None
-
-    def map(self, fn: Callable, items: Iterable) -> Iterable:
-        return map(fn, items)

@@ -74,9 +74,9 @@ RESOLUTION_SCENES = {
 
 def resolution_config(height: int, texture: int) -> dict[str, Any]:
     """The workflow's resolved config at a map height and texture size."""
-    from dpi.pipeline import resolve_config
+    from dpi.studies.engine import workflow_config
 
-    return resolve_config({"problem": {"env_height": height, "texture_size": texture}})
+    return workflow_config(height, texture)
 
 
 def resolution_root(work: Path, height: int, texture: int) -> Path:
