@@ -57,12 +57,15 @@ def main() -> None:
     parser.add_argument("--dps", nargs="*", default=[], metavar="NAME:key=value,...", help="extra dps variants")
     parser.add_argument("--jobs", type=int, default=2, help="samples drawn side by side (1 thread each)")
     parser.add_argument("--out", type=Path, default=CSV, help="study CSV (rows already there are not rerun)")
+    parser.add_argument("--prior", nargs="*", default=[], metavar="FAMILY=CHECKPOINT",
+                        help="a family's diffusion prior (config illumination_prior.checkpoints; default: shipped)")
     parser.add_argument("--rerun", action="store_true", help="redo rows already in the CSV (their samples too)")
     parser.add_argument("--work", type=Path, default=WORK,
                         help="study folder: captures, inits and samples (another folder: other inits, dev studies)")
     args = parser.parse_args()
 
     config = workflow_config()
+    config["illumination_prior"]["checkpoints"].update(pair.split("=", 1) for pair in args.prior)
     scenes = {name: POSTERIOR_SCENES[name] for name in args.scenes}
     jobs = method_jobs(args.work, scenes, args.methods, args.seeds, config, dps_variants(config, args.dps),
                        args.samplers, args.rerun)

@@ -33,7 +33,7 @@ from dpi.adaptive import AdaptiveConfig
 from dpi.capture import PRIORS, inspect_capture, read_scene_options
 from dpi.config_validation import check_config, preprocess_settings
 from dpi.layout import Layout, package_data
-from dpi.prior.sample import DEFAULT_FAMILY, DEFAULT_MODELS
+from dpi.prior.sample import DEFAULT_FAMILY, family_checkpoint
 from dpi.prior.train import PriorJobConfig
 from dpi.settings import apply_preset
 from dpi.solve.init import InitConfig
@@ -156,7 +156,7 @@ class Pipeline:
     def prior_checkpoint(self, scene: str) -> Path:
         """The diffusion prior of a scene's family: illumination_prior.checkpoints, else the shipped model."""
         family = self.scene_family(scene)
-        return Path(self.config["illumination_prior"]["checkpoints"].get(family, DEFAULT_MODELS[family]))
+        return family_checkpoint(family, self.config["illumination_prior"]["checkpoints"])
 
     def method_prior(self, scene: str, method: str) -> Path | None:
         """The prior checkpoint a method's job reads (None for methods without the diffusion prior)."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -103,3 +104,17 @@ def test_fine_tune_starts_from_the_given_prior(tmp_path, maps_dir) -> None:
     cfg.out, cfg.model = str(tmp_path / "other.pt"), SMALL_CONFIGS["small_32x64"]
     with pytest.raises(CheckpointError, match="shipped.pt"):
         train(cfg, progress=False)
+
+
+def test_a_prior_starts_a_run_at_twice_its_map_size(tmp_path, maps_dir) -> None:
+    """The network is convolutional: a 16-row prior's weights start a 32-row run of the same network."""
+    train(config(tmp_path, maps_dir, 2), progress=False)
+    export_model(tmp_path / "model.pt", tmp_path / "small.pt")
+    cfg = config(tmp_path, maps_dir, 1)
+    cfg.out, cfg.init, cfg.lr = str(tmp_path / "large.pt"), str(tmp_path / "small.pt"), 0.0
+    cfg.model = replace(SMALL_CONFIGS["tiny"], image_size=32)
+    train(cfg, progress=False)
+    before = load_checkpoint(tmp_path / "small.pt").float().state_dict()
+    large = load_prior(tmp_path / "large.pt")
+    assert large.height == 32
+    assert all(torch.equal(before[k], v) for k, v in large.model.state_dict().items())

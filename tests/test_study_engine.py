@@ -5,8 +5,9 @@ from pathlib import Path
 
 import pytest
 
-from dpi.studies.engine import (PROVENANCE, SAMPLE_COLUMNS, Job, append_row, current_commit, read_rows, run_study,
-                                settings_hash)
+from dpi.prior.sample import DEFAULT_MODELS
+from dpi.studies.engine import (PROVENANCE, SAMPLE_COLUMNS, SETTINGS_STAMP, Job, append_row, claim_sample_dir,
+                                current_commit, read_rows, run_study, settings_hash)
 from dpi.studies.tables import latest
 
 SCORED: list[tuple] = []
@@ -54,3 +55,24 @@ def test_rerun_reuses_rows_and_other_settings_add_rows(tmp_path):
     assert len(rows) == 4 and len({r["settings_hash"] for r in rows}) == 2
     newest = latest(rows, ("scene", "method", "sampler", "seed"))
     assert [r["env_psnr"] for r in newest] == [20.0, 20.0]
+
+
+def test_a_sample_drawn_with_other_settings_is_drawn_again(tmp_path):
+    """The sample folder is keyed by method and seed; its stamp tells whose settings drew what is in it."""
+    ten, twenty = jobs(tmp_path, 10)[0], jobs(tmp_path, 20)[0]
+    claim_sample_dir(ten)
+    (ten.sample_dir / "envmap.exr").write_text("drawn")
+    claim_sample_dir(ten)
+    assert (ten.sample_dir / "envmap.exr").exists()  # same settings: kept (a killed draw resumes)
+    claim_sample_dir(twenty)
+    assert not (ten.sample_dir / "envmap.exr").exists()
+    assert (twenty.sample_dir / SETTINGS_STAMP).read_text() == twenty.settings_hash
+
+
+def test_a_job_reads_the_configured_prior_of_its_family(tmp_path):
+    config = {"illumination_prior": {"checkpoints": {"outdoor": "big.pt"}}}
+    outdoor, indoor = ({"shape": "blob", "prior": family} for family in ("outdoor", "indoor"))
+    assert Job(tmp_path, "a", "g", outdoor, "dps", "", 0, {}, config).prior_checkpoint == Path("big.pt")
+    assert Job(tmp_path, "b", "g", indoor, "dps", "", 0, {}, config).prior_checkpoint == DEFAULT_MODELS["indoor"]
+    assert Job(tmp_path, "a", "g", outdoor, "dps", "", 0, {}, config).settings_hash != \
+        Job(tmp_path, "a", "g", outdoor, "dps", "", 0, {}, {"illumination_prior": {"checkpoints": {}}}).settings_hash

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -52,6 +53,11 @@ def load_prior(checkpoint: str | Path, device: str | torch.device = "cpu") -> Pr
     return Prior(model=model, diffusion=base_diffusion(meta["diffusion"]["num_timesteps"], model.config.learn_sigma),
                  encoding=encoding_from_dict(tone), family=meta["family"],
                  height=meta["height"], median_target=tone["median_target"])
+
+
+def family_checkpoint(family: str, checkpoints: Mapping[str, str | Path]) -> Path:
+    """A family's prior: its entry in `checkpoints` (config illumination_prior.checkpoints), else the shipped model."""
+    return Path(checkpoints.get(family, DEFAULT_MODELS[family]))
 
 
 def load_scene_prior(options: dict, checkpoint: str | Path | None = None) -> Prior:

@@ -14,7 +14,7 @@ import copy
 import json
 import math
 import time
-from dataclasses import asdict, field, fields
+from dataclasses import asdict, field, fields, replace
 from pathlib import Path
 
 import torch
@@ -51,7 +51,8 @@ class TrainConfig:
     lr: Rate = 3e-4
     warmup_steps: Steps = 0  # linear learning-rate warm-up from 0 (large batches on a GPU want a few hundred)
     lr_schedule: str = "constant"  # 'constant', or 'cosine' (decays to 0 at `steps`; a fine-tune's end)
-    init: str | None = None  # start a new run from this prior's weights (model and EMA); ignored when resuming
+    init: str | None = None  # start a new run from this prior's weights (model and EMA), which may be of another map
+    # size with the same network (a 32 x 64 prior starting a 64 x 128 run); ignored when resuming
     ema_decay: Fraction = 0.995  # with warm-up min(decay, (1 + step) / (10 + step)); short CPU runs want < 0.999
     num_timesteps: Count = 1000
     max_minutes: Rate | None = None  # stop after this wall time (checkpoint written)
@@ -196,8 +197,9 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
         step, wall = ckpt["step"], ckpt["wall_seconds"]
     elif cfg.init:
         initial = load_checkpoint(cfg.init, device=cfg.device).float()
-        if initial.config != cfg.model:
-            raise CheckpointError(f"{cfg.init}: its network differs from the run's model; train with the same --model")
+        if replace(initial.config, image_size=cfg.model.image_size) != cfg.model:
+            raise CheckpointError(f"{cfg.init}: its network differs from the run's model; train with the same network "
+                                  "(a model of another map size with the same weights will do)")
         model.load_state_dict(initial.state_dict())
         ema.load_state_dict(initial.state_dict())
     diffusion = base_diffusion(cfg.num_timesteps, cfg.model.learn_sigma)

@@ -39,6 +39,8 @@ SAMPLE_COLUMNS = ("scene", "group", "method", "sampler", "seed", *SAMPLE_METRICS
 """the columns of a row of one scored sample (run_job)"""
 SAMPLE_SECTIONS = ("problem", "render", "init", "evaluate", "illumination_prior")
 """the workflow config sections a sample and its evaluation read (besides the method's own settings)"""
+SETTINGS_STAMP = "study_settings_hash.txt"
+"""a study sample's settings hash, in its folder: a sample drawn with other settings is drawn again"""
 STUDY_TEXTURES = 32
 """texture size of the study problems: their views are 32 px, so the default's 64 would not be seen"""
 CHECKOUT = Path(__file__).resolve().parents[2]
@@ -110,6 +112,15 @@ class Job:
         return self.layout.scene(self.scene).sample_dir(self.label, self.seed)
 
     @property
+    def prior_checkpoint(self) -> Path:
+        """The diffusion prior of the scene's family, as the workflow picks it (illumination_prior)."""
+        from dpi.prior.sample import DEFAULT_FAMILY, family_checkpoint
+
+        section = self.config["illumination_prior"]
+        family = self.synth.get("prior") or section.get("family", DEFAULT_FAMILY)
+        return family_checkpoint(family, section["checkpoints"])
+
+    @property
     def settings_hash(self) -> str:
         """Hash of what decides the sample besides its seed: the capture, the method and its settings, the
         workflow sections a sample reads."""
@@ -152,6 +163,16 @@ def prepare_job(job: Job) -> None:
                    SolveConfig.from_config(job.config, 2), progress=False)
 
 
+def claim_sample_dir(job: Job) -> None:
+    """Empty a sample's folder drawn with other settings (or when the job reruns), then stamp it with the job's
+    settings hash before drawing, so a killed draw resumes under the same settings."""
+    stamp = job.sample_dir / SETTINGS_STAMP
+    if job.rerun or not stamp.is_file() or stamp.read_text() != job.settings_hash:
+        shutil.rmtree(job.sample_dir, ignore_errors=True)
+        job.sample_dir.mkdir(parents=True)
+        stamp.write_text(job.settings_hash)
+
+
 def run_job(job: Job) -> dict[str, Any]:
     """Draw (except for the init) and evaluate one sample; its row (SAMPLE_COLUMNS)."""
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
@@ -159,14 +180,14 @@ def run_job(job: Job) -> dict[str, Any]:
 
     files, sample_dir = job.layout.scene(job.scene), job.sample_dir
     settings = SolveConfig.from_config(job.config, threads=1)
-    if job.rerun and job.method != "init":
-        shutil.rmtree(sample_dir, ignore_errors=True)
+    if job.method != "init":
+        claim_sample_dir(job)
     if job.method != "init" and not files.sample_files(job.label, job.seed)["trace"].exists():
         sample_stage(files.capture_json, files.sample_dir("init"), sample_dir, job.scene, job.method, job.seed,
-                     job.method_cfg, settings, progress=False)
+                     job.method_cfg, settings, job.prior_checkpoint, progress=False)
     out = files.evaluation(job.label, job.seed)
     evaluate_stage(files.capture_json, sample_dir, out, job.scene, job.method, job.seed,
-                   job.config["evaluate"]["spp"], settings)
+                   job.config["evaluate"]["spp"], settings, job.prior_checkpoint)
     metrics = json.loads(out.read_text())["metrics"]
     return {"scene": job.scene, "group": job.group, "method": job.method, "sampler": job.sampler,
             "seed": job.seed, **{k: metrics[k] for k in SAMPLE_METRICS}, "seconds": metrics["sample_seconds"]}
