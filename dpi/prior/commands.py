@@ -127,7 +127,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="checkpoint path (resumed when it exists)")
     p.add_argument("--export", default=None, help="then write the shippable model (EMA weights, fp16) here")
     p.add_argument("--model", default=DEFAULT_MODEL, help="name in dpi.prior.unet.SMALL_CONFIGS")
-    p.add_argument("--init", default=None, help="start a new run from this prior checkpoint's weights (the same network; its map size may differ)")
+    p.add_argument("--init", default=None,
+                   help="start a new run from this prior checkpoint's weights (the same network; its map size may differ)")
     p.add_argument("--lr-schedule", choices=LR_SCHEDULES, default=field_default(TrainConfig, "lr_schedule"),
                    help="cosine: decay the learning rate to 0 at --steps")
     for name, kind, text in (("steps", int, None), ("batch_size", int, None), ("lr", float, None),

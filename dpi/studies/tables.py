@@ -15,7 +15,7 @@ from dpi.studies.engine import read_rows
 
 RESULTS = Path("benchmarks") / "results"
 """the committed study CSVs, relative to a checkout's root"""
-DOCUMENTS = (Path("README.md"), Path("docs") / "studies.md")
+DOCUMENTS = (Path("README.md"), Path("docs") / "studies.md", Path("dpi") / "data" / "models" / "README.md")
 """the documents whose tables are generated"""
 METHOD_ORDER = ("init", "none", "global_norm", "smoothness", "chromaticity", "sds", "dip", "dps")
 
@@ -206,6 +206,21 @@ def lens(root: Path) -> str:
     return grouped_table(rows, ("variant",), metrics, order=lambda k: order.index(k[0]) if k[0] in order else 9)
 
 
+def realism(root: Path) -> str:
+    """Prior realism: each prior's denoising error and NIQE (mean ± std over the maps) on real panoramas held out
+    of training, on the real ones it trained on, on procedural maps and on its own samples
+    (benchmarks/prior_realism.py)."""
+    rows = latest(read_rows(root / RESULTS / "prior_realism.csv", ("checkpoint", "family", "kind")),
+                  ("checkpoint", "kind"))
+    kinds = ("real_held_out", "real_train", "procedural", "samples")
+    rows.sort(key=lambda r: (kinds.index(r["kind"]) if r["kind"] in kinds else 9, r["checkpoint"]))
+    body = [[r["kind"], f"`{r['checkpoint']}`", f"{r['maps']:.0f}",
+             f"{r['denoising_mse']:.4f} ± {r['denoising_mse_std']:.4f}", f"{r['niqe']:.2f} ± {r['niqe_std']:.2f}"]
+            for r in rows]
+    return markdown(["maps", "prior", "n", "denoising MSE (lower: likelier)", "NIQE (lower: more photo-like)"],
+                    body)
+
+
 def presets(root: Path) -> str:
     """The quality presets of dpi's default config, each with the settings it fills (dpi.settings.apply_preset)."""
     from copy import deepcopy
@@ -233,7 +248,7 @@ def presets(root: Path) -> str:
 TABLES: dict[str, Callable[[Path], str]] = {
     "presets": presets, "posterior": posterior, "posterior_full": posterior_full, "calibration": calibration,
     "fig9": fig9_ratios, "train_fit": train_fit, "resolution": resolution, "roughness": roughness,
-    "tradeoff": tradeoff, "lens": lens,
+    "tradeoff": tradeoff, "lens": lens, "realism": realism,
 }
 """every generated table by the name its markers use"""
 
