@@ -5,11 +5,12 @@ Scenes are synthetic captures with ground truth, built from illuminations the pr
 where the paper shows a prior's worth: rough dielectric objects seen from few views on a limited
 arc, under a sun map, an indoor room and a map clipped to the paper's tone-curve range (like its
 8-bit test panoramas). The `glossy` group is a shiny metal object seen from all around, where a
-free fit already recovers the light and a prior can only tie. Each scene gets one initialisation;
+free fit already recovers the light and a prior can only tie. With `--panoramas DIR` the `real` group joins:
+ambiguous objects under the manifest's held-out real panoramas (dpi.studies.scenes.REAL_LIGHT_SCENES). Each scene gets one initialisation;
 each method then draws one sample per seed through the workflow's own stage functions
 (dpi.inverse_stages) with config.yaml's settings (preset applied), and the workflow's evaluation scores it.
 
-    .venv/bin/python benchmarks/posterior_study.py [--scenes ...] [--methods ...] [--seeds 0 1 2] [--jobs 2]
+    .venv/bin/python benchmarks/posterior_study.py [--panoramas DIR] [--scenes ...] [--methods ...] [--seeds 0 1 2]
 
 Rows go to benchmarks/results/posterior_study.csv (one per scene, method, sampler, seed and settings
 hash; rows already there with the same settings are kept and not rerun, so an interrupted study
@@ -25,7 +26,7 @@ from typing import Any
 
 from dpi.studies.engine import (SAMPLE_COLUMNS, dps_variants, mean_std_cells, method_jobs, run_job, run_study,
                                 workflow_config)
-from dpi.studies.scenes import POSTERIOR_SCENES
+from dpi.studies.scenes import POSTERIOR_SCENES, REAL_LIGHT_SCENES, real_light_scenes
 
 ROOT = Path(__file__).resolve().parent.parent
 WORK = ROOT / "results" / "benchmarks" / "posterior_study"
@@ -50,7 +51,10 @@ def summary(rows: list[dict[str, Any]]) -> list[str]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--scenes", nargs="*", default=list(POSTERIOR_SCENES), choices=list(POSTERIOR_SCENES))
+    parser.add_argument("--scenes", nargs="*", default=None, choices=[*POSTERIOR_SCENES, *REAL_LIGHT_SCENES],
+                        help="default: every scene (the real-light ones with --panoramas)")
+    parser.add_argument("--panoramas", type=Path, default=None,
+                        help="folder holding the manifest's held-out panoramas: adds the real-light scenes")
     parser.add_argument("--methods", nargs="*", default=list(METHODS), choices=list(METHODS))
     parser.add_argument("--samplers", nargs="*", default=None, help="dps sampler labels to run (default: all)")
     parser.add_argument("--seeds", nargs="*", type=int, default=[0, 1, 2])
@@ -66,7 +70,12 @@ def main() -> None:
 
     config = workflow_config()
     config["illumination_prior"]["checkpoints"].update(pair.split("=", 1) for pair in args.prior)
-    scenes = {name: POSTERIOR_SCENES[name] for name in args.scenes}
+    available = {**POSTERIOR_SCENES, **(real_light_scenes(args.panoramas) if args.panoramas else {})}
+    wanted = args.scenes or list(available)
+    missing = [name for name in wanted if name not in available]
+    if missing:
+        parser.error(f"scenes {', '.join(missing)} are lit by real panoramas: pass --panoramas DIR")
+    scenes = {name: available[name] for name in wanted}
     jobs = method_jobs(args.work, scenes, args.methods, args.seeds, config, dps_variants(config, args.dps),
                        args.samplers, args.rerun)
     rows = run_study(jobs, args.out, SAMPLE_COLUMNS, run_job, args.jobs)

@@ -8,6 +8,7 @@ import pytest
 from dpi.prior.sample import DEFAULT_MODELS
 from dpi.studies.engine import (PROVENANCE, SAMPLE_COLUMNS, SETTINGS_STAMP, Job, append_row, claim_sample_dir,
                                 current_commit, read_rows, run_study, settings_hash)
+from dpi.studies.scenes import real_light_scenes
 from dpi.studies.tables import latest
 
 SCORED: list[tuple] = []
@@ -76,3 +77,12 @@ def test_a_job_reads_the_configured_prior_of_its_family(tmp_path):
     assert Job(tmp_path, "b", "g", indoor, "dps", "", 0, {}, config).prior_checkpoint == DEFAULT_MODELS["indoor"]
     assert Job(tmp_path, "a", "g", outdoor, "dps", "", 0, {}, config).settings_hash != \
         Job(tmp_path, "a", "g", outdoor, "dps", "", 0, {}, {"illumination_prior": {"checkpoints": {}}}).settings_hash
+
+
+def test_real_light_scenes_need_the_manifest_panoramas(tmp_path):
+    (tmp_path / "my_own.hdr").write_bytes(b"")  # a user's own panorama is training data, never a held-out light
+    with pytest.raises(FileNotFoundError, match="no outdoor panoramas in the held_out split"):
+        real_light_scenes(tmp_path)
+    job = Job(tmp_path, "a", "real", {"envmap": str(tmp_path / "x" / "sky.hdr")}, "dps", "", 0, {}, {})
+    elsewhere = Job(tmp_path, "a", "real", {"envmap": "/data/sky.hdr"}, "dps", "", 0, {}, {})
+    assert job.settings_hash == elsewhere.settings_hash  # a panorama by its name, not where it lies

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dpi.capture import load_capture
-from dpi.io.exr import read_exr
+from dpi.io.exr import read_exr, write_exr
 from dpi.io.images import read_mask
 from dpi.layout import SYNTH_MARKER
 from dpi.synth.capture import SynthConfig, ground_truth_envmap, make_synthetic_capture
@@ -67,3 +67,12 @@ def test_procedural_ground_truth_maps_are_seeded_and_distinct_per_seed(family):
 def test_unknown_environment_is_rejected():
     with pytest.raises(ValueError, match="environment"):
         ground_truth_envmap(SynthConfig(environment="moon"))
+
+
+def test_a_given_panorama_is_area_resampled_to_the_capture_map_height(tmp_path):
+    """A user's panorama lights the capture at env_height rows, its mean radiance kept."""
+    panorama = np.random.default_rng(0).gamma(1.0, 2.0, (16, 32, 3)).astype(np.float32)
+    write_exr(tmp_path / "sky.exr", panorama)
+    env = ground_truth_envmap(SynthConfig.from_dict({"envmap": str(tmp_path / "sky.exr"), "env_height": 8}))
+    assert env.shape == (8, 16, 3)
+    np.testing.assert_allclose(env.mean(axis=(0, 1)), panorama.mean(axis=(0, 1)), rtol=1e-5)

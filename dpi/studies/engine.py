@@ -122,9 +122,10 @@ class Job:
 
     @property
     def settings_hash(self) -> str:
-        """Hash of what decides the sample besides its seed: the capture, the method and its settings, the
-        workflow sections a sample reads."""
-        return settings_hash({"synth": self.synth, "method": self.method, "settings": self.method_cfg,
+        """Hash of what decides the sample besides its seed: the capture (a panorama by its name, which the
+        manifest's checksum pins), the method and its settings, the workflow sections a sample reads."""
+        synth = {**self.synth, **({"envmap": Path(self.synth["envmap"]).name} if self.synth.get("envmap") else {})}
+        return settings_hash({"synth": synth, "method": self.method, "settings": self.method_cfg,
                               "config": {k: self.config.get(k) for k in SAMPLE_SECTIONS}})
 
 

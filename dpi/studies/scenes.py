@@ -35,6 +35,31 @@ POSTERIOR_SCENES: dict[str, tuple[str, dict[str, Any]]] = {
 }
 """the posterior study's scenes: six ambiguous (two objects under a sun, a room, a clipped map) and one glossy"""
 
+REAL_LIGHT_SCENES: dict[str, tuple[str, dict[str, Any]]] = {
+    "blob_overpass": ("real", {**AMBIGUOUS, "shape": "blob", "seed": 0, "panorama": "pedestrian_overpass_1k.hdr",
+                               "prior": "outdoor"}),
+    "torus_venice": ("real", {**AMBIGUOUS, "shape": "bumpy_torus", "seed": 3, "panorama": "venice_sunset_1k.hdr",
+                              "prior": "outdoor"}),
+}
+"""the posterior study's real-light scenes: ambiguous objects under the manifest's held-out real panoramas
+(dpi/data/panoramas.csv), which no shipped prior trained on; the maps do not ship (`real_light_scenes`)"""
+
+
+def real_light_scenes(folder: Path) -> dict[str, tuple[str, dict[str, Any]]]:
+    """REAL_LIGHT_SCENES lit by the panoramas in `folder`, each file checked against the manifest's checksum."""
+    from dpi.prior.panoramas import panorama_files
+
+    held_out = {path.name: path for path in panorama_files(folder, "outdoor", "held_out")}
+    scenes = {}
+    for name, (group, synth) in REAL_LIGHT_SCENES.items():
+        panorama = synth["panorama"]
+        if panorama not in held_out:
+            raise FileNotFoundError(f"{folder}: no {panorama} (scene {name}); dpi/data/panoramas.csv says where it is")
+        scenes[name] = (group, {**{k: v for k, v in synth.items() if k != "panorama"},
+                                "envmap": str(held_out[panorama].resolve())})
+    return scenes
+
+
 CALIBRATION_OBJECTS = {"blob": {"shape": "blob", "seed": 0}, "torus": {"shape": "bumpy_torus", "seed": 3}}
 CALIBRATION_LIGHTS = {"sun": {"environment": "outdoor", "environment_seed": 21, "prior": "outdoor"},
                       "room": {"environment": "indoor", "environment_seed": 22, "prior": "indoor"},

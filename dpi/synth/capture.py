@@ -23,10 +23,11 @@ from tqdm import tqdm
 
 from dpi.cameras import from_fov, orbit, write_transforms
 from dpi.io.atomic import write_json, write_text
-from dpi.io.exr import read_exr, write_exr
+from dpi.io.exr import write_exr
 from dpi.io.images import luminance, write_mask, write_srgb
 from dpi.layout import SYNTH_MARKER
 from dpi.light.skies import SkyParams, sunsky_envmap
+from dpi.prior.data import read_panorama, resize_area
 from dpi.render import RenderConfig, Renderer
 from dpi.settings import (Count, Elevation, Fraction, ImageSize, Loose, MapHeight, Rate, Steps, TextureSize, Weight,
                           settings, settings_from_dict)
@@ -63,7 +64,8 @@ class SynthConfig:
     env_height: MapHeight = 32
     """height of the ground-truth sky map (width is twice this)"""
     envmap: str | None = None
-    """optional EXR to use as ground-truth environment instead of a procedural one"""
+    """optional panorama (.exr, .hdr; H x 2H) to use as ground-truth environment instead of a procedural one,
+    area-resampled to env_height rows"""
     environment: str = "sunsky"
     """procedural ground-truth environment: sunsky (Mitsuba's sky from the sun_* and turbidity
     fields), or a map of the prior's generators, outdoor or indoor (drawn by environment_seed
@@ -123,10 +125,11 @@ def ground_truth_envmap(cfg: SynthConfig) -> np.ndarray:
 def procedural_envmap(cfg: SynthConfig) -> np.ndarray:
     """The given EXR, a procedural sunsky, outdoor or indoor map, at full range."""
     if cfg.envmap:
-        env = read_exr(cfg.envmap)
+        env = read_panorama(cfg.envmap)
         if env.shape[1] != 2 * env.shape[0]:
             raise ValueError(f"{cfg.envmap}: environment map must be H x 2H, got {env.shape[:2]}")
-        return env if env.shape[-1] == 3 else np.repeat(env, 3, -1)
+        env = env if env.shape[-1] == 3 else np.repeat(env[..., :1], 3, -1)
+        return resize_area(torch.from_numpy(env).permute(2, 0, 1), cfg.env_height).permute(1, 2, 0).numpy()
     if cfg.environment in ("outdoor", "indoor"):
         rng = np.random.default_rng([EVALUATION_SEED_STREAM, cfg.environment_seed])
         return generator(cfg.environment)(cfg.env_height, rng, 1)[0].astype(np.float32)
