@@ -21,6 +21,7 @@ continues, and other settings add rows), then it prints mean +- std per group, m
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -62,7 +63,8 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=2, help="samples drawn side by side (1 thread each)")
     parser.add_argument("--out", type=Path, default=CSV, help="study CSV (rows already there are not rerun)")
     parser.add_argument("--prior", nargs="*", default=[], metavar="FAMILY=CHECKPOINT",
-                        help="a family's diffusion prior (config illumination_prior.checkpoints; default: shipped)")
+                        help="a family's diffusion prior (config illumination_prior.checkpoints; default: shipped); dps rows "
+                             "are labelled SAMPLER@SIZE after the checkpoints' names (outdoor_64x128.pt: 64x128)")
     parser.add_argument("--rerun", action="store_true", help="redo rows already in the CSV (their samples too)")
     parser.add_argument("--work", type=Path, default=WORK,
                         help="study folder: captures, inits and samples (another folder: other inits, dev studies)")
@@ -78,6 +80,9 @@ def main() -> None:
     scenes = {name: available[name] for name in wanted}
     jobs = method_jobs(args.work, scenes, args.methods, args.seeds, config, dps_variants(config, args.dps),
                        args.samplers, args.rerun)
+    if args.prior:  # the priors' name joins the dps label: rows and sample folders apart from the shipped prior's
+        label = "+".join(sorted({Path(pair.split("=", 1)[1]).stem.split("_", 1)[-1] for pair in args.prior}))
+        jobs = [replace(job, sampler=f"{job.sampler}@{label}") if job.method == "dps" else job for job in jobs]
     rows = run_study(jobs, args.out, SAMPLE_COLUMNS, run_job, args.jobs)
     print("\n".join(summary(rows)))
 
