@@ -94,6 +94,8 @@ def main() -> None:
     parser.add_argument("--seeds", nargs="*", type=int, default=[0, 1, 2])
     parser.add_argument("--jobs", type=int, default=2, help="samples drawn side by side (1 thread each)")
     parser.add_argument("--out", type=Path, default=CSV)
+    parser.add_argument("--prior", nargs="*", default=[], metavar="FAMILY=CHECKPOINT",
+                        help="a family's diffusion prior (config illumination_prior.checkpoints; default: shipped)")
     args = parser.parse_args()
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
@@ -107,6 +109,7 @@ def main() -> None:
     for height in args.heights:
         for texture in args.textures:
             config = size_config(height, texture)
+            config["illumination_prior"]["checkpoints"].update(pair.split("=", 1) for pair in args.prior)
             dps = job_settings(config["method_params"].get("dps", {}))
             for scene, (group, synth) in SCENES.items():
                 jobs.extend(Job(resolution_root(WORK, height, texture), scene, group, synth, "dps", "", seed, dps, config)
