@@ -5,10 +5,11 @@ Scenes are synthetic captures with ground truth, built from illuminations the pr
 where the paper shows a prior's worth: rough dielectric objects seen from few views on a limited
 arc, under a sun map, an indoor room and a map clipped to the paper's tone-curve range (like its
 8-bit test panoramas). The `glossy` group is a shiny metal object seen from all around, where a
-free fit already recovers the light and a prior can only tie. With `--panoramas DIR` the `real` group joins:
-ambiguous objects under the manifest's held-out real panoramas (dpi.studies.scenes.REAL_LIGHT_SCENES). Each scene gets one initialisation;
-each method then draws one sample per seed through the workflow's own stage functions
-(dpi.inverse_stages) with config.yaml's settings (preset applied), and the workflow's evaluation scores it.
+free fit already recovers the light and a prior can only tie. With `--panoramas DIR` the `real` group
+joins: ambiguous objects under the manifest's held-out real panoramas (dpi.studies.scenes.REAL_LIGHT_SCENES).
+Each scene gets one initialisation; each method then draws one sample per seed through the workflow's own
+stage functions (dpi.inverse_stages) with config.yaml's settings (preset applied), and the workflow's
+evaluation scores it.
 
     .venv/bin/python benchmarks/posterior_study.py [--panoramas DIR] [--scenes ...] [--methods ...] [--seeds 0 1 2]
 
@@ -25,8 +26,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from dpi.studies.engine import (SAMPLE_COLUMNS, dps_variants, mean_std_cells, method_jobs, run_job, run_study,
-                                workflow_config)
+from dpi.studies.engine import (SAMPLE_COLUMNS, dps_variants, mean_std_cells, method_jobs, prior_checkpoints,
+                                run_job, run_study, workflow_config)
 from dpi.studies.scenes import POSTERIOR_SCENES, REAL_LIGHT_SCENES, real_light_scenes
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -63,15 +64,17 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=2, help="samples drawn side by side (1 thread each)")
     parser.add_argument("--out", type=Path, default=CSV, help="study CSV (rows already there are not rerun)")
     parser.add_argument("--prior", nargs="*", default=[], metavar="FAMILY=CHECKPOINT",
-                        help="a family's diffusion prior (config illumination_prior.checkpoints; default: shipped); dps rows "
-                             "are labelled SAMPLER@SIZE after the checkpoints' names (outdoor_64x128.pt: 64x128)")
+                        help="a family's diffusion prior (config illumination_prior.checkpoints; default: shipped); "
+                             "dps rows are labelled SAMPLER@SIZE after the checkpoints' names (outdoor_64x128.pt: "
+                             "64x128)")
     parser.add_argument("--rerun", action="store_true", help="redo rows already in the CSV (their samples too)")
     parser.add_argument("--work", type=Path, default=WORK,
                         help="study folder: captures, inits and samples (another folder: other inits, dev studies)")
     args = parser.parse_args()
 
     config = workflow_config()
-    config["illumination_prior"]["checkpoints"].update(pair.split("=", 1) for pair in args.prior)
+    priors = prior_checkpoints(args.prior)
+    config["illumination_prior"]["checkpoints"].update(priors)
     available = {**POSTERIOR_SCENES, **(real_light_scenes(args.panoramas) if args.panoramas else {})}
     wanted = args.scenes or list(available)
     missing = [name for name in wanted if name not in available]
@@ -80,8 +83,8 @@ def main() -> None:
     scenes = {name: available[name] for name in wanted}
     jobs = method_jobs(args.work, scenes, args.methods, args.seeds, config, dps_variants(config, args.dps),
                        args.samplers, args.rerun)
-    if args.prior:  # the priors' name joins the dps label: rows and sample folders apart from the shipped prior's
-        label = "+".join(sorted({Path(pair.split("=", 1)[1]).stem.split("_", 1)[-1] for pair in args.prior}))
+    if priors:  # the priors' name joins the dps label: rows and sample folders apart from the shipped prior's
+        label = "+".join(sorted({Path(checkpoint).stem.split("_", 1)[-1] for checkpoint in priors.values()}))
         jobs = [replace(job, sampler=f"{job.sampler}@{label}") if job.method == "dps" else job for job in jobs]
     rows = run_study(jobs, args.out, SAMPLE_COLUMNS, run_job, args.jobs)
     print("\n".join(summary(rows)))

@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from dpi.studies.engine import (Job, job_settings, mean_std_cells, results_csv, run_job, run_study, study_layout,
-                                work_dir)
+from dpi.studies.engine import (Job, job_settings, mean_std_cells, prior_checkpoints, results_csv, run_job, run_study,
+                                study_layout, work_dir)
 from dpi.studies.scenes import RESOLUTION_SCENES as SCENES
 from dpi.studies.scenes import resolution_config as size_config
 from dpi.studies.scenes import resolution_root
@@ -109,7 +109,7 @@ def main() -> None:
     for height in args.heights:
         for texture in args.textures:
             config = size_config(height, texture)
-            config["illumination_prior"]["checkpoints"].update(pair.split("=", 1) for pair in args.prior)
+            config["illumination_prior"]["checkpoints"].update(prior_checkpoints(args.prior))
             dps = job_settings(config["method_params"].get("dps", {}))
             for scene, (group, synth) in SCENES.items():
                 jobs.extend(Job(resolution_root(WORK, height, texture), scene, group, synth, "dps", "", seed, dps, config)

@@ -129,6 +129,17 @@ class Job:
                               "config": {k: self.config.get(k) for k in SAMPLE_SECTIONS}})
 
 
+def prior_checkpoints(pairs: Iterable[str]) -> dict[str, str]:
+    """A study's `--prior FAMILY=CHECKPOINT` pairs as config illumination_prior.checkpoints entries."""
+    checkpoints = {}
+    for pair in pairs:
+        family, sep, checkpoint = pair.partition("=")
+        if not sep or not checkpoint:
+            raise ValueError(f"--prior {pair!r}: expected FAMILY=CHECKPOINT")
+        checkpoints[family] = checkpoint
+    return checkpoints
+
+
 def workflow_config(env_height: int | None = None, texture_size: int = STUDY_TEXTURES) -> dict[str, Any]:
     """The workflow's resolved config (defaults and preset) with textures of `texture_size`, the map at the
     preset's size or at `env_height` rows."""

@@ -119,9 +119,10 @@ def posterior_rows(root: Path) -> list[Row]:
 def posterior(root: Path) -> str:
     """Posterior study, the README's headline: every method (dps with its default sampler) per scene group,
     over scenes and seeds."""
+    from dpi.settings import field_default
     from dpi.solve.dps.config import DPSConfig
 
-    default = DPSConfig.__dataclass_fields__["sampler"].default
+    default = field_default(DPSConfig, "sampler")
     rows = [r for r in posterior_rows(root) if r["method"] != "dps" or r["sampler"] == default]
     metrics = (VIEW, ENV, ALBEDO, Metric("relight PSNR-H [dB]", "relight_psnr_h", ".2f", +1), FIT, SECONDS)
     return grouped_table(rows, ("group", "method"), metrics, rank_by="group", order=method_order)

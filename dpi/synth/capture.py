@@ -123,7 +123,7 @@ def ground_truth_envmap(cfg: SynthConfig) -> np.ndarray:
 
 
 def procedural_envmap(cfg: SynthConfig) -> np.ndarray:
-    """The given EXR, a procedural sunsky, outdoor or indoor map, at full range."""
+    """The given panorama, a procedural sunsky, outdoor or indoor map, at full range."""
     if cfg.envmap:
         env = read_panorama(cfg.envmap)
         if env.shape[1] != 2 * env.shape[0]:
