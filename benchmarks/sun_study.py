@@ -83,10 +83,9 @@ def true_light_sample(job: Job) -> None:
     env = resize_area(gt, problem.settings.env_height).permute(1, 2, 0)
     init = problem.load_decomposition(files.sample_dir("init"))
     cfg = DPSConfig.from_dict(job.method_cfg)
-    settings = replace(cfg.refine.optimize(cfg), optimize_env=False)  # dps's refinement; the true map stays as it is
-    trace = Trace()
-    log_env, materials = fit(problem, (env / problem.exposure).log(), starting_materials(init), settings, job.seed,
-                             trace, progress=False)
+    trace = Trace()  # dps's refinement; the true map stays as it is
+    log_env, materials = fit(problem, (env / problem.exposure).log(), starting_materials(init),
+                             cfg.refine.optimize(cfg), job.seed, trace, progress=False, free_env=False)
     problem.save_decomposition(Decomposition(log_env.exp(), materials, trace), job.sample_dir)
 
 

@@ -20,19 +20,20 @@ CHANNELS = dict(zip(TEXTURE_NAMES, (3, 1, 1)))
 RANGES = {"albedo": (0.0, 1.0), "roughness": (0.02, 1.0), "metallic": (0.0, 1.0)}
 
 
+FIXED_RATES = {"roughness": 1.5e-2, "metallic": 1e-2}
+"""Adam learning rates of the roughness and metallic textures, the same in every fit"""
+
+
 @settings
 class MaterialRates:
-    """Adam learning rates of the three textures: the one owner of their defaults, which the init, the
-    optimisation-based methods, sds and dps inherit (their config keys lr_albedo, lr_roughness, lr_metallic;
-    dps sets its own albedo rate, DPSConfig.lr_albedo)."""
+    """The albedo's Adam learning rate, which the init, the optimisation-based methods, sds and dps inherit (dps
+    sets its own, DPSConfig.lr_albedo); the other textures' rates are FIXED_RATES."""
 
     lr_albedo: Rate = 2e-2
-    lr_roughness: Rate = 1.5e-2
-    lr_metallic: Rate = 1e-2
 
     def rate(self, name: str) -> float:
         """The rate of texture `name` (albedo, roughness, metallic)."""
-        return getattr(self, f"lr_{name}")
+        return self.lr_albedo if name == "albedo" else FIXED_RATES[name]
 
 
 @dataclass

@@ -8,7 +8,7 @@ import pytest
 
 from dpi.cameras import from_fov, look_at, orbit
 from dpi.preprocess.ground import fit_ground, ground_pixels, plane_depths, remove_ground
-from dpi.preprocess.stereo import StereoConfig, camera_rays, grey, neighbour_views
+from dpi.preprocess.stereo import StereoParams, camera_rays, grey, neighbour_views
 
 SIZE = 96
 UP = np.array([0.0, 1.0, 0.0])
@@ -84,7 +84,7 @@ def test_plane_depths_of_a_camera_looking_down():
 
 def test_the_grounds_height_is_fitted_from_the_background(capture):
     cameras, images, _, masks = capture
-    cfg = StereoConfig()
+    cfg = StereoParams()
     greys = [grey(im, cfg.blur_px) for im in images]
     neighbours = neighbour_views(cameras, np.array([0.0, 0.4, 0.0]), cfg.neighbours, cfg.max_baseline_deg)
     height, score = fit_ground(greys, cameras, masks, neighbours, UP, lowest=0.7, diagonal=1.5, cfg=cfg)
@@ -94,7 +94,7 @@ def test_the_grounds_height_is_fitted_from_the_background(capture):
 
 def test_mask_pixels_that_see_the_ground_are_found(capture):
     cameras, images, silhouettes, masks = capture
-    cfg = StereoConfig()
+    cfg = StereoParams()
     greys = [grey(im, cfg.blur_px) for im in images]
     neighbours = neighbour_views(cameras, np.array([0.0, 0.4, 0.0]), cfg.neighbours, cfg.max_baseline_deg)
     ground = ground_pixels(greys, cameras, masks, neighbours, UP, 0.0, hull(), cfg)
@@ -112,8 +112,8 @@ def test_mask_pixels_that_see_the_ground_are_found(capture):
 def test_a_plain_ground_leaves_the_masks_alone(capture):
     cameras, images, silhouettes, masks = capture
     plain = [np.where(s[..., None], im, 0.4).astype(np.float32) for im, s in zip(images, silhouettes)]
-    kept, summary = remove_ground(cameras, masks, plain, UP, hull(), StereoConfig())
-    assert summary["match"] < StereoConfig().ground_fit and summary["removed_fraction"] == 0
+    kept, summary = remove_ground(cameras, masks, plain, UP, hull(), StereoParams())
+    assert summary["match"] < StereoParams().ground_fit and summary["removed_fraction"] == 0
     assert all((k == m).all() for k, m in zip(kept, masks))
 
 
@@ -123,13 +123,13 @@ def test_large_photos_are_matched_at_the_working_size_and_their_masks_lose_the_g
     cameras, images, silhouettes, masks = render_capture(2 * SIZE)
     photos = working_photos(cameras, masks, images, SIZE)
     assert photos[0][0].width == SIZE and photos[1][0].shape == photos[2][0].shape[:2] == (SIZE, SIZE)
-    kept, photos, summary = without_ground(masks, photos, UP, hull(), StereoConfig())
+    kept, photos, summary = without_ground(masks, photos, UP, hull(), StereoParams())
     assert summary["removed_fraction"] > 0 and photos[1][0].shape == (SIZE, SIZE)
     ring = sum(int((m & ~s).sum()) for m, s in zip(masks, silhouettes))
     found = sum(int((m & ~k & ~s).sum()) for m, k, s in zip(masks, kept, silhouettes))
     assert found >= 0.8 * ring
     # the card loses only its edge: what the working size's NCC window and blur reach, twice as wide here
-    cfg = StereoConfig()
+    cfg = StereoParams()
     wrong = wrongly_removed([m & ~k for m, k in zip(masks, kept)], silhouettes)
     assert wrong.max() <= 2 * (cfg.window // 2 + 2 * cfg.blur_px + 1)
     assert len(wrong) <= 0.15 * sum(int(s.sum()) for s in silhouettes)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from dpi.cameras import from_fov, look_at, orbit
-from dpi.preprocess.stereo import (StereoConfig, camera_rays, carve_with_depths, free_space, highlights,
+from dpi.preprocess.stereo import (StereoParams, camera_rays, carve_with_depths, free_space, highlights,
                                    hull_depth_range, sweep_depth)
 
 SIZE = 64
@@ -44,7 +44,7 @@ def test_plane_sweep_finds_a_textured_plane():
                for i, (x, y) in enumerate([(0.0, 0.0), (1.2, 0.0), (-1.2, 0.0), (0.0, 1.2), (0.0, -1.2)])]
     images = [plane_view(c, texture)[0] for c in cameras]
     truth = plane_view(cameras[0], texture)[1]
-    cfg = StereoConfig(planes=48, window=7, min_score=0.5, blur_px=0.0)
+    cfg = StereoParams(planes=48, window=7, min_score=0.5, blur_px=0.0)
     depth, score = sweep_depth(images[0], cameras[0], list(zip(images[1:], cameras[1:])), truth - 0.6, truth + 0.6,
                                cfg)
     inner = np.s_[8:-8, 8:-8]
@@ -100,7 +100,7 @@ def test_carving_with_depths_only_removes_volume():
     origin = np.full(3, axis[0])
     points = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1)
     cube = np.abs(points).max(-1) - 1.2  # a hull that is a cube around the sphere
-    carved = carve_with_depths(cube, origin, size, cameras, depths, StereoConfig(votes=2))
+    carved = carve_with_depths(cube, origin, size, cameras, depths, StereoParams(votes=2))
     assert (carved >= cube).all()
     radius = np.linalg.norm(points, axis=-1)
     in_front = (radius > 1.08) & (radius < 1.2) & (np.abs(points[..., 1]) < 0.3)  # seen before the sphere
@@ -116,17 +116,6 @@ def test_highlights_finds_a_bright_spot_not_texture():
     found = highlights(image, np.ones((SIZE, SIZE), bool), 1.3)
     assert found[20, 40]
     assert found.mean() < 0.1
-
-
-def test_stereo_settings_are_checked_with_the_geometry_config():
-    from dpi.preprocess.geometry import GeometryConfig
-    from dpi.settings import SettingsError, settings_from_dict
-
-    assert GeometryConfig(stereo_settings={"passes": 3}).stereo_config().passes == 3
-    with pytest.raises(SettingsError, match=r"stereo_settings\.passes: must be >= 1"):
-        settings_from_dict(GeometryConfig, {"stereo_settings": {"passes": 0}})
-    with pytest.raises(SettingsError, match=r"stereo_settings\.pases: unknown .*did you mean 'passes'"):
-        settings_from_dict(GeometryConfig, {"stereo_settings": {"pases": 2}})
 
 
 def test_grazing_depths_are_found_from_the_depth_maps_own_normals():
@@ -167,7 +156,7 @@ def test_fallback_window_fills_only_what_the_fine_window_missed():
     masks = [np.ones((SIZE, SIZE), bool)] * len(cameras)
     box = o3d.geometry.TriangleMesh.create_box(8, 8, 1.2).translate((-4, -4, -0.6))  # the "hull" around the plane
     hull = np.asarray(box.vertices), np.asarray(box.triangles)
-    cfg = StereoConfig(planes=48, window=5, fallback_window=0, min_score=0.5, blur_px=0.0, highlight_ratio=0,
+    cfg = StereoParams(planes=48, window=5, fallback_window=0, min_score=0.5, blur_px=0.0, highlight_ratio=0,
                        neighbours=4, max_baseline_deg=60)
     fine = depth_maps(cameras, images, masks, *hull, cfg)[0]
     both = depth_maps(cameras, images, masks, *hull, replace(cfg, fallback_window=13))[0]

@@ -12,9 +12,8 @@ oriented outwards (positive volume), as Mitsuba's one-sided BSDFs need.
 from __future__ import annotations
 
 import time
-from dataclasses import field
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import Annotated
 
 import numpy as np
 from pydantic import Field
@@ -22,10 +21,6 @@ from pydantic import Field
 from dpi.cameras import Camera
 from dpi.preprocess.hull import cut_below, marching_cubes, seen_from_above, support_plane, visual_hull
 from dpi.settings import Count, Fraction, Steps, Weight, settings
-
-if TYPE_CHECKING:
-    from dpi.preprocess.stereo import StereoConfig
-
 
 
 MIN_COMPONENT = 20.0
@@ -70,22 +65,6 @@ class GeometryConfig:
     consistent under the ground plane's homography; needs the photos; dpi.preprocess.ground) before carving"""
     stereo: bool = True
     """carve what multi-view stereo sees as empty inside the hull (needs the photos; dpi.preprocess.stereo)"""
-    stereo_settings: dict[str, Any] = field(default_factory=dict)
-    """fields of dpi.preprocess.stereo.StereoConfig (plane sweep, filtering, carving)"""
-
-    def __post_init__(self):
-        """Check `stereo_settings` with the config (an error names `stereo_settings.<key>`)."""
-        self.stereo_config()
-
-    def stereo_config(self) -> "StereoConfig":
-        """The StereoConfig that `stereo_settings` describe."""
-        from dpi.preprocess.stereo import StereoConfig
-        from dpi.settings import SettingsError, settings_from_dict
-
-        try:
-            return settings_from_dict(StereoConfig, self.stereo_settings)
-        except SettingsError as exc:
-            raise SettingsError(f"stereo_settings.{exc.key}", exc.problem) from None
 
 
 def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
@@ -153,7 +132,7 @@ def working_photos(cameras: list[Camera], masks: list[np.ndarray], images: list[
 
 
 def without_ground(masks: list[np.ndarray], photos: tuple[list[Camera], list[np.ndarray], list[np.ndarray]],
-                   up: np.ndarray, hull: tuple[np.ndarray, np.ndarray], stereo: "StereoConfig"
+                   up: np.ndarray, hull: tuple[np.ndarray, np.ndarray], stereo: "StereoParams"
                    ) -> tuple[list[np.ndarray], tuple[list[Camera], list[np.ndarray], list[np.ndarray]], dict]:
     """The full-size masks and the `working_photos` without the pixels that see the ground, found at the
     working photos' size (dpi.preprocess.ground.remove_ground), and the ground test's summary."""
@@ -179,8 +158,10 @@ def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray], cfg: Geo
     photos = working_photos(cameras, masks, images, PHOTO_SIZE) if images is not None else None
     if cfg.ground and photos is not None and up is not None:
         ground_start = time.perf_counter()
+        from dpi.preprocess.stereo import StereoParams
+
         masks, photos, ground = without_ground(masks, photos, up, marching_cubes(field, origin, size),
-                                               cfg.stereo_config())
+                                               StereoParams())
         times["ground_s"] = time.perf_counter() - ground_start
         if ground["removed_fraction"]:
             field, origin, size, box = carve_hull(cameras, masks, cfg)
@@ -207,9 +188,9 @@ def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray], cfg: Geo
 def stereo_carve(field: np.ndarray, origin: np.ndarray, size: float, cameras: list[Camera], masks: list[np.ndarray],
                  images: list[np.ndarray], cfg: GeometryConfig) -> tuple[np.ndarray, dict]:
     """The carved field with stereo's empty space removed, and a summary (depth coverage, voxels removed)."""
-    from dpi.preprocess.stereo import carve_with_depths, depth_maps
+    from dpi.preprocess.stereo import StereoParams, carve_with_depths, depth_maps
 
-    stereo = cfg.stereo_config()
+    stereo = StereoParams()
     start = time.perf_counter()
     carved = field
     for _ in range(stereo.passes):

@@ -25,7 +25,7 @@ import torch
 from dpi.cameras import Camera
 from dpi.consistency import raycasting_scene
 from dpi.preprocess.hull import axes_centre
-from dpi.preprocess.stereo import Matcher, StereoConfig, camera_rays, grey, hull_depth_range, neighbour_views
+from dpi.preprocess.stereo import Matcher, StereoParams, camera_rays, grey, hull_depth_range, neighbour_views
 
 GROUND_GROW = 0.7
 """NCC at which a masked pixel connected to a seed sees the ground too"""
@@ -88,7 +88,7 @@ def pixel_footprint(cameras: list[Camera]) -> float:
 
 
 def view_matcher(greys: list[np.ndarray], cameras: list[Camera], neighbours: list[list[int]], i: int,
-                 cfg: StereoConfig) -> Matcher:
+                 cfg: StereoParams) -> Matcher:
     """A full-frame Matcher of view i against its neighbours."""
     return Matcher(greys[i], cameras[i], [(greys[j], cameras[j]) for j in neighbours[i]], slice(None), slice(None),
                    cfg)
@@ -115,7 +115,7 @@ def _half(image: np.ndarray, camera: Camera) -> tuple[np.ndarray, Camera]:
 
 def band_scores(greys: list[np.ndarray], cameras: list[Camera], bands: list[np.ndarray],
                 neighbours: list[list[int]], views: list[int], up: np.ndarray, heights: np.ndarray,
-                cfg: StereoConfig) -> np.ndarray:
+                cfg: StereoParams) -> np.ndarray:
     """NCC (P, N) of the given views' N band pixels under each plane, NaN where there is none (a ray
     that misses the plane, or a point no neighbour sees)."""
     scores = np.concatenate([plane_scores(view_matcher(greys, cameras, neighbours, i, cfg), cameras[i], up,
@@ -133,7 +133,7 @@ def _medians(scores: np.ndarray) -> np.ndarray:
 
 
 def fit_ground(greys: list[np.ndarray], cameras: list[Camera], masks: list[np.ndarray], neighbours: list[list[int]],
-               up: np.ndarray, lowest: float, diagonal: float, cfg: StereoConfig) -> tuple[float, float]:
+               up: np.ndarray, lowest: float, diagonal: float, cfg: StereoParams) -> tuple[float, float]:
     """(height, match) of the ground plane best matching the background near the object (highest median
     NCC), whose lowest carved point is at height `lowest` and whose box has the given diagonal; match:
     the fraction of those background pixels that reach `GROUND_SEED` under it."""
@@ -154,7 +154,7 @@ def fit_ground(greys: list[np.ndarray], cameras: list[Camera], masks: list[np.nd
 
 def ground_pixels(greys: list[np.ndarray], cameras: list[Camera], masks: list[np.ndarray],
                   neighbours: list[list[int]], up: np.ndarray, height: float, hull: tuple[np.ndarray, np.ndarray],
-                  cfg: StereoConfig) -> list[np.ndarray]:
+                  cfg: StereoParams) -> list[np.ndarray]:
     """Per view, the masked pixels that see the ground plane at `height`: they match under its
     homography (hysteresis) better than at any depth inside the carved hull (vertices, faces) above it."""
     import cv2
@@ -178,7 +178,7 @@ def ground_pixels(greys: list[np.ndarray], cameras: list[Camera], masks: list[np
 
 
 def remove_ground(cameras: list[Camera], masks: list[np.ndarray], images: list[np.ndarray], up: np.ndarray,
-                  hull: tuple[np.ndarray, np.ndarray], cfg: StereoConfig) -> tuple[list[np.ndarray], dict]:
+                  hull: tuple[np.ndarray, np.ndarray], cfg: StereoParams) -> tuple[list[np.ndarray], dict]:
     """The masks without the pixels that see the ground (unchanged when the ground matches nowhere),
     and a summary: the ground's height, its match (`fit_ground`), the fraction of mask pixels removed. `hull`:
     (vertices, faces) of the closed carved hull the masks give."""

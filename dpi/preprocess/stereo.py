@@ -26,17 +26,14 @@ so stereo only removes volume the silhouettes left, never adds it.
 
 from __future__ import annotations
 
-from dataclasses import replace
-from typing import Annotated
+from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
 import torch.nn.functional as F
-from pydantic import Field
 
 from dpi.cameras import Camera
 from dpi.consistency import raycasting_scene
-from dpi.settings import Count, Fraction, Steps, Weight, settings
 
 BAND_VOXELS = 3.0
 """truncation of the carving distance, in hull voxels"""
@@ -55,38 +52,39 @@ BEYOND = 0.5
 
 
 
-@settings
-class StereoConfig:
-    """Settings of the plane sweep, the depth filters and the carving."""
+@dataclass(frozen=True)
+class StereoParams:
+    """Parameters of the plane sweep, the depth filters and the carving: fixed by dpi (no config key; tests
+    vary them), the geometry stage's `stereo` switch turns the whole step on or off."""
 
-    neighbours: Count = 6
+    neighbours: int = 6
     """views each depth map is matched against (nearest viewing directions)"""
-    planes: Annotated[int, Field(ge=2)] = 64
+    planes: int = 64
     """depth planes over the hull's depth range per view (first pass)"""
-    refine: Steps = 9
+    refine: int = 9
     """per-pixel depths around the best plane, one plane step either side (second pass)"""
-    window: Count = 11
+    window: int = 11
     """NCC window side in pixels"""
-    fallback_window: Steps = 15
+    fallback_window: int = 15
     """pixels left without a consistent depth at `window` take the depth a sweep with this larger window
     finds, if that one is consistent (a noisy, weakly lit patch such as a bowl's cavity matches over
     more pixels; at most `window`: off)"""
-    min_score: Annotated[float, Field(ge=-1, le=1)] = 0.3
+    min_score: float = 0.3
     """mean NCC a depth must reach"""
-    blur_px: Weight = 1.0
+    blur_px: float = 1.0
     """Gaussian blur (pixels) of the images before matching: noise and aliased texture do not match"""
-    consistency: Weight = 0.01
+    consistency: float = 0.01
     """relative depth difference under which two views agree"""
-    highlight_ratio: Weight = 1.3
+    highlight_ratio: float = 1.3
     """pixels brighter than this times their surroundings' mean (and 3 px around) get no depth (0: off)"""
-    votes: Count = 3
+    votes: int = 3
     """views that must have a depth at a voxel for it to be carved"""
-    max_baseline_deg: Annotated[float, Field(gt=0, le=180)] = 50.0
+    max_baseline_deg: float = 50.0
     """neighbours see the object's centre within this angle of the reference view"""
-    passes: Count = 2
+    passes: int = 2
     """rounds of depth maps and carving, each swept inside the surface the previous one carved: depths
     in front of it are no longer hypotheses, so cavities the first round half opened open further"""
-    ground_fit: Fraction = 0.02
+    ground_fit: float = 0.02
     """the ground test (dpi.preprocess.ground) runs only when at least this fraction of the background
     pixels near the object reach its `GROUND_SEED` under the fitted ground plane (a plain ground: none)"""
 
@@ -164,7 +162,7 @@ class Matcher:
     """NCC of a reference view against its neighbours for per-pixel depth hypotheses, on a crop."""
 
     def __init__(self, ref: np.ndarray, camera: Camera, others: list[tuple[np.ndarray, Camera]],
-                 rows: slice, cols: slice, cfg: StereoConfig):
+                 rows: slice, cols: slice, cfg: StereoParams):
         self.cfg = cfg
         rays = torch.from_numpy(camera_rays(camera)[rows, cols].astype(np.float32))
         a = torch.from_numpy(np.ascontiguousarray(ref[rows, cols]))[None, None]
@@ -204,7 +202,7 @@ class Matcher:
 
 
 def sweep_depth(ref: np.ndarray, camera: Camera, others: list[tuple[np.ndarray, Camera]], near: np.ndarray,
-                far: np.ndarray, cfg: StereoConfig) -> tuple[np.ndarray, np.ndarray]:
+                far: np.ndarray, cfg: StereoParams) -> tuple[np.ndarray, np.ndarray]:
     """Depth (h, w; camera-space, 0 where none) and its score (mean NCC) for one view.
 
     Two passes: `planes` fronto-parallel planes over the view's hull depth range (and `beyond` past
@@ -257,7 +255,7 @@ def observed_depth(depth: np.ndarray, camera: Camera, points: np.ndarray) -> tup
 
 
 def consistent(depths: list[np.ndarray], cameras: list[Camera], neighbours: list[list[int]],
-               cfg: StereoConfig) -> list[np.ndarray]:
+               cfg: StereoParams) -> list[np.ndarray]:
     """The depth maps with depths that fewer than `min_consistent` neighbour maps agree with set to 0."""
     out = []
     for i, (depth, cam) in enumerate(zip(depths, cameras)):
@@ -327,7 +325,7 @@ def grazing(depth: np.ndarray, camera: Camera, max_deg: float, step: int = 2) ->
 
 
 def depth_maps(cameras: list[Camera], images: list[np.ndarray], masks: list[np.ndarray], vertices: np.ndarray,
-               faces: np.ndarray, cfg: StereoConfig) -> list[np.ndarray]:
+               faces: np.ndarray, cfg: StereoParams) -> list[np.ndarray]:
     """Filtered stereo depth maps (camera-space depth, 0: none) of every view, searched inside the
     depth range of the closed mesh (vertices, faces) that contains the object (the carved hull)."""
     from dpi.preprocess.hull import axes_centre
@@ -360,7 +358,7 @@ def depth_maps(cameras: list[Camera], images: list[np.ndarray], masks: list[np.n
 
 
 def carve_with_depths(field: np.ndarray, origin: np.ndarray, size: float, cameras: list[Camera],
-                      depths: list[np.ndarray], cfg: StereoConfig) -> np.ndarray:
+                      depths: list[np.ndarray], cfg: StereoParams) -> np.ndarray:
     """The carved field (negative inside) with what the depth maps see as empty removed (`free_space`)."""
     points = origin + np.stack(np.indices(field.shape), -1) * size
     near = field < BAND_VOXELS * size

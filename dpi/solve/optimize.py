@@ -14,13 +14,13 @@ from __future__ import annotations
 
 from dataclasses import fields
 from pathlib import Path
-from typing import Annotated, Any, Callable, TypeVar
+from typing import Any, Callable, TypeVar
 
 import torch
 from tqdm import tqdm
 
 from dpi.materials import MaterialRates, MaterialTextures
-from dpi.settings import Count, Loose, Rate, Steps, check_keys, check_values, settings, settings_from_dict
+from dpi.settings import Count, Rate, Steps, check_keys, check_values, settings, settings_from_dict
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
@@ -40,17 +40,10 @@ class OptimizeConfig(MaterialRates):
     """training views rendered per step (all views if larger than their number)"""
     lr_env: Rate = 3e-2
     """Adam learning rate of the env map's parameters (its log-radiance texels; dip: the network weights)"""
-    optimize_env: bool = True
-    """False keeps the env map fixed (material refinement)"""
-    optimize_materials: Annotated[tuple[str, ...], Loose] = ("albedo", "roughness", "metallic")
-    """which material textures are free"""
 
     @classmethod
     def from_dict(cls, values: dict) -> "OptimizeConfig":
-        """Config from a config.yaml section (lists become tuples)."""
-        values = dict(values)
-        if isinstance(values.get("optimize_materials"), list):
-            values["optimize_materials"] = tuple(values["optimize_materials"])
+        """Config from a config.yaml section."""
         return settings_from_dict(cls, values)
 
 
@@ -111,20 +104,21 @@ def all_finite(tensors: list[torch.Tensor]) -> bool:
 def fit(problem: InverseProblem, log_env: torch.Tensor, materials: MaterialTextures, cfg: OptimizeConfig,
         seed: int, trace: Trace, prior: PriorFn | None = None, prior_weight: float = 0.0,
         progress: bool = True, checkpoint: Path | None = None,
-        checkpoint_every: int = CHECKPOINT_EVERY) -> tuple[torch.Tensor, MaterialTextures]:
-    """Minimise data loss (+ prior_weight * prior(env)) over free texels; returns the final log-env and materials."""
+        checkpoint_every: int = CHECKPOINT_EVERY, free_env: bool = True) -> tuple[torch.Tensor, MaterialTextures]:
+    """Minimise data loss (+ prior_weight * prior(env)) over free texels (the map's too unless `free_env` is
+    False); returns the final log-env and materials."""
     return fit_env_model(problem, FreeEnvMap(log_env), materials, cfg, seed, trace, prior, prior_weight, progress,
-                         checkpoint, checkpoint_every)
+                         checkpoint, checkpoint_every, free_env)
 
 
 def fit_env_model(problem: InverseProblem, env_model: EnvModel, materials: MaterialTextures, cfg: OptimizeConfig,
                   seed: int, trace: Trace, prior: PriorFn | None = None, prior_weight: float = 0.0,
                   progress: bool = True, checkpoint: Path | None = None,
-                  checkpoint_every: int = CHECKPOINT_EVERY) -> tuple[torch.Tensor, MaterialTextures]:
+                  checkpoint_every: int = CHECKPOINT_EVERY, free_env: bool = True) -> tuple[torch.Tensor, MaterialTextures]:
     """Minimise data loss (+ prior_weight * prior(env)) over the env model's parameters (updated in
-    place) and the materials; returns the final log-env and materials. With a `checkpoint` file the
-    fit continues from the state a killed run of the same fit left there."""
-    run = AdamFit(problem, env_model, materials, cfg, seed, trace, prior, prior_weight)
+    place; fixed when `free_env` is False) and the materials; returns the final log-env and materials. With a
+    `checkpoint` file the fit continues from the state a killed run of the same fit left there."""
+    run = AdamFit(problem, env_model, materials, cfg, seed, trace, prior, prior_weight, free_env)
     run.resume(checkpoint, checkpoint_every)
     run.run(cfg.iterations, progress)
     return run.finish()
@@ -137,24 +131,23 @@ class AdamFit:
 
     def __init__(self, problem: InverseProblem, env_model: EnvModel, materials: MaterialTextures,
                  cfg: OptimizeConfig, seed: int, trace: Trace, prior: PriorFn | None = None,
-                 prior_weight: float = 0.0):
+                 prior_weight: float = 0.0, free_env: bool = True):
         self.problem, self.env_model, self.cfg, self.seed, self.trace = problem, env_model, cfg, seed, trace
         self.prior, self.prior_weight = prior, prior_weight
-        env_model.requires_grad_(cfg.optimize_env)
+        env_model.requires_grad_(free_env)
         self.materials = materials.detached()
         self.tensors = {**{f"env.{name}": t for name, t in env_model.state_dict().items()},
                         **dict(self.materials.items())}
-        groups = [{"params": list(env_model.parameters()), "lr": cfg.lr_env}] if cfg.optimize_env else []
+        groups = [{"params": list(env_model.parameters()), "lr": cfg.lr_env}] if free_env else []
         for name, tensor in self.materials.items():
-            if name in cfg.optimize_materials:
-                tensor.requires_grad_(True)
-                groups.append({"params": [tensor], "lr": cfg.rate(name)})
+            tensor.requires_grad_(True)
+            groups.append({"params": [tensor], "lr": cfg.rate(name)})
         self.free = [p for g in groups for p in g["params"]]
         self.optimizer = torch.optim.Adam(groups) if groups else None
         self.generator = torch.Generator().manual_seed(seed)
         self.step = 0
         self.store = None
-        self.key = ("fit", vars(cfg), seed, prior_weight, problem_identity(problem),
+        self.key = ("fit", vars(cfg), free_env, seed, prior_weight, problem_identity(problem),
                     {name: t.detach().clone() for name, t in self.tensors.items()})
 
     def resume(self, checkpoint: Path | None, every: int = CHECKPOINT_EVERY) -> None:

@@ -51,8 +51,8 @@ BAD = {  # case: (patch of config.yaml, the message's start)
     "dps key on dip": ({"method_params": {"dip": {"steps": 10}}}, "method_params.dip.steps: unknown DIPConfig setting"),
     "sds key typo": ({"method_params": {"sds": {"tmax": 0.5}}},
                      "method_params.sds.tmax: unknown SDSConfig setting"),
-    "steps 0": ({"method_params": {"dps": {"steps": 0}}}, "method_params.dps.steps: must be >= 1, got 0"),
-    "steps -5": ({"method_params": {"dps": {"steps": -5}}}, "method_params.dps.steps: must be >= 1, got -5"),
+    "steps 0": ({"method_params": {"dps": {"steps": 0}}}, "method_params.dps.steps: must be >= 2, got 0"),
+    "steps -5": ({"method_params": {"dps": {"steps": -5}}}, "method_params.dps.steps: must be >= 2, got -5"),
     "steps 2.5": ({"method_params": {"dps": {"steps": 2.5}}}, "method_params.dps.steps: must be an integer, got 2.5"),
     "steps text": ({"method_params": {"dps": {"steps": "ten"}}},
                    "method_params.dps.steps: must be an integer, got 'ten'"),
@@ -100,13 +100,13 @@ BAD = {  # case: (patch of config.yaml, the message's start)
                             "preprocess.sfm.matchr: unknown key; did you mean 'matcher'?"),
     "preprocess fraction above 1": ({"preprocess": {"sfm": {"min_registered_fraction": 1.5}}},
                                     "preprocess.sfm.min_registered_fraction: must be <= 1, got 1.5"),
-    "stereo key typo": ({"preprocess": {"geometry": {"stereo_settings": {"plane": 32}}}},
-                        "preprocess.geometry.stereo_settings.plane: unknown StereoConfig setting; did you mean 'planes'?"),
+    "geometry key typo": ({"preprocess": {"geometry": {"stero": False}}},
+                          "preprocess.geometry.stero: unknown key; did you mean 'stereo'?"),
     "preprocess stage typo": ({"preprocess": {"uvs": {}}}, "preprocess.uvs: unknown key; did you mean 'uv'?"),
     "preset key typo": ({"presets": {"draft": {"rendr": {"spp": 4}}}},
                         "presets.draft.rendr: unknown key; did you mean 'render'?"),
     "unused preset bad value": ({"presets": {"paper": {"method_params": {"dps": {"steps": -1}}}}},
-                                "presets.paper.method_params.dps.steps: must be >= 1, got -1"),
+                                "presets.paper.method_params.dps.steps: must be >= 2, got -1"),
     "unknown prior family": ({"illumination_prior": {"family": "martian"}},
                              "illumination_prior.family: must be one of indoor, outdoor, got 'martian'"),
     "checkpoint of unknown family": ({"illumination_prior": {"checkpoints": {"martian": "m.pt"}}},
@@ -165,7 +165,7 @@ def test_new_dataclass_fields_need_no_schema_change(monkeypatch):
 def test_sample_stage_rejects_a_bad_entry_before_reading_anything(tmp_path):
     """Called outside Snakemake (dpi sample), a bad method entry fails before any input is read or output written."""
     out = tmp_path / "out"
-    with pytest.raises(ValueError, match=r"^steps: must be >= 1, got -5$"):
+    with pytest.raises(ValueError, match=r"^steps: must be >= 2, got -5$"):
         sample_stage(tmp_path / "missing.json", tmp_path / "init", out, "s", "dps", 0, {"steps": -5}, SolveConfig())
     assert not out.exists()
 

@@ -64,7 +64,7 @@ class DPSConfig(MaterialRates):
     sampler: str = next(iter(SAMPLERS))
     """how a reverse step uses the data: proximal (x0-space data steps on the recorded light transport) or paper
     (the reference's gradient guidance through the path tracer)"""
-    steps: Annotated[int, Field(ge=1, le=1000)] = 100
+    steps: Annotated[int, Field(ge=2, le=1000)] = 100
     """reverse-diffusion steps (respaced from the prior's 1000; the paper uses 1000)"""
     radiance_scale: Rate | None = None
     """scene radiance per unit of the prior's normalised radiance (None: estimated from the init)"""

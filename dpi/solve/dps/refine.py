@@ -36,8 +36,7 @@ class RefineConfig:
     def optimize(self, rates: MaterialRates) -> OptimizeConfig:
         """The joint fit's settings: the gain's rate for the map's parameters, `rates` for the textures."""
         return OptimizeConfig(iterations=self.iterations, views_per_step=self.views_per_step, lr_env=self.lr_gain,
-                              lr_albedo=rates.lr_albedo, lr_roughness=rates.lr_roughness,
-                              lr_metallic=rates.lr_metallic)
+                              lr_albedo=rates.lr_albedo)
 
 
 def refine(problem: InverseProblem, env: torch.Tensor, materials: MaterialTextures, settings: RefineConfig,
