@@ -11,8 +11,8 @@ from dpi.cameras import from_fov, orbit, pixel_rays
 from dpi.consistency import mask_iou
 from dpi.io.images import srgb_to_linear
 from dpi.preprocess.hull import visible_sphere
-from dpi.preprocess.masks import (MaskConfig, clean_mask, derive_masks, drop_outliers, mesh_silhouette, object_mask,
-                                  refine_masks)
+from dpi.preprocess.masks import (SPHERE_FRACTION, MaskConfig, clean_mask, derive_masks, drop_outliers,
+                                  mesh_silhouette, object_mask, refine_masks)
 from dpi.synth.backdrop import backdrop_texture
 
 SIZE = 64
@@ -47,7 +47,7 @@ def cameras():
 @pytest.fixture(scope="module")
 def sphere(cameras):
     centre, radius = visible_sphere(cameras)
-    return centre, MaskConfig().sphere_fraction * radius
+    return centre, SPHERE_FRACTION * radius
 
 
 def surface_points(count: int = 200, seed: int = 0) -> np.ndarray:
@@ -100,10 +100,10 @@ def test_consensus_round_removes_one_views_background_patch(cameras):
     masks = [t.copy() for t in truths]
     masks[2][:28, :28] = True  # a patch of background taken for the object (joined to it below)
     masks[2][20:40, 15:25] = True
-    cfg = MaskConfig(consensus_votes=[0.25], consensus_bands=[0.08], consensus_resolution=48)
     from dpi.io.images import to_uint8
 
-    refined, methods = refine_masks([to_uint8(im) for im in images], list(cameras), masks, cfg)
+    refined, methods = refine_masks([to_uint8(im) for im in images], list(cameras), masks, rounds=((0.25, 0.08),),
+                                    resolution=48)
     assert mask_iou(masks[2], truths[2]) < 0.8
     assert mask_iou(refined[2], truths[2]) > 0.9 and methods[2] == "grabcut"
     assert np.mean([mask_iou(m, t) for m, t in zip(refined, truths)]) > 0.93

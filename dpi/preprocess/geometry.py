@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import numpy as np
 from pydantic import Field
@@ -22,6 +22,8 @@ from dpi.cameras import Camera
 from dpi.preprocess.hull import cut_below, marching_cubes, seen_from_above, support_plane, visual_hull
 from dpi.settings import Count, Fraction, Steps, Weight, settings
 
+if TYPE_CHECKING:
+    from dpi.preprocess.stereo import StereoParams
 
 MIN_COMPONENT = 20.0
 """components with a diagonal below this percent of the whole are removed"""
@@ -132,7 +134,7 @@ def working_photos(cameras: list[Camera], masks: list[np.ndarray], images: list[
 
 
 def without_ground(masks: list[np.ndarray], photos: tuple[list[Camera], list[np.ndarray], list[np.ndarray]],
-                   up: np.ndarray, hull: tuple[np.ndarray, np.ndarray], stereo: "StereoParams"
+                   up: np.ndarray, hull: tuple[np.ndarray, np.ndarray], stereo: StereoParams
                    ) -> tuple[list[np.ndarray], tuple[list[Camera], list[np.ndarray], list[np.ndarray]], dict]:
     """The full-size masks and the `working_photos` without the pixels that see the ground, found at the
     working photos' size (dpi.preprocess.ground.remove_ground), and the ground test's summary."""

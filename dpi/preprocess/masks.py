@@ -19,7 +19,7 @@ the votes and narrows the band. Where GrabCut still disagrees with the projectio
 projection is the mask.
 
 Either way the largest connected component is kept and small holes are filled; holes larger
-than `fill_holes_below` of the object (the hole of a torus) are kept.
+than `FILL_HOLES_BELOW` of the object (the hole of a torus) are kept.
 
 **Confidence.** Each final mask is compared with the projection of the hull that all the masks carve
 (a voxel goes only where several views see it outside): its IoU with that outline is the view's
@@ -31,7 +31,6 @@ the summary, the log and the report name those views.
 from __future__ import annotations
 
 import logging
-from dataclasses import field
 from pathlib import Path
 from typing import Annotated
 
@@ -43,7 +42,7 @@ from dpi.cameras import Camera
 from dpi.consistency import mask_iou
 from dpi.io.images import read_image, resize, resize_mask, to_uint8, working_size, write_mask
 from dpi.preprocess.hull import marching_cubes, visible_sphere, visual_hull
-from dpi.settings import Fraction, settings
+from dpi.settings import settings
 
 log = logging.getLogger(__name__)
 
@@ -67,24 +66,24 @@ OUTLIER_STD_RATIO = 2.0
 are dropped before the hull (open3d's statistical outlier removal; 0: keep all)"""
 
 
+SPHERE_FRACTION = 0.7
+"""first GrabCut prior: the disc of this fraction of the sphere every camera sees whole is probably foreground"""
+FILL_HOLES_BELOW = 0.01
+"""holes smaller than this fraction of the mask's area are filled"""
+CONSENSUS_ROUNDS = ((0.25, 0.08), (0.125, 0.04))
+"""one consensus round per entry: (the fraction of the views that must see a voxel outside their masks to carve
+it from the hull, at least 2 views; the half-width of the band around the projected hull's outline in which
+GrabCut decides, as a fraction of the object's size in the image)"""
+CONSENSUS_RESOLUTION = 96
+"""voxels along the longest side of the consensus hull's box"""
+
+
 @settings
 class MaskConfig:
     """Settings of mask extraction."""
 
     method: str = "auto"
     """auto (keying on a uniform background, else GrabCut) | grabcut | key"""
-    sphere_fraction: Fraction = 0.7
-    """first GrabCut prior: the disc of this fraction of the sphere every camera sees whole is probably foreground"""
-    fill_holes_below: Fraction = 0.01
-    """holes smaller than this fraction of the mask's area are filled"""
-    consensus_votes: list[float] = field(default_factory=lambda: [0.25, 0.125])
-    """one consensus round per entry: the fraction of the views that must see a voxel outside their
-    masks to carve it from the hull (at least 2 views; []: no rounds)"""
-    consensus_bands: list[float] = field(default_factory=lambda: [0.08, 0.04])
-    """per round: half-width of the band around the projected hull's outline in which GrabCut
-    decides, as a fraction of the object's size in the image"""
-    consensus_resolution: Annotated[int, Field(ge=8, le=1024)] = 96
-    """voxels along the longest side of the consensus hull's box"""
     max_size: Annotated[int, Field(ge=16)] | None = 480
     """longer image side (px) the masks are computed at: larger photos are area-downsampled (with their
     cameras) and the masks upsampled to the photos' size (GrabCut's fixed smoothness is tuned to small
@@ -157,8 +156,7 @@ def drop_outliers(points: np.ndarray, std_ratio: float, neighbours: int = 8) -> 
     return np.asarray(points)[np.asarray(keep, dtype=np.int64)]
 
 
-def first_prior(camera: Camera, sphere: tuple[np.ndarray, float], cfg: MaskConfig,
-                points: np.ndarray | None = None) -> np.ndarray:
+def first_prior(camera: Camera, sphere: tuple[np.ndarray, float], points: np.ndarray | None = None) -> np.ndarray:
     """GrabCut labels (h, w) of the first pass: the projected disc of `sphere` (centre, radius) and
     the grown hull of the object's projected points (N, 3) probably foreground, the hull's core
     foreground, the rest probably background and a strip along the image border background."""
@@ -236,8 +234,8 @@ def object_mask(image: np.ndarray, camera: Camera, cfg: MaskConfig, sphere: tupl
     if method == "key":
         mask = key_mask(image8, colour, max(KEY_THRESHOLD, 2 * spread))
     else:
-        mask = grabcut(image8, first_prior(camera, sphere, cfg, points), GRABCUT_ITERATIONS)
-    return clean_mask(mask, cfg.fill_holes_below), method
+        mask = grabcut(image8, first_prior(camera, sphere, points), GRABCUT_ITERATIONS)
+    return clean_mask(mask, FILL_HOLES_BELOW), method
 
 
 def mesh_silhouette(camera: Camera, vertices: np.ndarray, faces: np.ndarray, supersample: int = 4) -> np.ndarray:
@@ -265,17 +263,16 @@ def consensus_outlines(cameras: list[Camera], masks: list[np.ndarray], votes: in
 
 
 def refine_masks(images8: list[np.ndarray | None], cameras: list[Camera], masks: list[np.ndarray],
-                 cfg: MaskConfig) -> tuple[list[np.ndarray], list[str]]:
+                 rounds: tuple[tuple[float, float], ...] = CONSENSUS_ROUNDS,
+                 resolution: int = CONSENSUS_RESOLUTION) -> tuple[list[np.ndarray], list[str]]:
     """The consensus rounds (module notes): the hull comes from every view's mask, and the views with an
     8-bit sRGB image (None: keep the mask, e.g. a keyed one) are cut again. Returns the masks and each
     view's method ("grabcut", "consensus hull" where GrabCut lost the object, "kept")."""
-    if len(cfg.consensus_votes) != len(cfg.consensus_bands):
-        raise ValueError("consensus_votes and consensus_bands must have one entry per round")
     methods = ["grabcut" if image8 is not None else "kept" for image8 in images8]
-    for fraction, band in zip(cfg.consensus_votes, cfg.consensus_bands):
+    for fraction, band in rounds:
         votes = max(2, int(round(fraction * len(cameras))))
         try:
-            outlines = consensus_outlines(cameras, masks, votes, cfg.consensus_resolution)
+            outlines = consensus_outlines(cameras, masks, votes, resolution)
         except ValueError as exc:
             log.warning("consensus round skipped: %s", exc)
             break
@@ -285,12 +282,12 @@ def refine_masks(images8: list[np.ndarray | None], cameras: list[Camera], masks:
                 continue
             width = max(2, int(round(band * np.sqrt(outline.sum()))))
             masks[i] = clean_mask(grabcut(image8, band_prior(outline, width), GRABCUT_ITERATIONS),
-                                  cfg.fill_holes_below)
+                                  FILL_HOLES_BELOW)
             methods[i] = "grabcut"
             if mask_iou(masks[i], outline) < 0.5:  # GrabCut lost the object: keep the views' consensus
                 log.warning("%s: GrabCut disagrees with the consensus hull; using the hull's projection",
                             cameras[i].name)
-                masks[i], methods[i] = clean_mask(outline, cfg.fill_holes_below), "consensus hull"
+                masks[i], methods[i] = clean_mask(outline, FILL_HOLES_BELOW), "consensus hull"
     return masks, methods
 
 
@@ -330,20 +327,20 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
     views = [cameras[n].resized(width, height) for n in names]
     pictures = [resize(torch.from_numpy(p), height, width).numpy() for p in pictures]
     centre, radius = visible_sphere(views)
-    sphere = (centre, cfg.sphere_fraction * radius)
+    sphere = (centre, SPHERE_FRACTION * radius)
     if points is not None:
         points = drop_outliers(points, OUTLIER_STD_RATIO)
     first = [object_mask(picture, camera, cfg, sphere, points) for picture, camera in zip(pictures, views)]
     masks, methods = [m for m, _ in first], [method for _, method in first]
     use_points = points is not None and len(points) >= MIN_POINTS
     summary = {"views": {}, "prior": "sphere and sparse points" if use_points else "sphere", "consensus_rounds": 0}
-    if "grabcut" in methods and cfg.consensus_votes:
+    if "grabcut" in methods:
         to_cut = [to_uint8(p) if method == "grabcut" else None for p, method in zip(pictures, methods)]
-        refined, new_methods = refine_masks(to_cut, views, masks, cfg)
+        refined, new_methods = refine_masks(to_cut, views, masks)
         masks = refined
         methods = [old if new == "kept" else new for old, new in zip(methods, new_methods)]
-        summary["consensus_rounds"] = len(cfg.consensus_votes)
-    agreement = mask_agreement(views, masks, cfg.consensus_resolution) if len(views) >= 3 else None
+        summary["consensus_rounds"] = len(CONSENSUS_ROUNDS)
+    agreement = mask_agreement(views, masks, CONSENSUS_RESOLUTION) if len(views) >= 3 else None
     floor = None if agreement is None else MASK_AGREEMENT * float(np.median(agreement))
     if (width, height) != full:
         masks = [resize_mask(mask, *full) for mask in masks]

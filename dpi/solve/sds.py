@@ -29,6 +29,10 @@ from dpi.solve.trace import Trace
 SDS_WEIGHT_RATIO = 1.0
 
 
+T_MIN = 0.02
+"""smallest diffusion time drawn, as a fraction of the schedule"""
+
+
 @settings
 class SDSConfig(MaterialRates):
     """Settings of the `sds` ablation (the textures' rates: MaterialRates)."""
@@ -37,9 +41,8 @@ class SDSConfig(MaterialRates):
     views_per_step: Count = 1
     lr_map: Rate = 2e-2
     """Adam learning rate on the prior-space map x"""
-    t_min: Fraction = 0.02
     t_max: Fraction = 0.98
-    """range of diffusion times, as fractions of the schedule"""
+    """largest diffusion time drawn, as a fraction of the schedule (the smallest: T_MIN)"""
     radiance_scale: Rate | None = None
 
     @classmethod
@@ -83,7 +86,7 @@ def sds_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
             trace.skip(step, "non-finite loss")
             continue
         loss.backward()
-        direction = sds_gradient(prior, x.detach(), generator, cfg.t_min, cfg.t_max)
+        direction = sds_gradient(prior, x.detach(), generator, T_MIN, cfg.t_max)
         if weight is None:
             weight = SDS_WEIGHT_RATIO * float(x.grad.abs().max()) / max(float(direction.abs().max()), 1e-12)
             trace.info["sds_weight"] = weight

@@ -36,12 +36,16 @@ class SunExtraction:
     """the excess's share of the map's energy (luminance x solid angle)"""
 
 
+SUN_RADIUS_DEG = 25.0
+"""radius around the init's brightest texel whose excess energy becomes the sun"""
+
+
 def solid_angles(height: int, dtype: torch.dtype = torch.float32) -> torch.Tensor:
     """(H, 1) texel solid angles of an H x 2H map as a tensor."""
     return torch.as_tensor(texel_solid_angles(height), dtype=dtype)
 
 
-def extract_sun(env: torch.Tensor, radius_deg: float = 25.0) -> SunExtraction:
+def extract_sun(env: torch.Tensor, radius_deg: float = SUN_RADIUS_DEG) -> SunExtraction:
     """The excess of the map over its surroundings within `radius_deg` of the brightest texel, as a sun
     (dpi.light.sunlight.peel_brightest); the sun sits at the energy-weighted centroid of the excess."""
     spot = peel_brightest(env, radius_deg)

@@ -75,7 +75,7 @@ def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: D
     diffusion = prior.schedule(cfg.steps)
     scale = cfg.radiance_scale or estimate_radiance_scale(init.env, prior)
     first = int(round(sampler.start_noise * (diffusion.num_timesteps - 1)))
-    sun = extract_sun(init.env, cfg.sun.radius_deg)
+    sun = extract_sun(init.env)
     has_sun = wants_sun(cfg.sun, sampler.models_sun, prior.family, init.materials, sun)
     run = DPSRun(problem, prior, sampler, cfg, diffusion, seed, scale, data_norm(problem), first,
                  cfg.sun if has_sun else None, init)

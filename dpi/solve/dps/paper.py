@@ -13,11 +13,15 @@ from typing import Any
 import numpy as np
 import torch
 
-from dpi.settings import Count, Fraction, Rate, SettingsError, Weight, settings
+from dpi.settings import Count, Fraction, SettingsError, Weight, settings
 from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerConfig, finite, network_step
 from dpi.solve.optimize import all_finite
 
 RHO_SCHEDULES = ("linear", "step", "constant")
+
+
+GUIDANCE_BOUND = 0.1
+"""max-abs of the rendering-loss gradient after rescaling"""
 
 
 @settings
@@ -26,8 +30,6 @@ class PaperConfig(SamplerConfig):
 
     views_per_step: Count = 1
     """training views rendered per step"""
-    guidance_bound: Rate = 0.1
-    """max-abs of the rendering-loss gradient after rescaling"""
     rho_start: Weight = 0.1
     """guidance weight during the first part of the steps"""
     rho_end: Weight = 1.0
@@ -90,7 +92,7 @@ def paper_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
         x_next = p["mean"] + torch.exp(0.5 * p["log_variance"]) * noise
         if guided:
             record["guidance_max"] = float(x.grad.abs().max())
-            x_next = x_next - rho * scale_to_bound(x.grad, settings.guidance_bound)
+            x_next = x_next - rho * scale_to_bound(x.grad, GUIDANCE_BOUND)
             state.optimizer.step()
             state.materials.clamp_()
     state.x = x_next

@@ -8,9 +8,8 @@ init's bright region carries a share of its energy worth modelling).
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Any
 
-from pydantic import Field
 
 from dpi.materials import MaterialTextures
 from dpi.settings import SettingsError, Share, Weight, settings, settings_from_dict
@@ -39,8 +38,6 @@ class SunConfig:
 
     mode: str = "auto"
     """on, off, or auto (on for samplers that model a sun, with the outdoor prior, for objects that are not glossy)"""
-    radius_deg: Annotated[float, Field(gt=0, le=90)] = 25.0
-    """radius around the init's brightest texel whose excess energy becomes the sun"""
     share: Share = 0.55
     """the share of the map's energy the sun's prior expects: the median over the outdoor generator's clear
     skies with the sun above 10 deg (0.5-0.6 per elevation band; lower under clouds)"""
