@@ -219,6 +219,18 @@ def lens(root: Path) -> str:
     return grouped_table(rows, ("variant",), metrics, order=lambda k: order.index(k[0]) if k[0] in order else 9)
 
 
+def real_photos(root: Path) -> str:
+    """Real photo captures end to end (benchmarks/real_photos.py): poses, derived masks against the checked ones,
+    held-out views per method; the newest row per capture."""
+    rows = latest(read_rows(root / RESULTS / "real_photos.csv", ("capture", "size")), ("capture",))
+    body = [[r["capture"], f"{r['views']:.0f} of {r['size']}", f"{r['registered']:.0%}", f"{r['reprojection_px']:.2f}",
+             f"{r['mask_iou']:.3f} (min {r['mask_iou_min']:.2f})", f"{r['masks_flagged']:.0f}",
+             " / ".join(f"{r[f'{m}_view_psnr']:.2f}" for m in ("init", "dps", "none")), f"{r['seconds'] / 60:.1f}"]
+            for r in rows]
+    return markdown(["capture", "photos", "registered", "reproj. [px]", "mask IoU vs checked", "masks flagged",
+                     "held-out PSNR init / dps / none [dB]", "min"], body)
+
+
 def realism(root: Path) -> str:
     """Prior realism: each prior's denoising error and NIQE (mean ± std over the maps) on real panoramas held out
     of training, on the real ones it trained on, on procedural maps and on its own samples
@@ -261,7 +273,7 @@ def presets(root: Path) -> str:
 TABLES: dict[str, Callable[[Path], str]] = {
     "presets": presets, "posterior": posterior, "posterior_full": posterior_full, "calibration": calibration,
     "fig9": fig9_ratios, "train_fit": train_fit, "resolution": resolution, "roughness": roughness,
-    "tradeoff": tradeoff, "lens": lens, "realism": realism,
+    "tradeoff": tradeoff, "lens": lens, "realism": realism, "real_photos": real_photos,
     "prior_size": prior_size,
 }
 """every generated table by the name its markers use"""
