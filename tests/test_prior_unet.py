@@ -32,10 +32,10 @@ def attention_keys(prefix: str, c: int) -> dict[str, tuple]:
 
 def expected_layout(cfg: UNetConfig) -> dict[str, tuple]:
     """Key -> shape that guided-diffusion's UNetModel builds for `cfg` (resblock_updown, scale-shift)."""
-    m, emb, ss = cfg.num_channels, 4 * cfg.num_channels, cfg.use_scale_shift_norm
+    m, emb, ss = cfg.num_channels, 4 * cfg.num_channels, True
     keys = {"time_embed.0.weight": (emb, m), "time_embed.0.bias": (emb,),
             "time_embed.2.weight": (emb, emb), "time_embed.2.bias": (emb,),
-            "input_blocks.0.0.weight": (m, cfg.in_channels, 3, 3), "input_blocks.0.0.bias": (m,)}
+            "input_blocks.0.0.weight": (m, 3, 3, 3), "input_blocks.0.0.bias": (m,)}
     ch, ds, n, skips = m, 1, 1, [m]
     for level, mult in enumerate(cfg.channel_mult):
         for _ in range(cfg.num_res_blocks):
@@ -77,8 +77,17 @@ def paper_model() -> UNetModel:
 def test_paper_config_flags() -> None:
     assert attention_ds_from_resolutions(256, "32,16,8") == (8, 16, 32)
     assert PAPER_CONFIG.out_channels == 6
-    assert PAPER_CONFIG.use_scale_shift_norm and PAPER_CONFIG.resblock_updown
-    assert not PAPER_CONFIG.use_new_attention_order
+
+
+def test_a_checkpoint_config_may_carry_the_fixed_guided_diffusion_flags() -> None:
+    """A config listing guided-diffusion's flags at the values dpi's UNet implements reads back as the same config;
+    another value is refused, naming the flag."""
+    from dpi.prior.unet import GUIDED_DIFFUSION_FIXED, CheckpointError
+
+    stored = {**PAPER_CONFIG.to_dict(), **GUIDED_DIFFUSION_FIXED}
+    assert UNetConfig.from_dict(stored) == PAPER_CONFIG
+    with pytest.raises(CheckpointError, match="resblock_updown must be True"):
+        UNetConfig.from_dict({**stored, "resblock_updown": False})
 
 
 def test_paper_layout_matches_guided_diffusion_rules(paper_model: UNetModel) -> None:
@@ -112,19 +121,8 @@ def test_small_configs_follow_the_same_rules(name: str) -> None:
     assert {k: tuple(v.shape) for k, v in model.state_dict().items()} == expected_layout(SMALL_CONFIGS[name])
 
 
-def test_conv_resample_variant_has_op_and_conv_keys() -> None:
-    cfg = UNetConfig(num_channels=8, num_res_blocks=1, channel_mult=(1, 2), attention_ds=(), norm_groups=4,
-                     resblock_updown=False, learn_sigma=False)
-    sd = UNetModel(cfg).state_dict()
-    assert tuple(sd["input_blocks.2.0.op.weight"].shape) == (8, 8, 3, 3)
-    assert tuple(sd["output_blocks.1.1.conv.weight"].shape) == (16, 16, 3, 3)
-    assert tuple(sd["out.2.weight"].shape) == (3, 8, 3, 3)
-
-
-@pytest.mark.parametrize("new_order", [False, True])
-def test_non_square_forward(new_order: bool) -> None:
-    cfg = UNetConfig(**{**SMALL_CONFIGS["tiny"].to_dict(), "use_new_attention_order": new_order})
-    model = UNetModel(cfg)
+def test_non_square_forward() -> None:
+    model = UNetModel(SMALL_CONFIGS["tiny"])
     torch.nn.init.normal_(model.out[2].weight)  # zero-initialised output would hide shape bugs
     y = model(torch.randn(2, 3, 16, 32), torch.tensor([3, 900]))
     assert y.shape == (2, 6, 16, 32) and torch.isfinite(y).all()

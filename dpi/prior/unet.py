@@ -23,23 +23,26 @@ from torch.nn import functional as F
 from dpi.settings import Count, Loose, settings
 
 
+CHANNELS = 3
+"""colour channels of the maps the network sees"""
+GUIDED_DIFFUSION_FIXED = {"in_channels": CHANNELS, "num_heads_upsample": -1, "use_scale_shift_norm": True,
+                          "resblock_updown": True, "use_new_attention_order": False}
+"""guided-diffusion's flags that the authors' checkpoints and dpi's share, with their one value: dpi's UNet
+implements only that (a checkpoint's config may list them)"""
+
+
 @settings(frozen=True)
 class UNetConfig:
     """Hyper-parameters of guided-diffusion's UNetModel (names as in its script_util flags)."""
 
     image_size: Annotated[int, Field(ge=8)] = 32  # height H; only used to turn attention resolutions into downsample factors
-    in_channels: Count = 3
     num_channels: Count = 64  # model_channels
     num_res_blocks: Count = 2
     channel_mult: Annotated[tuple[int, ...], Loose] = (1, 2, 2)
     attention_ds: Annotated[tuple[int, ...], Loose] = (4,)  # downsample factors with attention (image_size // resolution)
     num_heads: Count = 4
     num_head_channels: Annotated[int, Field(ge=-1)] = -1  # channels per head; overrides num_heads when != -1
-    num_heads_upsample: Annotated[int, Field(ge=-1)] = -1
     learn_sigma: bool = True
-    use_scale_shift_norm: bool = True
-    resblock_updown: bool = True
-    use_new_attention_order: bool = False
     dropout: Annotated[float, Field(ge=0, lt=1)] = 0.0
     norm_groups: Count = 32  # GroupNorm groups (guided-diffusion: 32); no parameter depends on it. Keep several
     # channels per group: with one channel per group the output head cannot carry the image mean, and
@@ -48,7 +51,7 @@ class UNetConfig:
     @property
     def out_channels(self) -> int:
         """3 (eps) or 6 (eps and the variance interpolation v) output channels."""
-        return self.in_channels * (2 if self.learn_sigma else 1)
+        return CHANNELS * (2 if self.learn_sigma else 1)
 
     def to_dict(self) -> dict:
         """Plain dict (JSON / checkpoint friendly)."""
@@ -56,7 +59,12 @@ class UNetConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> "UNetConfig":
-        """Inverse of `to_dict` (lists become tuples)."""
+        """Inverse of `to_dict` (lists become tuples); guided-diffusion's flags of GUIDED_DIFFUSION_FIXED may be
+        present, with the one value this network implements."""
+        d = dict(d)
+        for key, value in GUIDED_DIFFUSION_FIXED.items():
+            if key in d and d.pop(key) != value:
+                raise CheckpointError(f"network flag {key} must be {value} (the one dpi's UNet implements)")
         return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
 
 
@@ -68,7 +76,7 @@ def attention_ds_from_resolutions(image_size: int, resolutions: str) -> tuple[in
 PAPER_CONFIG = UNetConfig(
     image_size=256, num_channels=256, num_res_blocks=3, channel_mult=(1, 1, 2, 2, 4, 4),
     attention_ds=attention_ds_from_resolutions(256, "32,16,8"), num_heads=4, num_head_channels=64,
-    learn_sigma=True, use_scale_shift_norm=True, resblock_updown=True, use_new_attention_order=False, dropout=0.1,
+    learn_sigma=True, dropout=0.1,
 )
 """The authors' indoor/outdoor checkpoints (flags of configs/model_config_{indoor,outdoor}.yaml in LinjieLyu/DPI)."""
 
@@ -122,43 +130,16 @@ class TimestepSequential(nn.Sequential):
         return x
 
 
-class Upsample(nn.Module):
-    """Nearest x2 upsampling, optionally followed by a 3x3 conv (`conv`)."""
-
-    def __init__(self, channels: int, use_conv: bool):
-        super().__init__()
-        if use_conv:
-            self.conv = nn.Conv2d(channels, channels, 3, padding=1)
-        self.use_conv = use_conv
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        x = F.interpolate(x, scale_factor=2, mode="nearest")
-        return self.conv(x) if self.use_conv else x
-
-
-class Downsample(nn.Module):
-    """x2 downsampling by a strided 3x3 conv (`op`) or by average pooling."""
-
-    def __init__(self, channels: int, use_conv: bool):
-        super().__init__()
-        self.op = nn.Conv2d(channels, channels, 3, stride=2, padding=1) if use_conv else nn.AvgPool2d(2)
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.op(x)
-
-
 class ResBlock(nn.Module):
     """Residual block conditioned on the time embedding, optionally resampling (guided-diffusion ResBlock)."""
 
     def __init__(self, channels: int, emb_channels: int, out_channels: int, cfg: UNetConfig,
                  up: bool = False, down: bool = False):
         super().__init__()
-        self.use_scale_shift_norm = cfg.use_scale_shift_norm
         self.in_layers = nn.Sequential(GroupNorm32(cfg.norm_groups, channels), nn.SiLU(),
                                        nn.Conv2d(channels, out_channels, 3, padding=1))
-        self.resample = Upsample(channels, False) if up else Downsample(channels, False) if down else nn.Identity()
-        self.emb_layers = nn.Sequential(
-            nn.SiLU(), nn.Linear(emb_channels, 2 * out_channels if cfg.use_scale_shift_norm else out_channels))
+        self.resample = nn.Upsample(scale_factor=2, mode="nearest") if up else nn.AvgPool2d(2) if down else nn.Identity()
+        self.emb_layers = nn.Sequential(nn.SiLU(), nn.Linear(emb_channels, 2 * out_channels))
         self.out_layers = nn.Sequential(
             GroupNorm32(cfg.norm_groups, out_channels), nn.SiLU(), nn.Dropout(cfg.dropout),
             zero_module(nn.Conv2d(out_channels, out_channels, 3, padding=1)))
@@ -169,12 +150,8 @@ class ResBlock(nn.Module):
         h = self.in_layers[-1](self.resample(h))
         x = self.resample(x)
         emb_out = self.emb_layers(emb).type(h.dtype)[..., None, None]
-        if self.use_scale_shift_norm:
-            scale, shift = emb_out.chunk(2, dim=1)
-            h = self.out_layers[0](h) * (1 + scale) + shift
-            h = self.out_layers[1:](h)
-        else:
-            h = self.out_layers(h + emb_out)
+        scale, shift = emb_out.chunk(2, dim=1)  # scale-shift norm
+        h = self.out_layers[1:](self.out_layers[0](h) * (1 + scale) + shift)
         return self.skip_connection(x) + h
 
 
@@ -186,19 +163,16 @@ class AttentionBlock(nn.Module):
         self.num_heads = channels // num_head_channels if num_head_channels != -1 else num_heads
         if channels % self.num_heads:
             raise ValueError(f"{channels} channels do not split into {self.num_heads} heads")
-        self.new_order = cfg.use_new_attention_order
         self.norm = GroupNorm32(cfg.norm_groups, channels)
         self.qkv = nn.Conv1d(channels, 3 * channels, 1)
         self.proj_out = zero_module(nn.Conv1d(channels, channels, 1))
 
     def attention(self, qkv: torch.Tensor) -> torch.Tensor:
-        """Attention (B, C, T) from stacked qkv (B, 3C, T); legacy order splits heads before q/k/v."""
+        """Attention (B, C, T) from stacked qkv (B, 3C, T), heads split before q/k/v (guided-diffusion's legacy
+        order, which its checkpoints use)."""
         b, width, length = qkv.shape
         ch = width // (3 * self.num_heads)
-        if self.new_order:
-            q, k, v = (t.reshape(b * self.num_heads, ch, length) for t in qkv.chunk(3, dim=1))
-        else:
-            q, k, v = qkv.reshape(b * self.num_heads, 3 * ch, length).split(ch, dim=1)
+        q, k, v = qkv.reshape(b * self.num_heads, 3 * ch, length).split(ch, dim=1)
         scale = ch ** -0.25
         weight = torch.einsum("bct,bcs->bts", q * scale, k * scale).float().softmax(dim=-1).type(qkv.dtype)
         return torch.einsum("bts,bcs->bct", weight, v).reshape(b, -1, length)
@@ -218,9 +192,8 @@ class UNetModel(nn.Module):
         self.config = cfg
         ch = cfg.num_channels * cfg.channel_mult[0]
         emb_dim = 4 * cfg.num_channels
-        heads_up = cfg.num_heads if cfg.num_heads_upsample == -1 else cfg.num_heads_upsample
         self.time_embed = nn.Sequential(nn.Linear(cfg.num_channels, emb_dim), nn.SiLU(), nn.Linear(emb_dim, emb_dim))
-        self.input_blocks = nn.ModuleList([TimestepSequential(nn.Conv2d(cfg.in_channels, ch, 3, padding=1))])
+        self.input_blocks = nn.ModuleList([TimestepSequential(nn.Conv2d(CHANNELS, ch, 3, padding=1))])
         skip_channels = [ch]
         ds = 1
         for level, mult in enumerate(cfg.channel_mult):
@@ -232,8 +205,7 @@ class UNetModel(nn.Module):
                 self.input_blocks.append(TimestepSequential(*layers))
                 skip_channels.append(ch)
             if level != len(cfg.channel_mult) - 1:
-                down = ResBlock(ch, emb_dim, ch, cfg, down=True) if cfg.resblock_updown else Downsample(ch, True)
-                self.input_blocks.append(TimestepSequential(down))
+                self.input_blocks.append(TimestepSequential(ResBlock(ch, emb_dim, ch, cfg, down=True)))
                 skip_channels.append(ch)
                 ds *= 2
         self.middle_block = TimestepSequential(
@@ -245,9 +217,9 @@ class UNetModel(nn.Module):
                 layers = [ResBlock(ch + skip_channels.pop(), emb_dim, mult * cfg.num_channels, cfg)]
                 ch = mult * cfg.num_channels
                 if ds in cfg.attention_ds:
-                    layers.append(AttentionBlock(ch, heads_up, cfg.num_head_channels, cfg))
+                    layers.append(AttentionBlock(ch, cfg.num_heads, cfg.num_head_channels, cfg))
                 if level and i == cfg.num_res_blocks:
-                    layers.append(ResBlock(ch, emb_dim, ch, cfg, up=True) if cfg.resblock_updown else Upsample(ch, True))
+                    layers.append(ResBlock(ch, emb_dim, ch, cfg, up=True))
                     ds //= 2
                 self.output_blocks.append(TimestepSequential(*layers))
         self.out = nn.Sequential(GroupNorm32(cfg.norm_groups, ch), nn.SiLU(),
