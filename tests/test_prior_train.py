@@ -30,7 +30,14 @@ def maps_dir(tmp_path_factory):
 def config(tmp_path, maps_dir, steps: int) -> TrainConfig:
     return TrainConfig(family="outdoor", data_dir=str(maps_dir), out=str(tmp_path / "model.pt"),
                        model=SMALL_CONFIGS["tiny"], steps=steps, batch_size=8, lr=2e-3, sample_every=0,
-                       checkpoint_every=10, log_every=1, seed=0)
+                       checkpoint_every=10, seed=0)
+
+
+@pytest.fixture(autouse=True)
+def every_step_logged(monkeypatch):
+    """Log every step (the tests count losses) and draw sample grids in two reverse steps."""
+    monkeypatch.setattr("dpi.prior.train.LOG_EVERY", 1)
+    monkeypatch.setattr("dpi.prior.train.SAMPLE_GRID_STEPS", 2)
 
 
 def logged_losses(tmp_path) -> list[float]:
@@ -49,7 +56,7 @@ def test_resume_continues_the_step_count(tmp_path, maps_dir) -> None:
     data = EnvmapDataset.from_folder(maps_dir, 16, "outdoor", family_encoding("outdoor"))
     train(config(tmp_path, maps_dir, 5), data, progress=False)
     cfg = config(tmp_path, maps_dir, 8)
-    cfg.sample_every, cfg.sample_steps = 8, 2
+    cfg.sample_every = 8
     last = train(cfg, data, progress=False)
     assert last["step"] == 8 and len(logged_losses(tmp_path)) == 8
     assert torch.load(tmp_path / "model.pt", weights_only=True)["step"] == 8

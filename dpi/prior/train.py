@@ -5,7 +5,7 @@ parameters, dpi.light.tonecurve, and median_target), 'diffusion' (num_timesteps,
 'optimizer', 'step', 'wall_seconds', 'train' (TrainConfig). `export_model` strips it to EMA weights
 (fp16) for shipping. Next to the checkpoint go `{stem}.log.jsonl` (one line per logged step) and
 `{stem}_samples/`. On a GPU the maps live on the device and the forward pass runs in bfloat16
-autocast (`amp`), so a step is bound by the network, not by host-device copies.
+autocast, so a step is bound by the network, not by host-device copies.
 """
 
 from __future__ import annotations
@@ -38,6 +38,14 @@ DEFAULT_MODEL = "small_32x64"
 CLIP_MULTIPLES = (3.0, 30.0)  # clip levels, in multiples of the median luminance
 
 
+DIFFUSION_STEPS = 1000
+"""timesteps of the linear noise schedule every prior is trained on (the paper's)"""
+SAMPLE_GRID_STEPS = 50
+"""respaced reverse steps of the sample grids a run writes"""
+LOG_EVERY = 10
+"""optimiser steps between two lines of the training log"""
+
+
 @settings
 class TrainConfig:
     """Everything a training run depends on."""
@@ -54,16 +62,12 @@ class TrainConfig:
     init: str | None = None  # start a new run from this prior's weights (model and EMA), which may be of another map
     # size with the same network (a 32 x 64 prior starting a 64 x 128 run); ignored when resuming
     ema_decay: Fraction = 0.995  # with warm-up min(decay, (1 + step) / (10 + step)); short CPU runs want < 0.999
-    num_timesteps: Count = 1000
     max_minutes: Rate | None = None  # stop after this wall time (checkpoint written)
     sample_every: Steps = 1000  # write a PNG grid of EMA samples every N steps (0: never)
-    sample_steps: Count = 50  # respaced steps for those grids
     checkpoint_every: Count = 100
-    log_every: Count = 10
     device: str = "cpu"
     seed: int = 0
     encoding: str = "log"  # 'log' (log radiance around the median) or 'paper' (the family's tone curve)
-    amp: bool = True  # bfloat16 autocast of the forward pass on CUDA (ignored on the CPU)
     clip_fraction: Fraction = 0.0  # share of each batch clipped like 8-bit panoramas (dpi.prior.data.clip_highlights)
     real_data: str | None = None  # real panoramas (a folder or a set packed by `dpi panorama-set`) mixed in
     real_fraction: Fraction = 0.25  # share of each batch drawn from `real_data`
@@ -140,7 +144,7 @@ def checkpoint_dict(cfg: TrainConfig, model: UNetModel, ema: UNetModel, optimize
         "format": CHECKPOINT_FORMAT, "config": cfg.model.to_dict(), "family": cfg.family,
         "height": cfg.model.image_size,
         "tone": {**encoding.to_dict(), "median_target": median_target(cfg.family, encoding)},
-        "diffusion": {"num_timesteps": cfg.num_timesteps, "schedule": "linear"},
+        "diffusion": {"num_timesteps": DIFFUSION_STEPS, "schedule": "linear"},
         "model": model.state_dict(), "ema": ema.state_dict(), "optimizer": optimizer.state_dict(),
         "step": step, "wall_seconds": wall_seconds,
         "train": {**asdict(cfg), "model": cfg.model.to_dict()},
@@ -163,8 +167,8 @@ def export_model(checkpoint: str | Path, dest: str | Path, half: bool = True) ->
 
 def write_sample_grid(cfg: TrainConfig, ema: UNetModel, step: int, out_dir: Path) -> None:
     """PNG grid of 8 EMA samples (respaced schedule, random roll) at this step."""
-    diffusion = respaced(base_diffusion(cfg.num_timesteps, cfg.model.learn_sigma),
-                         evenly_spaced_timesteps(cfg.num_timesteps, cfg.sample_steps))
+    diffusion = respaced(base_diffusion(DIFFUSION_STEPS, cfg.model.learn_sigma),
+                         evenly_spaced_timesteps(DIFFUSION_STEPS, SAMPLE_GRID_STEPS))
     h = cfg.model.image_size
     generator = torch.Generator(device=cfg.device).manual_seed(cfg.seed)
     x = sample(diffusion, ema, (8, 3, h, 2 * h), generator, random_roll=True, device=cfg.device)
@@ -202,7 +206,7 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
                                   "(a model of another map size with the same weights will do)")
         model.load_state_dict(initial.state_dict())
         ema.load_state_dict(initial.state_dict())
-    diffusion = base_diffusion(cfg.num_timesteps, cfg.model.learn_sigma)
+    diffusion = base_diffusion(DIFFUSION_STEPS, cfg.model.learn_sigma)
     generator = torch.Generator(device=cfg.device).manual_seed(cfg.seed * 1_000_003 + step)
     start = time.perf_counter() - wall
     deadline = None if cfg.max_minutes is None else time.perf_counter() + 60 * cfg.max_minutes
@@ -214,9 +218,9 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
         if cfg.clip_fraction:
             x0 = clip_highlights(x0, data.encoding, median_target(cfg.family, data.encoding), cfg.clip_fraction,
                                  CLIP_MULTIPLES, generator)
-        t = torch.randint(0, cfg.num_timesteps, (cfg.batch_size,), generator=generator, device=cfg.device)
+        t = torch.randint(0, DIFFUSION_STEPS, (cfg.batch_size,), generator=generator, device=cfg.device)
         noise = torch.randn(x0.shape, generator=generator, device=cfg.device)
-        with torch.autocast("cuda", dtype=torch.bfloat16, enabled=cuda and cfg.amp):
+        with torch.autocast("cuda", dtype=torch.bfloat16, enabled=cuda):
             losses = {k: v.mean() for k, v in training_losses(diffusion, model, x0, t, noise).items()}
         losses_logged = {k: v.detach() for k, v in losses.items()}
         optimizer.zero_grad(set_to_none=True)
@@ -227,7 +231,7 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
         step += 1
         ema_update(ema, model, min(cfg.ema_decay, (1 + step) / (10 + step)))
         bar.update(1)
-        if step % cfg.log_every == 0:
+        if step % LOG_EVERY == 0:
             record = {"step": step, "seconds": round(time.perf_counter() - start, 2),
                       **{k: round(v.item(), 6) for k, v in losses_logged.items()}}
             bar.set_postfix(loss=f"{record['loss']:.4f}")
