@@ -15,7 +15,7 @@ from dpi.consistency import mask_iou
 from dpi.io.images import read_mask, write_srgb
 from dpi.preprocess.stages import needed_stages
 
-FAST = {"preprocess": {"geometry": {"resolution": 48, "coarse_resolution": 24, "target_faces": 3000,
+FAST = {"preprocess": {"geometry": {"resolution": 48, "target_faces": 3000,
                                     "remesh_iterations": 1},
                        "uv": {"texture_size": 128}}}
 

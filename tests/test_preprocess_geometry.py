@@ -35,7 +35,7 @@ def truth():
     return np.asarray(sphere.vertices), np.asarray(sphere.faces)
 
 
-FAST = GeometryConfig(resolution=64, coarse_resolution=32, target_faces=6000, remesh_iterations=1)
+FAST = GeometryConfig(resolution=64, target_faces=6000, remesh_iterations=1)
 
 
 def test_signed_distance_2d_is_negative_inside():

@@ -91,8 +91,8 @@ def test_a_value_outside_a_fields_bounds_is_one_line_naming_it(path):
 
 
 def test_the_bounds_cover_the_settings_a_sample_reads():
-    assert len(FIELDS) >= 30 and ("proximal", "transport", "max_height") in FIELDS
-    assert ("proximal", "level_every") in FIELDS and ("refine", "iterations") in FIELDS
+    assert len(FIELDS) >= 25 and ("proximal", "transport", "max_height") in FIELDS
+    assert ("proximal", "perturb_height") in FIELDS and ("refine", "iterations") in FIELDS
 
 
 @pytest.fixture(scope="module")

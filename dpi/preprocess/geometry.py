@@ -20,11 +20,13 @@ from pydantic import Field
 
 from dpi.cameras import Camera
 from dpi.preprocess.hull import cut_below, marching_cubes, seen_from_above, support_plane, visual_hull
-from dpi.settings import Count, Fraction, Steps, Weight, settings
+from dpi.settings import Count, Steps, settings
 
 if TYPE_CHECKING:
     from dpi.preprocess.stereo import StereoParams
 
+COARSE_RESOLUTION = 48
+"""voxels along the side of the search box (the hull's coarse pass)"""
 MIN_COMPONENT = 20.0
 """components with a diagonal below this percent of the whole are removed"""
 OBJECT_IN_FRAME = True
@@ -46,14 +48,8 @@ class GeometryConfig:
 
     resolution: Annotated[int, Field(ge=8, le=1024)] = 128
     """voxels along the longest side of the object's box (fine pass)"""
-    coarse_resolution: Annotated[int, Field(ge=8, le=1024)] = 48
-    """voxels along the side of the search box (coarse pass)"""
     outside_votes: Steps = 2
     """views that must see a voxel outside its silhouette to carve it (tolerates outside_votes - 1 bad masks)"""
-    min_view_fraction: Fraction = 0.5
-    """without object_in_frame: a voxel inside fewer than this fraction of the views' frames is outside"""
-    margin: Weight = 0.08
-    """margin around the coarse hull's box, as a fraction of its size"""
     target_faces: Count = 20000
     """face budget of the decimated mesh"""
     remesh_iterations: Steps = 3
@@ -109,9 +105,10 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray, cfg: GeometryConfig) -> 
 
 def carve_hull(cameras: list[Camera], masks: list[np.ndarray],
                cfg: GeometryConfig) -> tuple[np.ndarray, np.ndarray, float, dict]:
-    """The visual hull with the config's carving settings (dpi.preprocess.hull.visual_hull)."""
-    return visual_hull(cameras, masks, cfg.resolution, cfg.coarse_resolution, cfg.outside_votes,
-                       cfg.min_view_fraction, OBJECT_IN_FRAME, cfg.margin)
+    """The visual hull with the config's carving settings (dpi.preprocess.hull.visual_hull; its coarse search pass
+    at most as fine as the fine one)."""
+    return visual_hull(cameras, masks, cfg.resolution, min(COARSE_RESOLUTION, cfg.resolution), cfg.outside_votes,
+                       in_frame=OBJECT_IN_FRAME)
 
 
 def working_photos(cameras: list[Camera], masks: list[np.ndarray], images: list[np.ndarray],

@@ -61,7 +61,7 @@ BAD = {  # case: (patch of config.yaml, the message's start)
     "dps section key at the top": ({"method_params": {"dps": {"inner_steps": 3}}},
                                    "method_params.dps.inner_steps: unknown DPSConfig setting"),
     "level_every 0": ({"method_params": {"dps": {"proximal": {"level_every": 0}}}},
-                      "method_params.dps.proximal.level_every: must be >= 1, got 0"),
+                      "method_params.dps.proximal.level_every: unknown ProximalConfig setting"),
     "inner_steps -3": ({"method_params": {"dps": {"proximal": {"inner_steps": -3}}}},
                        "method_params.dps.proximal.inner_steps: must be >= 1, got -3"),
     "odd transport spp": ({"method_params": {"dps": {"proximal": {"transport": {"spp": 3}}}}},

@@ -20,7 +20,7 @@ x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) (sqrt(1 - zeta) eps_hat + sq
 eps_hat recomputed from z, so samples stay diverse. The proximal weight grows as the noise falls
 (DiffPIR's rho_t ~ 1 / sigma_t^2), so late steps keep what the data put into x_t early. The
 materials move only after `material_start` of the steps: while x0_hat is still a blur, free albedo
-steps would absorb the map's errors. From then on, every `level_every` steps, the roughness becomes
+steps would absorb the map's errors. From then on, every `LEVEL_EVERY` steps, the roughness becomes
 the recorded level that fits the views best. It starts from the init map noised to `start_noise`
 (SDEdit). The refinement (dpi.solve.dps.refine) then path-traces all the materials.
 
@@ -54,6 +54,10 @@ SOLVE_CG_ITERATIONS = 10
 """conjugate-gradient iterations of a step's solve on the transport's grid (more do not make it more accurate)"""
 
 
+LEVEL_EVERY = 4
+"""steps between two choices of the roughness level (once the materials move)"""
+
+
 @settings
 class ProximalConfig(SamplerConfig):
     """The proximal x0-space sampler (method_params.dps.proximal)."""
@@ -73,8 +77,6 @@ class ProximalConfig(SamplerConfig):
     material_start: Fraction = 0.6
     """fraction of the steps before the materials start to move: the map settles its light first, and the albedo
     then fits that light instead of trading against it (docs/studies.md, "the material start's step")"""
-    level_every: Count = 4
-    """steps between two choices of the roughness level (once the materials move)"""
     restart: bool = False
     """each step's data updates start from that step's x0_hat (DiffPIR's proximal point: where the views are
     silent the map is the prior's); False: from the previous step's fit, which keeps the start's guess there"""
@@ -178,7 +180,7 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     transport, recorded = sample_transport(run, state)
     level = current_level(transport, state.materials.roughness)
     laps.lap("transport")
-    if materials_move and (n - math.ceil(settings.material_start * run.num_steps)) % settings.level_every == 0:
+    if materials_move and (n - math.ceil(settings.material_start * run.num_steps)) % LEVEL_EVERY == 0:
         level = best_level(transport, run.env(torch.exp(state.log_map), state, transport.height),
                            state.materials.albedo)
         set_level(state, transport, level)
