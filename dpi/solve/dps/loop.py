@@ -33,6 +33,7 @@ from dpi.solve.prior_space import env_to_prior, estimate_radiance_scale
 from dpi.solve.problem import InverseProblem
 from dpi.solve.sun_model import extract_sun, sun_summary
 from dpi.solve.trace import Trace
+from dpi.solve.transport import LightTransport
 
 CHECKPOINT_EVERY = 10
 """reverse steps between two saves of the resume state (a save costs far less than one step)"""
@@ -111,6 +112,46 @@ def strip_frames(snapshots: list[torch.Tensor], count: int) -> list[torch.Tensor
     return [snapshots[k] for k in keep]
 
 
+SHARPNESS = (0.05, 0.2)
+"""how sharply an object's pixels see the map at the transport's grid (the median over the texels they see of a
+pixel's largest texel weight over its total): at most the first, a rough object's (its pixels see wide lobes),
+which keeps its sample as drawn; from the second on, a mirror's (a pixel sees a handful of texels), whose views pin
+down what they reflect"""
+
+
+def seen_weight(weights: torch.Tensor, height: int) -> torch.Tensor:
+    """(height, 2 height) in [0, 1): how firmly the training views pin each texel, from each recorded pixel's weight on
+    each texel (P, N): the views' weight on the texel over the median seen texel's (as s / (s + median)), times how
+    mirror-like the views are (0 at SHARPNESS[0] or less, 1 from SHARPNESS[1])."""
+    seen = weights.sum(0)
+    if not bool((seen > 0).any()):
+        return torch.zeros(height, 2 * height)
+    pixel_sharpness = weights.amax(dim=1, keepdim=True) / weights.sum(dim=1, keepdim=True).clamp_min(1e-30)
+    sharpness = ((pixel_sharpness * weights).sum(0) / seen.clamp_min(1e-30))[seen > 0].median()
+    mirror = ((sharpness - SHARPNESS[0]) / (SHARPNESS[1] - SHARPNESS[0])).clamp(0, 1)
+    median = seen[seen > 0].median()
+    return (mirror * seen / (seen + median)).reshape(height, 2 * height)
+
+
+def transport_weights(transport: LightTransport) -> torch.Tensor:
+    """(P, N) each recorded pixel's weight on each texel at the materials' own roughness (slope and offset, halves'
+    mean, channels summed)."""
+    return transport.mean[:, 0].abs().sum(dim=(0, 1))
+
+
+def keep_what_the_views_see(env: torch.Tensor, init_env: torch.Tensor, weight: torch.Tensor) -> torch.Tensor:
+    """The sample's map (H, 2H, 3) moved towards the init's in log radiance by `weight` (h, 2h, bilinearly resampled):
+    what the views pin down stays as the init fitted it (its detail too), the prior's sample fills the rest, brought
+    to the init's level where both hold (unchanged where nothing is pinned)."""
+    if not bool((weight > 0).any()):
+        return env
+    w = torch.nn.functional.interpolate(weight[None, None].float(), size=env.shape[:2], mode="bilinear",
+                                        align_corners=False)[0, 0, :, :, None]
+    a, b = init_env.clamp_min(1e-8).log(), env.clamp_min(1e-8).log()
+    shift = ((a - b) * w).sum(dim=(0, 1)) / w.sum().clamp_min(1e-8)
+    return torch.exp(w * a + (1 - w) * (b + shift))
+
+
 def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: DPSConfig, seed: int,
                progress: bool = True, checkpoint: Path | None = None,
                checkpoint_every: int = CHECKPOINT_EVERY) -> DPSResult:
@@ -150,6 +191,10 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
     if run.sun:
         trace.info["sun"] = {**sun_summary(state.sun_uv.detach(), sun_irradiance, env),
                              "merged_spots": merged}
+    if transport is not None:
+        pinned = seen_weight(transport_weights(transport), transport.height)
+        env = keep_what_the_views_see(env, init.env, pinned)
+        trace.info["pinned_by_views"] = round(float(pinned.mean()), 4)
     env, materials, refine_trace = refine(problem, env, state.materials, run.cfg.refine, run.cfg,
                                           seed + 1, progress)
     trace.info["refine"] = refine_trace.summary()
