@@ -219,6 +219,21 @@ def lens(root: Path) -> str:
     return grouped_table(rows, ("variant",), metrics, order=lambda k: order.index(k[0]) if k[0] in order else 9)
 
 
+def pinned_light(root: Path) -> str:
+    """Dev run of dps's pinned light (dpi.solve.dps.loop.seen_weight): each variant's held-out views, env map and
+    relighting per study and scene kind (the mirror torus at 128 rows of the resolution study, the posterior
+    study's glossy blob and two rough ones, the calibration study's three metals), and the init's."""
+    rows = read_rows(root / RESULTS / "dev" / "pinned_light_dev.csv", ("variant", "study", "scene"))
+    for row in rows:
+        row["kind"] = "rough" if row["scene"] in ("blob_rough", "blob_sun", "blob_room") else "metal"
+    order = ("init", "base", "fine_detail", "init_where_seen", "init_where_seen_levelled", "soft_weight",
+             "sharpness_weight", "mirror_weight")
+    metrics = (Metric("view PSNR [dB]", "novel_psnr", ".2f"), Metric("env PSNR [dB]", "env_psnr", ".2f"),
+               Metric("relight PSNR-H [dB]", "relight_psnr_h", ".2f"))
+    return grouped_table(rows, ("study", "kind", "variant"), metrics,
+                         order=lambda k: (k[0], k[1], order.index(k[2]) if k[2] in order else 9))
+
+
 def real_photos(root: Path) -> str:
     """Real photo captures end to end (benchmarks/real_photos.py): poses, derived masks against the checked ones,
     held-out views per method; the newest row per capture."""
@@ -273,7 +288,7 @@ def presets(root: Path) -> str:
 TABLES: dict[str, Callable[[Path], str]] = {
     "presets": presets, "posterior": posterior, "posterior_full": posterior_full, "calibration": calibration,
     "fig9": fig9_ratios, "train_fit": train_fit, "resolution": resolution, "roughness": roughness,
-    "tradeoff": tradeoff, "lens": lens, "realism": realism, "real_photos": real_photos,
+    "tradeoff": tradeoff, "lens": lens, "realism": realism, "real_photos": real_photos, "pinned_light": pinned_light,
     "prior_size": prior_size,
 }
 """every generated table by the name its markers use"""
