@@ -13,7 +13,6 @@ benchmarks/results/real_photos.csv.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import shutil
 import subprocess
@@ -27,7 +26,7 @@ import yaml
 from dpi.consistency import mask_iou
 from dpi.io.images import read_mask
 from dpi.studies.engine import CHECKOUT as ROOT
-from dpi.studies.engine import append_row, results_csv, settings_hash, work_dir
+from dpi.studies.engine import append_row, read_rows, results_csv, settings_hash, work_dir
 
 CAPTURE = ROOT / "tests" / "data" / "skull_photos"
 SCENE = CAPTURE.name
@@ -45,8 +44,7 @@ def mask_scores(masks: Path, checked: Path) -> dict[str, float]:
 
 def held_out_psnr(summary: Path) -> dict[str, float]:
     """Mean held-out view PSNR per method of a run's summary.csv."""
-    with open(summary, newline="") as f:
-        return {row["method"]: float(row["novel_psnr"]) for row in csv.DictReader(f)}
+    return {row["method"]: row["novel_psnr"] for row in read_rows(summary)}
 
 
 def run_workflow(config: dict, cores: int) -> float:

@@ -156,9 +156,9 @@ def reconstruct_surface(cameras: list[Camera], masks: list[np.ndarray], cfg: Geo
     up = seen_from_above(cameras, field, origin, size)
     photos = working_photos(cameras, masks, images, PHOTO_SIZE) if images is not None else None
     if cfg.ground and photos is not None and up is not None:
-        ground_start = time.perf_counter()
         from dpi.preprocess.stereo import StereoParams
 
+        ground_start = time.perf_counter()
         masks, photos, ground = without_ground(masks, photos, up, marching_cubes(field, origin, size),
                                                StereoParams())
         times["ground_s"] = time.perf_counter() - ground_start

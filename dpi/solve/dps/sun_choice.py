@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from typing import Any
 
-
 from dpi.materials import MaterialTextures
 from dpi.settings import SettingsError, Share, Weight, settings, settings_from_dict
 from dpi.solve.init import GLOSSY_ROUGHNESS, is_glossy
