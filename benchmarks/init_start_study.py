@@ -62,12 +62,12 @@ def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth
     from dpi.pipeline import Pipeline
     from dpi.seeding import seed_for
     from dpi.solve.decomposition import Decomposition
-    from dpi.solve.init import closing_loss, roughness_p25, start_fit
+    from dpi.solve.init import GLOSSY_START, ROUGH_START, closing_loss, roughness_p25, start_fit
 
     problem = load_problem(prepare_capture(root, scene, synth, threads=2), SolveConfig.from_config(config, 2))
     cfg = Pipeline(config).init_settings
     rows = []
-    for start in (cfg.start, cfg.glossy_start):
+    for start in (ROUGH_START, GLOSSY_START):
         begin = time.perf_counter()
         run = start_fit(problem, cfg, start, seed_for(scene, INIT))
         run.run(cfg.iterations, progress=False)
@@ -96,7 +96,7 @@ def mark(rows: list[dict[str, Any]], cfg: Any) -> list[dict[str, Any]]:
     from dpi.solve.init import retried, retry_kept
 
     first, glossy = rows
-    keep = retried(cfg, first["init_roughness_p25"]) and retry_kept(cfg, first["closing_loss"], glossy["closing_loss"])
+    keep = retried(cfg, first["init_roughness_p25"]) and retry_kept(first["closing_loss"], glossy["closing_loss"])
     best = max(rows, key=lambda r: r["novel_psnr"])
     for row in rows:
         row.update(chosen=int(row is (glossy if keep else first)), best=int(row is best))

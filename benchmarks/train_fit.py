@@ -3,7 +3,7 @@
 A decomposition is a sample of the posterior only if it explains the photos: issue 31 asks that no
 sample fits the training views worse than the init does. For every sample folder of a study (the
 posterior or the calibration study's results), this renders the scene's training views at `--spp`
-and compares the foreground mean squared error (in the data term's loss space, `problem.loss_space`) with the
+and compares the foreground mean squared error (in the data term's log(1 + x) space) with the
 init's (same renders, same seeds), then prints per method and sampler: the samples, the mean ratio to the
 init's MSE, and how many exceed it. Where the capture has its ground truth (gt/), the truth's own MSE is the
 other yardstick: the truth and an exact posterior sample are alike given the photos, so they fit the views

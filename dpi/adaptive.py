@@ -2,7 +2,7 @@
 
 Two decisions, each logged where its result is written and switched off in config.yaml's
 `adaptive` section:
-- sample stop rule: when the first `min_samples` posterior samples of a method agree (their env-map
+- sample stop rule: when the first MIN_SAMPLES posterior samples of a method agree (their env-map
   sigma2_sample below `agree_tolerance`), the scene is unambiguous for that method (e.g. a
   mirror-like object shows its illumination) and the remaining samples are not drawn;
 - fewer diffusion steps for diffuse scenes: when the init stage finds rough, non-metallic
@@ -13,10 +13,9 @@ Two decisions, each logged where its result is written and switched off in confi
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Any
 
 import numpy as np
-from pydantic import Field
 
 from dpi.io.atomic import write_json
 from dpi.io.exr import read_exr
@@ -30,6 +29,8 @@ DIFFUSE_MAX_METALLIC = 0.1
 """metallic (at its 75th percentile) above which a scene is never treated as diffuse"""
 DIFFUSE_STEPS_FACTOR = 0.5
 """fraction of the diffusion steps run for a diffuse scene"""
+MIN_SAMPLES = 2
+"""samples always drawn before the stop rule looks at them (a spread needs two)"""
 
 
 @settings
@@ -38,8 +39,6 @@ class AdaptiveConfig:
 
     sample_stop: bool = True
     """stop drawing samples of a method once its first ones agree"""
-    min_samples: Annotated[int, Field(ge=2)] = 2
-    """samples always drawn before the stop rule looks at them"""
     agree_tolerance: Weight = 1e-3
     """env-map sigma2_sample (as in summary.csv) below which the first samples agree"""
     diffuse_steps: bool = True
@@ -53,7 +52,7 @@ class AdaptiveConfig:
 
 def stop_rule_applies(cfg: AdaptiveConfig, samples: int) -> bool:
     """Whether a method drawing `samples` samples waits for the stop rule after its first ones."""
-    return cfg.sample_stop and samples > cfg.min_samples
+    return cfg.sample_stop and samples > MIN_SAMPLES
 
 
 def plan_samples(first_envs: list[np.ndarray], samples: int, cfg: AdaptiveConfig) -> dict[str, Any]:

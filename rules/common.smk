@@ -3,7 +3,7 @@ import json
 from pathlib import Path
 from functools import lru_cache
 
-from dpi.adaptive import stop_rule_applies
+from dpi.adaptive import MIN_SAMPLES, stop_rule_applies
 from dpi.capture import PRIORS, derived_inputs
 from dpi.layout import INIT
 from dpi.pipeline import Pipeline, plain, resolve_config
@@ -95,7 +95,7 @@ def adaptive_params(*prefixes):
 def first_samples(method):
     """Samples of a method drawn whatever the stop rule decides (all when it does not apply)."""
     samples = PIPELINE.samples(method)
-    return ADAPTIVE.min_samples if stop_rule_applies(ADAPTIVE, samples) else samples
+    return MIN_SAMPLES if stop_rule_applies(ADAPTIVE, samples) else samples
 
 
 def sample_plans(scenes=SCENES):

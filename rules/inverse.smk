@@ -43,15 +43,15 @@ rule sample:
 
 
 # The sample stop rule (dpi.adaptive): once a method's first samples exist, decide how many it
-# draws in all. Only methods with more than adaptive.min_samples samples wait for it.
+# draws in all. Only methods with more than dpi.adaptive.MIN_SAMPLES samples wait for it.
 checkpoint sample_plan:
     input:
-        lambda w: [LAYOUT.scene(w.scene).sample_files(w.method, k)["env"] for k in range(ADAPTIVE.min_samples)],
+        lambda w: [LAYOUT.scene(w.scene).sample_files(w.method, k)["env"] for k in range(MIN_SAMPLES)],
     output:
         SCENE.plan("{method}"),
     params:
         samples=lambda w: PIPELINE.samples(w.method),
-        adaptive=adaptive_params("sample_stop", "min_samples", "agree_tolerance"),
+        adaptive=adaptive_params("sample_stop", "agree_tolerance"),
     log:
         SCENE.log("{method}", "plan"),
     script:

@@ -92,7 +92,8 @@ def test_cut_fit_continues_to_the_uninterrupted_result(problem_and_init, tmp_pat
 
 def test_cut_init_retry_keeps_the_finished_first_fit_and_continues(problem_and_init, tmp_path, monkeypatch):
     problem = problem_and_init[0]
-    cfg = InitConfig(iterations=7, views_per_step=1, retry_below=1.0, retry_gain=1.0)  # always retried and kept
+    monkeypatch.setattr("dpi.solve.init.RETRY_GAIN", 1.0)
+    cfg = InitConfig(iterations=7, views_per_step=1, retry_below=1.0)  # always retried and kept
     resume = tmp_path / ".resume.pt"
     with cut_after(monkeypatch, problem, "data_loss", steps=7 + 5):  # the first fit, then 5 steps of the retry
         path_traced_init(problem, cfg, seed=5, progress=False, checkpoint=resume, checkpoint_every=3)
@@ -118,8 +119,9 @@ def test_cut_init_retry_keeps_the_finished_first_fit_and_continues(problem_and_i
 @pytest.mark.parametrize("sampler", ["paper", "proximal"])
 def test_cut_dps_sample_continues_to_the_uninterrupted_result(problem_and_init, tmp_path, monkeypatch, sampler):
     problem, init = problem_and_init
-    cfg = DPSConfig.from_dict({"sampler": sampler, "steps": 4, "strip_frames": 3, "refine": {"iterations": 1},
-                               sampler: {"start_noise": 1.0}})
+    monkeypatch.setattr("dpi.solve.dps.loop.STRIP_FRAMES", 3)
+    cfg = DPSConfig.from_dict({"sampler": sampler, "steps": 4, "refine": {"iterations": 1},
+                               "proximal": {"start_noise": 1.0}})
     resume = tmp_path / ".resume.pt"
     # the module whose code calls the network once a step: paper's own (with a graph), else state.predict_x0
     module = importlib.import_module("dpi.solve.dps.paper" if sampler == "paper" else "dpi.solve.dps.state")

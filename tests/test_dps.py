@@ -12,7 +12,7 @@ from dpi.prior.sample import Prior
 from dpi.prior.unet import SMALL_CONFIGS, UNetModel
 from dpi.render import RenderConfig
 from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample
-from dpi.solve.dps.paper import PaperConfig, rho_schedule, scale_to_bound
+from dpi.solve.dps.paper import rho_schedule, scale_to_bound
 from dpi.solve.init import InitConfig, path_traced_init
 from dpi.solve.problem import InverseProblem, ProblemConfig
 
@@ -24,14 +24,9 @@ def tiny_prior(height: int = 8) -> Prior:
                  family="outdoor", height=height, median_target=0.1)
 
 
-def test_rho_schedules_known_answers():
-    linear = rho_schedule(PaperConfig(), 10)
-    assert np.allclose(linear[:5], 0.1) and linear[-1] == pytest.approx(1.0) and (np.diff(linear) >= 0).all()
-    step = rho_schedule(PaperConfig(rho_schedule="step"), 10)
-    assert np.allclose(step[:5], 0.1) and np.allclose(step[5:], 1.0)
-    assert np.allclose(rho_schedule(PaperConfig(rho_schedule="constant", rho_start=0.3), 4), 0.3)
-    with pytest.raises(ValueError, match="paper.rho_schedule: must be one of linear, step, constant"):
-        DPSConfig.from_dict({"paper": {"rho_schedule": "cosine"}})
+def test_rho_schedule_known_answer():
+    rho = rho_schedule(10)
+    assert np.allclose(rho[:5], 0.1) and np.allclose(rho[5:], np.linspace(0.1, 1.0, 6)[1:])
 
 
 def test_yaml_booleans_name_the_sun_modes():
@@ -92,9 +87,10 @@ def problem_and_init(tiny_capture):
     return problem, path_traced_init(problem, InitConfig(iterations=2), seed=0, progress=False)
 
 
-def test_dps_run_is_finite_and_traced(problem_and_init):
+def test_dps_run_is_finite_and_traced(problem_and_init, monkeypatch):
     problem, init = problem_and_init
-    cfg = DPSConfig.from_dict({"sampler": "paper", "steps": 4, "refine": {"iterations": 2}, "strip_frames": 3})
+    monkeypatch.setattr("dpi.solve.dps.loop.STRIP_FRAMES", 3)
+    cfg = DPSConfig.from_dict({"sampler": "paper", "steps": 4, "refine": {"iterations": 2}})
     result = dps_sample(problem, tiny_prior(), init, cfg, seed=1, progress=False)
     d = result.decomposition
     assert d.env.shape == (4, 8, 3) and torch.isfinite(d.env).all() and (d.env >= 0).all()

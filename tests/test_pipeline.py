@@ -83,7 +83,8 @@ def test_dpi_config_prints_the_resolved_settings(tmp_path, capsys):
     assert main(["config", "--config", "mine.yaml"]) == 0
     printed = yaml.safe_load(capsys.readouterr().out)
     assert printed["samples"] == 5 and printed["scenes"] == read_yaml(DEFAULT_CONFIG)["scenes"]
-    assert printed["method_params"]["dps"]["samples"] == 3 and "rho_schedule" in printed["method_params"]["dps"]["paper"]
+    assert printed["method_params"]["dps"]["samples"] == 3
+    assert "start_noise" in printed["method_params"]["dps"]["proximal"]
 
 
 def test_a_bad_config_file_is_one_message(tmp_path, capsys):

@@ -30,13 +30,14 @@ def maps_dir(tmp_path_factory):
 def config(tmp_path, maps_dir, steps: int) -> TrainConfig:
     return TrainConfig(family="outdoor", data_dir=str(maps_dir), out=str(tmp_path / "model.pt"),
                        model=SMALL_CONFIGS["tiny"], steps=steps, batch_size=8, lr=2e-3, sample_every=0,
-                       checkpoint_every=10, seed=0)
+                       seed=0)
 
 
 @pytest.fixture(autouse=True)
 def every_step_logged(monkeypatch):
-    """Log every step (the tests count losses) and draw sample grids in two reverse steps."""
+    """Log every step (the tests count losses), checkpoint every 10 and draw sample grids in two reverse steps."""
     monkeypatch.setattr("dpi.prior.train.LOG_EVERY", 1)
+    monkeypatch.setattr("dpi.prior.train.CHECKPOINT_EVERY", 10)
     monkeypatch.setattr("dpi.prior.train.SAMPLE_GRID_STEPS", 2)
 
 

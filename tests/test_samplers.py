@@ -100,13 +100,14 @@ def gaussian_prior(height: int = 8) -> Prior:
                  median_target=1.0)
 
 
-def test_proximal_step_with_an_exact_operator_converges_to_the_data():
+def test_proximal_step_with_an_exact_operator_converges_to_the_data(monkeypatch):
+    monkeypatch.setattr("dpi.solve.dps.proximal.NOISE_MIX", 0.0)  # deterministic DDIM re-noising
     height = 8
     truth = torch.exp(torch.randn(height, 2 * height, 3, generator=torch.Generator().manual_seed(1)))
     problem = LinearProblem(truth)
     init = Decomposition(torch.ones(height, 2 * height, 3), MaterialTextures.constant(4))
     cfg = DPSConfig.from_dict({"steps": 40, "radiance_scale": 1.0, "proximal": {
-        "inner_steps": 8, "prox_weight": 0.0, "noise_mix": 0.0, "lr_map": 0.05, "start_noise": 1.0}})
+        "inner_steps": 8, "prox_weight": 0.0, "lr_map": 0.05, "start_noise": 1.0}})
     run, state = start_run(problem, gaussian_prior(height), init, cfg, seed=0)
     state.extra["transport"] = problem.transport()
     start = relative_residual(problem, run.env(torch.exp(state.log_map), state).detach())
@@ -235,10 +236,11 @@ def test_guided_sample_fits_the_views_far_better_than_the_prior_alone(problem_an
 
 
 @pytest.mark.parametrize("sampler", list(SAMPLERS))
-def test_every_sampler_runs_in_the_one_loop_and_is_seeded(problem_and_init, sampler):
+def test_every_sampler_runs_in_the_one_loop_and_is_seeded(problem_and_init, sampler, monkeypatch):
     problem, init = problem_and_init
-    cfg = DPSConfig.from_dict({"sampler": sampler, "steps": 3, "refine": {"iterations": 1}, "strip_frames": 2,
-                               sampler: {"start_noise": 1.0}})
+    monkeypatch.setattr("dpi.solve.dps.loop.STRIP_FRAMES", 2)
+    cfg = DPSConfig.from_dict({"sampler": sampler, "steps": 3, "refine": {"iterations": 1},
+                               "proximal": {"start_noise": 1.0}})
     first = dps_sample(problem, log_prior(), init, cfg, seed=4, progress=False)
     again = dps_sample(problem, log_prior(), init, cfg, seed=4, progress=False)
     d = first.decomposition

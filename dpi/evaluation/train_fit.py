@@ -25,12 +25,12 @@ SECOND_RENDER_SEED = 7919
 def training_fit(problem: InverseProblem, decomposition: Decomposition, spp: int, seed: int) -> float:
     """Mean over the training views of the foreground squared error of the re-rendered view (loss space),
     without the renders' own noise (module notes); view v renders with seeds seed + v and that + an offset."""
-    space, errors = problem.settings.loss_space, []
+    errors = []
     for v in problem.train_ids:
-        target = to_loss_space(problem.images[v], space)
+        target = to_loss_space(problem.images[v])
         mask = problem.masks[v][..., None].to(target.dtype)
         with torch.no_grad():
-            first, second = (to_loss_space(problem.render(decomposition.env, decomposition.materials, v, s, spp), space)
+            first, second = (to_loss_space(problem.render(decomposition.env, decomposition.materials, v, s, spp))
                              for s in (seed + v, seed + v + SECOND_RENDER_SEED))
         errors.append(float((mask * (first - target) * (second - target)).sum() / (3 * mask.sum().clamp_min(1))))
     return float(np.mean(errors))

@@ -69,8 +69,7 @@ def cmd_train_prior(args: argparse.Namespace) -> None:
                          lr_schedule=args.lr_schedule, init=args.init,
                          ema_decay=args.ema_decay,
                          max_minutes=args.max_minutes,
-                         sample_every=args.sample_every, checkpoint_every=args.checkpoint_every,
-                         device=args.device, seed=args.seed, encoding=args.encoding,
+                         sample_every=args.sample_every, seed=args.seed, encoding=args.encoding,
                          clip_fraction=args.clip_fraction, real_data=args.real_data,
                          real_fraction=args.real_fraction)
     train(config)
@@ -135,7 +134,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              ("warmup_steps", int, "linear learning-rate warm-up"), ("ema_decay", float, None),
                              ("max_minutes", float, "stop (with a checkpoint) after this wall time"),
                              ("sample_every", int, None),
-                             ("checkpoint_every", int, None), ("device", str, None), ("seed", int, None),
+                             ("seed", int, None),
                              ("clip_fraction", float, "share of each batch clipped like 8-bit panoramas"),
                              ("real_data", str, "real panoramas mixed in: a folder or a set from `dpi panorama-set`"),
                              ("real_fraction", float, "share of each batch drawn from --real-data")):

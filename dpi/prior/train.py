@@ -44,6 +44,13 @@ SAMPLE_GRID_STEPS = 50
 """respaced reverse steps of the sample grids a run writes"""
 LOG_EVERY = 10
 """optimiser steps between two lines of the training log"""
+CHECKPOINT_EVERY = 100
+"""optimiser steps between two saves of the resumable checkpoint"""
+
+
+def training_device() -> str:
+    """Where a prior trains: the GPU when torch sees one (CUDA_VISIBLE_DEVICES= keeps it on the CPU)."""
+    return "cuda" if torch.cuda.is_available() else "cpu"
 
 
 @settings
@@ -64,8 +71,6 @@ class TrainConfig:
     ema_decay: Fraction = 0.995  # with warm-up min(decay, (1 + step) / (10 + step)); short CPU runs want < 0.999
     max_minutes: Rate | None = None  # stop after this wall time (checkpoint written)
     sample_every: Steps = 1000  # write a PNG grid of EMA samples every N steps (0: never)
-    checkpoint_every: Count = 100
-    device: str = "cpu"
     seed: int = 0
     encoding: str = "log"  # 'log' (log radiance around the median) or 'paper' (the family's tone curve)
     clip_fraction: Fraction = 0.0  # share of each batch clipped like 8-bit panoramas (dpi.prior.data.clip_highlights)
@@ -85,7 +90,7 @@ class TrainConfig:
 class PriorJobConfig:
     """How the workflow makes one family's prior (config `prior:`, then `prior.<family>`): a procedural
     dataset (rule envmap_dataset), then a training run (rule train_prior). Keys other than these fields are
-    TrainConfig fields (steps, batch_size, lr, ema_decay, max_minutes, sample_every, device, ...)."""
+    TrainConfig fields (steps, batch_size, lr, ema_decay, max_minutes, sample_every, ...)."""
 
     count: Count = 3000
     """maps in the procedural dataset"""
@@ -169,9 +174,9 @@ def write_sample_grid(cfg: TrainConfig, ema: UNetModel, step: int, out_dir: Path
     """PNG grid of 8 EMA samples (respaced schedule, random roll) at this step."""
     diffusion = respaced(base_diffusion(DIFFUSION_STEPS, cfg.model.learn_sigma),
                          evenly_spaced_timesteps(DIFFUSION_STEPS, SAMPLE_GRID_STEPS))
-    h = cfg.model.image_size
-    generator = torch.Generator(device=cfg.device).manual_seed(cfg.seed)
-    x = sample(diffusion, ema, (8, 3, h, 2 * h), generator, random_roll=True, device=cfg.device)
+    h, device = cfg.model.image_size, next(ema.parameters()).device
+    generator = torch.Generator(device=device).manual_seed(cfg.seed)
+    x = sample(diffusion, ema, (8, 3, h, 2 * h), generator, random_roll=True, device=device)
     write_grid(out_dir / f"step_{step:06d}.png", x)
 
 
@@ -182,32 +187,33 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
     samples_dir = out.parent / f"{out.stem}_samples"
     out.parent.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(cfg.seed)
+    device = training_device()
     encoding = family_encoding(cfg.family, cfg.encoding)
     data = dataset or read_dataset(cfg.data_dir, cfg.model.image_size, cfg.family, encoding)
     if cfg.real_data:
         real = read_dataset(cfg.real_data, cfg.model.image_size, cfg.family, encoding)
         data = EnvmapDataset.mixed([data, real], [1.0 - cfg.real_fraction, cfg.real_fraction])
-    data = data.to(cfg.device)
-    model = UNetModel(cfg.model).to(cfg.device)
+    data = data.to(device)
+    model = UNetModel(cfg.model).to(device)
     ema = copy.deepcopy(model).eval().requires_grad_(False)
-    cuda = torch.device(cfg.device).type == "cuda"
+    cuda = torch.device(device).type == "cuda"
     optimizer = torch.optim.Adam(model.parameters(), lr=cfg.lr, fused=cuda or None)
     step, wall = 0, 0.0
     if out.exists():
-        ckpt = torch.load(out, map_location=cfg.device, weights_only=True)
+        ckpt = torch.load(out, map_location=device, weights_only=True)
         model.load_state_dict(ckpt["model"])
         ema.load_state_dict(ckpt["ema"])
         optimizer.load_state_dict(ckpt["optimizer"])
         step, wall = ckpt["step"], ckpt["wall_seconds"]
     elif cfg.init:
-        initial = load_checkpoint(cfg.init, device=cfg.device).float()
+        initial = load_checkpoint(cfg.init, device=device).float()
         if replace(initial.config, image_size=cfg.model.image_size) != cfg.model:
             raise CheckpointError(f"{cfg.init}: its network differs from the run's model; train with the same network "
                                   "(a model of another map size with the same weights will do)")
         model.load_state_dict(initial.state_dict())
         ema.load_state_dict(initial.state_dict())
     diffusion = base_diffusion(DIFFUSION_STEPS, cfg.model.learn_sigma)
-    generator = torch.Generator(device=cfg.device).manual_seed(cfg.seed * 1_000_003 + step)
+    generator = torch.Generator(device=device).manual_seed(cfg.seed * 1_000_003 + step)
     start = time.perf_counter() - wall
     deadline = None if cfg.max_minutes is None else time.perf_counter() + 60 * cfg.max_minutes
     record: dict = {"step": step}
@@ -218,8 +224,8 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
         if cfg.clip_fraction:
             x0 = clip_highlights(x0, data.encoding, median_target(cfg.family, data.encoding), cfg.clip_fraction,
                                  CLIP_MULTIPLES, generator)
-        t = torch.randint(0, DIFFUSION_STEPS, (cfg.batch_size,), generator=generator, device=cfg.device)
-        noise = torch.randn(x0.shape, generator=generator, device=cfg.device)
+        t = torch.randint(0, DIFFUSION_STEPS, (cfg.batch_size,), generator=generator, device=device)
+        noise = torch.randn(x0.shape, generator=generator, device=device)
         with torch.autocast("cuda", dtype=torch.bfloat16, enabled=cuda):
             losses = {k: v.mean() for k, v in training_losses(diffusion, model, x0, t, noise).items()}
         losses_logged = {k: v.detach() for k, v in losses.items()}
@@ -237,7 +243,7 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
             bar.set_postfix(loss=f"{record['loss']:.4f}")
             with open(log_path, "a") as log:
                 log.write(json.dumps(record) + "\n")
-        if step % cfg.checkpoint_every == 0 or step == cfg.steps:
+        if step % CHECKPOINT_EVERY == 0 or step == cfg.steps:
             save_atomic(checkpoint_dict(cfg, model, ema, optimizer, step, time.perf_counter() - start), out)
         if cfg.sample_every and step % cfg.sample_every == 0:
             write_sample_grid(cfg, ema, step, samples_dir)

@@ -13,43 +13,35 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated
 
 import torch
 
 from dpi.materials import MaterialTextures
-from dpi.settings import Fraction, Loose, SettingsError, settings
+from dpi.settings import Fraction, settings
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.optimize import CHECKPOINT_EVERY, AdamFit, FreeEnvMap, OptimizeConfig
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
 
 START_ALBEDO = 0.5
+ROUGH_START = (0.5, 0.0)
+"""constant (roughness, metallic) the textures start from: a rough dielectric"""
+GLOSSY_START = (0.1, 1.0)
+"""the retry's (roughness, metallic): a glossy metal"""
+RETRY_GAIN = 0.6
+"""the retry is kept when its closing data loss is below this fraction of the first fit's: a metal under a free
+map explains a rough object's views a little better too, a mirror's far better"""
 CLOSING_STEPS = 20
 """steps at the end of a fit whose mean data loss compares two fits (the same seed: the same views and noise)"""
 
 
 @settings
 class InitConfig(OptimizeConfig):
-    """The init's fit (config section `init`): Adam settings, the materials' starts and the glossy retry."""
+    """The init's fit (config section `init`): Adam settings and the glossy retry."""
 
-    start: Annotated[tuple[Fraction, Fraction], Loose] = (0.5, 0.0)
-    """constant (roughness, metallic) the textures start from: a rough dielectric"""
-    glossy_start: Annotated[tuple[Fraction, Fraction], Loose] = (0.1, 1.0)
-    """the retry's (roughness, metallic): a glossy metal"""
     retry_below: Fraction = 0.4
-    """the fit is retried from `glossy_start` when its roughness 25th percentile ends below this (0: never): a rough
+    """the fit is retried from GLOSSY_START when its roughness 25th percentile ends below this (0: never): a rough
     start stops half-way on a mirror (docs/studies.md, "The init's start")"""
-    retry_gain: Fraction = 0.6
-    """the retry is kept when its closing data loss is below this fraction of the first fit's: a metal under a free
-    map explains a rough object's views a little better too, a mirror's far better"""
-
-    def __post_init__(self) -> None:
-        for name in ("start", "glossy_start"):
-            pair = getattr(self, name)
-            if len(pair) != 2 or not all(0 <= v <= 1 for v in pair):
-                raise SettingsError(name, f"must be [roughness, metallic], each in [0, 1], got {list(pair)!r}")
-            setattr(self, name, tuple(float(v) for v in pair))
 
 
 def starting_log_env(problem: InverseProblem) -> torch.Tensor:
@@ -98,13 +90,13 @@ def closing_loss(trace: Trace) -> float:
 
 
 def retried(cfg: InitConfig, first_roughness_p25: float) -> bool:
-    """Whether the first fit's roughness (its 25th percentile) fell far enough to retry from `cfg.glossy_start`."""
+    """Whether the first fit's roughness (its 25th percentile) fell far enough to retry from GLOSSY_START."""
     return first_roughness_p25 < cfg.retry_below
 
 
-def retry_kept(cfg: InitConfig, first_loss: float, retry_loss: float) -> bool:
+def retry_kept(first_loss: float, retry_loss: float) -> bool:
     """Whether the retry explains the views clearly better than the first fit (closing losses)."""
-    return retry_loss < cfg.retry_gain * first_loss
+    return retry_loss < RETRY_GAIN * first_loss
 
 
 def start_fit(problem: InverseProblem, cfg: InitConfig, start: tuple[float, float], seed: int) -> AdamFit:
@@ -116,21 +108,21 @@ def start_fit(problem: InverseProblem, cfg: InitConfig, start: tuple[float, floa
 
 def path_traced_init(problem: InverseProblem, cfg: InitConfig, seed: int, progress: bool = True,
                      checkpoint: Path | None = None, checkpoint_every: int = CHECKPOINT_EVERY) -> Decomposition:
-    """Fit env map + materials from `cfg.start`, retried from `cfg.glossy_start` when the fit's roughness asks for
-    it; returns the kept fit with its trace (`checkpoint`: the resume file; the retry's is its sibling)."""
-    first = start_fit(problem, cfg, cfg.start, seed)
+    """Fit env map + materials from ROUGH_START, retried from GLOSSY_START when the fit's roughness asks for it;
+    returns the kept fit with its trace (`checkpoint`: the resume file; the retry's is its sibling)."""
+    first = start_fit(problem, cfg, ROUGH_START, seed)
     first.resume(checkpoint, checkpoint_every)
     first.run(cfg.iterations, progress)
     fits = [first]
     if retried(cfg, roughness_p25(first.materials)):
         first.save()  # a kill during the retry does not redo the first fit
-        retry = start_fit(problem, cfg, cfg.glossy_start, seed)
+        retry = start_fit(problem, cfg, GLOSSY_START, seed)
         retry.trace.started = first.trace.started
         retry.resume(checkpoint and checkpoint.with_name(f"{checkpoint.stem}.glossy{checkpoint.suffix}"),
                      checkpoint_every)
         retry.run(cfg.iterations, progress)
         losses = closing_loss(first.trace), closing_loss(retry.trace)
-        keep = retry_kept(cfg, *losses)
+        keep = retry_kept(*losses)
         fits = [retry, first] if keep else [first, retry]
         fits[0].trace.info["retry"] = {"first_roughness_p25": roughness_p25(first.materials),
                                        "first_closing_loss": losses[0], "glossy_closing_loss": losses[1],

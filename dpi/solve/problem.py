@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 import torch
@@ -25,7 +25,6 @@ from dpi.render import RenderConfig, Renderer
 from dpi.settings import ImageSize, MapHeight, TextureSize, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 
-LOSS_SPACES = ("linear", "log1p")
 
 
 @settings
@@ -36,10 +35,6 @@ class ProblemConfig:
     """environment map height H (width 2H)"""
     texture_size: TextureSize = 64
     """material texture resolution R (R x R texels)"""
-    loss_space: Literal["linear", "log1p"] = "log1p"
-    """compare the views' path-traced images as log(1 + x) of the normalised radiance (foreground median 0.18) or
-    as linear HDR: in linear a mirror's glints of the sun outweigh the rest of its views and the fit places
-    little else (docs/studies.md, "Map resolution")"""
     resolution: ImageSize | None = None
     """longer image side (px) the views are fitted and evaluated at: larger captures are area-downsampled
     once (dpi.working); None: the capture's own size"""
@@ -59,13 +54,11 @@ class SolveConfig:
         return cls(render, settings_from_dict(ProblemConfig, config.get("problem", {})))
 
 
-def to_loss_space(image: torch.Tensor, space: str) -> torch.Tensor:
-    """Map linear radiance into the space the data term is measured in."""
-    if space == "linear":
-        return image
-    if space == "log1p":
-        return torch.log1p(image.clamp_min(0))
-    raise ValueError(f"loss_space must be one of {LOSS_SPACES}, got {space!r}")
+def to_loss_space(image: torch.Tensor) -> torch.Tensor:
+    """Linear radiance (normalised: foreground median 0.18) as log(1 + x), the space the views are compared in: in
+    linear HDR a mirror's glints of the sun outweigh the rest of its views and the fit places little else
+    (docs/studies.md, "Map resolution")."""
+    return torch.log1p(image.clamp_min(0))
 
 
 class InverseProblem:
@@ -129,18 +122,16 @@ class InverseProblem:
     def view_loss(self, rendered: torch.Tensor, view: int) -> torch.Tensor:
         """Mean squared error over the foreground pixels of one view, in the loss space."""
         mask = self.masks[view][..., None].to(rendered.dtype)
-        space = self.settings.loss_space
-        diff = to_loss_space(rendered, space) - to_loss_space(self.images[view], space)
+        diff = to_loss_space(rendered) - to_loss_space(self.images[view])
         return (mask * diff.square()).sum() / (3 * mask.sum().clamp_min(1))
 
     def residual_norm(self, env: torch.Tensor, materials: MaterialTextures, views: list[int], seed: int) -> torch.Tensor:
         """||y - R(env, materials)|| over the foreground pixels of `views`: the DPS guidance loss,
         whose gradient keeps its size as the fit improves (unlike a mean of squares)."""
         total = torch.zeros(())
-        space = self.settings.loss_space
         for j, v in enumerate(views):
             rendered = self.render(env, materials, v, seed * 1009 + j)
-            diff = to_loss_space(rendered, space) - to_loss_space(self.images[v], space)
+            diff = to_loss_space(rendered) - to_loss_space(self.images[v])
             total = total + (self.masks[v][..., None].to(diff.dtype) * diff.square()).sum()
         return total.sqrt()
 

@@ -18,7 +18,7 @@ from tqdm import tqdm
 from dpi.materials import MaterialRates
 from dpi.prior.diffusion import model_output_with_random_roll, q_sample, split_model_output
 from dpi.prior.sample import Prior
-from dpi.settings import Count, Fraction, Rate, Steps, settings, settings_from_dict
+from dpi.settings import Count, Rate, Steps, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.init import starting_materials
 from dpi.solve.optimize import all_finite
@@ -29,8 +29,8 @@ from dpi.solve.trace import Trace
 SDS_WEIGHT_RATIO = 1.0
 
 
-T_MIN = 0.02
-"""smallest diffusion time drawn, as a fraction of the schedule"""
+T_RANGE = (0.02, 0.98)
+"""smallest and largest diffusion time drawn, as fractions of the schedule"""
 
 
 @settings
@@ -41,8 +41,6 @@ class SDSConfig(MaterialRates):
     views_per_step: Count = 1
     lr_map: Rate = 2e-2
     """Adam learning rate on the prior-space map x"""
-    t_max: Fraction = 0.98
-    """largest diffusion time drawn, as a fraction of the schedule (the smallest: T_MIN)"""
     radiance_scale: Rate | None = None
 
     @classmethod
@@ -86,7 +84,7 @@ def sds_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
             trace.skip(step, "non-finite loss")
             continue
         loss.backward()
-        direction = sds_gradient(prior, x.detach(), generator, T_MIN, cfg.t_max)
+        direction = sds_gradient(prior, x.detach(), generator, *T_RANGE)
         if weight is None:
             weight = SDS_WEIGHT_RATIO * float(x.grad.abs().max()) / max(float(direction.abs().max()), 1e-12)
             trace.info["sds_weight"] = weight

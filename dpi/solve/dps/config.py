@@ -1,8 +1,8 @@
 """`dps`'s settings, grouped by concern, and its samplers by name.
 
 method_params.dps holds the shared keys (sampler, steps, the material rates, ...) and one section per
-concern: each sampler's own settings (`proximal`, `paper`), the parametric `sun`, the `refine`ment.
-A sampler owns its settings dataclass and its defaults; only the chosen sampler's section is used.
+concern: the proximal sampler's settings (`proximal`; the paper's sampler has the reference's, fixed), the
+parametric `sun`, the `refine`ment.
 """
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ from typing import Annotated, Any, Callable
 from pydantic import Field
 
 from dpi.materials import MaterialRates
-from dpi.settings import Count, Rate, SettingsError, build, check_keys, settings, settings_from_dict
+from dpi.settings import Rate, SettingsError, build, check_keys, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.dps.paper import PaperConfig, paper_step
+from dpi.solve.dps.paper import PaperSampler, paper_step
 from dpi.solve.dps.proximal import ProximalConfig, proximal_step
 from dpi.solve.dps.refine import RefineConfig
 from dpi.solve.dps.state import DPSRun, DPSState
@@ -35,10 +35,11 @@ class Sampler:
 
 
 SAMPLERS: dict[str, Sampler] = {"proximal": Sampler(ProximalConfig, proximal_step),
-                                "paper": Sampler(PaperConfig, paper_step)}
-"""dps's samplers by name (the `sampler` setting and its section's key); the first is the default"""
+                                "paper": Sampler(PaperSampler, paper_step)}
+"""dps's samplers by name (the `sampler` setting); the first is the default. The proximal sampler's settings are
+a config section; the paper's are the reference's, fixed"""
 
-SECTIONS: dict[str, Callable[[Any], Any]] = {**{name: s.settings.from_dict for name, s in SAMPLERS.items()},
+SECTIONS: dict[str, Callable[[Any], Any]] = {"proximal": ProximalConfig.from_dict,
                                              "sun": SunConfig.from_dict,
                                              "refine": partial(settings_from_dict, RefineConfig)}
 """method_params.dps keys that hold a settings section, and the builder of its dataclass from its entry"""
@@ -68,17 +69,14 @@ class DPSConfig(MaterialRates):
     """reverse-diffusion steps (respaced from the prior's 1000; the paper uses 1000)"""
     radiance_scale: Rate | None = None
     """scene radiance per unit of the prior's normalised radiance (None: estimated from the init)"""
-    strip_frames: Count = 8
-    """x0_hat snapshots kept for the progress strip"""
     proximal: ProximalConfig = field(default_factory=ProximalConfig)
-    paper: PaperConfig = field(default_factory=PaperConfig)
     sun: SunConfig = field(default_factory=SunConfig)
     refine: RefineConfig = field(default_factory=RefineConfig)
 
     @property
     def sampler_settings(self) -> Any:
-        """The chosen sampler's own settings."""
-        return getattr(self, self.sampler)
+        """The chosen sampler's own settings (the paper's: its fixed ones)."""
+        return self.proximal if self.sampler == "proximal" else PaperSampler()
 
     def for_init(self, init: Decomposition) -> DPSConfig:
         """The settings a sample from `init` runs with: the one place a glossy init (dpi.solve.init.is_glossy)

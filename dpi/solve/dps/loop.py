@@ -105,6 +105,10 @@ def posterior_steps(run: DPSRun, state: DPSState, start: int = 0) -> Iterator[di
         yield step(run, state, n)
 
 
+STRIP_FRAMES = 8
+"""x0_hat snapshots kept for the progress strip"""
+
+
 def strip_frames(snapshots: list[torch.Tensor], count: int) -> list[torch.Tensor]:
     """`count` evenly spaced snapshots (all when fewer)."""
     if len(snapshots) <= count:
@@ -203,4 +207,4 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
     trace.nan_skips += refine_trace.nan_skips
     if store:
         store.remove()
-    return DPSResult(Decomposition(env, materials, trace), strip_frames(state.snapshots, cfg.strip_frames))
+    return DPSResult(Decomposition(env, materials, trace), strip_frames(state.snapshots, STRIP_FRAMES))

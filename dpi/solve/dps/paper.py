@@ -8,53 +8,37 @@ for 1000 steps; it starts from pure noise and renders one view per step, as the 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import torch
 
-from dpi.settings import Count, Fraction, SettingsError, Weight, settings
-from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerConfig, finite, network_step
+from dpi.solve.dps.state import DPSRun, DPSState, Laps, finite, network_step
 from dpi.solve.optimize import all_finite
-
-RHO_SCHEDULES = ("linear", "step", "constant")
-
 
 GUIDANCE_BOUND = 0.1
 """max-abs of the rendering-loss gradient after rescaling"""
+RHO = (0.1, 1.0)
+"""guidance weight over the first half of the steps, and at the last step (linear in between), as the reference"""
 
 
-@settings
-class PaperConfig(SamplerConfig):
-    """The paper's guidance (method_params.dps.paper): one view per step from pure noise, as the reference."""
+@dataclass(frozen=True)
+class PaperSampler:
+    """The reference's fixed choices (no config section): from pure noise, one view per step, no parametric sun."""
 
-    views_per_step: Count = 1
-    """training views rendered per step"""
-    rho_start: Weight = 0.1
-    """guidance weight during the first part of the steps"""
-    rho_end: Weight = 1.0
-    """guidance weight at the last step"""
-    rho_schedule: str = "linear"
-    """linear: rho_start, then linear to rho_end (outdoor); step: jump to rho_end (indoor); constant"""
-    rho_switch: Fraction = 0.5
-    """fraction of steps run at rho_start"""
-
-    @classmethod
-    def from_dict(cls, values: dict[str, Any]) -> "PaperConfig":
-        settings = super().from_dict(values)
-        if settings.rho_schedule not in RHO_SCHEDULES:
-            raise SettingsError("rho_schedule", f"must be one of {', '.join(RHO_SCHEDULES)}, got {settings.rho_schedule!r}")
-        return settings
+    start_noise: float = 1.0
+    views_per_step: int = 1
+    models_sun: bool = False
 
 
-def rho_schedule(settings: PaperConfig, n: int) -> np.ndarray:
-    """Guidance weight per executed step (n steps, first executed = noisiest)."""
-    first = int(round(settings.rho_switch * n))
-    rho = np.full(n, settings.rho_start)
-    if settings.rho_schedule == "linear" and n > first:
-        rho[first:] = np.linspace(settings.rho_start, settings.rho_end, n - first + 1)[1:]
-    elif settings.rho_schedule == "step":
-        rho[first:] = settings.rho_end
+def rho_schedule(n: int) -> np.ndarray:
+    """Guidance weight per executed step (n steps, first executed = noisiest): RHO[0] over the first half, then
+    linear to RHO[1]."""
+    first = int(round(0.5 * n))
+    rho = np.full(n, RHO[0])
+    if n > first:
+        rho[first:] = np.linspace(*RHO, n - first + 1)[1:]
     return rho
 
 
@@ -66,9 +50,8 @@ def scale_to_bound(g: torch.Tensor, bound: float) -> torch.Tensor:
 
 def paper_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     """The paper's guided ancestral step (gradient through renderer and network, bounded, times rho_t)."""
-    settings: PaperConfig = run.sampler
     laps, i, gen = Laps(), run.index(n), state.generator
-    rho = float(rho_schedule(settings, run.num_steps)[n])
+    rho = float(rho_schedule(run.num_steps)[n])
     x = state.x.detach().requires_grad_(True)
     p = network_step(run, x, i, gen)
     laps.lap("network")

@@ -17,9 +17,9 @@ glossy init, `DPSConfig.for_init` sets what changes). l starts from x0_hat at th
 each step's x0_hat.
 Then re-noise:
 x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) (sqrt(1 - zeta) eps_hat + sqrt(zeta) eps) with
-eps_hat recomputed from z, so samples stay diverse. The proximal weight grows as the noise falls
+eps_hat recomputed from z (zeta = NOISE_MIX), so samples stay diverse. The proximal weight grows as the noise falls
 (DiffPIR's rho_t ~ 1 / sigma_t^2), so late steps keep what the data put into x_t early. The
-materials move only after `material_start` of the steps: while x0_hat is still a blur, free albedo
+materials move only after MATERIAL_START of the steps: while x0_hat is still a blur, free albedo
 steps would absorb the map's errors. From then on, every `LEVEL_EVERY` steps, the roughness becomes
 the recorded level that fits the views best. It starts from the init map noised to `start_noise`
 (SDEdit). The refinement (dpi.solve.dps.refine) then path-traces all the materials.
@@ -37,10 +37,10 @@ from typing import Any
 
 import torch
 
-from dpi.settings import Count, Fraction, Rate, Share, Steps, Weight, settings
+from dpi.settings import Count, Rate, Share, Steps, Weight, settings, settings_from_dict
 from dpi.solve.dps.data_term import current_level, sample_transport, set_level
 from dpi.solve.dps.map_solve import PRIOR_STD, MapPrior, Resampling, cached_resampling, posterior_variance, solve_map
-from dpi.solve.dps.state import DPSRun, DPSState, Laps, SamplerConfig, finite, log_radiance, predict_x0, recentre_
+from dpi.solve.dps.state import DPSRun, DPSState, Laps, finite, log_radiance, predict_x0, recentre_
 from dpi.solve.optimize import all_finite
 from dpi.solve.sun_model import share_penalty, sun_env, wrap_uv_
 from dpi.solve.transport import LightTransport, TransportConfig
@@ -54,16 +54,22 @@ SOLVE_CG_ITERATIONS = 10
 """conjugate-gradient iterations of a step's solve on the transport's grid (more do not make it more accurate)"""
 
 
+NOISE_MIX = 0.5
+"""share zeta of fresh noise in the re-noising (0: deterministic DDIM, 1: all fresh)"""
+MATERIAL_START = 0.6
+"""share of the steps before the materials move: the map settles its light first, and the albedo then fits that
+light instead of trading against it (docs/studies.md, "the material start's step")"""
 LEVEL_EVERY = 4
 """steps between two choices of the roughness level (once the materials move)"""
 
 
 @settings
-class ProximalConfig(SamplerConfig):
+class ProximalConfig:
     """The proximal x0-space sampler (method_params.dps.proximal)."""
 
     start_noise: Share = 0.4
-    """starts from the init map noised to 0.4 of the schedule (SDEdit; SamplerConfig)"""
+    """noise level the reverse diffusion starts from, as a fraction of the schedule: the init map noised to that
+    level (SDEdit), and that fraction of the steps run (1: from pure noise)"""
     transport: TransportConfig = field(default_factory=TransportConfig)
     """how the data term's light transport is recorded (dpi.solve.transport)"""
     inner_steps: Count = 1
@@ -72,11 +78,6 @@ class ProximalConfig(SamplerConfig):
     """Adam rate of the map's log radiance per data update"""
     prox_weight: Weight = 0.5
     """weight of ||z - x0_hat||^2 per unit abar_t / (1 - abar_t)"""
-    noise_mix: Fraction = 0.5
-    """share zeta of fresh noise in the re-noising (0: deterministic DDIM, 1: all fresh)"""
-    material_start: Fraction = 0.6
-    """fraction of the steps before the materials start to move: the map settles its light first, and the albedo
-    then fits that light instead of trading against it (docs/studies.md, "the material start's step")"""
     restart: bool = False
     """each step's data updates start from that step's x0_hat (DiffPIR's proximal point: where the views are
     silent the map is the prior's); False: from the previous step's fit, which keeps the start's guess there"""
@@ -94,6 +95,12 @@ class ProximalConfig(SamplerConfig):
     between sky and ground, sides and colour, which the views of a rough object leave open (docs/studies.md)"""
 
     models_sun = True
+    """sun mode auto gives this sampler's samples a parametric sun (dpi.solve.dps.sun_choice)"""
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> "ProximalConfig":
+        """Settings from method_params.dps.proximal."""
+        return settings_from_dict(cls, values)
 
 
 def exposure_fit(transport: LightTransport, env: torch.Tensor, albedo: torch.Tensor, level: int) -> float:
@@ -176,11 +183,11 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     abar = float(run.diffusion.alphas_cumprod[i])
     abar_prev = float(run.diffusion.alphas_cumprod_prev[i])
     prox_weight = settings.prox_weight * abar / (1.0 - abar)
-    materials_move = n >= settings.material_start * run.num_steps
+    materials_move = n >= MATERIAL_START * run.num_steps
     transport, recorded = sample_transport(run, state)
     level = current_level(transport, state.materials.roughness)
     laps.lap("transport")
-    if materials_move and (n - math.ceil(settings.material_start * run.num_steps)) % LEVEL_EVERY == 0:
+    if materials_move and (n - math.ceil(MATERIAL_START * run.num_steps)) % LEVEL_EVERY == 0:
         level = best_level(transport, run.env(torch.exp(state.log_map), state, transport.height),
                            state.materials.albedo)
         set_level(state, transport, level)
@@ -224,7 +231,7 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
         z = encoding.to_prior(torch.exp(state.log_map))
         eps_hat = (state.x - abar ** 0.5 * z) / (1.0 - abar) ** 0.5
         noise = torch.randn(z.shape, generator=gen)
-        mixed = (1.0 - settings.noise_mix) ** 0.5 * eps_hat + settings.noise_mix ** 0.5 * noise
+        mixed = (1.0 - NOISE_MIX) ** 0.5 * eps_hat + NOISE_MIX ** 0.5 * noise
         state.x = abar_prev ** 0.5 * z + (1.0 - abar_prev) ** 0.5 * mixed
     return {**record, "loss": losses[-1] if losses else None, "prox": float(prox.detach()), "prox_weight": prox_weight,
             "log_exposure": float(state.log_exposure), "nan_inner": skipped, "refresh": recorded,

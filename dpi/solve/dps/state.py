@@ -18,29 +18,11 @@ from dpi.light.sunlight import merge_spots_into_sun
 from dpi.materials import MaterialTextures
 from dpi.prior.diffusion import Diffusion, model_output_with_random_roll, model_timesteps, p_mean_variance
 from dpi.prior.sample import Prior
-from dpi.settings import Share, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.sun_choice import SunConfig
 from dpi.solve.prior_space import resample_env
 from dpi.solve.problem import InverseProblem
 from dpi.solve.sun_model import sun_env
-
-
-@settings
-class SamplerConfig:
-    """What every sampler's settings have (each sampler's subclass sets its own defaults)."""
-
-    start_noise: Share = 1.0
-    """noise level the reverse diffusion starts from, as a fraction of the schedule: 1 starts from pure noise;
-    less starts from the init map noised to that level (SDEdit) and runs that fraction of the steps"""
-
-    models_sun = False
-    """whether sun mode auto gives this sampler's samples a parametric sun (dpi.solve.dps.sun_choice)"""
-
-    @classmethod
-    def from_dict(cls, values: dict[str, Any]) -> Any:
-        """Settings from the sampler's section of method_params.dps."""
-        return settings_from_dict(cls, values)
 
 
 DARK_FLOOR = 1e-6
