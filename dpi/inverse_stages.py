@@ -66,8 +66,8 @@ def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | 
     """Posterior sample k of a method for one scene, into out_dir (envmap, textures, trace.json).
 
     Methods that use the diffusion prior (dpi.solve.methods) load the one in `prior_checkpoint` (default: the
-    shipped model of the scene's family, from scene.yaml's `prior`); their `radiance_scale` (setting, else
-    scene.yaml's) is in the capture's radiance. `dps` runs fewer steps on a diffuse scene (`adaptive`, default
+    shipped model of the scene's family, from scene.yaml's `prior`); scene.yaml's `radiance_scale` is in the
+    capture's radiance. `dps` runs fewer steps on a diffuse scene (`adaptive`, default
     AdaptiveConfig()); the decision and its reason are in the trace's info."""
     cfg = method_config(method, method_cfg)
     entry = REGISTRY[method]
@@ -76,8 +76,8 @@ def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | 
                     Path(out_dir) / RESUME_FILE, adaptive=adaptive, progress=progress)
     if entry.needs_prior:
         job.prior = load_scene_prior(problem.capture.options, prior_checkpoint)
-        scale = cfg.radiance_scale or problem.capture.options.get("radiance_scale")  # in scene radiance
-        cfg.radiance_scale = None if scale is None else scale / problem.exposure
+        scale = problem.capture.options.get("radiance_scale")  # in scene radiance
+        job.radiance_scale = None if scale is None else scale / problem.exposure
     result = entry.sample(job)
     result.trace.info.update({"scene": scene, "k": k})
     problem.save_decomposition(result, out_dir)

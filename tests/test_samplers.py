@@ -106,9 +106,9 @@ def test_proximal_step_with_an_exact_operator_converges_to_the_data(monkeypatch)
     truth = torch.exp(torch.randn(height, 2 * height, 3, generator=torch.Generator().manual_seed(1)))
     problem = LinearProblem(truth)
     init = Decomposition(torch.ones(height, 2 * height, 3), MaterialTextures.constant(4))
-    cfg = DPSConfig.from_dict({"steps": 40, "radiance_scale": 1.0, "proximal": {
+    cfg = DPSConfig.from_dict({"steps": 40, "proximal": {
         "inner_steps": 8, "prox_weight": 0.0, "lr_map": 0.05, "start_noise": 1.0}})
-    run, state = start_run(problem, gaussian_prior(height), init, cfg, seed=0)
+    run, state = start_run(problem, gaussian_prior(height), init, cfg, seed=0, radiance_scale=1.0)
     state.extra["transport"] = problem.transport()
     start = relative_residual(problem, run.env(torch.exp(state.log_map), state).detach())
     records = list(posterior_steps(run, state))
@@ -123,8 +123,8 @@ def second_step_after_a_moved_map(problem: LinearProblem, proximal: dict, prior_
     step's record (the prior's maps as fine as the problem's unless `prior_height`)."""
     height = problem.settings.env_height
     init = Decomposition(torch.ones(height, 2 * height, 3), MaterialTextures.constant(4))
-    cfg = DPSConfig.from_dict({"steps": 10, "radiance_scale": 1.0, "proximal": proximal})
-    run, state = start_run(problem, gaussian_prior(prior_height or height), init, cfg, seed=0)
+    cfg = DPSConfig.from_dict({"steps": 10, "proximal": proximal})
+    run, state = start_run(problem, gaussian_prior(prior_height or height), init, cfg, seed=0, radiance_scale=1.0)
     state.extra["transport"] = problem.transport()
     steps = posterior_steps(run, state)
     next(steps)

@@ -12,7 +12,7 @@ from dpi.capture import load_capture
 from dpi.materials import MaterialTextures
 from dpi.render import RenderConfig, texture_plugin
 from dpi.solve.problem import InverseProblem, ProblemConfig
-from dpi.solve.transport import TransportConfig, guide_map, record_transport, record_view, roughness_levels
+from dpi.solve.transport import Recording, TransportConfig, guide_map, record_transport, record_view, roughness_levels
 from dpi.solve.transport.record import texel_weights, texture_weights, transport_pixels
 
 HEIGHT, SIZE = 8, 8
@@ -88,8 +88,8 @@ def render_mean(problem, env, mats, view, seeds=range(3), spp=256) -> np.ndarray
 def recorded(problem):
     """One view's transport at many samples (the image tests) under materials() and two more roughness levels."""
     view = problem.train_ids[0]
-    settings = TransportConfig(spp=128, direct_spp=32, roughness_levels=2)
-    return view, record_view(problem, view, materials(), guide_map(random_map(0)), settings, seed=3)
+    settings = TransportConfig(spp=128, direct_spp=32)
+    return view, record_view(problem, view, materials(), guide_map(random_map(0)), settings, seed=3, levels=2)
 
 
 @pytest.mark.parametrize("level", [0, 1, 2])
@@ -110,8 +110,8 @@ def test_images_under_other_maps_albedos_and_roughness_like_the_path_tracer(prob
 
 @pytest.fixture(scope="module")
 def transport(problem):
-    return record_transport(problem, materials(), random_map(2), TransportConfig(spp=16, direct_spp=4,
-                                                                                  roughness_levels=1), seed=4)
+    return record_transport(problem, materials(), random_map(2), TransportConfig(spp=16, direct_spp=4), seed=4,
+                            recording=Recording(levels=1))
 
 
 def test_the_halves_product_is_the_data_term_without_the_recordings_noise(problem, transport):

@@ -32,7 +32,7 @@ from pydantic import Field
 from dpi.cameras import Camera, Lens
 from dpi.io.images import exif_orientation
 from dpi.preprocess.hull import axes_centre, visible_sphere
-from dpi.settings import Count, Fraction, Rate, settings
+from dpi.settings import Count, Fraction, settings
 
 log = logging.getLogger(__name__)
 
@@ -81,8 +81,6 @@ class SfMConfig:
     """images are downscaled to this longest side for feature extraction"""
     max_features: Count = 8192
     """SIFT features per image"""
-    focal_length_px: Rate | None = None
-    """known focal length in pixels (fixed during mapping); None: estimated (EXIF or 1.2 x image size first)"""
     min_registered_fraction: Fraction = 0.9
     """fewer registered images than this fraction of the capture is an error"""
     seed: int = 0
@@ -143,8 +141,9 @@ def upright_copies(images: list[Path], folder: Path) -> list[Path]:
 
 
 def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = None,
-            threads: int = 1) -> SparseModel:
-    """COLMAP on `images` (all in one folder; view name = file stem), in `work_dir` (database, model).
+            threads: int = 1, focal_length_px: float | None = None) -> SparseModel:
+    """COLMAP on `images` (all in one folder; view name = file stem), in `work_dir` (database, model); a known
+    `focal_length_px` (scene.yaml's) is held fixed, else it is estimated (EXIF or 1.2 x image size first).
 
     Returns the model in COLMAP's own frame; see `normalise`."""
     import pycolmap
@@ -171,10 +170,10 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
     start = time.perf_counter()
     reader = pycolmap.ImageReaderOptions()
     reader.camera_model = "SIMPLE_RADIAL"  # a pinhole and one radial term, fitted with the poses (COLMAP's default)
-    if cfg.focal_length_px:
+    if focal_length_px:
         with Image.open(images[0]) as im:
             width, height = im.size
-        reader.camera_params = f"{cfg.focal_length_px},{width / 2},{height / 2},0"
+        reader.camera_params = f"{focal_length_px},{width / 2},{height / 2},0"
     extraction = pycolmap.FeatureExtractionOptions()
     extraction.num_threads = threads
     extraction.max_image_size = cfg.max_image_size
@@ -209,7 +208,7 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
     options.mapper.init_min_num_inliers = INIT_MIN_INLIERS
     options.mapper.abs_pose_min_num_inliers = MIN_POSE_INLIERS
     options.min_model_size = 3
-    if cfg.focal_length_px:
+    if focal_length_px:
         options.ba_refine_focal_length = False
         options.mapper.abs_pose_refine_focal_length = False
     models = pycolmap.incremental_mapping(database, image_dir, work / "sparse", options)

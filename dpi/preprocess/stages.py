@@ -85,15 +85,14 @@ def poses_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | 
 
     capture = read_capture_json(capture_json)
     cfg = settings_from_dict(SfMConfig, settings)
-    if cfg.focal_length_px is None and "focal_length_px" in capture.options:
-        cfg.focal_length_px = float(capture.options["focal_length_px"])
+    focal = capture.options.get("focal_length_px")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     files = poses_files(out_dir)
     images = [v.image for v in capture.views]
     start = time.perf_counter()
     try:
-        model = normalise(run_sfm(images, out_dir / "colmap", cfg, threads))
+        model = normalise(run_sfm(images, out_dir / "colmap", cfg, threads, focal and float(focal)))
     except SfMError as exc:
         write_json(files["summary"], {"error": str(exc), **exc.summary})
         raise

@@ -38,6 +38,8 @@ class SampleJob:
     resume: Path
     """the loop's resume state (methods that save one)"""
     prior: Prior | None = None
+    radiance_scale: float | None = None
+    """the problem's radiance per unit of the prior's (scene.yaml's, over the exposure; None: estimated)"""
     adaptive: AdaptiveConfig | None = None
     progress: bool = True
 
@@ -68,7 +70,7 @@ def dip(job: SampleJob) -> Decomposition:
 
 def sds(job: SampleJob) -> Decomposition:
     """Score distillation with the diffusion prior."""
-    return sds_sample(job.problem, job.prior, job.init, job.settings, job.seed, job.progress)
+    return sds_sample(job.problem, job.prior, job.init, job.settings, job.seed, job.progress, job.radiance_scale)
 
 
 def dps(job: SampleJob) -> Decomposition:
@@ -78,7 +80,8 @@ def dps(job: SampleJob) -> Decomposition:
     requested = cfg.steps
     cfg.steps, reason = plan_steps(job.init.materials, cfg.steps, job.adaptive or AdaptiveConfig())
     print(f"adaptive: {reason}", flush=True)
-    result = dps_sample(job.problem, job.prior, job.init, cfg, job.seed, job.progress, job.resume)
+    result = dps_sample(job.problem, job.prior, job.init, cfg, job.seed, job.progress, job.resume,
+                        radiance_scale=job.radiance_scale)
     result.decomposition.trace.info["adaptive"] = {"steps": cfg.steps, "requested_steps": requested, "reason": reason}
     write_grid(job.out_dir / X0_STRIP, torch.stack(result.snapshots), columns=len(result.snapshots))
     return result.decomposition

@@ -41,7 +41,6 @@ class SDSConfig(MaterialRates):
     views_per_step: Count = 1
     lr_map: Rate = 2e-2
     """Adam learning rate on the prior-space map x"""
-    radiance_scale: Rate | None = None
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> "SDSConfig":
@@ -61,10 +60,11 @@ def sds_gradient(prior: Prior, x: torch.Tensor, generator: torch.Generator, t_mi
 
 
 def sds_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: SDSConfig, seed: int,
-               progress: bool = True) -> Decomposition:
-    """One `sds` decomposition: the map optimised under rendering loss + score distillation."""
+               progress: bool = True, radiance_scale: float | None = None) -> Decomposition:
+    """One `sds` decomposition: the map optimised under rendering loss + score distillation (`radiance_scale` as
+    dps_sample's)."""
     generator = torch.Generator().manual_seed(seed)
-    scale = cfg.radiance_scale or estimate_radiance_scale(init.env, prior)
+    scale = radiance_scale or estimate_radiance_scale(init.env, prior)
     height = problem.settings.env_height
     start = torch.nn.functional.interpolate(init.env.permute(2, 0, 1)[None], size=(prior.height, 2 * prior.height),
                                             mode="area")

@@ -47,8 +47,6 @@ SECTIONS: dict[str, Callable[[Any], Any]] = {"proximal": ProximalConfig.from_dic
 GLOSSY_PROXIMAL = {"inner_steps": 2, "map_solve": 0}
 """a glossy init's proximal steps: no map solve (a mirror's views pin its light down where they reflect it, and a
 solve on its finer transport cost env PSNR, docs/studies.md), two data updates instead"""
-GLOSSY_TRANSPORT = {"roughness_levels": 3, "max_height": 32}
-"""a glossy init's recording: a mirror's fit moves with its roughness, and its views resolve the light's detail"""
 GLOSSY_REFINE_FACTOR = 2
 """a glossy init refines this many times longer (the loop does not move the roughness a mirror's views hinge on)"""
 GLOSSY_LR_TEXELS = 0.02
@@ -67,8 +65,6 @@ class DPSConfig(MaterialRates):
     (the reference's gradient guidance through the path tracer)"""
     steps: Annotated[int, Field(ge=2, le=1000)] = 100
     """reverse-diffusion steps (respaced from the prior's 1000; the paper uses 1000)"""
-    radiance_scale: Rate | None = None
-    """scene radiance per unit of the prior's normalised radiance (None: estimated from the init)"""
     proximal: ProximalConfig = field(default_factory=ProximalConfig)
     sun: SunConfig = field(default_factory=SunConfig)
     refine: RefineConfig = field(default_factory=RefineConfig)
@@ -80,11 +76,11 @@ class DPSConfig(MaterialRates):
 
     def for_init(self, init: Decomposition) -> DPSConfig:
         """The settings a sample from `init` runs with: the one place a glossy init (dpi.solve.init.is_glossy)
-        changes them (GLOSSY_*); a rough init's are these."""
+        changes them (GLOSSY_*; its transport's recording: dpi.solve.dps.data_term.recording_for); a rough init's are
+        these."""
         if not is_glossy(init.materials):
             return self
-        transport = replace(self.proximal.transport, **GLOSSY_TRANSPORT)
-        proximal = replace(self.proximal, transport=transport, **GLOSSY_PROXIMAL)
+        proximal = replace(self.proximal, **GLOSSY_PROXIMAL)
         refine = replace(self.refine, iterations=self.refine.iterations * GLOSSY_REFINE_FACTOR,
                          lr_texels=GLOSSY_LR_TEXELS)
         return replace(self, proximal=proximal, refine=refine)

@@ -12,8 +12,14 @@ from __future__ import annotations
 import torch
 
 from dpi.solve.dps.state import DPSRun, DPSState
-from dpi.solve.init import starting_materials
-from dpi.solve.transport import LightTransport, record_transport
+from dpi.solve.init import is_glossy, starting_materials
+from dpi.solve.transport import GLOSSY_RECORDING, ROUGH_RECORDING, LightTransport, Recording, record_transport
+
+
+def recording_for(run: DPSRun) -> Recording:
+    """A glossy init's recording has roughness levels and finer maps (dpi.solve.transport.GLOSSY_RECORDING), a rough
+    one's neither: the same glossy test as DPSConfig.for_init."""
+    return GLOSSY_RECORDING if is_glossy(run.init.materials) else ROUGH_RECORDING
 
 
 def sample_transport(run: DPSRun, state: DPSState) -> tuple[LightTransport, bool]:
@@ -21,7 +27,7 @@ def sample_transport(run: DPSRun, state: DPSState) -> tuple[LightTransport, bool
     recorded = "transport" not in state.extra
     if recorded:
         state.extra["transport"] = record_transport(run.problem, starting_materials(run.init), run.init.env,
-                                                    run.sampler.transport, run.render_seed(0, 97))
+                                                    run.sampler.transport, run.render_seed(0, 97), recording_for(run))
     return state.extra["transport"], recorded
 
 

@@ -68,14 +68,14 @@ def data_norm(problem: InverseProblem) -> float:
 
 
 def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: DPSConfig,
-              seed: int) -> tuple[DPSRun, DPSState]:
+              seed: int, radiance_scale: float | None = None) -> tuple[DPSRun, DPSState]:
     """The fixed part of one sample and its loop state at its first step (the init's materials, grey albedo):
     x_T ~ N(0, I), or the init map noised to the sampler's start_noise."""
     cfg = cfg.for_init(init)
     sampler = cfg.sampler_settings
     generator = torch.Generator().manual_seed(seed)
     diffusion = prior.schedule(cfg.steps)
-    scale = cfg.radiance_scale or estimate_radiance_scale(init.env, prior)
+    scale = radiance_scale or estimate_radiance_scale(init.env, prior)
     first = int(round(sampler.start_noise * (diffusion.num_timesteps - 1)))
     sun = extract_sun(init.env)
     has_sun = wants_sun(cfg.sun, sampler.models_sun, prior.family, init.materials, sun)
@@ -160,10 +160,11 @@ def keep_what_the_views_see(env: torch.Tensor, init_env: torch.Tensor, weight: t
 
 def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: DPSConfig, seed: int,
                progress: bool = True, checkpoint: Path | None = None,
-               checkpoint_every: int = CHECKPOINT_EVERY) -> DPSResult:
+               checkpoint_every: int = CHECKPOINT_EVERY, radiance_scale: float | None = None) -> DPSResult:
     """One posterior sample: reverse diffusion guided by the renderer, joint material steps, refinement.
-    With a `checkpoint` file the sample continues from the state a killed run of it left there."""
-    run, state = start_run(problem, prior, init, cfg, seed)
+    With a `checkpoint` file the sample continues from the state a killed run of it left there. `radiance_scale`:
+    the problem's radiance per unit of the prior's (None: estimated from the init's map)."""
+    run, state = start_run(problem, prior, init, cfg, seed, radiance_scale)
     settings = asdict(cfg)
     trace = Trace(info={"method": "dps", "sampler": cfg.sampler, "seed": seed, "radiance_scale": run.scale,
                         "family": prior.family, "config": settings})

@@ -36,7 +36,8 @@ from dpi.materials import MaterialTextures
 from dpi.render import SEED_MODULUS, texture_plugin
 from dpi.solve.problem import InverseProblem
 from dpi.solve.transport.operator import AlbedoLookup, LightTransport, resize_map
-from dpi.solve.transport.settings import HALVES, TransportConfig, roughness_levels, transport_height
+from dpi.solve.transport.settings import (HALVES, ROUGH_RECORDING, Recording, TransportConfig, roughness_levels,
+                                          transport_height)
 
 BRIGHT_SHARE = 0.5
 """the brightest texels that hold this share of the guide map's energy get extra direct-light draws ..."""
@@ -406,13 +407,13 @@ class ViewTransport:
 
 def record_view(problem: InverseProblem, view: int, materials: MaterialTextures, guide: np.ndarray,
                 settings: TransportConfig, seed: int, pixels: np.ndarray | None = None,
-                height: int | None = None) -> ViewTransport:
-    """The transport of `pixels` (default: the view's foreground) under `materials` and the roughness levels
-    (module notes) for maps of `height` rows (default the problem's; the guide is at the problem's); seeded."""
+                height: int | None = None, levels: int = 0) -> ViewTransport:
+    """The transport of `pixels` (default: the view's foreground) under `materials` and `levels` more roughness
+    levels (module notes) for maps of `height` rows (default the problem's; the guide is at the problem's); seeded."""
     if pixels is None:
         pixels = np.flatnonzero(problem.masks[view].numpy().reshape(-1))
     rng = np.random.default_rng(seed)
-    levels = roughness_levels(materials.roughness, settings.roughness_levels)
+    levels = roughness_levels(materials.roughness, levels)
     setup = view_setup(problem, view, pixels, materials, levels, guide, height or problem.settings.env_height, rng)
     accumulator = Accumulator(len(levels), len(pixels), setup.height)
     accumulator.matrix = record_direct(setup, settings.direct_spp, seed * 7 + 1, np.arange(accumulator.texels))
@@ -439,19 +440,19 @@ def transport_pixels(problem: InverseProblem, limit: int, rng: np.random.Generat
 
 
 def record_transport(problem: InverseProblem, materials: MaterialTextures, env: torch.Tensor,
-                     settings: TransportConfig, seed: int) -> LightTransport:
+                     settings: TransportConfig, seed: int, recording: Recording = ROUGH_RECORDING) -> LightTransport:
     """The light transport of the training views' foreground pixels (at most settings.pixels of them) under
-    `materials` and the roughness levels, for maps of `transport_height` rows, with next-event directions guided
-    by `env` (the problem's size; module notes)."""
+    `materials` and the recording's roughness levels, for maps of `transport_height` rows, with next-event
+    directions guided by `env` (the problem's size; module notes)."""
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
     chosen = transport_pixels(problem, settings.pixels, rng)
     guide = guide_map(env)
-    height = transport_height(problem.settings.env_height, settings.max_height)
+    height = transport_height(problem.settings.env_height, recording.max_height)
     matrices, observed, rows, cols, weights = [], [], [], [], []
     first = 0
     for j, (v, pixels) in enumerate(chosen.items()):
-        t = record_view(problem, v, materials, guide, settings, seed * 1009 + j, pixels, height)
+        t = record_view(problem, v, materials, guide, settings, seed * 1009 + j, pixels, height, recording.levels)
         matrices.append(torch.from_numpy(t.matrix))
         observed.append(problem.images[v].reshape(-1, 3)[torch.from_numpy(pixels)].double())
         rows.append(t.lookup[0] + first)
@@ -461,6 +462,6 @@ def record_transport(problem: InverseProblem, materials: MaterialTextures, env: 
     size = problem.settings.texture_size
     lookup = AlbedoLookup(torch.from_numpy(np.concatenate(rows)), torch.from_numpy(np.concatenate(cols)),
                           torch.from_numpy(np.concatenate(weights)), (first, size * size))
-    levels = roughness_levels(materials.roughness, settings.roughness_levels)
+    levels = roughness_levels(materials.roughness, recording.levels)
     return LightTransport(torch.cat(matrices, dim=4), lookup, torch.cat(observed), height, levels, materials.detached(),
                           sum(int(problem.masks[v].sum()) for v in problem.train_ids), time.perf_counter() - start)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Annotated
 
 import torch
@@ -34,13 +35,24 @@ class TransportConfig:
     """camera samples per pixel of the direct light, each with one shadow ray per texel (split between the halves)"""
     pixels: Count = 2048
     """most foreground pixels of the training views recorded: beyond it, an even random subset"""
-    roughness_levels: Annotated[int, Field(ge=0, le=8)] = 0
+
+
+@dataclass(frozen=True)
+class Recording:
+    """What the object asks of a recording (no config key: its init decides, dpi.solve.dps.data_term)."""
+
+    levels: int = 0
     """besides the materials' own roughness, the transport under this many more: the texture shifted to medians
-    from a mirror's to a matte's (`roughness_levels`), recorded in the same pass (only the BSDF's values differ);
-    none on a rough object (docs/studies.md)"""
-    max_height: Annotated[int, Field(ge=2, le=MAX_TRANSPORT_HEIGHT)] = 16
+    from a mirror's to a matte's (`roughness_levels`), recorded in the same pass (only the BSDF's values differ)"""
+    max_height: int = 16
     """most rows of the maps the transport takes (`transport_height`): a rough object's views fix the light's low
     frequencies only, and the recording's cost grows with the texels (docs/studies.md)"""
+
+
+ROUGH_RECORDING = Recording()
+"""a rough object's: its own roughness only, maps of at most 16 rows"""
+GLOSSY_RECORDING = Recording(levels=3, max_height=MAX_TRANSPORT_HEIGHT)
+"""a glossy object's: a mirror's fit moves with its roughness, and its views resolve the light's detail"""
 
 
 ROUGHNESS_RANGE = (0.05, 0.9)
