@@ -13,7 +13,7 @@ rule envmap_dataset:
     params:
         maps=lambda w: PIPELINE.prior_job(w.family).count,
         height=lambda w: PIPELINE.prior_job(w.family).data_height,
-        seed=lambda w: PIPELINE.prior_job(w.family).seed,
+        seed=lambda w: PIPELINE.prior_job(w.family).train_config().seed,
     threads: 1
     log:
         LAYOUT.prior_log("{family}", "envmap_dataset"),

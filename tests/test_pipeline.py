@@ -65,8 +65,8 @@ def test_prior_training_settings_shared_then_per_family():
     pipeline = Pipeline(resolve_config({"prior": {"steps": 7, "outdoor": {"count": 5}}}))
     indoor, outdoor = pipeline.prior_job("indoor"), pipeline.prior_job("outdoor")
     assert (indoor.count, indoor.data_height) == (1200, 32) and outdoor.count == 5
-    cfg = outdoor.train_config("outdoor", "data", "ckpt.pt")
-    assert cfg.steps == 7 and cfg.out == "ckpt.pt" and cfg.model.image_size == 32
+    cfg = outdoor.train_config()
+    assert cfg.steps == 7 and cfg.model == "small_32x64"
 
 
 def test_wildcard_patterns_are_the_layout_of_real_names():

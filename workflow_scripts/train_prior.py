@@ -7,5 +7,5 @@ from dpi.prior.train import PriorJobConfig, train_and_export
 with log_to(snakemake.log[0]):
     backend.set_threads(snakemake.threads)
     job = PriorJobConfig(**snakemake.params.job)
-    train_and_export(job.train_config(snakemake.wildcards.family, snakemake.input[0], snakemake.params.checkpoint),
+    train_and_export(job.train_config(), snakemake.wildcards.family, snakemake.input[0], snakemake.params.checkpoint,
                      snakemake.output[0])

@@ -59,20 +59,18 @@ def cmd_panorama_set(args: argparse.Namespace) -> None:
 def cmd_train_prior(args: argparse.Namespace) -> None:
     """Train (or resume training) a prior on a folder of env maps."""
     from dpi.prior.train import TrainConfig, export_model, train
-    from dpi.prior.unet import SMALL_CONFIGS
+    from dpi.settings import SettingsError
 
     _threads(args.threads)
-    if args.model not in SMALL_CONFIGS:
-        raise SystemExit(f"unknown --model {args.model!r}; choose from {', '.join(sorted(SMALL_CONFIGS))}")
-    config = TrainConfig(family=args.family, data_dir=args.data, out=args.out, model=SMALL_CONFIGS[args.model],
-                         steps=args.steps, batch_size=args.batch_size, lr=args.lr, warmup_steps=args.warmup_steps,
-                         lr_schedule=args.lr_schedule, init=args.init,
-                         ema_decay=args.ema_decay,
-                         max_minutes=args.max_minutes,
-                         sample_every=args.sample_every, seed=args.seed, encoding=args.encoding,
-                         clip_fraction=args.clip_fraction, real_data=args.real_data,
-                         real_fraction=args.real_fraction)
-    train(config)
+    try:
+        config = TrainConfig(model=args.model, steps=args.steps, batch_size=args.batch_size, lr=args.lr,
+                             warmup_steps=args.warmup_steps, lr_schedule=args.lr_schedule, init=args.init,
+                             ema_decay=args.ema_decay, max_minutes=args.max_minutes, sample_every=args.sample_every,
+                             seed=args.seed, encoding=args.encoding, clip_fraction=args.clip_fraction,
+                             real_data=args.real_data, real_fraction=args.real_fraction)
+    except SettingsError as exc:
+        raise SystemExit(f"train-prior: {exc}") from None
+    train(config, args.family, args.data, args.out)
     if args.export:
         export_model(args.out, args.export)
 
@@ -95,7 +93,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="output folder (EXR files), or .npz file with --packed")
     p.add_argument("--packed", action="store_true", help="write one packed .npz in prior space (to train elsewhere)")
     p.add_argument("--encoding", choices=ENCODINGS, default=field_default(TrainConfig, "encoding"), help="encoding of a packed dataset")
-    p.add_argument("--seed", type=int, default=field_default(PriorJobConfig, "seed"))
+    p.add_argument("--seed", type=int, default=field_default(TrainConfig, "seed"))
     p.add_argument("--threads", type=int, default=1)
     p.set_defaults(fn=cmd_make_envmaps)
 

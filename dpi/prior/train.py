@@ -55,12 +55,9 @@ def training_device() -> str:
 
 @settings
 class TrainConfig:
-    """Everything a training run depends on."""
+    """How a prior is trained (what on and where to: `train`'s arguments)."""
 
-    family: str  # 'outdoor' or 'indoor'
-    data_dir: str  # folder of panoramas, or a packed .npz (EnvmapDataset.save)
-    out: str  # checkpoint path; resumed when it exists
-    model: UNetConfig = field(default_factory=lambda: SMALL_CONFIGS[DEFAULT_MODEL])
+    model: str = DEFAULT_MODEL  # the network, a name in dpi.prior.unet.SMALL_CONFIGS
     steps: Count = 20000  # total optimiser steps (including resumed ones)
     batch_size: Count = 8
     lr: Rate = 3e-4
@@ -78,9 +75,9 @@ class TrainConfig:
     real_fraction: Fraction = 0.25  # share of each batch drawn from `real_data`
 
     def __post_init__(self):
-        """An unknown schedule fails here, not at the first optimiser step."""
-        if not 0.0 <= self.real_fraction <= 1.0:
-            raise SettingsError("real_fraction", f"must be in [0, 1], got {self.real_fraction}")
+        """An unknown network or schedule fails here, not at the first optimiser step."""
+        if self.model not in SMALL_CONFIGS:
+            raise SettingsError("model", f"unknown network {self.model!r}; choose from {', '.join(sorted(SMALL_CONFIGS))}")
         if self.lr_schedule not in LR_SCHEDULES:
             raise SettingsError("lr_schedule", f"unknown schedule {self.lr_schedule!r}; choose from "
                                                f"{', '.join(LR_SCHEDULES)}")
@@ -90,16 +87,12 @@ class TrainConfig:
 class PriorJobConfig:
     """How the workflow makes one family's prior (config `prior:`, then `prior.<family>`): a procedural
     dataset (rule envmap_dataset), then a training run (rule train_prior). Keys other than these fields are
-    TrainConfig fields (steps, batch_size, lr, ema_decay, max_minutes, sample_every, ...)."""
+    TrainConfig fields (model, seed: also the dataset's, steps, batch_size, lr, ema_decay, max_minutes, ...)."""
 
     count: Count = 3000
     """maps in the procedural dataset"""
     data_height: MapHeight = 64
     """their height H (maps are H x 2H; indoor ray casting costs ~H^2)"""
-    seed: int = 0
-    """seed of the dataset and of training"""
-    model: str = DEFAULT_MODEL
-    """network, a name in dpi.prior.unet.SMALL_CONFIGS"""
     threads: Count = 1
     """CPU threads of the training job"""
     train: dict = field(default_factory=dict)
@@ -111,20 +104,12 @@ class PriorJobConfig:
         own = {f.name for f in fields(cls)} - {"train"}
         job = settings_from_dict(cls, {k: v for k, v in values.items() if k in own})
         job.train = {k: v for k, v in values.items() if k not in own}
-        job.train_config("outdoor", "", "")  # checks the training keys
-        if job.model not in SMALL_CONFIGS:
-            raise SettingsError("model", f"unknown network; choose from {', '.join(sorted(SMALL_CONFIGS))}")
+        job.train_config()  # checks the training keys
         return job
 
-    def train_config(self, family: str, data_dir: str | Path, out: str | Path) -> "TrainConfig":
-        """The training run on a dataset (folder or packed .npz), checkpointing to `out`."""
-        fixed = {"family", "data_dir", "out"} & set(self.train)
-        if fixed:
-            raise SettingsError(sorted(fixed)[0], "is set by the workflow, not by the `prior` section")
-        cfg = settings_from_dict(TrainConfig, {"family": family, "data_dir": str(data_dir), "out": str(out),
-                                               "seed": self.seed, **self.train})
-        cfg.model = SMALL_CONFIGS[self.model]
-        return cfg
+    def train_config(self) -> "TrainConfig":
+        """The training run's settings."""
+        return settings_from_dict(TrainConfig, self.train)
 
 
 def learning_rate(cfg: TrainConfig, step: int) -> float:
@@ -141,18 +126,19 @@ def ema_update(ema: torch.nn.Module, model: torch.nn.Module, decay: float) -> No
         torch._foreach_lerp_(list(ema.parameters()), list(model.parameters()), 1.0 - decay)
 
 
-def checkpoint_dict(cfg: TrainConfig, model: UNetModel, ema: UNetModel, optimizer: torch.optim.Optimizer,
-                    step: int, wall_seconds: float) -> dict:
+def checkpoint_dict(cfg: TrainConfig, family: str, model: UNetModel, ema: UNetModel,
+                    optimizer: torch.optim.Optimizer, step: int, wall_seconds: float) -> dict:
     """The resumable checkpoint of a run."""
-    encoding = family_encoding(cfg.family, cfg.encoding)
+    encoding = family_encoding(family, cfg.encoding)
+    network = SMALL_CONFIGS[cfg.model]
     return {
-        "format": CHECKPOINT_FORMAT, "config": cfg.model.to_dict(), "family": cfg.family,
-        "height": cfg.model.image_size,
-        "tone": {**encoding.to_dict(), "median_target": median_target(cfg.family, encoding)},
+        "format": CHECKPOINT_FORMAT, "config": network.to_dict(), "family": family,
+        "height": network.image_size,
+        "tone": {**encoding.to_dict(), "median_target": median_target(family, encoding)},
         "diffusion": {"num_timesteps": DIFFUSION_STEPS, "schedule": "linear"},
         "model": model.state_dict(), "ema": ema.state_dict(), "optimizer": optimizer.state_dict(),
         "step": step, "wall_seconds": wall_seconds,
-        "train": {**asdict(cfg), "model": cfg.model.to_dict()},
+        "train": asdict(cfg),
     }
 
 
@@ -172,29 +158,31 @@ def export_model(checkpoint: str | Path, dest: str | Path, half: bool = True) ->
 
 def write_sample_grid(cfg: TrainConfig, ema: UNetModel, step: int, out_dir: Path) -> None:
     """PNG grid of 8 EMA samples (respaced schedule, random roll) at this step."""
-    diffusion = respaced(base_diffusion(DIFFUSION_STEPS, cfg.model.learn_sigma),
+    diffusion = respaced(base_diffusion(DIFFUSION_STEPS, ema.config.learn_sigma),
                          evenly_spaced_timesteps(DIFFUSION_STEPS, SAMPLE_GRID_STEPS))
-    h, device = cfg.model.image_size, next(ema.parameters()).device
+    h, device = ema.config.image_size, next(ema.parameters()).device
     generator = torch.Generator(device=device).manual_seed(cfg.seed)
     x = sample(diffusion, ema, (8, 3, h, 2 * h), generator, random_roll=True, device=device)
     write_grid(out_dir / f"step_{step:06d}.png", x)
 
 
-def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool = True) -> dict:
-    """Train (resuming from `cfg.out` if present) until `cfg.steps` or `cfg.max_minutes`; returns the last log line."""
-    out = Path(cfg.out)
+def train(cfg: TrainConfig, family: str, data_dir: str | Path, out: str | Path, dataset: EnvmapDataset | None = None,
+          progress: bool = True) -> dict:
+    """Train a `family` prior on `data_dir` (a folder of panoramas or a packed .npz; or `dataset`), checkpointing to
+    `out` (resumed when it exists), until `cfg.steps` or `cfg.max_minutes`; returns the last log line."""
+    out, network = Path(out), SMALL_CONFIGS[cfg.model]
     log_path = out.with_suffix(".log.jsonl")
     samples_dir = out.parent / f"{out.stem}_samples"
     out.parent.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(cfg.seed)
     device = training_device()
-    encoding = family_encoding(cfg.family, cfg.encoding)
-    data = dataset or read_dataset(cfg.data_dir, cfg.model.image_size, cfg.family, encoding)
+    encoding = family_encoding(family, cfg.encoding)
+    data = dataset or read_dataset(data_dir, network.image_size, family, encoding)
     if cfg.real_data:
-        real = read_dataset(cfg.real_data, cfg.model.image_size, cfg.family, encoding)
+        real = read_dataset(cfg.real_data, network.image_size, family, encoding)
         data = EnvmapDataset.mixed([data, real], [1.0 - cfg.real_fraction, cfg.real_fraction])
     data = data.to(device)
-    model = UNetModel(cfg.model).to(device)
+    model = UNetModel(network).to(device)
     ema = copy.deepcopy(model).eval().requires_grad_(False)
     cuda = torch.device(device).type == "cuda"
     optimizer = torch.optim.Adam(model.parameters(), lr=cfg.lr, fused=cuda or None)
@@ -207,22 +195,22 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
         step, wall = ckpt["step"], ckpt["wall_seconds"]
     elif cfg.init:
         initial = load_checkpoint(cfg.init, device=device).float()
-        if replace(initial.config, image_size=cfg.model.image_size) != cfg.model:
+        if replace(initial.config, image_size=network.image_size) != network:
             raise CheckpointError(f"{cfg.init}: its network differs from the run's model; train with the same network "
                                   "(a model of another map size with the same weights will do)")
         model.load_state_dict(initial.state_dict())
         ema.load_state_dict(initial.state_dict())
-    diffusion = base_diffusion(DIFFUSION_STEPS, cfg.model.learn_sigma)
+    diffusion = base_diffusion(DIFFUSION_STEPS, network.learn_sigma)
     generator = torch.Generator(device=device).manual_seed(cfg.seed * 1_000_003 + step)
     start = time.perf_counter() - wall
     deadline = None if cfg.max_minutes is None else time.perf_counter() + 60 * cfg.max_minutes
     record: dict = {"step": step}
-    bar = tqdm(total=cfg.steps, initial=step, desc=f"train {cfg.family}", disable=not progress,
+    bar = tqdm(total=cfg.steps, initial=step, desc=f"train {family}", disable=not progress,
                postfix={"params": f"{count_parameters(model) / 1e6:.2f}M"})
     while step < cfg.steps and (deadline is None or time.perf_counter() < deadline):
         x0 = data.batch(cfg.batch_size, generator)
         if cfg.clip_fraction:
-            x0 = clip_highlights(x0, data.encoding, median_target(cfg.family, data.encoding), cfg.clip_fraction,
+            x0 = clip_highlights(x0, data.encoding, median_target(family, data.encoding), cfg.clip_fraction,
                                  CLIP_MULTIPLES, generator)
         t = torch.randint(0, DIFFUSION_STEPS, (cfg.batch_size,), generator=generator, device=device)
         noise = torch.randn(x0.shape, generator=generator, device=device)
@@ -244,16 +232,16 @@ def train(cfg: TrainConfig, dataset: EnvmapDataset | None = None, progress: bool
             with open(log_path, "a") as log:
                 log.write(json.dumps(record) + "\n")
         if step % CHECKPOINT_EVERY == 0 or step == cfg.steps:
-            save_atomic(checkpoint_dict(cfg, model, ema, optimizer, step, time.perf_counter() - start), out)
+            save_atomic(checkpoint_dict(cfg, family, model, ema, optimizer, step, time.perf_counter() - start), out)
         if cfg.sample_every and step % cfg.sample_every == 0:
             write_sample_grid(cfg, ema, step, samples_dir)
     bar.close()
-    save_atomic(checkpoint_dict(cfg, model, ema, optimizer, step, time.perf_counter() - start), out)
+    save_atomic(checkpoint_dict(cfg, family, model, ema, optimizer, step, time.perf_counter() - start), out)
     return record
 
 
-def train_and_export(cfg: TrainConfig, dest: str | Path) -> dict:
-    """Train (resuming from the working checkpoint `cfg.out`) and export the EMA model to `dest`."""
-    record = train(cfg)
-    export_model(cfg.out, dest)
+def train_and_export(cfg: TrainConfig, family: str, data_dir: str | Path, out: str | Path, dest: str | Path) -> dict:
+    """Train (resuming from the working checkpoint `out`) and export the EMA model to `dest`."""
+    record = train(cfg, family, data_dir, out)
+    export_model(out, dest)
     return record
