@@ -260,10 +260,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--shape", choices=("blob", "bumpy_torus"))
     for name, typ in (("views", int), ("width", int), ("height", int), ("spp", int), ("env_height", int),
                       ("texture_size", int), ("held_out_every", int), ("seed", int), ("roughness", float),
-                      ("metallic", float), ("sun_elevation_deg", float), ("sun_azimuth_deg", float),
-                      ("turbidity", float)):
+                      ("metallic", float), ("sun_elevation_deg", float), ("sun_azimuth_deg", float)):
         p.add_argument(f"--{name.replace('_', '-')}", dest=name, type=typ)
-    p.add_argument("--envmap", help="EXR to use as ground-truth illumination instead of a procedural sky")
+    p.add_argument("--environment", help="ground-truth light: sunsky (default), outdoor, indoor (procedural), or a "
+                   "panorama file (.exr, .hdr)")
     p.add_argument("--image-format", dest="image_format", choices=("exr", "png"))
     p.add_argument("--prior", choices=PRIORS)
 

@@ -83,6 +83,6 @@ def test_real_light_scenes_need_the_manifest_panoramas(tmp_path):
     (tmp_path / "my_own.hdr").write_bytes(b"")  # a user's own panorama is training data, never a held-out light
     with pytest.raises(FileNotFoundError, match="no outdoor panoramas in the held_out split"):
         real_light_scenes(tmp_path)
-    job = Job(tmp_path, "a", "real", {"envmap": str(tmp_path / "x" / "sky.hdr")}, "dps", "", 0, {}, {})
-    elsewhere = Job(tmp_path, "a", "real", {"envmap": "/data/sky.hdr"}, "dps", "", 0, {}, {})
+    job = Job(tmp_path, "a", "real", {"environment": str(tmp_path / "x" / "sky.hdr")}, "dps", "", 0, {}, {})
+    elsewhere = Job(tmp_path, "a", "real", {"environment": "/data/sky.hdr"}, "dps", "", 0, {}, {})
     assert job.settings_hash == elsewhere.settings_hash  # a panorama by its name, not where it lies

@@ -73,6 +73,6 @@ def test_a_given_panorama_is_area_resampled_to_the_capture_map_height(tmp_path):
     """A user's panorama lights the capture at env_height rows, its mean radiance kept."""
     panorama = np.random.default_rng(0).gamma(1.0, 2.0, (16, 32, 3)).astype(np.float32)
     write_exr(tmp_path / "sky.exr", panorama)
-    env = ground_truth_envmap(SynthConfig.from_dict({"envmap": str(tmp_path / "sky.exr"), "env_height": 8}))
+    env = ground_truth_envmap(SynthConfig.from_dict({"environment": str(tmp_path / "sky.exr"), "env_height": 8}))
     assert env.shape == (8, 16, 3)
     np.testing.assert_allclose(env.mean(axis=(0, 1)), panorama.mean(axis=(0, 1)), rtol=1e-5)

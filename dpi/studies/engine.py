@@ -124,7 +124,10 @@ class Job:
     def settings_hash(self) -> str:
         """Hash of what decides the sample besides its seed: the capture (a panorama by its name, which the
         manifest's checksum pins), the method and its settings, the workflow sections a sample reads."""
-        synth = {**self.synth, **({"envmap": Path(self.synth["envmap"]).name} if self.synth.get("envmap") else {})}
+        from dpi.synth.capture import PROCEDURAL
+
+        light = self.synth.get("environment")
+        synth = {**self.synth, **({"environment": Path(light).name} if light and light not in PROCEDURAL else {})}
         return settings_hash({"synth": synth, "method": self.method, "settings": self.method_cfg,
                               "config": {k: self.config.get(k) for k in SAMPLE_SECTIONS}})
 

@@ -56,7 +56,7 @@ def real_light_scenes(folder: Path) -> dict[str, tuple[str, dict[str, Any]]]:
         if panorama not in held_out:
             raise FileNotFoundError(f"{folder}: no {panorama} (scene {name}); dpi/data/panoramas.csv says where it is")
         scenes[name] = (group, {**{k: v for k, v in synth.items() if k != "panorama"},
-                                "envmap": str(held_out[panorama].resolve())})
+                                "environment": str(held_out[panorama].resolve())})
     return scenes
 
 

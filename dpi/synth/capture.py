@@ -40,6 +40,9 @@ EVALUATION_SEED_STREAM = 7_919  # ground-truth maps draw from default_rng([this,
 
 
 FOV_DEG = 35.0
+PROCEDURAL = ("sunsky", "outdoor", "indoor")
+"""the ground-truth lights SynthConfig.environment names; anything else is a panorama file"""
+PANORAMA_SUFFIXES = (".exr", ".hdr")
 
 
 @settings
@@ -60,23 +63,18 @@ class SynthConfig:
     """azimuth range the cameras cover: 360 all around; less leaves the far side of the object unseen"""
     spp: Count = 256
     """samples per pixel of the ground-truth renders"""
-    max_depth: Annotated[int, Field(ge=1, le=64)] = 5
     env_height: MapHeight = 32
     """height of the ground-truth sky map (width is twice this)"""
-    envmap: str | None = None
-    """optional panorama (.exr, .hdr; H x 2H) to use as ground-truth environment instead of a procedural one,
-    area-resampled to env_height rows"""
     environment: str = "sunsky"
-    """procedural ground-truth environment: sunsky (Mitsuba's sky from the sun_* and turbidity
-    fields), or a map of the prior's generators, outdoor or indoor (drawn by environment_seed
-    from a seed stream the training datasets never use)"""
+    """the ground-truth light: sunsky (Mitsuba's sky from the sun_* fields), a map of the prior's generators,
+    outdoor or indoor (drawn by environment_seed from a seed stream the training datasets never use), or a
+    panorama file (.exr, .hdr; H x 2H), area-resampled to env_height rows"""
     environment_seed: int = 0
     environment_clip: Rate | None = None
     """clip the map's luminance at this multiple of its median, like an 8-bit panorama decoded through
     the paper's tone curve (the paper's test maps hold no sun); None keeps the full HDR range"""
     sun_elevation_deg: Elevation = 35.0
     sun_azimuth_deg: float = 60.0
-    turbidity: Rate = 3.0
     texture_size: TextureSize = 64
     roughness: Fraction = 0.3
     roughness_variation: Fraction = 0.1
@@ -124,18 +122,19 @@ def ground_truth_envmap(cfg: SynthConfig) -> np.ndarray:
 
 def procedural_envmap(cfg: SynthConfig) -> np.ndarray:
     """The given panorama, a procedural sunsky, outdoor or indoor map, at full range."""
-    if cfg.envmap:
-        env = read_panorama(cfg.envmap)
+    if cfg.environment not in PROCEDURAL:
+        if Path(cfg.environment).suffix.lower() not in PANORAMA_SUFFIXES:
+            raise ValueError(f"environment must be {', '.join(PROCEDURAL)} or a panorama file "
+                             f"({', '.join(PANORAMA_SUFFIXES)}), got {cfg.environment!r}")
+        env = read_panorama(cfg.environment)
         if env.shape[1] != 2 * env.shape[0]:
-            raise ValueError(f"{cfg.envmap}: environment map must be H x 2H, got {env.shape[:2]}")
+            raise ValueError(f"{cfg.environment}: environment map must be H x 2H, got {env.shape[:2]}")
         env = env if env.shape[-1] == 3 else np.repeat(env[..., :1], 3, -1)
         return resize_area(torch.from_numpy(env).permute(2, 0, 1), cfg.env_height).permute(1, 2, 0).numpy()
     if cfg.environment in ("outdoor", "indoor"):
         rng = np.random.default_rng([EVALUATION_SEED_STREAM, cfg.environment_seed])
         return generator(cfg.environment)(cfg.env_height, rng, 1)[0].astype(np.float32)
-    if cfg.environment != "sunsky":
-        raise ValueError(f"environment must be sunsky, outdoor or indoor, got {cfg.environment!r}")
-    sky = SkyParams(cfg.sun_elevation_deg, cfg.sun_azimuth_deg, cfg.turbidity)
+    sky = SkyParams(cfg.sun_elevation_deg, cfg.sun_azimuth_deg)
     return sunsky_envmap(cfg.env_height, sky)
 
 
@@ -184,7 +183,7 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
         cam.extras["held_out"] = bool(cfg.held_out_every) and i % cfg.held_out_every == cfg.held_out_every - 1
 
     renderer = Renderer(given / "mesh.ply", cameras, env.shape[0], cfg.texture_size,
-                        RenderConfig(spp=cfg.spp, max_depth=cfg.max_depth, threads=threads))
+                        RenderConfig(spp=cfg.spp, threads=threads))
     tensors = [torch.from_numpy(a) for a in (env, materials.albedo, materials.roughness, materials.metallic)]
     other = "png" if cfg.image_format == "exr" else "exr"
     for i, cam in enumerate(tqdm(cameras, desc="render views", disable=not progress)):
