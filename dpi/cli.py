@@ -215,7 +215,7 @@ def cmd_relight(args: argparse.Namespace) -> None:
 
     edit = MaterialEdit(args.albedo_scale, args.roughness, args.metallic)
     cfg = RelightConfig(args.envmap, args.rotate_deg, args.env_height, args.orbit, args.orbit_elevation_deg,
-                        args.exposure, args.seed, edit)
+                        args.exposure, edit)
     render = replace(_pipeline(args).solve_settings(args.threads).render, spp=args.spp)
     names = relight_sample(args.capture_json, args.sample, args.out, cfg, render)
     print(f"wrote {len(names)} views to {args.out}")
@@ -333,7 +333,6 @@ each call; the workflow caches them."""
     p.add_argument("--metallic", type=float, help="replace the metallic texture by this value")
     p.add_argument("--spp", type=int, default=64, help="samples per pixel (default 64)")
     p.add_argument("--exposure", type=float, default=1.0, help="exposure of the PNGs (the EXRs stay linear)")
-    p.add_argument("--seed", type=int, default=0, help="sampler seed")
 
     register_prior_commands(sub)
     return parser

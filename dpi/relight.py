@@ -78,8 +78,6 @@ class RelightConfig:
     """elevation of the orbit cameras above the object's centre"""
     exposure: Rate = 1.0
     """factor applied before the PNGs' sRGB encoding (the EXRs stay linear)"""
-    seed: int = 0
-    """sampler seed of the first view (view i uses seed + i)"""
     edit: MaterialEdit = field(default_factory=MaterialEdit)
 
 
@@ -137,7 +135,7 @@ def relight_sample(capture_json: str | os.PathLike, sample_dir: str | os.PathLik
         names = [cam.name for cam in cameras]
     else:
         names, cameras = [name for name, _ in views], [cam for _, cam in views]
-    images = relight(capture.mesh, cameras, env, materials, render, cfg.seed)
+    images = relight(capture.mesh, cameras, env, materials, render)
     write_views(out_dir, names, images, cfg.exposure)
     write_json(Path(out_dir) / "relight.json", {
         "sample": str(sample_dir), "envmap": cfg.envmap or str(Path(sample_dir) / ENV_FILE),

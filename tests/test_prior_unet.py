@@ -80,14 +80,16 @@ def test_paper_config_flags() -> None:
 
 
 def test_a_checkpoint_config_may_carry_the_fixed_guided_diffusion_flags() -> None:
-    """A config listing guided-diffusion's flags at the values dpi's UNet implements reads back as the same config;
-    another value is refused, naming the flag."""
+    """A config listing guided-diffusion's flags at the values dpi's UNet implements (and its training-only dropout,
+    the authors' 0.1) reads back as the same config; another value is refused, naming the flag."""
     from dpi.prior.unet import GUIDED_DIFFUSION_FIXED, CheckpointError
 
-    stored = {**PAPER_CONFIG.to_dict(), **GUIDED_DIFFUSION_FIXED}
+    stored = {**PAPER_CONFIG.to_dict(), **GUIDED_DIFFUSION_FIXED, "dropout": 0.1}
     assert UNetConfig.from_dict(stored) == PAPER_CONFIG
     with pytest.raises(CheckpointError, match="resblock_updown must be True"):
         UNetConfig.from_dict({**stored, "resblock_updown": False})
+    with pytest.raises(CheckpointError, match="learn_sigma must be True"):
+        UNetConfig.from_dict({**stored, "learn_sigma": False})
 
 
 def test_paper_layout_matches_guided_diffusion_rules(paper_model: UNetModel) -> None:

@@ -16,7 +16,7 @@ from dpi.solve.init import InitConfig, path_traced_init
 from dpi.solve.problem import InverseProblem, ProblemConfig
 from tests.test_dps import tiny_prior
 
-CHEAP = {"steps": 4, "iterations": 3, "pixels": 256, "spp": 4, "direct_spp": 2}
+CHEAP = {"steps": 4, "iterations": 3, "pixels": 256, "spp": 4}
 """caps for draws inside the bounds where a large value only costs time"""
 
 

@@ -88,7 +88,7 @@ def render_mean(problem, env, mats, view, seeds=range(3), spp=256) -> np.ndarray
 def recorded(problem):
     """One view's transport at many samples (the image tests) under materials() and two more roughness levels."""
     view = problem.train_ids[0]
-    settings = TransportConfig(spp=128, direct_spp=32)
+    settings = TransportConfig(spp=128)
     return view, record_view(problem, view, materials(), guide_map(random_map(0)), settings, seed=3, levels=2)
 
 
@@ -110,7 +110,7 @@ def test_images_under_other_maps_albedos_and_roughness_like_the_path_tracer(prob
 
 @pytest.fixture(scope="module")
 def transport(problem):
-    return record_transport(problem, materials(), random_map(2), TransportConfig(spp=16, direct_spp=4), seed=4,
+    return record_transport(problem, materials(), random_map(2), TransportConfig(spp=16), seed=4,
                             recording=Recording(levels=1))
 
 
@@ -191,5 +191,9 @@ def test_pixels_beyond_the_limit_are_an_even_subset_and_weigh_for_the_rest(probl
     for v in problem.train_ids:
         assert set(chosen[v]) <= set(everything[v])
         assert len(chosen[v]) == pytest.approx(len(everything[v]) / 4, abs=1)
-    with pytest.raises(ValueError, match="direct_spp: must be a multiple of 2"):
-        TransportConfig(direct_spp=3)
+    with pytest.raises(ValueError, match="spp: must be a multiple of 2"):
+        TransportConfig(spp=3)
+
+
+def test_the_direct_light_takes_a_quarter_of_the_paths_split_between_the_halves():
+    assert [TransportConfig(spp=s).direct_spp for s in (2, 8, 16, 20, 128)] == [2, 2, 4, 4, 32]

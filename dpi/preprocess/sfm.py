@@ -67,6 +67,8 @@ PEAK_THRESHOLD = 0.004
 """SIFT contrast threshold (COLMAP's default 0.0067 finds few features in small or soft images)"""
 MAX_REPROJECTION_ERROR_PX = 1.5
 """a mean reprojection error above this is an error"""
+COLMAP_SEED = 0
+"""the mapper's random seed (with one thread COLMAP then reproduces its poses exactly)"""
 MIN_LENS_SHIFT_PX = 0.25
 """a fitted lens distortion that moves the image's corner by less than this (pixels) is dropped"""
 
@@ -83,7 +85,6 @@ class SfMConfig:
     """SIFT features per image"""
     min_registered_fraction: Fraction = 0.9
     """fewer registered images than this fraction of the capture is an error"""
-    seed: int = 0
 
 
 @dataclass
@@ -202,9 +203,7 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
     start = time.perf_counter()
     options = pycolmap.IncrementalPipelineOptions()
     options.num_threads = threads
-    options.random_seed = cfg.seed
-    options.mapper.random_seed = cfg.seed
-    options.triangulation.random_seed = cfg.seed
+    options.random_seed = options.mapper.random_seed = options.triangulation.random_seed = COLMAP_SEED
     options.mapper.init_min_num_inliers = INIT_MIN_INLIERS
     options.mapper.abs_pose_min_num_inliers = MIN_POSE_INLIERS
     options.min_model_size = 3

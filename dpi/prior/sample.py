@@ -50,7 +50,7 @@ def load_prior(checkpoint: str | Path, device: str | torch.device = "cpu") -> Pr
     meta = torch.load(checkpoint, map_location="cpu", weights_only=True)
     model = load_checkpoint(checkpoint, device=device).float()
     tone = meta["tone"]
-    return Prior(model=model, diffusion=base_diffusion(meta["diffusion"]["num_timesteps"], model.config.learn_sigma),
+    return Prior(model=model, diffusion=base_diffusion(meta["diffusion"]["num_timesteps"]),
                  encoding=encoding_from_dict(tone), family=meta["family"],
                  height=meta["height"], median_target=tone["median_target"])
 

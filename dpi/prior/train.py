@@ -158,7 +158,7 @@ def export_model(checkpoint: str | Path, dest: str | Path, half: bool = True) ->
 
 def write_sample_grid(cfg: TrainConfig, ema: UNetModel, step: int, out_dir: Path) -> None:
     """PNG grid of 8 EMA samples (respaced schedule, random roll) at this step."""
-    diffusion = respaced(base_diffusion(DIFFUSION_STEPS, ema.config.learn_sigma),
+    diffusion = respaced(base_diffusion(DIFFUSION_STEPS),
                          evenly_spaced_timesteps(DIFFUSION_STEPS, SAMPLE_GRID_STEPS))
     h, device = ema.config.image_size, next(ema.parameters()).device
     generator = torch.Generator(device=device).manual_seed(cfg.seed)
@@ -200,7 +200,7 @@ def train(cfg: TrainConfig, family: str, data_dir: str | Path, out: str | Path, 
                                   "(a model of another map size with the same weights will do)")
         model.load_state_dict(initial.state_dict())
         ema.load_state_dict(initial.state_dict())
-    diffusion = base_diffusion(DIFFUSION_STEPS, network.learn_sigma)
+    diffusion = base_diffusion(DIFFUSION_STEPS)
     generator = torch.Generator(device=device).manual_seed(cfg.seed * 1_000_003 + step)
     start = time.perf_counter() - wall
     deadline = None if cfg.max_minutes is None else time.perf_counter() + 60 * cfg.max_minutes

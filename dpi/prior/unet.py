@@ -26,9 +26,12 @@ from dpi.settings import Count, Loose, settings
 CHANNELS = 3
 """colour channels of the maps the network sees"""
 GUIDED_DIFFUSION_FIXED = {"in_channels": CHANNELS, "num_heads_upsample": -1, "use_scale_shift_norm": True,
-                          "resblock_updown": True, "use_new_attention_order": False}
+                          "resblock_updown": True, "use_new_attention_order": False, "learn_sigma": True}
 """guided-diffusion's flags that the authors' checkpoints and dpi's share, with their one value: dpi's UNet
-implements only that (a checkpoint's config may list them)"""
+implements only that (a checkpoint's config may list them); with learn_sigma the network outputs eps and the
+variance interpolation v"""
+TRAINING_ONLY = ("dropout",)
+"""guided-diffusion's flags that change training only (a checkpoint's config may list them; sampling ignores them)"""
 
 
 @settings(frozen=True)
@@ -42,16 +45,14 @@ class UNetConfig:
     attention_ds: Annotated[tuple[int, ...], Loose] = (4,)  # downsample factors with attention (image_size // resolution)
     num_heads: Count = 4
     num_head_channels: Annotated[int, Field(ge=-1)] = -1  # channels per head; overrides num_heads when != -1
-    learn_sigma: bool = True
-    dropout: Annotated[float, Field(ge=0, lt=1)] = 0.0
     norm_groups: Count = 32  # GroupNorm groups (guided-diffusion: 32); no parameter depends on it. Keep several
     # channels per group: with one channel per group the output head cannot carry the image mean, and
     # samples get strong random colour casts
 
     @property
     def out_channels(self) -> int:
-        """3 (eps) or 6 (eps and the variance interpolation v) output channels."""
-        return CHANNELS * (2 if self.learn_sigma else 1)
+        """6 output channels: eps and the variance interpolation v."""
+        return 2 * CHANNELS
 
     def to_dict(self) -> dict:
         """Plain dict (JSON / checkpoint friendly)."""
@@ -61,7 +62,7 @@ class UNetConfig:
     def from_dict(cls, d: dict) -> "UNetConfig":
         """Inverse of `to_dict` (lists become tuples); guided-diffusion's flags of GUIDED_DIFFUSION_FIXED may be
         present, with the one value this network implements."""
-        d = dict(d)
+        d = {k: v for k, v in d.items() if k not in TRAINING_ONLY}
         for key, value in GUIDED_DIFFUSION_FIXED.items():
             if key in d and d.pop(key) != value:
                 raise CheckpointError(f"network flag {key} must be {value} (the one dpi's UNet implements)")
@@ -76,7 +77,6 @@ def attention_ds_from_resolutions(image_size: int, resolutions: str) -> tuple[in
 PAPER_CONFIG = UNetConfig(
     image_size=256, num_channels=256, num_res_blocks=3, channel_mult=(1, 1, 2, 2, 4, 4),
     attention_ds=attention_ds_from_resolutions(256, "32,16,8"), num_heads=4, num_head_channels=64,
-    learn_sigma=True, dropout=0.1,
 )
 """The authors' indoor/outdoor checkpoints (flags of configs/model_config_{indoor,outdoor}.yaml in LinjieLyu/DPI)."""
 
@@ -141,7 +141,7 @@ class ResBlock(nn.Module):
         self.resample = nn.Upsample(scale_factor=2, mode="nearest") if up else nn.AvgPool2d(2) if down else nn.Identity()
         self.emb_layers = nn.Sequential(nn.SiLU(), nn.Linear(emb_channels, 2 * out_channels))
         self.out_layers = nn.Sequential(
-            GroupNorm32(cfg.norm_groups, out_channels), nn.SiLU(), nn.Dropout(cfg.dropout),
+            GroupNorm32(cfg.norm_groups, out_channels), nn.SiLU(), nn.Identity(),  # guided-diffusion's dropout
             zero_module(nn.Conv2d(out_channels, out_channels, 3, padding=1)))
         self.skip_connection = nn.Identity() if out_channels == channels else nn.Conv2d(channels, out_channels, 1)
 

@@ -13,8 +13,9 @@ steps from x0_hat do not reach the views). The solve's target is x0_hat pushed b
 large as the prior's uncertainty about x0 at that step (`perturb`, as DAPS draws x0): where the views are
 silent each sample keeps its own push, where they speak the solve pulls it back, so the samples' spread
 follows what the views leave open. Then `inner_steps` Adam steps move map, albedo and sun together (on a
-glossy init, `DPSConfig.for_init` sets what changes). l starts from x0_hat at the first step and from the previous step's l after that, or with `restart` from
-each step's x0_hat.
+glossy init, `DPSConfig.for_init` sets what changes). l starts from x0_hat at the first step and from the
+previous step's l after that (DiffPIR's restart from each step's x0_hat lost the start's guess where the views
+are silent).
 Then re-noise:
 x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) (sqrt(1 - zeta) eps_hat + sqrt(zeta) eps) with
 eps_hat recomputed from z (zeta = NOISE_MIX), so samples stay diverse. The proximal weight grows as the noise falls
@@ -78,9 +79,6 @@ class ProximalConfig:
     """Adam rate of the map's log radiance per data update"""
     prox_weight: Weight = 0.5
     """weight of ||z - x0_hat||^2 per unit abar_t / (1 - abar_t)"""
-    restart: bool = False
-    """each step's data updates start from that step's x0_hat (DiffPIR's proximal point: where the views are
-    silent the map is the prior's); False: from the previous step's fit, which keeps the start's guess there"""
     map_solve: Steps = 1
     """Gauss-Newton iterations on the step's map (the same loss, all the views, dpi.solve.dps.map_solve) before
     its data updates: the map reaches the views from x0_hat, which a few Adam steps do not, by a correction of
@@ -191,7 +189,7 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
         level = best_level(transport, run.env(torch.exp(state.log_map), state, transport.height),
                            state.materials.albedo)
         set_level(state, transport, level)
-    if n == 0 or settings.restart:
+    if n == 0:
         with torch.no_grad():
             state.log_map.copy_(log_radiance(run, x0_hat))
     if settings.map_solve:

@@ -30,11 +30,15 @@ class TransportConfig:
     """How the light transport is recorded (method_params.dps.<sampler>.transport)."""
 
     spp: Halves = 16
-    """paths per pixel for the light after the first bounce (split between the two halves)"""
-    direct_spp: Halves = 4
-    """camera samples per pixel of the direct light, each with one shadow ray per texel (split between the halves)"""
+    """paths per pixel for the light after the first bounce (split between the two halves); the direct light takes
+    a quarter of that in camera samples, each with one shadow ray per texel (`direct_spp`)"""
     pixels: Count = 2048
     """most foreground pixels of the training views recorded: beyond it, an even random subset"""
+
+    @property
+    def direct_spp(self) -> int:
+        """Camera samples per pixel of the direct light: a quarter of `spp`, split evenly between the halves."""
+        return max(HALVES, self.spp // (4 * HALVES) * HALVES)
 
 
 @dataclass(frozen=True)
