@@ -1,41 +1,59 @@
 """Env-map diversity of `dps` samples against material roughness (the paper's Fig. 9), over repeats.
 
-Renders one object at each roughness under the same natural light (dpi.studies.roughness.SweepConfig); each
-repeat has its own capture noise, init and sample seed stream and draws `--samples` (default 6) dps samples
-with the shipped outdoor prior (dps at its defaults, `--steps` respaced steps). Rows (roughness, metallic,
-repeat, samples, env_sigma2_sample) go to benchmarks/results/roughness_study.csv, the plot beside it; it prints
-mean +- std per roughness.
+One object at each roughness (dpi.studies.scenes.roughness_scenes: metallic up to roughness 0.1, dielectric above)
+under the same natural light; each repeat is its own capture (render noise) and initialisation, and draws
+`--samples` dps samples from its own seed stream with the shipped outdoor prior (`--steps` respaced steps, every
+roughness the same number: the adaptive step cut is off), through the study engine. One row per (roughness, repeat)
+in benchmarks/results/roughness_study.csv (roughness, metallic, repeat, samples, env_sigma2_sample), the plot
+beside it; it prints mean +- std per roughness.
 
     .venv/bin/python benchmarks/roughness_study.py [--roughness 0.05 0.2 0.5 0.9] [--repeats 3] [--jobs 2]
+
+Samples already drawn are reused; rows already in the CSV with the same settings hash are kept.
 """
 
 from __future__ import annotations
 
 import argparse
-import multiprocessing
-import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import asdict, replace
-from functools import partial
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from dpi.studies.engine import settings_hash, write_rows
-from dpi.studies.roughness import SweepConfig, roughness_point
+from dpi.studies.engine import (Job, append_row, pool, prepare_job, read_rows, results_csv, run_job, work_dir,
+                                workflow_config)
+from dpi.studies.scenes import repeat_scene, repeat_synth, roughness_scenes
 
-ROOT = Path(__file__).resolve().parent.parent
-CSV = ROOT / "benchmarks" / "results" / "roughness_study.csv"
+WORK = work_dir("roughness_study")
+CSV = results_csv("roughness_study")
 COLUMNS = ("roughness", "metallic", "repeat", "samples", "env_sigma2_sample")
+MAP_HEIGHT = 32
+"""rows of the fitted map: the object's 32 px views see no finer light"""
+REFINE = 20
+"""refinement iterations of each sample"""
 
 
-def point(task: tuple[float, int], folder: str, settings: SweepConfig) -> dict[str, float]:
-    """One (roughness, repeat) of the study (a pool task; one render thread)."""
-    from dpi.prior.sample import load_default_prior
+def point_jobs(args: argparse.Namespace, config: dict) -> dict[tuple[float, int], list[Job]]:
+    """(roughness, repeat) -> the dps jobs of its samples."""
+    method_cfg = {"steps": args.steps, "refine": {"iterations": REFINE}}
+    groups = {}
+    for (scene, synth), roughness in zip(roughness_scenes(args.roughness).items(), args.roughness):
+        for repeat in range(args.repeats):
+            name, own = repeat_scene(scene, repeat), repeat_synth(synth, repeat)
+            groups[(roughness, repeat)] = [Job(WORK, name, "roughness", own, "dps", "", 1000 * repeat + k, method_cfg,
+                                               config) for k in range(args.samples)]
+    return groups
 
-    roughness, repeat = task
-    return roughness_point(roughness, repeat, load_default_prior("outdoor"), folder, settings, threads=1)
+
+def point_row(key: tuple[float, int], jobs: list[Job]) -> dict[str, Any]:
+    """The study's row of one (roughness, repeat): the spread of its samples' maps."""
+    from dpi.io.exr import read_exr
+    from dpi.spread import normalized_env, sample_variance
+
+    envs = [read_exr(job.layout.scene(job.scene).sample_files(job.label, job.seed)["env"]) for job in jobs]
+    return {"roughness": key[0], "metallic": jobs[0].synth["metallic"], "repeat": key[1], "samples": len(jobs),
+            "env_sigma2_sample": sample_variance([normalized_env(e) for e in envs])}
 
 
 def plot(rows: list[dict[str, float]], path: Path) -> None:
@@ -63,23 +81,29 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--roughness", type=float, nargs="+", default=[0.05, 0.2, 0.5, 0.9])
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--samples", type=int, default=SweepConfig.samples)
+    parser.add_argument("--samples", type=int, default=6,
+                        help="dps samples per point: a variance from n samples has a relative variance of 2 / (n - 1)")
     parser.add_argument("--steps", type=int, default=50)
-    parser.add_argument("--jobs", type=int, default=2, help="(roughness, repeat) points run side by side")
+    parser.add_argument("--jobs", type=int, default=2, help="samples drawn side by side (1 thread each)")
     parser.add_argument("--out", type=Path, default=CSV)
     args = parser.parse_args()
 
-    defaults = SweepConfig()
-    settings = replace(defaults, samples=args.samples, dps=replace(defaults.dps, steps=args.steps))
-    tasks = [(r, k) for r in args.roughness for k in range(args.repeats)]
+    config = {**workflow_config(env_height=MAP_HEIGHT), "adaptive": {"sample_stop": False, "diffuse_steps": False}}
+    groups = point_jobs(args, config)
+    keyed = {(*key, jobs[0].settings_hash): jobs for key, jobs in groups.items()}
+    done = {(r["roughness"], int(r["repeat"]), r["settings_hash"]) for r in read_rows(args.out, ())}
+    todo = {k: v for k, v in keyed.items() if k not in done}
     start = time.perf_counter()
-    with tempfile.TemporaryDirectory() as tmp, \
-            ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
-        rows = list(pool.map(partial(point, folder=tmp, settings=settings), tasks))
-    write_rows(args.out, [{k: row[k] for k in COLUMNS} for row in rows], settings_hash(asdict(settings)))
+    print(f"{len(todo)} points to draw ({sum(len(v) for v in todo.values())} samples)", flush=True)
+    with pool(max(args.jobs, 1)) as workers:
+        list(workers.map(prepare_job, list({j.scene: j for jobs in todo.values() for j in jobs}.values())))
+        for key, jobs in todo.items():
+            list(workers.map(run_job, jobs))
+            append_row(args.out, point_row(key[:2], jobs), COLUMNS, key[2])
+    rows = [r for r in read_rows(args.out, ()) if (r["roughness"], int(r["repeat"]), r["settings_hash"]) in keyed]
     plot(rows, args.out.with_suffix(".png"))
-    print(f"{args.repeats} repeats x {settings.samples} dps samples per roughness, {args.steps} steps, "
-          f"{time.perf_counter() - start:.0f} s in all")
+    print(f"{args.repeats} repeats x {args.samples} dps samples per roughness, {args.steps} steps, "
+          f"{time.perf_counter() - start:.0f} s")
     print(f"{'roughness':>9} {'metallic':>8} {'env sigma2_sample (mean +- std over repeats)':>46}")
     for r in args.roughness:
         values = np.array([row["env_sigma2_sample"] for row in rows if row["roughness"] == r])

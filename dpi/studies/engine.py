@@ -38,7 +38,8 @@ SAMPLE_METRICS = ("novel_psnr", "env_psnr", "env_ssim", "albedo_mse", "relight_p
 SAMPLE_COLUMNS = ("scene", "group", "method", "sampler", "seed", *SAMPLE_METRICS, "seconds")
 """the columns of a row of one scored sample (run_job)"""
 SAMPLE_SECTIONS = ("problem", "render", "init", "evaluate", "illumination_prior")
-"""the workflow config sections a sample and its evaluation read (besides the method's own settings)"""
+"""the workflow config sections a sample and its evaluation read (besides the method's own settings, and `adaptive`,
+hashed where a study sets it)"""
 SETTINGS_STAMP = "study_settings_hash.txt"
 """a study sample's settings hash, in its folder: a sample drawn with other settings is drawn again"""
 STUDY_TEXTURES = 32
@@ -128,8 +129,9 @@ class Job:
 
         light = self.synth.get("environment")
         synth = {**self.synth, **({"environment": Path(light).name} if light and light not in PROCEDURAL else {})}
+        adaptive = {"adaptive": self.config["adaptive"]} if self.config.get("adaptive") else {}
         return settings_hash({"synth": synth, "method": self.method, "settings": self.method_cfg,
-                              "config": {k: self.config.get(k) for k in SAMPLE_SECTIONS}})
+                              "config": {k: self.config.get(k) for k in SAMPLE_SECTIONS}, **adaptive})
 
 
 def prior_checkpoints(pairs: Iterable[str]) -> dict[str, str]:
@@ -191,6 +193,7 @@ def claim_sample_dir(job: Job) -> None:
 def run_job(job: Job) -> dict[str, Any]:
     """Draw (except for the init) and evaluate one sample; its row (SAMPLE_COLUMNS)."""
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    from dpi.adaptive import AdaptiveConfig
     from dpi.inverse_stages import SolveConfig, evaluate_stage, sample_stage
 
     files, sample_dir = job.layout.scene(job.scene), job.sample_dir
@@ -199,7 +202,8 @@ def run_job(job: Job) -> dict[str, Any]:
         claim_sample_dir(job)
     if job.method != "init" and not files.sample_files(job.label, job.seed)["trace"].exists():
         sample_stage(files.capture_json, files.sample_dir("init"), sample_dir, job.scene, job.method, job.seed,
-                     job.method_cfg, settings, job.prior_checkpoint, progress=False)
+                     job.method_cfg, settings, job.prior_checkpoint,
+                     adaptive=AdaptiveConfig.from_dict(job.config.get("adaptive")), progress=False)
     out = files.evaluation(job.label, job.seed)
     evaluate_stage(files.capture_json, sample_dir, out, job.scene, job.method, job.seed,
                    job.config["evaluate"]["spp"], settings, job.prior_checkpoint)

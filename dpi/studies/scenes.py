@@ -86,6 +86,21 @@ def repeat_synth(synth: dict[str, Any], repeat: int) -> dict[str, Any]:
     return {**synth, "seed": synth["seed"] + 100 * repeat}
 
 
+ROUGHNESS_CAPTURE = {"object": "sweep", "shape": "blob", "seed": 0, "views": 10, "held_out_every": 5, "width": 32,
+                     "height": 32, "spp": 64, "environment": "outdoor", "environment_seed": 31,
+                     "roughness_variation": 0.0, "prior": "outdoor"}
+"""the roughness study's object: a blob seen by 8 training views of 32 px under a natural map with buildings and a
+sun (a mirror of a featureless sky shows little more than a rough object does)"""
+MIRROR_LIKE = 0.1
+"""the roughness study's objects at or below this roughness are metallic, the others dielectric (the paper's sweep)"""
+
+
+def roughness_scenes(values: list[float]) -> dict[str, dict[str, Any]]:
+    """The roughness study's scenes, one per roughness: rough_R -> synthetic capture (without the repeat's seed)."""
+    return {f"rough_{r:.3f}": {**ROUGHNESS_CAPTURE, "roughness": r, "metallic": 1.0 if r <= MIRROR_LIKE else 0.0}
+            for r in values}
+
+
 RESOLUTION_CAPTURE = {"views": 12, "held_out_every": 4, "width": 96, "height": 96, "spp": 128, "env_height": 256,
                       "texture_size": 128, "arc_deg": 150.0, "elevations_deg": (15.0, 40.0), "environment": "sunsky",
                       "sun_elevation_deg": 12.0, "sun_azimuth_deg": 200.0, "prior": "outdoor"}
