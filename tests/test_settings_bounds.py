@@ -95,7 +95,7 @@ def test_a_value_outside_a_fields_bounds_is_one_line_naming_it(path):
 
 def test_the_bounds_cover_the_settings_a_sample_reads():
     assert FIELDS.keys() == NUMERIC.keys() and len(FIELDS) >= 15
-    assert ("proximal", "perturb_height") in FIELDS and ("refine", "iterations") in FIELDS
+    assert ("proximal", "perturb") in FIELDS and ("refine", "iterations") in FIELDS
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ works on is too; decomposition files hold scene radiance, and `load_decompositio
 
 from __future__ import annotations
 
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -40,9 +40,10 @@ class ProblemConfig:
     once (dpi.working); None: the capture's own size"""
 
 
-@settings
+@dataclass
 class SolveConfig:
-    """Renderer and unknowns' resolution shared by init, methods and evaluation."""
+    """Renderer and unknowns' resolution shared by init, methods and evaluation: the `render` and `problem`
+    sections together (no key of its own; each section checks its fields)."""
 
     render: RenderConfig = field(default_factory=RenderConfig)
     problem: ProblemConfig = field(default_factory=ProblemConfig)
