@@ -12,7 +12,7 @@ from dpi.capture import load_capture
 from dpi.materials import MaterialTextures
 from dpi.render import RenderConfig, texture_plugin
 from dpi.solve.problem import InverseProblem, ProblemConfig
-from dpi.solve.transport import Recording, TransportConfig, guide_map, record_transport, record_view, roughness_levels
+from dpi.solve.transport import TransportConfig, guide_map, record_transport, record_view, roughness_levels
 from dpi.solve.transport.record import texel_weights, texture_weights, transport_pixels
 
 HEIGHT, SIZE = 8, 8
@@ -111,7 +111,7 @@ def test_images_under_other_maps_albedos_and_roughness_like_the_path_tracer(prob
 @pytest.fixture(scope="module")
 def transport(problem):
     return record_transport(problem, materials(), random_map(2), TransportConfig(spp=16), seed=4,
-                            recording=Recording(levels=1))
+                            levels=1)
 
 
 def test_the_halves_product_is_the_data_term_without_the_recordings_noise(problem, transport):

@@ -21,8 +21,8 @@ x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) (sqrt(1 - zeta) eps_hat + sq
 eps_hat recomputed from z (zeta = NOISE_MIX), so samples stay diverse. The proximal weight grows as the noise falls
 (DiffPIR's rho_t ~ 1 / sigma_t^2), so late steps keep what the data put into x_t early. The
 materials move only after MATERIAL_START of the steps: while x0_hat is still a blur, free albedo
-steps would absorb the map's errors. From then on, every `LEVEL_EVERY` steps, the roughness becomes
-the recorded level that fits the views best. It starts from the init map noised to `start_noise`
+steps would absorb the map's errors (the roughness stays the init's: the transport is recorded under it). It
+starts from the init map noised to `start_noise`
 (SDEdit). The refinement (dpi.solve.dps.refine) then path-traces all the materials.
 
 With a sun (dpi.solve.dps.sun_choice) the map is the prior's sky plus a parametric sun; its position and
@@ -39,7 +39,7 @@ from typing import Any
 import torch
 
 from dpi.settings import Count, Rate, Share, Steps, Weight, settings, settings_from_dict
-from dpi.solve.dps.data_term import current_level, sample_transport, set_level
+from dpi.solve.dps.data_term import sample_transport
 from dpi.solve.dps.map_solve import PRIOR_STD, MapPrior, Resampling, cached_resampling, posterior_variance, solve_map
 from dpi.solve.dps.state import DPSRun, DPSState, Laps, finite, log_radiance, predict_x0, recentre_
 from dpi.solve.optimize import all_finite
@@ -63,8 +63,8 @@ NOISE_MIX = 0.5
 MATERIAL_START = 0.6
 """share of the steps before the materials move: the map settles its light first, and the albedo then fits that
 light instead of trading against it (docs/studies.md, "the material start's step")"""
-LEVEL_EVERY = 4
-"""steps between two choices of the roughness level (once the materials move)"""
+LEVEL = 0
+"""the recorded level a sample's data term uses: the init's roughness (dpi.solve.dps.data_term)"""
 
 
 @settings
@@ -111,9 +111,6 @@ def exposure_fit(transport: LightTransport, env: torch.Tensor, albedo: torch.Ten
     return min(max(c, math.exp(-MAX_EXPOSURE_STEP)), math.exp(MAX_EXPOSURE_STEP))
 
 
-def best_level(transport: LightTransport, env: torch.Tensor, albedo: torch.Tensor) -> int:
-    """The recorded roughness level whose views fit best under the map and the albedo."""
-    return int(torch.argmin(transport.level_sum_squares(env.detach(), albedo.detach())))
 
 
 def data_unit(run: DPSRun, transport: LightTransport) -> float:
@@ -183,12 +180,8 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     prox_weight = settings.prox_weight * abar / (1.0 - abar)
     materials_move = n >= MATERIAL_START * run.num_steps
     transport, recorded = sample_transport(run, state)
-    level = current_level(transport, state.materials.roughness)
+    level = LEVEL
     laps.lap("transport")
-    if materials_move and (n - math.ceil(MATERIAL_START * run.num_steps)) % LEVEL_EVERY == 0:
-        level = best_level(transport, run.env(torch.exp(state.log_map), state, transport.height),
-                           state.materials.albedo)
-        set_level(state, transport, level)
     if n == 0:
         with torch.no_grad():
             state.log_map.copy_(log_radiance(run, x0_hat))
@@ -233,5 +226,4 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
         state.x = abar_prev ** 0.5 * z + (1.0 - abar_prev) ** 0.5 * mixed
     return {**record, "loss": losses[-1] if losses else None, "prox": float(prox.detach()), "prox_weight": prox_weight,
             "log_exposure": float(state.log_exposure), "nan_inner": skipped, "refresh": recorded,
-            "roughness_level": level,
             **({"skipped": "non-finite loss or gradient"} if not losses else {}), **laps.record()}

@@ -166,12 +166,6 @@ class LightTransport:
         pull them apart, into the recording's noise)."""
         return (self.image(env, albedo, level) - self.observed.to(self.slope.dtype)).square().sum()
 
-    def level_sum_squares(self, env: torch.Tensor, albedo: torch.Tensor) -> torch.Tensor:
-        """(levels,) `sum_squares` under each roughness level."""
-        with torch.no_grad():
-            residual = self.halves(env, albedo, slice(None)) - self.observed.to(self.slope.dtype)
-            return (residual[:, 0] * residual[:, 1]).sum(dim=(1, 2)).double()
-
     def image_equations(self, albedo: torch.Tensor, level: int = 0) -> NormalEquations:
         """`fit_loss` as normal equations in the map under a fixed albedo and roughness level: of the halves'
         mean transport M_p = a_p A_p + B_p, G = M^T M and b = M^T y."""

@@ -36,7 +36,7 @@ from dpi.materials import MaterialTextures
 from dpi.render import SEED_MODULUS, texture_plugin
 from dpi.solve.problem import InverseProblem
 from dpi.solve.transport.operator import AlbedoLookup, LightTransport, resize_map
-from dpi.solve.transport.settings import (HALVES, ROUGH_RECORDING, Recording, TransportConfig, roughness_levels,
+from dpi.solve.transport.settings import (HALVES, ROUGH_TRANSPORT_HEIGHT, TransportConfig, roughness_levels,
                                           transport_height)
 
 BRIGHT_SHARE = 0.5
@@ -440,19 +440,20 @@ def transport_pixels(problem: InverseProblem, limit: int, rng: np.random.Generat
 
 
 def record_transport(problem: InverseProblem, materials: MaterialTextures, env: torch.Tensor,
-                     settings: TransportConfig, seed: int, recording: Recording = ROUGH_RECORDING) -> LightTransport:
+                     settings: TransportConfig, seed: int, max_height: int = ROUGH_TRANSPORT_HEIGHT,
+                     levels: int = 0) -> LightTransport:
     """The light transport of the training views' foreground pixels (at most settings.pixels of them) under
-    `materials` and the recording's roughness levels, for maps of `transport_height` rows, with next-event
-    directions guided by `env` (the problem's size; module notes)."""
+    `materials` and `levels` more roughness levels, for maps of `transport_height` rows (at most `max_height`), with
+    next-event directions guided by `env` (the problem's size; module notes)."""
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
     chosen = transport_pixels(problem, settings.pixels, rng)
     guide = guide_map(env)
-    height = transport_height(problem.settings.env_height, recording.max_height)
+    height = transport_height(problem.settings.env_height, max_height)
     matrices, observed, rows, cols, weights = [], [], [], [], []
     first = 0
     for j, (v, pixels) in enumerate(chosen.items()):
-        t = record_view(problem, v, materials, guide, settings, seed * 1009 + j, pixels, height, recording.levels)
+        t = record_view(problem, v, materials, guide, settings, seed * 1009 + j, pixels, height, levels)
         matrices.append(torch.from_numpy(t.matrix))
         observed.append(problem.images[v].reshape(-1, 3)[torch.from_numpy(pixels)].double())
         rows.append(t.lookup[0] + first)
@@ -462,6 +463,6 @@ def record_transport(problem: InverseProblem, materials: MaterialTextures, env: 
     size = problem.settings.texture_size
     lookup = AlbedoLookup(torch.from_numpy(np.concatenate(rows)), torch.from_numpy(np.concatenate(cols)),
                           torch.from_numpy(np.concatenate(weights)), (first, size * size))
-    levels = roughness_levels(materials.roughness, recording.levels)
+    levels = roughness_levels(materials.roughness, levels)
     return LightTransport(torch.cat(matrices, dim=4), lookup, torch.cat(observed), height, levels, materials.detached(),
                           sum(int(problem.masks[v].sum()) for v in problem.train_ids), time.perf_counter() - start)

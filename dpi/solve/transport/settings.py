@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Annotated
 
 import torch
@@ -41,22 +40,9 @@ class TransportConfig:
         return max(HALVES, self.spp // (4 * HALVES) * HALVES)
 
 
-@dataclass(frozen=True)
-class Recording:
-    """What the object asks of a recording (no config key: its init decides, dpi.solve.dps.data_term)."""
-
-    levels: int = 0
-    """besides the materials' own roughness, the transport under this many more: the texture shifted to medians
-    from a mirror's to a matte's (`roughness_levels`), recorded in the same pass (only the BSDF's values differ)"""
-    max_height: int = 16
-    """most rows of the maps the transport takes (`transport_height`): a rough object's views fix the light's low
-    frequencies only, and the recording's cost grows with the texels (docs/studies.md)"""
-
-
-ROUGH_RECORDING = Recording()
-"""a rough object's: its own roughness only, maps of at most 16 rows"""
-GLOSSY_RECORDING = Recording(levels=3, max_height=MAX_TRANSPORT_HEIGHT)
-"""a glossy object's: a mirror's fit moves with its roughness, and its views resolve the light's detail"""
+ROUGH_TRANSPORT_HEIGHT = 16
+"""the largest map (rows) a rough object's transport takes: its views fix the light's low frequencies only, and the
+recording's cost grows with the texels (a glossy object's views resolve detail up to MAX_TRANSPORT_HEIGHT)"""
 
 
 ROUGHNESS_RANGE = (0.05, 0.9)
