@@ -234,6 +234,17 @@ def pinned_light(root: Path) -> str:
                          order=lambda k: (k[0], k[1], order.index(k[2]) if k[2] in order else 9))
 
 
+def glossy_cost(root: Path) -> str:
+    """Dev run of the glossy path's cost: each variant's held-out views, env map, training fit and seconds on the
+    posterior study's glossy blob (3 seeds) and the calibration study's metals (repeat 0, 4 samples a row)."""
+    rows = read_rows(root / RESULTS / "dev" / "glossy_cost_dev.csv", ("variant", "study", "scene"))
+    order = ("levels3_refine2", "levels0_refine2", "levels0_refine1", "levels0_refine1_half_steps")
+    metrics = (Metric("view PSNR [dB]", "novel_psnr", ".2f"), Metric("env PSNR [dB]", "env_psnr", ".2f"),
+               FIT, SECONDS)
+    return grouped_table(rows, ("study", "variant"), metrics,
+                         order=lambda k: (k[0], order.index(k[1]) if k[1] in order else 9))
+
+
 def real_photos(root: Path) -> str:
     """Real photo captures end to end (benchmarks/real_photos.py): poses, derived masks against the checked ones,
     held-out views per method; the newest row per capture."""
@@ -289,6 +300,7 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "presets": presets, "posterior": posterior, "posterior_full": posterior_full, "calibration": calibration,
     "fig9": fig9_ratios, "train_fit": train_fit, "resolution": resolution, "roughness": roughness,
     "tradeoff": tradeoff, "lens": lens, "realism": realism, "real_photos": real_photos, "pinned_light": pinned_light,
+    "glossy_cost": glossy_cost,
     "prior_size": prior_size,
 }
 """every generated table by the name its markers use"""
