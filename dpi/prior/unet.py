@@ -92,10 +92,10 @@ SMALL_CONFIGS = {
     "medium_32x64": UNetConfig(image_size=32, num_channels=64, num_res_blocks=2, channel_mult=(1, 2, 2, 2),
                                attention_ds=(4, 8), num_head_channels=32, norm_groups=16),
 }
-"""CPU-sized configs: 'tiny' for tests, 'small_32x64' (1.97 M parameters; the earlier paper-curve CPU
-models, see the model card), 'base_32x64' (7.8 M) for the log-radiance models trained on a GPU: its
-forward pass costs about 1.6x small's on the CPU and its fp16 weights fit in 16 MB; 'base_64x128' is the same
-network on 64 x 128 maps (same weights, attention at 16 x 32 and 8 x 16), so a 32 x 64 prior can start its run."""
+"""CPU-sized configs: 'tiny' for tests, 'small_32x64' (the earlier paper-curve CPU models, see the model card),
+'base_32x64' for the log-radiance models trained on a GPU (their sizes and costs: the model card); 'base_64x128' is
+the same network on 64 x 128 maps (same weights, attention at 16 x 32 and 8 x 16), so a 32 x 64 prior can start its
+run."""
 
 
 def timestep_embedding(t: torch.Tensor, dim: int, max_period: float = 10000.0) -> torch.Tensor:
