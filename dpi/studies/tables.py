@@ -238,7 +238,8 @@ def glossy_cost(root: Path) -> str:
     """Dev run of the glossy path's cost: each variant's held-out views, env map, training fit and seconds on the
     posterior study's glossy blob (3 seeds) and the calibration study's metals (repeat 0, 4 samples a row)."""
     rows = read_rows(root / RESULTS / "dev" / "glossy_cost_dev.csv", ("variant", "study", "scene"))
-    order = ("levels3_refine2", "levels0_refine2", "levels0_refine1", "levels0_refine1_half_steps")
+    order = ("levels3_refine2", "levels0_refine2", "levels0_refine1", "levels0_refine1_half_steps",
+             "levels0_refine2_one_view", "levels0_refine2_one_view_1024px")
     metrics = (Metric("view PSNR [dB]", "novel_psnr", ".2f"), Metric("env PSNR [dB]", "env_psnr", ".2f"),
                FIT, SECONDS)
     return grouped_table(rows, ("study", "variant"), metrics,

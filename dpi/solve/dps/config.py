@@ -49,6 +49,9 @@ GLOSSY_PROXIMAL = {"inner_steps": 2, "map_solve": 0}
 solve on its finer transport cost env PSNR, docs/studies.md), two data updates instead"""
 GLOSSY_REFINE_FACTOR = 2
 """a glossy init refines this many times longer (the loop does not move the roughness a mirror's views hinge on)"""
+GLOSSY_REFINE_VIEWS = 1
+"""views a glossy init's refinement renders a step: its longer refinement at the cost of the preset's, and its fit
+no worse (docs/studies.md, "What a glossy sample costs")"""
 GLOSSY_LR_TEXELS = 0.02
 """a glossy init's polish rate: a mirror's views pin down detail the prior's grid cannot hold"""
 
@@ -82,7 +85,7 @@ class DPSConfig(MaterialRates):
             return self
         proximal = replace(self.proximal, **GLOSSY_PROXIMAL)
         refine = replace(self.refine, iterations=self.refine.iterations * GLOSSY_REFINE_FACTOR,
-                         lr_texels=GLOSSY_LR_TEXELS)
+                         views_per_step=GLOSSY_REFINE_VIEWS, lr_texels=GLOSSY_LR_TEXELS)
         return replace(self, proximal=proximal, refine=refine)
 
     @classmethod
