@@ -208,9 +208,9 @@ def test_an_init_whose_roughness_falls_is_retried_from_a_metal_and_kept_by_its_c
         result = init(1.0)
         retry = result.trace.info["retry"]
         assert retry["kept"] == kept and result.trace.info["start"] == alone.trace.info["start"]
-        assert retry["first_roughness_p25"] == pytest.approx(roughness_p25(rough.materials))
-        assert retry["first_closing_loss"] == pytest.approx(closing_loss(rough.trace))
-        assert retry["glossy_closing_loss"] == pytest.approx(closing_loss(metal.trace))
+        assert retry["first_roughness_p25"] == pytest.approx(roughness_p25(rough.materials), rel=1e-4)
+        assert retry["first_closing_loss"] == pytest.approx(closing_loss(rough.trace), rel=1e-4)
+        assert retry["glossy_closing_loss"] == pytest.approx(closing_loss(metal.trace), rel=1e-4)
         torch.testing.assert_close(result.env, alone.env, rtol=1e-4, atol=1e-5)
         torch.testing.assert_close(result.materials.roughness, alone.materials.roughness, rtol=1e-4, atol=1e-5)
         assert [s["step"] for s in result.trace.steps] == list(range(6))
