@@ -38,11 +38,11 @@ def point_jobs(args: argparse.Namespace, config: dict) -> dict[tuple[float, int]
     """(roughness, repeat) -> the dps jobs of its samples."""
     method_cfg = {"steps": args.steps, "refine": {"iterations": REFINE}}
     groups = {}
-    for (scene, synth), roughness in zip(roughness_scenes(args.roughness).items(), args.roughness):
+    for scene, synth in roughness_scenes(args.roughness).items():
         for repeat in range(args.repeats):
             name, own = repeat_scene(scene, repeat), repeat_synth(synth, repeat)
-            groups[(roughness, repeat)] = [Job(WORK, name, "roughness", own, "dps", "", 1000 * repeat + k, method_cfg,
-                                               config) for k in range(args.samples)]
+            groups[(synth["roughness"], repeat)] = [Job(WORK, name, "roughness", own, "dps", "", 1000 * repeat + k,
+                                                        method_cfg, config) for k in range(args.samples)]
     return groups
 
 

@@ -25,7 +25,7 @@ from dpi.light.tonecurve import family_encoding
 from dpi.prior.data import EnvmapDataset, clip_highlights, median_target, read_dataset
 from dpi.prior.diffusion import base_diffusion, evenly_spaced_timesteps, respaced, sample, training_losses
 from dpi.prior.sample import write_grid
-from dpi.prior.unet import SMALL_CONFIGS, CheckpointError, UNetConfig, UNetModel, count_parameters, load_checkpoint
+from dpi.prior.unet import SMALL_CONFIGS, CheckpointError, UNetModel, count_parameters, load_checkpoint
 from dpi.settings import Count, Fraction, MapHeight, Rate, SettingsError, Steps, settings, settings_from_dict
 
 CHECKPOINT_FORMAT = "dpi-prior-v1"
@@ -77,7 +77,8 @@ class TrainConfig:
     def __post_init__(self):
         """An unknown network or schedule fails here, not at the first optimiser step."""
         if self.model not in SMALL_CONFIGS:
-            raise SettingsError("model", f"unknown network {self.model!r}; choose from {', '.join(sorted(SMALL_CONFIGS))}")
+            raise SettingsError("model", f"unknown network {self.model!r}; choose from "
+                                         f"{', '.join(sorted(SMALL_CONFIGS))}")
         if self.lr_schedule not in LR_SCHEDULES:
             raise SettingsError("lr_schedule", f"unknown schedule {self.lr_schedule!r}; choose from "
                                                f"{', '.join(LR_SCHEDULES)}")

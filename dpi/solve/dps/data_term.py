@@ -3,8 +3,9 @@
 A sample records it once, at its first step, under its starting materials (grey albedo, the init's
 roughness and metallic), guided by the init's map; the albedo is a variable of the transport, so nothing needs
 recording again as it moves, and the roughness stays the init's until the refinement path-traces it (a choice
-among recorded roughness levels, tried before, kept the init's on every study scene). Its cost is counted in the step that records it (`seconds_transport`) and in the
-trace's info. A resumed sample records it again with the same seed.
+among recorded roughness levels, tried before, kept the init's on every study scene). Its cost is counted in the
+step that records it (`seconds_transport`) and in the trace's info. A resumed sample records it again with the
+same seed.
 """
 
 from __future__ import annotations

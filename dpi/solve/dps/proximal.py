@@ -63,8 +63,6 @@ NOISE_MIX = 0.5
 MATERIAL_START = 0.6
 """share of the steps before the materials move: the map settles its light first, and the albedo then fits that
 light instead of trading against it (docs/studies.md, "the material start's step")"""
-LEVEL = 0
-"""the recorded level a sample's data term uses: the init's roughness (dpi.solve.dps.data_term)"""
 
 
 @settings
@@ -101,11 +99,11 @@ class ProximalConfig:
         return settings_from_dict(cls, values)
 
 
-def exposure_fit(transport: LightTransport, env: torch.Tensor, albedo: torch.Tensor, level: int) -> float:
+def exposure_fit(transport: LightTransport, env: torch.Tensor, albedo: torch.Tensor) -> float:
     """The least-squares global scale c of the views' image under the map: they are linear in the map, so this
     is the exposure's exact optimum for the current map."""
     with torch.no_grad():
-        image = transport.image(env, albedo, level).double()
+        image = transport.image(env, albedo).double()
         num, den = float((image * transport.observed).sum()), float(image.square().sum())
     c = num / den if den > 0 and math.isfinite(num / den) and num > 0 else 1.0
     return min(max(c, math.exp(-MAX_EXPOSURE_STEP)), math.exp(MAX_EXPOSURE_STEP))
@@ -118,14 +116,14 @@ def data_unit(run: DPSRun, transport: LightTransport) -> float:
     return 3 * transport.pixels * run.data_norm
 
 
-def relative_data_loss(run: DPSRun, transport: LightTransport, env: torch.Tensor, albedo: torch.Tensor,
-                       level: int) -> torch.Tensor:
+def relative_data_loss(run: DPSRun, transport: LightTransport, env: torch.Tensor,
+                       albedo: torch.Tensor) -> torch.Tensor:
     """Mean squared residual per pixel and channel over the mean squared foreground radiance: ~1 / SNR
     (differentiable in the map and the albedo)."""
-    return transport.fit_loss(env, albedo, level) / data_unit(run, transport)
+    return transport.fit_loss(env, albedo) / data_unit(run, transport)
 
 
-def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_hat: torch.Tensor, level: int,
+def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_hat: torch.Tensor,
                    prox_weight: float, n: int, iterations: int) -> None:
     """Step n's map and exposure by Gauss-Newton `iterations` on the step's loss (its data and
     proximal terms; the materials and the sun held): its data sum / data_unit is sum / (2 sigma2), prox_weight x
@@ -134,9 +132,9 @@ def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_h
     by a coarse random field (ProximalConfig.perturb)."""
     settings: ProximalConfig = run.sampler
     built = state.extra.get("gram")
-    if built is None or built[0] != level or n - built[1] >= GRAM_EVERY:
-        built = state.extra["gram"] = (level, n, transport.image_equations(state.materials.albedo, level))
-    equations = built[2]
+    if built is None or n - built[0] >= GRAM_EVERY:
+        built = state.extra["gram"] = (n, transport.image_equations(state.materials.albedo))
+    equations = built[1]
     sigma2 = data_unit(run, transport) / 2
     variance = x0_hat.numel() / (2 * max(prox_weight, 1e-12))
     extra = None
@@ -180,20 +178,19 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     prox_weight = settings.prox_weight * abar / (1.0 - abar)
     materials_move = n >= MATERIAL_START * run.num_steps
     transport, recorded = sample_transport(run, state)
-    level = LEVEL
     laps.lap("transport")
     if n == 0:
         with torch.no_grad():
             state.log_map.copy_(log_radiance(run, x0_hat))
     if settings.map_solve:
-        solve_step_map(run, state, transport, x0_hat, level, prox_weight, n, settings.map_solve)
+        solve_step_map(run, state, transport, x0_hat, prox_weight, n, settings.map_solve)
     laps.lap("solve")
     losses, skipped = [], 0
     for _ in range(settings.inner_steps):
         env = run.env(torch.exp(state.log_map), state, transport.height)
-        c = exposure_fit(transport, env, state.materials.albedo, level)
+        c = exposure_fit(transport, env, state.materials.albedo)
         state.log_exposure += math.log(c)
-        data = relative_data_loss(run, transport, c * env, state.materials.albedo, level)
+        data = relative_data_loss(run, transport, c * env, state.materials.albedo)
         prox = (encoding.to_prior(torch.exp(state.log_map)) - x0_hat).square().mean()
         loss = data + prox_weight * prox
         if run.sun:

@@ -134,7 +134,7 @@ class LightTransport:
         """(P, 3) the albedo each recorded pixel sees, from an (R, R, 3) texture (differentiable)."""
         return self.lookup.apply(albedo.reshape(-1, 3))
 
-    def halves(self, env: torch.Tensor, albedo: torch.Tensor, level: int | slice = 0) -> torch.Tensor:
+    def halves(self, env: torch.Tensor, albedo: torch.Tensor, level: int = 0) -> torch.Tensor:
         """(..., HALVES, P, 3) each half's image of the recorded pixels under a map, an albedo and a roughness
         level (a slice: several, leading dimension; differentiable)."""
         light = env.reshape(-1, 3).T
