@@ -8,6 +8,7 @@ import math
 import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -137,11 +138,25 @@ def posterior_full(root: Path) -> str:
                          order=method_order)
 
 
-def prior_size(root: Path) -> str:
-    """The 64 x 128 priors against the shipped 32 x 64 ones in the posterior study's dev run (dps rows of the
-    former are labelled SAMPLER@64x128), with the init and `none` of the same scenes."""
-    rows = latest(read_rows(root / RESULTS / "dev" / "prior64_dev.csv"), ("scene", "method", "sampler", "seed"))
+def prior_dev(csv_name: str, root: Path) -> str:
+    """Other priors against the shipped ones in a posterior-study dev run (`posterior_study.py --prior`: their dps
+    rows are labelled SAMPLER@CHECKPOINT), with whatever other methods the run drew on the same scenes."""
+    rows = latest(read_rows(root / RESULTS / "dev" / csv_name), ("scene", "method", "sampler", "seed"))
     metrics = (VIEW, ENV, ALBEDO, Metric("relight PSNR-H [dB]", "relight_psnr_h", ".2f", +1), FIT, SECONDS)
+    return grouped_table(rows, ("group", "method", "sampler"), metrics, rank_by="group", order=method_order)
+
+
+def mean_map(root: Path) -> str:
+    """One sample's env map against the samples' mean map (benchmarks/mean_map.py) per posterior-study group and
+    method folder: a calibrated sampler pays for its spread on each sample, not on what its samples share."""
+    groups = {r["scene"]: r["group"] for r in posterior_rows(root)}
+    rows = [{**r, "group": groups.get(r["scene"], ""), "method": r["method"].partition("_")[0],
+             "sampler": r["method"].partition("_")[2]}  # a folder is METHOD or dps_SAMPLER
+            for r in latest(read_rows(root / RESULTS / "mean_map_posterior.csv"), ("scene", "method"))]
+    metrics = (Metric("one sample: env PSNR [dB]", "sample_env_psnr", ".2f", +1),
+               Metric("mean map: env PSNR [dB]", "mean_env_psnr", ".2f", +1),
+               Metric("one sample: env SSIM", "sample_env_ssim", ".3f", +1, spread=False),
+               Metric("mean map: env SSIM", "mean_env_ssim", ".3f", +1, spread=False))
     return grouped_table(rows, ("group", "method", "sampler"), metrics, rank_by="group", order=method_order)
 
 
@@ -302,7 +317,8 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "fig9": fig9_ratios, "train_fit": train_fit, "resolution": resolution, "roughness": roughness,
     "tradeoff": tradeoff, "lens": lens, "realism": realism, "real_photos": real_photos, "pinned_light": pinned_light,
     "glossy_cost": glossy_cost,
-    "prior_size": prior_size,
+    "prior_size": partial(prior_dev, "prior64_dev.csv"), "prior_real": partial(prior_dev, "prior32_real_dev.csv"),
+    "mean_map": mean_map,
 }
 """every generated table by the name its markers use"""
 
