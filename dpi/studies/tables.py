@@ -138,12 +138,13 @@ def posterior_full(root: Path) -> str:
                          order=method_order)
 
 
-def prior_dev(csv_name: str, root: Path) -> str:
-    """Other priors against the shipped ones in a posterior-study dev run (`posterior_study.py --prior`: their dps
-    rows are labelled SAMPLER@CHECKPOINT), with whatever other methods the run drew on the same scenes."""
-    rows = latest(read_rows(root / RESULTS / "dev" / csv_name), ("scene", "method", "sampler", "seed"))
+def dev_table(csv_names: tuple[str, ...], keys: tuple[str, ...], root: Path) -> str:
+    """Posterior-study dev runs (benchmarks/results/dev/; variants are dps sampler labels, other priors'
+    SAMPLER@CHECKPOINT) per `keys` (group or scene, method, sampler)."""
+    rows = latest([r for name in csv_names for r in read_rows(root / RESULTS / "dev" / name)],
+                  ("scene", "method", "sampler", "seed"))
     metrics = (VIEW, ENV, ALBEDO, Metric("relight PSNR-H [dB]", "relight_psnr_h", ".2f", +1), FIT, SECONDS)
-    return grouped_table(rows, ("group", "method", "sampler"), metrics, rank_by="group", order=method_order)
+    return grouped_table(rows, keys, metrics, rank_by=keys[0], order=partial(method_order, method_at=1))
 
 
 def mean_map(root: Path) -> str:
@@ -317,7 +318,10 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "fig9": fig9_ratios, "train_fit": train_fit, "resolution": resolution, "roughness": roughness,
     "tradeoff": tradeoff, "lens": lens, "realism": realism, "real_photos": real_photos, "pinned_light": pinned_light,
     "glossy_cost": glossy_cost,
-    "prior_size": partial(prior_dev, "prior64_dev.csv"), "prior_real": partial(prior_dev, "prior32_real_dev.csv"),
+    "prior_size": partial(dev_table, ("prior64_dev.csv",), ("group", "method", "sampler")),
+    "prior_real": partial(dev_table, ("prior32_real_dev.csv",), ("group", "method", "sampler")),
+    "sun_fit": partial(dev_table, ("fit_sun_dev.csv", "sun_refine_dev.csv"), ("scene", "method", "sampler")),
+    "glossy_cost_seeds": partial(dev_table, ("glossy_cost_seeds.csv",), ("group", "method", "sampler")),
     "mean_map": mean_map,
 }
 """every generated table by the name its markers use"""
