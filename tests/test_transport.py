@@ -108,6 +108,30 @@ def test_images_under_other_maps_albedos_and_roughness_like_the_path_tracer(prob
         assert np.sqrt(np.mean((cached - reference) ** 2)) < 1.5 * noise  # within the path tracer's own noise
 
 
+def sunny_map(seed: int) -> torch.Tensor:
+    env = random_map(seed)
+    env[2, 5] = 400.0  # a texel carrying most of the light: the one the direct light is drawn for
+    return env
+
+
+def test_bright_texels_alone_drawn_still_give_the_path_tracers_images(problem):
+    """With the direct light drawn only for the bright texels and the BSDF's samples taking the others, the images
+    under other maps are still the path tracer's (its noise aside): a glossy object's cheaper recording."""
+    view, glossy = problem.train_ids[0], MaterialTextures.constant(SIZE, 0.6, 0.08, 1.0)
+    t = record_view(problem, view, glossy, guide_map(sunny_map(0)), TransportConfig(spp=1024), seed=3,
+                    every_texel=False)
+    mask = problem.masks[view].numpy()
+    for seed, env in ((5, sunny_map(5)), (6, random_map(6, 2.0))):
+        albedo = random_albedo(seed)
+        mats = MaterialTextures(albedo, glossy.roughness, glossy.metallic)
+        cached = t.image(env.numpy(), albedo.numpy())[mask]
+        reference = render_mean(problem, env, mats, view)[mask]
+        independent = render_mean(problem, env, mats, view, seeds=[11], spp=256)[mask]
+        noise = np.sqrt(np.mean((independent - reference) ** 2))
+        assert abs(cached.mean() - reference.mean()) < 0.02 * reference.mean()
+        assert np.sqrt(np.mean((cached - reference) ** 2)) < 1.5 * noise
+
+
 @pytest.fixture(scope="module")
 def transport(problem):
     return record_transport(problem, materials(), random_map(2), TransportConfig(spp=16), seed=4,

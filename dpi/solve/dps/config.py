@@ -79,7 +79,7 @@ class DPSConfig(MaterialRates):
 
     def for_init(self, init: Decomposition) -> DPSConfig:
         """The settings a sample from `init` runs with: the one place a glossy init (dpi.solve.init.is_glossy)
-        changes them (GLOSSY_*; its transport's rows: dpi.solve.dps.data_term.transport_rows); a rough init's are
+        changes them (GLOSSY_*; its transport: dpi.solve.dps.data_term.sample_transport); a rough init's are
         these."""
         if not is_glossy(init.materials):
             return self

@@ -15,16 +15,16 @@ from dpi.solve.init import is_glossy, starting_materials
 from dpi.solve.transport import MAX_TRANSPORT_HEIGHT, ROUGH_TRANSPORT_HEIGHT, LightTransport, record_transport
 
 
-def transport_rows(run: DPSRun) -> int:
-    """The largest map the sample's transport takes: a glossy init's views resolve the light's detail, a rough
-    one's only its low frequencies (the same glossy test as DPSConfig.for_init)."""
-    return MAX_TRANSPORT_HEIGHT if is_glossy(run.init.materials) else ROUGH_TRANSPORT_HEIGHT
-
-
 def sample_transport(run: DPSRun, state: DPSState) -> tuple[LightTransport, bool]:
-    """The sample's transport, recorded at the first call (module notes); and whether this call recorded it."""
+    """The sample's transport, recorded at the first call (module notes); and whether this call recorded it. A
+    glossy init's (the same test as DPSConfig.for_init) takes larger maps, whose detail its views resolve, and draws
+    the direct light only for the bright texels, its narrow lobe sampled by the BSDF; a rough one's takes the low
+    frequencies its views see, every texel drawn."""
     recorded = "transport" not in state.extra
     if recorded:
+        glossy = is_glossy(run.init.materials)
         state.extra["transport"] = record_transport(run.problem, starting_materials(run.init), run.init.env,
-                                                    run.sampler.transport, run.render_seed(0, 97), transport_rows(run))
+                                                    run.sampler.transport, run.render_seed(0, 97),
+                                                    MAX_TRANSPORT_HEIGHT if glossy else ROUGH_TRANSPORT_HEIGHT,
+                                                    every_texel=not glossy)
     return state.extra["transport"], recorded

@@ -125,12 +125,15 @@ class Accumulator:
         self.matrix = np.zeros((2, levels, HALVES, 3, count, self.texels), np.float32)
 
     def add(self, level: int, row: np.ndarray, half: np.ndarray, direction: np.ndarray, slope: np.ndarray,
-            offset: np.ndarray) -> None:
+            offset: np.ndarray, drawn: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         """T[level, half, c, row, texel] += weight_c x bilinear(texel; direction) for every contribution (weights
-        (n, 3))."""
+        (n, 3)); with `drawn` (a bool per texel, a factor per contribution) the factor applies to the drawn texels'
+        columns only: a BSDF sample shares a column with `record_direct`'s draws of that texel alone."""
         if len(row) == 0:
             return
         index, bilinear = texel_weights(direction, self.height)
+        if drawn is not None:
+            bilinear = np.where(drawn[0][index], drawn[1][:, None] * bilinear, bilinear)
         rows = self.matrix.shape[4]
         bins = Bins(((half[:, None] * 3 * rows + row[:, None]) * self.texels + index).reshape(-1))
         for part, weight in enumerate((slope, offset)):
@@ -173,6 +176,8 @@ class ViewSetup:
     footprint: tuple[np.ndarray, np.ndarray]
     """(pixels x FOOTPRINT) sub-pixel offsets in x and y, stratified"""
     levels: list[tuple[object, object]]
+    drawn: np.ndarray | None = None
+    """the texels `record_direct` draws (a bool per texel); None: every texel"""
 
     def footprint_position(self, row, point):
         """Film position of footprint point `point` of pixel row `row` (Dr.Jit arrays)."""
@@ -337,22 +342,27 @@ def record_paths(setup: ViewSetup, accumulator: Accumulator, level: int, spp: in
     prev_si = dr.zeros(mi.SurfaceInteraction3f, n)
     prev_pdf, prev_delta = mi.Float(1.0), mi.Bool(True)
 
-    def keep(mask, direction, weight) -> None:
+    def keep(mask, direction, weight, drawn_weight=None) -> None:
         dr.eval(mask, direction, beta_slope, beta_offset, weight)
         m = np.asarray(mask, bool)
         scale = np.asarray(weight, np.float64).T[m]
+        drawn = None if drawn_weight is None else (setup.drawn, np.asarray(drawn_weight, np.float64)[m])
         accumulator.add(level, rows[m], half[m], np.asarray(direction).T[m], np.asarray(beta_slope).T[m] * scale,
-                        np.asarray(beta_offset).T[m] * scale)
+                        np.asarray(beta_offset).T[m] * scale, drawn)
 
     for depth in range(max_depth):
         si = setup.scene.ray_intersect(ray, active)
         escaped = active & ~si.is_valid()
         if depth == 1:  # against record_direct's texel-by-texel draws
             mis = dr.select(prev_delta, 1.0, prev_pdf / (prev_pdf + texel_density(ray.d.y, height)))
+            if setup.drawn is not None:  # weighed so only in the drawn texels' columns (`Accumulator.add`)
+                keep(escaped, ray.d, dr.full(mi.Spectrum, 1.0, n), mis)
+                mis = None
         else:
             ds = mi.DirectionSample3f(setup.scene, si=si, ref=prev_si)
             mis = mis_weight(prev_pdf, setup.scene.pdf_emitter_direction(prev_si, ds, ~prev_delta))
-        keep(escaped, ray.d, mi.Spectrum(mis))
+        if mis is not None:
+            keep(escaped, ray.d, mi.Spectrum(mis))
         active &= si.is_valid() & (depth + 1 < max_depth)
         if depth + 1 >= max_depth:
             break
@@ -407,17 +417,24 @@ class ViewTransport:
 
 def record_view(problem: InverseProblem, view: int, materials: MaterialTextures, guide: np.ndarray,
                 settings: TransportConfig, seed: int, pixels: np.ndarray | None = None,
-                height: int | None = None, levels: int = 0) -> ViewTransport:
+                height: int | None = None, levels: int = 0, every_texel: bool = True) -> ViewTransport:
     """The transport of `pixels` (default: the view's foreground) under `materials` and `levels` more roughness
-    levels (module notes) for maps of `height` rows (default the problem's; the guide is at the problem's); seeded."""
+    levels (module notes) for maps of `height` rows (default the problem's; the guide is at the problem's); seeded.
+    Without `every_texel` the direct light is drawn texel by texel only for the bright texels, and the BSDF's own
+    samples take the rest: a glossy object's narrow lobe finds its texels, at a fraction of the rays."""
     if pixels is None:
         pixels = np.flatnonzero(problem.masks[view].numpy().reshape(-1))
     rng = np.random.default_rng(seed)
     levels = roughness_levels(materials.roughness, levels)
     setup = view_setup(problem, view, pixels, materials, levels, guide, height or problem.settings.env_height, rng)
     accumulator = Accumulator(len(levels), len(pixels), setup.height)
-    accumulator.matrix = record_direct(setup, settings.direct_spp, seed * 7 + 1, np.arange(accumulator.texels))
     bright = bright_texels(resize_map(guide, setup.height), BRIGHT_SHARE)
+    if every_texel:
+        accumulator.matrix = record_direct(setup, settings.direct_spp, seed * 7 + 1, np.arange(accumulator.texels))
+    else:
+        setup.drawn = np.zeros(accumulator.texels, bool)
+        setup.drawn[bright] = True
+        accumulator.matrix[..., bright] = record_direct(setup, settings.direct_spp, seed * 7 + 1, bright)
     if len(bright):  # the texels that carry most of the light get BRIGHT_SPP draws more, the two estimates mixed
         extra = record_direct(setup, BRIGHT_SPP, seed * 7 + 2, bright)
         share = settings.direct_spp / (settings.direct_spp + BRIGHT_SPP)
@@ -441,7 +458,7 @@ def transport_pixels(problem: InverseProblem, limit: int, rng: np.random.Generat
 
 def record_transport(problem: InverseProblem, materials: MaterialTextures, env: torch.Tensor,
                      settings: TransportConfig, seed: int, max_height: int = ROUGH_TRANSPORT_HEIGHT,
-                     levels: int = 0) -> LightTransport:
+                     levels: int = 0, every_texel: bool = True) -> LightTransport:
     """The light transport of the training views' foreground pixels (at most settings.pixels of them) under
     `materials` and `levels` more roughness levels, for maps of `transport_height` rows (at most `max_height`), with
     next-event directions guided by `env` (the problem's size; module notes)."""
@@ -453,7 +470,7 @@ def record_transport(problem: InverseProblem, materials: MaterialTextures, env: 
     matrices, observed, rows, cols, weights = [], [], [], [], []
     first = 0
     for j, (v, pixels) in enumerate(chosen.items()):
-        t = record_view(problem, v, materials, guide, settings, seed * 1009 + j, pixels, height, levels)
+        t = record_view(problem, v, materials, guide, settings, seed * 1009 + j, pixels, height, levels, every_texel)
         matrices.append(torch.from_numpy(t.matrix))
         observed.append(problem.images[v].reshape(-1, 3)[torch.from_numpy(pixels)].double())
         rows.append(t.lookup[0] + first)
