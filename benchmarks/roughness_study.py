@@ -46,6 +46,14 @@ def point_jobs(args: argparse.Namespace, config: dict) -> dict[tuple[float, int]
     return groups
 
 
+def current_rows(args: argparse.Namespace, config: dict) -> list[dict[str, Any]]:
+    """Every roughness point in the CSV drawn with these settings (the figure shows them all, not only this run's)."""
+    rows = read_rows(args.out, ())
+    every = argparse.Namespace(**{**vars(args), "roughness": sorted({r["roughness"] for r in rows})})
+    keyed = {(*key, jobs[0].settings_hash) for key, jobs in point_jobs(every, config).items()}
+    return [r for r in rows if (r["roughness"], int(r["repeat"]), r["settings_hash"]) in keyed]
+
+
 def point_row(key: tuple[float, int], jobs: list[Job]) -> dict[str, Any]:
     """The study's row of one (roughness, repeat): the spread of its samples' maps."""
     from dpi.io.exr import read_exr
@@ -101,7 +109,7 @@ def main() -> None:
             list(workers.map(run_job, jobs))
             append_row(args.out, point_row(key[:2], jobs), COLUMNS, key[2])
     rows = [r for r in read_rows(args.out, ()) if (r["roughness"], int(r["repeat"]), r["settings_hash"]) in keyed]
-    plot(rows, args.out.with_suffix(".png"))
+    plot(current_rows(args, config), args.out.with_suffix(".png"))
     print(f"{args.repeats} repeats x {args.samples} dps samples per roughness, {args.steps} steps, "
           f"{time.perf_counter() - start:.0f} s")
     print(f"{'roughness':>9} {'metallic':>8} {'env sigma2_sample (mean +- std over repeats)':>46}")
