@@ -16,7 +16,8 @@ importance sampling), but where the integrator multiplies a path's throughput by
 radiance it records (pixel, texel, throughput) instead: the map's bilinear lookup (Mitsuba's own,
 `texel_weights`) spreads each contribution over its four texels. The light arriving straight from
 the map at the first surface point is recorded texel by texel (every texel gets a shadow ray from
-each camera sample, so a sun is never missed). Next-event directions come from a guide map (the
+each camera sample, so a sun is never missed); for a glossy object only the bright texels are, and its BSDF's
+samples, which find a narrow lobe well, take the other texels' columns whole (`record_view`'s `every_texel`). Next-event directions come from a guide map (the
 current map with a floor), not from the map T is applied to, so T L is an unbiased render for every L.
 
 Every recording is two independent halves (each from half of the samples). A data term is a sum of
