@@ -108,8 +108,8 @@ def main() -> None:
         for key, jobs in todo.items():
             list(workers.map(run_job, jobs))
             append_row(args.out, point_row(key[:2], jobs), COLUMNS, key[2])
-    rows = [r for r in read_rows(args.out, ()) if (r["roughness"], int(r["repeat"]), r["settings_hash"]) in keyed]
-    plot(current_rows(args, config), args.out.with_suffix(".png"))
+    rows = current_rows(args, config)
+    plot(rows, args.out.with_suffix(".png"))
     print(f"{args.repeats} repeats x {args.samples} dps samples per roughness, {args.steps} steps, "
           f"{time.perf_counter() - start:.0f} s")
     print(f"{'roughness':>9} {'metallic':>8} {'env sigma2_sample (mean +- std over repeats)':>46}")

@@ -144,7 +144,7 @@ def dev_table(csv_names: tuple[str, ...], keys: tuple[str, ...], root: Path) -> 
     rows = latest([r for name in csv_names for r in read_rows(root / RESULTS / "dev" / name)],
                   ("scene", "method", "sampler", "seed"))
     metrics = (VIEW, ENV, ALBEDO, Metric("relight PSNR-H [dB]", "relight_psnr_h", ".2f", +1), FIT, SECONDS)
-    return grouped_table(rows, keys, metrics, rank_by=keys[0], order=partial(method_order, method_at=1))
+    return grouped_table(rows, keys, metrics, rank_by=keys[0], order=method_order)
 
 
 def mean_map(root: Path) -> str:

@@ -17,8 +17,9 @@ radiance it records (pixel, texel, throughput) instead: the map's bilinear looku
 `texel_weights`) spreads each contribution over its four texels. The light arriving straight from
 the map at the first surface point is recorded texel by texel (every texel gets a shadow ray from
 each camera sample, so a sun is never missed); for a glossy object only the bright texels are, and its BSDF's
-samples, which find a narrow lobe well, take the other texels' columns whole (`record_view`'s `every_texel`). Next-event directions come from a guide map (the
-current map with a floor), not from the map T is applied to, so T L is an unbiased render for every L.
+samples, which find a narrow lobe well, take the other texels' columns whole (`record_view`'s `every_texel`).
+Next-event directions come from a guide map (the current map with a floor), not from the map T is applied to, so
+T L is an unbiased render for every L.
 
 Every recording is two independent halves (each from half of the samples). A data term is a sum of
 squares, and the square of one noisy recording overestimates it by the recording's variance, most
@@ -121,20 +122,22 @@ class Accumulator:
     """Adds (pixel, direction, half, weights of A and B per roughness level) contributions into a view's dense
     transports through the map's lookup: `matrix` (2 (slope, offset), levels, HALVES, 3, pixels, texels)."""
 
-    def __init__(self, levels: int, count: int, height: int):
+    def __init__(self, levels: int, count: int, height: int, drawn: np.ndarray | None = None):
         self.height, self.texels = height, 2 * height * height
         self.matrix = np.zeros((2, levels, HALVES, 3, count, self.texels), np.float32)
+        self.drawn = drawn
+        """the texels `record_direct` draws (a bool per texel); None: every texel"""
 
     def add(self, level: int, row: np.ndarray, half: np.ndarray, direction: np.ndarray, slope: np.ndarray,
-            offset: np.ndarray, drawn: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+            offset: np.ndarray, drawn_factor: np.ndarray | None = None) -> None:
         """T[level, half, c, row, texel] += weight_c x bilinear(texel; direction) for every contribution (weights
-        (n, 3)); with `drawn` (a bool per texel, a factor per contribution) the factor applies to the drawn texels'
-        columns only: a BSDF sample shares a column with `record_direct`'s draws of that texel alone."""
+        (n, 3)); `drawn_factor` (one per contribution) applies to the drawn texels' columns only: a BSDF sample
+        shares a column with `record_direct`'s draws of that texel alone."""
         if len(row) == 0:
             return
         index, bilinear = texel_weights(direction, self.height)
-        if drawn is not None:
-            bilinear = np.where(drawn[0][index], drawn[1][:, None] * bilinear, bilinear)
+        if drawn_factor is not None:
+            bilinear = np.where(self.drawn[index], drawn_factor[:, None] * bilinear, bilinear)
         rows = self.matrix.shape[4]
         bins = Bins(((half[:, None] * 3 * rows + row[:, None]) * self.texels + index).reshape(-1))
         for part, weight in enumerate((slope, offset)):
@@ -177,8 +180,6 @@ class ViewSetup:
     footprint: tuple[np.ndarray, np.ndarray]
     """(pixels x FOOTPRINT) sub-pixel offsets in x and y, stratified"""
     levels: list[tuple[object, object]]
-    drawn: np.ndarray | None = None
-    """the texels `record_direct` draws (a bool per texel); None: every texel"""
 
     def footprint_position(self, row, point):
         """Film position of footprint point `point` of pixel row `row` (Dr.Jit arrays)."""
@@ -343,26 +344,25 @@ def record_paths(setup: ViewSetup, accumulator: Accumulator, level: int, spp: in
     prev_si = dr.zeros(mi.SurfaceInteraction3f, n)
     prev_pdf, prev_delta = mi.Float(1.0), mi.Bool(True)
 
-    def keep(mask, direction, weight, drawn_weight=None) -> None:
+    def keep(mask, direction, weight, drawn_factor=None) -> None:
         dr.eval(mask, direction, beta_slope, beta_offset, weight)
         m = np.asarray(mask, bool)
         scale = np.asarray(weight, np.float64).T[m]
-        drawn = None if drawn_weight is None else (setup.drawn, np.asarray(drawn_weight, np.float64)[m])
         accumulator.add(level, rows[m], half[m], np.asarray(direction).T[m], np.asarray(beta_slope).T[m] * scale,
-                        np.asarray(beta_offset).T[m] * scale, drawn)
+                        np.asarray(beta_offset).T[m] * scale,
+                        None if drawn_factor is None else np.asarray(drawn_factor, np.float64)[m])
 
     for depth in range(max_depth):
         si = setup.scene.ray_intersect(ray, active)
         escaped = active & ~si.is_valid()
         if depth == 1:  # against record_direct's texel-by-texel draws
             mis = dr.select(prev_delta, 1.0, prev_pdf / (prev_pdf + texel_density(ray.d.y, height)))
-            if setup.drawn is not None:  # weighed so only in the drawn texels' columns (`Accumulator.add`)
-                keep(escaped, ray.d, dr.full(mi.Spectrum, 1.0, n), mis)
-                mis = None
         else:
             ds = mi.DirectionSample3f(setup.scene, si=si, ref=prev_si)
             mis = mis_weight(prev_pdf, setup.scene.pdf_emitter_direction(prev_si, ds, ~prev_delta))
-        if mis is not None:
+        if depth == 1 and accumulator.drawn is not None:  # weighed in the drawn texels' columns only
+            keep(escaped, ray.d, dr.full(mi.Spectrum, 1.0, n), mis)
+        else:
             keep(escaped, ray.d, mi.Spectrum(mis))
         active &= si.is_valid() & (depth + 1 < max_depth)
         if depth + 1 >= max_depth:
@@ -428,13 +428,12 @@ def record_view(problem: InverseProblem, view: int, materials: MaterialTextures,
     rng = np.random.default_rng(seed)
     levels = roughness_levels(materials.roughness, levels)
     setup = view_setup(problem, view, pixels, materials, levels, guide, height or problem.settings.env_height, rng)
-    accumulator = Accumulator(len(levels), len(pixels), setup.height)
     bright = bright_texels(resize_map(guide, setup.height), BRIGHT_SHARE)
+    drawn = None if every_texel else np.isin(np.arange(2 * setup.height ** 2), bright)
+    accumulator = Accumulator(len(levels), len(pixels), setup.height, drawn)
     if every_texel:
         accumulator.matrix = record_direct(setup, settings.direct_spp, seed * 7 + 1, np.arange(accumulator.texels))
     else:
-        setup.drawn = np.zeros(accumulator.texels, bool)
-        setup.drawn[bright] = True
         accumulator.matrix[..., bright] = record_direct(setup, settings.direct_spp, seed * 7 + 1, bright)
     if len(bright):  # the texels that carry most of the light get BRIGHT_SPP draws more, the two estimates mixed
         extra = record_direct(setup, BRIGHT_SPP, seed * 7 + 2, bright)
