@@ -53,7 +53,9 @@ GLOSSY_REFINE_VIEWS = 1
 """views a glossy init's refinement renders a step: its longer refinement at the cost of the preset's, and its fit
 no worse (docs/studies.md, "What a glossy sample costs")"""
 GLOSSY_LR_TEXELS = 0.02
-"""a glossy init's polish rate: a mirror's views pin down detail the prior's grid cannot hold"""
+"""a glossy init's polish rate on a map with at least the prior's rows: a mirror's views pin down detail the prior's
+grid cannot hold. A coarser map holds no detail beyond the prior's and keeps the light polish: fitting reflections
+finer than its texels only sharpens it away from the light (docs/studies.md, "The polish on a coarse map")"""
 
 
 @settings
@@ -77,15 +79,16 @@ class DPSConfig(MaterialRates):
         """The chosen sampler's own settings (the paper's: its fixed ones)."""
         return self.proximal if self.sampler == "proximal" else PaperSampler()
 
-    def for_init(self, init: Decomposition) -> DPSConfig:
-        """The settings a sample from `init` runs with: the one place a glossy init (dpi.solve.init.is_glossy)
-        changes them (GLOSSY_*; its transport: dpi.solve.dps.data_term.sample_transport); a rough init's are
-        these."""
+    def for_init(self, init: Decomposition, prior_rows: int) -> DPSConfig:
+        """The settings a sample from `init` runs with, under a prior of `prior_rows` rows: the one place a glossy
+        init (dpi.solve.init.is_glossy) changes them (GLOSSY_*; its transport:
+        dpi.solve.dps.data_term.sample_transport); a rough init's are these."""
         if not is_glossy(init.materials):
             return self
         proximal = replace(self.proximal, **GLOSSY_PROXIMAL)
+        lr_texels = GLOSSY_LR_TEXELS if init.env.shape[0] >= prior_rows else self.refine.lr_texels
         refine = replace(self.refine, iterations=self.refine.iterations * GLOSSY_REFINE_FACTOR,
-                         views_per_step=GLOSSY_REFINE_VIEWS, lr_texels=GLOSSY_LR_TEXELS)
+                         views_per_step=GLOSSY_REFINE_VIEWS, lr_texels=lr_texels)
         return replace(self, proximal=proximal, refine=refine)
 
     @classmethod

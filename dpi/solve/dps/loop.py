@@ -71,7 +71,7 @@ def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: D
               seed: int, radiance_scale: float | None = None) -> tuple[DPSRun, DPSState]:
     """The fixed part of one sample and its loop state at its first step (the init's materials, grey albedo):
     x_T ~ N(0, I), or the init map noised to the sampler's start_noise."""
-    cfg = cfg.for_init(init)
+    cfg = cfg.for_init(init, prior.height)
     sampler = cfg.sampler_settings
     generator = torch.Generator().manual_seed(seed)
     diffusion = prior.schedule(cfg.steps)
