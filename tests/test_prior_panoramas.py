@@ -26,7 +26,7 @@ def folder_and_manifest(tmp_path):
     folder.mkdir()
     for i, name in enumerate(("park.exr", "street.exr", "room.exr", "mine.exr")):
         write_exr(folder / name, panorama(i))
-    rows = {name: Panorama(name, family, split, "CC0-1.0", "github:o/r", name, "0" * 40, "https://x", sha256_of(folder / name))
+    rows = {name: Panorama(name, family, "sky" if family == "outdoor" else "indoor", split, "CC0-1.0", "github:o/r", name, "0" * 40, "https://x", sha256_of(folder / name))
             for name, family, split in (("park.exr", "outdoor", "train"), ("street.exr", "outdoor", "held_out"),
                                         ("room.exr", "indoor", "train"))}
     return folder, rows
@@ -34,11 +34,20 @@ def folder_and_manifest(tmp_path):
 
 def test_the_shipped_manifest_names_sources_licences_and_checksums():
     entries = read_manifest()
-    assert len(entries) >= 8
-    assert {e.split for e in entries.values()} == {"train", "held_out"}
+    assert len(entries) >= 84
     for entry in entries.values():
-        assert entry.licence.startswith("CC0") and len(entry.sha256) == 64 and len(entry.commit) == 40
-        assert "pmndrs/assets" not in entry.source  # held back for evaluation
+        assert entry.licence.startswith(("CC0", "MIT", "BSD")) and len(entry.sha256) == 64 and entry.commit
+        assert entry.source.startswith(("github:", "pip:", "debian:"))
+        if entry.source.startswith("github:"):
+            assert len(entry.commit) == 40
+        assert "pmndrs" not in entry.source  # held back for evaluation
+
+
+def test_the_held_out_split_covers_every_kind_of_light():
+    held = [e for e in read_manifest().values() if e.split == "held_out"]
+    assert len(held) >= 12
+    assert {e.kind for e in held} == {"sun", "sky", "indoor", "studio"}
+    assert all(sum(e.kind == kind for e in held) >= 3 for kind in ("sun", "sky", "indoor", "studio"))
 
 
 def test_splits_follow_the_manifest_and_a_users_own_files_are_training_data(folder_and_manifest):
@@ -90,3 +99,20 @@ def test_recolouring_is_a_gain_per_image_and_channel_with_the_exposure_spread():
     torch.testing.assert_close(gain, gain[..., :1, :1].expand_as(gain), rtol=1e-4, atol=0)
     exposure = torch.log(luminance(gain[:, :, 0, 0]))
     assert float(exposure.std()) == pytest.approx(EXPOSURE_JITTER, rel=0.15)
+
+
+def test_a_tilt_rotates_the_sphere_about_the_horizontal_axis():
+    from dpi.light.envmap import texel_directions
+    from dpi.prior.data import tilt
+
+    d = torch.from_numpy(texel_directions(32)).float()
+    # a map that is a smooth function of direction: its tilt must equal the function at R^T d
+    field = lambda v: 0.5 * v[..., 1] + 0.3 * v[..., 2] + 0.2 * v[..., 0]  # noqa: E731
+    x = field(d)[None, None].repeat(2, 3, 1, 1)
+    out = tilt(x, torch.tensor([0.0, 10.0]))
+    torch.testing.assert_close(out[0], x[0], atol=1e-5, rtol=0)
+    a = np.deg2rad(10.0)
+    source = torch.stack([d[..., 0], np.cos(a) * d[..., 1] + np.sin(a) * d[..., 2],
+                          -np.sin(a) * d[..., 1] + np.cos(a) * d[..., 2]], dim=-1)
+    assert float((out[1, 0] - field(source)).abs().max()) < 0.01
+    assert float((out[1, 0] - x[1, 0]).abs().max()) > 0.05

@@ -6,7 +6,8 @@ mapped to [-1, 1] by the prior's encoding (dpi.light.tonecurve): log radiance (m
 paper's tone curve x = 2 a (L / s)^(1/gamma) - 1 (median_target per family, `MEDIAN_TARGETS`).
 Going back, `encoding.with_scale(s).to_radiance(x)` gives HDR radiance for any chosen scene
 scale s. Augmentation is the paper's, a random horizontal roll (rotation about the up axis) and a
-random horizontal flip, plus a random exposure and white balance (real panoramas' are arbitrary). A
+random horizontal flip, plus a small random tilt of the up axis (a panorama's camera is never exactly
+level) and a random exposure and white balance (real panoramas' are arbitrary). A
 dataset can be packed into one `.npz` (x quantised to 8 bits, with its encoding) to train elsewhere,
 e.g. on a GPU machine without the generators.
 """
@@ -21,10 +22,14 @@ import torch
 from torch.nn import functional as F
 
 from dpi.io.atomic import atomic_path
-from dpi.io.images import IMAGE_SUFFIXES, luminance, read_image
+from dpi.io.exr import read_exr
+from dpi.io.images import HDR_SUFFIXES, IMAGE_SUFFIXES, luminance, read_image
+from dpi.light.envmap import direction_to_uv, pad_equirect, texel_directions
 from dpi.light.tonecurve import Encoding, encoding_from_dict
 
 PANORAMA_SUFFIXES = IMAGE_SUFFIXES + (".hdr",)
+NEGATIVE_TOLERANCE = 0.1
+"""a panorama's negative texels above -this x its median luminance are out-of-gamut noise, clamped to 0"""
 MEDIAN_TARGETS = {"outdoor": 0.3, "indoor": 0.05}
 """median luminance of a training map under the paper's tone curves (the log encoding uses 1)"""
 PACK_LEVELS = 255
@@ -33,21 +38,33 @@ EXPOSURE_JITTER = 0.3
 """std of the log exposure a training batch's maps are scaled by (`recolour`)"""
 WHITE_BALANCE_JITTER = 0.08
 """std of the log per-channel gains of a training batch's white balance (`recolour`)"""
+MAX_TILT_DEG = 4.0
+"""largest tilt of the up axis a training map is given (`tilt`), drawn uniformly in [-max, max]"""
 
 
 def read_panorama(path: str | Path) -> np.ndarray:
-    """Linear float32 (h, w, 3) from .exr/.png/.jpg (via dpi.io.images) or Radiance .hdr (via Mitsuba's Bitmap)."""
+    """Linear float32 (h, w, 3) from .exr/.png/.jpg or Radiance .hdr (via Mitsuba's Bitmap). Slight negatives
+    (a colour-space conversion's out-of-gamut texels, above -NEGATIVE_TOLERANCE x the median luminance) are
+    clamped to 0; NaN/Inf or larger negatives are errors naming the file."""
     path = Path(path)
-    if path.suffix.lower() != ".hdr":
-        return read_image(path)
-    from dpi import backend
+    if path.suffix.lower() in HDR_SUFFIXES:
+        image = read_exr(path)[..., :3]
+        image = np.repeat(image, 3, axis=-1) if image.shape[-1] == 1 else image
+    elif path.suffix.lower() == ".hdr":
+        from dpi import backend
 
-    mi = backend.mitsuba()
-    bitmap = mi.Bitmap(str(path)).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, srgb_gamma=False)
-    image = np.array(bitmap, dtype=np.float32)
-    if not np.isfinite(image).all() or (image < 0).any():
-        raise ValueError(f"{path}: HDR image contains NaN/Inf or negative values")
-    return image
+        mi = backend.mitsuba()
+        bitmap = mi.Bitmap(str(path)).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, srgb_gamma=False)
+        image = np.array(bitmap, dtype=np.float32)
+    else:
+        return read_image(path)
+    if not np.isfinite(image).all():
+        raise ValueError(f"{path}: HDR image contains NaN/Inf values")
+    floor = -NEGATIVE_TOLERANCE * float(np.median(luminance(np.maximum(image, 0))))
+    if image.min() < floor:
+        raise ValueError(f"{path}: HDR image has negative values down to {image.min():.3g} "
+                         f"(more than {NEGATIVE_TOLERANCE:.0%} of its median luminance)")
+    return np.maximum(image, 0).astype(np.float32)
 
 
 def resize_area(image: torch.Tensor, height: int) -> torch.Tensor:
@@ -110,6 +127,24 @@ def augment(x: torch.Tensor, generator: torch.Generator | None = None) -> torch.
     flips = torch.rand(b, generator=generator, device=x.device) < 0.5
     x = torch.where(flips[:, None, None, None], x.flip(-1), x)
     return roll_columns(x, shifts)
+
+
+def tilt(x: torch.Tensor, degrees: torch.Tensor) -> torch.Tensor:
+    """Each map of a batch (B, C, H, 2H) rotated by its own angle `degrees` (B,) about the horizontal axis
+    +X, resampled bilinearly across the seam and the poles: a camera held a little off level."""
+    b, _, height, width = x.shape
+    angle = np.deg2rad(degrees.detach().cpu().numpy().astype(np.float64))[:, None, None]
+    d = texel_directions(height)[None]
+    cos, sin = np.cos(angle), np.sin(angle)
+    # the source of each output texel: R^T d, with R the rotation by `angle` about +X
+    source = np.stack([np.broadcast_to(d[..., 0], (b, height, width)),
+                       cos * d[..., 1] + sin * d[..., 2], -sin * d[..., 1] + cos * d[..., 2]], axis=-1)
+    uv = direction_to_uv(source)
+    # grid_sample on the map padded by one texel on every side (pad_equirect), align_corners=False
+    gx = (uv[..., 0] * width + 1.0) / (width + 2) * 2.0 - 1.0
+    gy = (uv[..., 1] * height + 1.0) / (height + 2) * 2.0 - 1.0
+    grid = torch.from_numpy(np.stack([gx, gy], axis=-1).astype(np.float32)).to(x.device)
+    return F.grid_sample(pad_equirect(x, 1), grid, mode="bilinear", padding_mode="border", align_corners=False)
 
 
 def recolour(x: torch.Tensor, encoding: Encoding, generator: torch.Generator | None = None) -> torch.Tensor:
@@ -198,7 +233,8 @@ class EnvmapDataset:
             idx = torch.randint(0, len(self.images), (size,), generator=generator, device=device)
         else:
             idx = torch.multinomial(self.weights, size, replacement=True, generator=generator)
-        x = recolour(augment(self.images[idx], generator), self.encoding, generator)
+        angles = MAX_TILT_DEG * (2.0 * torch.rand(size, generator=generator, device=device) - 1.0)
+        x = recolour(augment(tilt(self.images[idx], angles), generator), self.encoding, generator)
         if self.quantum:
             x = (x + self.quantum * (torch.rand(x.shape, generator=generator, device=device) - 0.5)).clamp(-1, 1)
         return x

@@ -1,6 +1,8 @@
 """Real HDR panoramas in the prior's diet: the shipped manifest and the training set built from a folder.
 
-The manifest (dpi/data/panoramas.csv) names each real panorama the project uses: its family, its split
+The manifest (dpi/data/panoramas.csv) names each real panorama the project uses: its family (the prior it
+feeds: studios feed the indoor one), its kind (`sun`, `sky`: outdoor without a visible sun, `indoor`,
+`studio`), its split
 (`train`, or `held_out`: never trained on, the realism benchmark's), its licence, the public repository,
 path and commit it was taken from, its original page and its SHA-256. The maps themselves do not ship:
 `dpi panorama-set` rebuilds a packed set from a folder holding them. A file the manifest names must match
@@ -21,6 +23,7 @@ from dpi.prior.data import EnvmapDataset, list_panoramas
 
 MANIFEST = Path(__file__).resolve().parents[1] / "data" / "panoramas.csv"
 SPLITS = ("train", "held_out")
+KINDS = ("sun", "sky", "indoor", "studio")
 
 
 @dataclass(frozen=True)
@@ -29,6 +32,7 @@ class Panorama:
 
     name: str
     family: str
+    kind: str
     split: str
     licence: str
     source: str
@@ -51,6 +55,8 @@ def read_manifest(path: str | Path = MANIFEST) -> dict[str, Panorama]:
             raise ValueError(f"{path}: line {i}: missing {', '.join(missing)}")
         if row["split"] not in SPLITS:
             raise ValueError(f"{path}: line {i}: split must be one of {', '.join(SPLITS)}, got {row['split']!r}")
+        if row["kind"] not in KINDS:
+            raise ValueError(f"{path}: line {i}: kind must be one of {', '.join(KINDS)}, got {row['kind']!r}")
         entries[unicodedata.normalize("NFC", row["name"])] = Panorama(**{n: row[n] for n in names})
     return entries
 
