@@ -31,15 +31,21 @@ import yaml
 
 from dpi.capture import PRIORS, CaptureError
 from dpi.config_validation import ConfigError
+from dpi.io.lock import ResultsLocked
 from dpi.preprocess.sfm import SfMError
 from dpi.prior.commands import register as register_prior_commands
 
 
 def _pipeline(args: argparse.Namespace):
-    """The resolved config of the command's --config files."""
+    """The resolved config of the command's --config files; a command on a scene holds its results folder's lock
+    (dpi.io.lock) while it runs."""
+    from dpi.io.lock import lock_results
     from dpi.pipeline import load_pipeline
 
-    return load_pipeline(args.config)
+    pipeline = load_pipeline(args.config)
+    if getattr(args, "scene", None) is not None:
+        lock_results(pipeline.layout.results)
+    return pipeline
 
 
 def _threads(args: argparse.Namespace, pipeline, kind: str) -> int:
@@ -343,7 +349,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         args.fn(args)
-    except (CaptureError, ConfigError, FileExistsError, FileNotFoundError, ValueError, SfMError) as exc:
+    except (CaptureError, ConfigError, FileExistsError, FileNotFoundError, ValueError, SfMError, ResultsLocked) as exc:
         print(f"dpi {args.command}: error: {exc}", file=sys.stderr)
         return 2
     return 0

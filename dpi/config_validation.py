@@ -22,12 +22,13 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from jsonschema import Draft202012Validator
+from jsonschema import Draft202012Validator, validators
 from jsonschema.exceptions import ValidationError, best_match
 from pydantic import TypeAdapter
 
 from dpi.adaptive import AdaptiveConfig
 from dpi.capture import PRIORS
+from dpi.layout import Layout
 from dpi.preprocess.geometry import GeometryConfig
 from dpi.preprocess.masks import MaskConfig
 from dpi.preprocess.sfm import SfMConfig
@@ -70,6 +71,12 @@ def config_schema(schema_path: str | Path) -> dict[str, Any]:
     return schema
 
 
+StrictValidator = validators.extend(Draft202012Validator, type_checker=Draft202012Validator.TYPE_CHECKER.redefine(
+    "integer", lambda _, value: isinstance(value, int) and not isinstance(value, bool)))
+"""the schema's validator with YAML's integers only as `integer` (JSON Schema also takes 2.0, which would pass
+the check and fail later as a count)"""
+
+
 class ConfigError(ValueError):
     """The workflow config is invalid; the message starts with the key's path (`method_params.dps.steps: ...`)."""
 
@@ -82,11 +89,14 @@ def check_config(config: dict[str, Any], schema_path: str | Path) -> None:
     for name, preset in config.get("presets", {}).items():
         check_against(preset, partial, f"presets.{name}")
     check_against(config, schema, "")
+    problem = Layout.from_config(config).problem(config["scenes"])
+    if problem:
+        raise ConfigError(problem)
 
 
 def check_against(config: dict[str, Any], schema: dict[str, Any], prefix: str) -> None:
     """The schema pass, then the settings dataclasses, on a config (or a preset's part of one at `prefix`)."""
-    error = best_match(Draft202012Validator(schema).iter_errors(config))
+    error = best_match(StrictValidator(schema).iter_errors(config))
     if error is not None:
         raise ConfigError(schema_message(error, prefix))
     check_methods(config, prefix)
@@ -158,6 +168,9 @@ def schema_message(error: ValidationError, prefix: str) -> str:
     bounds = {"minimum": ">=", "maximum": "<=", "exclusiveMinimum": ">", "exclusiveMaximum": "<"}
     if error.validator in bounds:
         return f"{where}: must be {bounds[error.validator]} {error.validator_value:g}, got {error.instance!r}"
+    if error.validator == "pattern":
+        return f"{where}: {error.instance!r} is not a plain name (letters, digits, _ . + -, not starting with . " \
+               "or -, at most 64 characters)"
     if error.validator == "enum":
         return f"{where}: must be one of {', '.join(map(str, error.validator_value))}, got {error.instance!r}"
     if error.validator == "additionalProperties":

@@ -171,6 +171,10 @@ class SceneLayout:
         return (self.root / "benchmarks").joinpath(*parts).with_suffix(".tsv")
 
 
+RUN_FOLDERS = ("eval", "logs", "report", "prior", "prior_data", "report.html")
+"""what results_dir holds besides the scenes' folders: a scene may not take one of these names"""
+
+
 @dataclass(frozen=True)
 class Layout:
     """Capture folders under `captures`, every result under `results` (config keys captures_dir, results_dir)."""
@@ -182,6 +186,21 @@ class Layout:
     def from_config(cls, config: dict) -> "Layout":
         """The layout of a resolved config."""
         return cls(Path(config["results_dir"]), Path(config["captures_dir"]))
+
+    def problem(self, scenes: list[str]) -> str | None:
+        """Why results and captures cannot share this layout, or None: a scene named like a run folder, results_dir
+        equal to captures_dir or inside a scene's capture folder (a run would write into the inputs)."""
+        for scene in scenes:
+            if scene in RUN_FOLDERS:
+                return f"scenes: {scene!r} is the name of a folder results_dir keeps for the run; rename the scene"
+        results, captures = self.results.resolve(), self.captures.resolve()
+        if results == captures:
+            return f"results_dir: {self.results} is captures_dir; results go to a folder of their own"
+        for scene in scenes:
+            if results.is_relative_to(self.capture_dir(scene).resolve()):
+                return f"results_dir: {self.results} lies inside the capture folder of scene {scene!r}; " \
+                       "captures are never written"
+        return None
 
     def capture_dir(self, scene: str) -> Path:
         """Input folder of a scene (never written, except by `dpi synth` for a synthetic scene)."""

@@ -27,11 +27,10 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from dpi.adaptive import AdaptiveConfig
 from dpi.capture import PRIORS, inspect_capture, read_scene_options
 from dpi.config_validation import check_config, preprocess_settings
+from dpi.io.structured import read_yaml as read_structured_yaml
 from dpi.layout import Layout, package_data
 from dpi.prior.sample import DEFAULT_FAMILY, family_checkpoint
 from dpi.prior.train import PriorJobConfig
@@ -58,8 +57,8 @@ def merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
 
 
 def read_yaml(path: str | Path) -> dict[str, Any]:
-    """A config file's mapping ({} for an empty file)."""
-    values = yaml.safe_load(Path(path).read_text()) or {}
+    """A config file's mapping ({} for an empty file), read within dpi.io.structured's limits."""
+    values = read_structured_yaml(path) or {}
     if not isinstance(values, dict):
         raise ValueError(f"{path}: a config file holds a mapping of settings, got {type(values).__name__}")
     return values
@@ -168,6 +167,11 @@ class Pipeline:
         shared = {k: v for k, v in section.items() if not isinstance(v, dict)}
         return PriorJobConfig.from_dict({**shared, **section.get(family, {})})
 
+    def prior_section(self, family: str) -> dict[str, Any]:
+        """A family's `prior` settings in full, as the config writes them (the training fields beside the job's)."""
+        job = self.prior_job(family)
+        return {**{k: v for k, v in plain(job).items() if k != "train"}, **plain(job.train_config())}
+
     def describe(self) -> dict[str, Any]:
         """The config with each section a settings dataclass owns written out in full (what a left-out key
         means), as `dpi config` prints it."""
@@ -184,7 +188,7 @@ class Pipeline:
                                     **plain(self.method_settings(m))} for m in self.config["method_params"]}
         out["preprocess"] = {stage: plain(make(self.config["preprocess"][stage]))
                              for stage, make in preprocess_settings().items()}
-        out["prior"] = {family: plain(self.prior_job(family)) for family in PRIORS}
+        out["prior"] = {family: self.prior_section(family) for family in PRIORS}
         return out
 
 

@@ -19,7 +19,7 @@ from pydantic import Field
 from dpi import backend
 from dpi.cameras import Camera, pixel_rays, to_mitsuba
 from dpi.light.envmap import pad_for_mitsuba
-from dpi.settings import Count, settings
+from dpi.settings import Count, SamplesPerPixel, settings
 
 ENV_KEY = "emitter.data"
 TEXTURE_KEYS = {
@@ -34,7 +34,7 @@ SEED_MODULUS = 2**32 - 8192
 class RenderConfig:
     """Path-tracing settings of the measurement operator."""
 
-    spp: Count = 16
+    spp: SamplesPerPixel = 16
     """samples per pixel of every differentiable render"""
     max_depth: Annotated[int, Field(ge=1, le=64)] = 5
     """Mitsuba path depth: 5 = direct light plus 4 bounces"""

@@ -67,6 +67,8 @@ Count = Annotated[int, Field(ge=1)]
 """how many of something, at least one"""
 Steps = Annotated[int, Field(ge=0)]
 """how many (iterations, levels, votes), zero allowed"""
+SamplesPerPixel = Annotated[int, Field(ge=1, le=4096)]
+"""path-tracing samples per pixel: more than a few thousand overflow a render's sample budget"""
 Rate = Annotated[float, Field(gt=0)]
 """a learning rate or another strictly positive scale"""
 Weight = Annotated[float, Field(ge=0)]

@@ -5,6 +5,7 @@ from functools import lru_cache
 
 from dpi.adaptive import MIN_SAMPLES, stop_rule_applies
 from dpi.capture import PRIORS, derived_inputs
+from dpi.io.lock import lock_results
 from dpi.layout import INIT
 from dpi.pipeline import Pipeline, plain, resolve_config
 from dpi.preprocess.stages import stage_inputs
@@ -25,6 +26,11 @@ METHODS = PIPELINE.methods
 SCENE = LAYOUT.scene("{scene}")
 SAMPLE = SCENE.sample_files("{method}", "{k}")
 INIT_FILES = SCENE.sample_files(INIT)
+
+
+onstart:
+    # one run per results folder, from whatever working directory (dpi.io.lock); not taken by a dry run
+    lock_results(LAYOUT.results)
 
 
 wildcard_constraints:

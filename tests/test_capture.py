@@ -248,7 +248,7 @@ ERRORS = {
     "invalid yaml": (lambda r: (r / "scene.yaml").write_text("prior: [indoor\n"), "scene.yaml", "YAML"),
     "yaml not a mapping": (lambda r: (r / "scene.yaml").write_text("- a\n- b\n"), "scene.yaml", "mapping"),
     "unknown yaml key": (lambda r: (r / "scene.yaml").write_text("prior: indoor\nlight: 3\n"), "scene.yaml",
-                         "unknown keys ['light']"),
+                         "unknown keys: light"),
     "bad prior": (lambda r: (r / "scene.yaml").write_text("prior: studio\n"), "scene.yaml", "prior"),
     "bad scale": (lambda r: (r / "scene.yaml").write_text("radiance_scale: -1\n"), "scene.yaml", "radiance_scale"),
     "held out unknown view": (lambda r: (r / "scene.yaml").write_text("held_out: [r_9]\n"), "scene.yaml", "r_9"),

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dpi.capture.model import CaptureError, CaptureWarning
+from dpi.capture.model import CaptureError, CaptureWarning, inside_capture
 from dpi.io.exr import EXRError, read_exr
 from dpi.io.images import HDR_SUFFIXES, IMAGE_SUFFIXES, LDR_SUFFIXES, ImageError, decode_ldr, read_image, read_mask
 from dpi.light.envmap import EnvmapLayoutError, read_envmap
@@ -25,6 +25,9 @@ MIN_IMAGE_SIZE = 8
 
 
 GT_NAMES = ("envmap", "albedo", "roughness", "metallic")
+MAX_VIEW_NAME_BYTES = 160
+"""longest view name (UTF-8 bytes): a job writes files named after a view with a prefix and a suffix around it
+(relit views, atomic writes' temporary names), and file systems stop at 255 bytes a name"""
 
 
 def check_root(root: Path) -> None:
@@ -56,6 +59,7 @@ def stems(folder: Path, what: str) -> dict[str, Path]:
             continue
         if path.suffix.lower() not in IMAGE_SUFFIXES:
             raise CaptureError(f"{path}: unsupported {what} suffix {path.suffix!r} (use {', '.join(IMAGE_SUFFIXES)})")
+        inside_capture(folder.parent, path, f"the {what}")
         stem = view_name(path.stem)
         other = found.get(stem)
         if other is None:
@@ -73,6 +77,11 @@ def image_files(root: Path) -> dict[str, Path]:
     if not folder.is_dir():
         raise CaptureError(f"{folder}: missing images folder (required)")
     images = stems(folder, "image")
+    for name, path in images.items():
+        if len(name.encode("utf-8")) > MAX_VIEW_NAME_BYTES:
+            raise CaptureError(f"{folder}: the image named {name[:24]}... has a name of {len(name.encode('utf-8'))} "
+                               f"bytes; dpi names files after views and takes at most {MAX_VIEW_NAME_BYTES}: "
+                               "shorten it")
     if not images:
         raise CaptureError(f"{folder}: images folder is empty (expected {', '.join(IMAGE_SUFFIXES)} files)")
     return {name: images[name] for name in sorted(images, key=natural_key)}
@@ -157,6 +166,7 @@ def gt_files(root: Path) -> dict[str, Path]:
     gt = {}
     for name in GT_NAMES:
         for path in named_files(root / "gt", (f"{name}.exr",))[:1]:
+            inside_capture(root, path, f"ground truth {name}")
             try:
                 read_ground_truth(path, name)
             except (EXRError, EnvmapLayoutError) as exc:

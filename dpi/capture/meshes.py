@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from dpi.capture.folder import named_files
-from dpi.capture.model import CaptureError
+from dpi.capture.model import CaptureError, inside_capture
 from dpi.io.mitsuba_xml import MitsubaXMLError, read_mesh_shapes
 
 MESH_NAMES = ("mesh.ply", "mesh.obj", "mesh.glb", "mesh.gltf")
@@ -33,6 +33,7 @@ def mesh_file(root: Path, options: dict) -> Path | None:
     if len(given) > 1:
         raise CaptureError(f"{given[1]}: ambiguous mesh, {given[0].name} is also given")
     if given:
+        inside_capture(root, given[0], "the mesh")
         return given[0]
     scene = root / "scene.xml"
     if not scene.is_file():
@@ -47,7 +48,7 @@ def mesh_file(root: Path, options: dict) -> Path | None:
             raise CaptureError(f"{scene}: {len(shapes)} mesh shapes ({', '.join(s.filename.name for s in shapes)}); "
                                f"name the object's shape id or file stem with `object` in scene.yaml")
         shapes = chosen
-    return shapes[0].filename if shapes else None
+    return inside_capture(root, shapes[0].filename, f"the mesh of {scene.name}") if shapes else None
 
 
 def ply_vertex_properties(path: Path) -> set[str]:

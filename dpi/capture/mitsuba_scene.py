@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from dpi.cameras import Camera
-from dpi.capture.model import CaptureError
+from dpi.capture.model import CaptureError, inside_capture
 from dpi.capture.transforms import fit_camera
 from dpi.io.mitsuba_xml import MitsubaXMLError, read_sensors
 
@@ -22,6 +22,7 @@ def camera_xml(root: Path) -> Path | None:
 
 def xml_sensors(path: Path) -> list[Camera]:
     """Cameras of a Mitsuba XML file, as CaptureError on failure."""
+    inside_capture(path.parent, path, "the camera file")
     try:
         return read_sensors(path)
     except MitsubaXMLError as exc:

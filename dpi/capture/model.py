@@ -17,6 +17,16 @@ class CaptureError(ValueError):
     """A capture folder is unusable; the message starts with the offending file, then the problem."""
 
 
+def inside_capture(root: str | os.PathLike, path: str | os.PathLike, what: str) -> Path:
+    """`path` resolved (links followed), when it lies inside the capture folder `root`; else one CaptureError
+    naming it: a capture reads nothing from elsewhere on the host."""
+    resolved = Path(path).resolve()
+    if not resolved.is_relative_to(Path(root).resolve()):
+        raise CaptureError(f"{path}: {what} lies outside the capture folder {root} (a link or a path out of it); "
+                           "dpi reads only files inside a capture: copy the file in")
+    return resolved
+
+
 class CaptureWarning(UserWarning):
     """A capture is usable but part of it is not (clipped pixels, nothing held out, too few views); the message
     starts with the file."""

@@ -5,24 +5,19 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from pathlib import Path
 
-import yaml
-
 from dpi.cameras import json_value
-from dpi.capture.model import CaptureError
+from dpi.capture.model import CaptureError, inside_capture
+from dpi.io.structured import StructuredFileError, read_yaml
 
 SCENE_YAML_KEYS = ("prior", "held_out", "radiance_scale", "object", "notes", "focal_length_px")
 
 
 PRIORS = ("indoor", "outdoor")
-
-
-def yaml_problem(exc: yaml.YAMLError) -> str:
-    """A YAML parse error on one line: the problem and where."""
-    mark = getattr(exc, "problem_mark", None)
-    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-    return f"{getattr(exc, 'problem', None) or exc}{where}"
+OPTION_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_-]{0,39}")
+"""what an option key looks like; other keys are counted in an error, never quoted (they may be a file's lines)"""
 
 
 def read_scene_options(root: str | os.PathLike) -> dict:
@@ -30,18 +25,20 @@ def read_scene_options(root: str | os.PathLike) -> dict:
     path = Path(root) / "scene.yaml"
     if not path.is_file():
         return {}
+    inside_capture(root, path, "scene.yaml")
     try:
-        options = yaml.safe_load(path.read_text())
-    except UnicodeDecodeError as exc:
-        raise CaptureError(f"{path}: invalid YAML (not UTF-8 text: {exc.reason})") from exc
-    except yaml.YAMLError as exc:
-        raise CaptureError(f"{path}: invalid YAML ({yaml_problem(exc)})") from exc
+        options = read_yaml(path)
+    except StructuredFileError as exc:
+        raise CaptureError(str(exc)) from None
     options = {} if options is None else options
     if not isinstance(options, dict):
         raise CaptureError(f"{path}: not a mapping of options (got {type(options).__name__})")
-    unknown = sorted(str(k) for k in options if k not in SCENE_YAML_KEYS)
+    unknown = [k for k in options if k not in SCENE_YAML_KEYS]
     if unknown:
-        raise CaptureError(f"{path}: unknown keys {unknown} (allowed: {', '.join(SCENE_YAML_KEYS)})")
+        named = sorted(str(k) for k in unknown if isinstance(k, str) and OPTION_NAME.fullmatch(k))
+        others = len(unknown) - len(named)
+        listed = ", ".join(named) + (f"{' and ' if named else ''}{others} that are not option names" if others else "")
+        raise CaptureError(f"{path}: unknown keys: {listed} (allowed: {', '.join(SCENE_YAML_KEYS)})")
     if "prior" in options and options["prior"] not in PRIORS:
         raise CaptureError(f"{path}: prior must be one of {', '.join(PRIORS)}, got {options['prior']!r}")
     if "held_out" in options:

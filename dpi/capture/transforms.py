@@ -3,13 +3,13 @@ masks."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path, PurePosixPath
 
 from dpi.cameras import Camera, TransformsError, camera_problem, read_transforms
 from dpi.capture.folder import view_name
-from dpi.capture.model import CaptureError
+from dpi.capture.model import CaptureError, inside_capture
 from dpi.io.images import IMAGE_SUFFIXES
+from dpi.io.structured import StructuredFileError, read_json
 
 ASPECT_TOLERANCE = 1e-3
 
@@ -37,10 +37,11 @@ def frame_name(file_path: str) -> str:
 
 def read_transforms_json(path: Path) -> dict:
     """A parsed transforms.json, checked to hold a 'frames' list of frames with a file path and a pose."""
+    inside_capture(path.parent, path, "the camera file")
     try:
-        data = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise CaptureError(f"{path}: unreadable JSON ({exc})") from exc
+        data = read_json(path)
+    except StructuredFileError as exc:
+        raise CaptureError(str(exc)) from None
     if not isinstance(data, dict) or not isinstance(data.get("frames"), list):
         raise CaptureError(f"{path}: missing 'frames' list")
     for i, frame in enumerate(data["frames"]):
@@ -87,7 +88,8 @@ def frame_masks(path: Path, data: dict) -> dict[str, Path] | None:
     for frame in named:
         if not isinstance(frame["mask_path"], str):
             raise CaptureError(f"{path}: frame {frame['file_path']!r}: 'mask_path' must be a string")
-        masks[frame_name(frame["file_path"])] = (path.parent / frame["mask_path"]).resolve()
+        masks[frame_name(frame["file_path"])] = inside_capture(path.parent, path.parent / frame["mask_path"],
+                                                               f"the mask_path of frame {frame['file_path']!r}")
     return masks
 
 
@@ -95,6 +97,6 @@ def names_masks(path: Path) -> bool:
     """Whether a transforms.json exists and a frame of it names a `mask_path` (a broken file: False; load_capture
     names its problem)."""
     try:
-        return path.is_file() and any("mask_path" in f for f in json.loads(path.read_text()).get("frames", []))
-    except (json.JSONDecodeError, UnicodeDecodeError, AttributeError, TypeError):
+        return path.is_file() and any("mask_path" in f for f in read_json(path).get("frames", []))
+    except (StructuredFileError, AttributeError, TypeError):
         return False

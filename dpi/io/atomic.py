@@ -1,6 +1,8 @@
 """Atomic file output: write to a temporary sibling, rename on success.
 
-A killed job therefore never leaves a half-written file under its final name.
+A killed job therefore never leaves a half-written file under its final name. The file gets the mode a plain
+`open` would give it (0666 less the umask), not the temporary file's private 0600, so a group can share a
+results folder.
 """
 
 from __future__ import annotations
@@ -13,6 +15,13 @@ from pathlib import Path
 from typing import Any, Iterator
 
 
+def umask() -> int:
+    """The process's file-mode creation mask (read by setting it and putting it back)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 @contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path next to `path`; move it onto `path` only if the block succeeds."""
@@ -22,6 +31,7 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     os.close(fd)
     try:
         yield Path(tmp)
+        os.chmod(tmp, 0o666 & ~umask())
         os.replace(tmp, final)
     finally:
         if os.path.exists(tmp):

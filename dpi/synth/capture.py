@@ -29,8 +29,8 @@ from dpi.layout import SYNTH_MARKER
 from dpi.light.skies import SkyParams, sunsky_envmap
 from dpi.prior.data import read_panorama, resize_area
 from dpi.render import RenderConfig, Renderer
-from dpi.settings import (Count, Elevation, Fraction, ImageSize, Loose, MapHeight, Rate, Steps, TextureSize, Weight,
-                          settings, settings_from_dict)
+from dpi.settings import (Count, Elevation, Fraction, ImageSize, Loose, MapHeight, Rate, SamplesPerPixel, Steps,
+                          TextureSize, Weight, settings, settings_from_dict)
 from dpi.synth.backdrop import BACKGROUNDS, add_detail, composite_backdrop
 from dpi.synth.shapes import make_shape, write_ply
 from dpi.synth.textures import procedural_materials
@@ -61,7 +61,7 @@ class SynthConfig:
     elevations_deg: Annotated[tuple[Elevation, ...], Loose] = (10.0, 35.0)
     arc_deg: Annotated[float, Field(gt=0, le=360)] = 360.0
     """azimuth range the cameras cover: 360 all around; less leaves the far side of the object unseen"""
-    spp: Count = 256
+    spp: SamplesPerPixel = 256
     """samples per pixel of the ground-truth renders"""
     env_height: MapHeight = 32
     """height of the ground-truth sky map (width is twice this)"""

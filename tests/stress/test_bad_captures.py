@@ -371,7 +371,7 @@ SCENE_YAML = {
     "invalid yaml": ("prior: [indoor\n", "invalid YAML (expected ',' or ']'"),
     "unknown prior family": ("prior: martian\n", "prior must be one of indoor, outdoor, got 'martian'"),
     "not a mapping": ("- indoor\n", "not a mapping"),
-    "unknown key": ("prior: indoor\npriors: outdoor\n", "unknown keys ['priors']"),
+    "unknown key": ("prior: indoor\npriors: outdoor\n", "unknown keys: priors"),
     "bad held_out": ("held_out: r_0\n", "held_out must be a list"),
     "zero focal": ("focal_length_px: 0\n", "focal_length_px must be a positive number"),
     "held_out boolean": ("held_out: [r_0, true]\n", "held_out[1] must be an image name (a string), got true (a boolean)"),

@@ -117,7 +117,18 @@ BAD = {  # case: (patch of config.yaml, the message's start)
     "negative agreement": ({"adaptive": {"agree_tolerance": -1}}, "adaptive.agree_tolerance: must be >= 0, got -1"),
     "zero threads": ({"threads": {"sample": 0}}, "threads.sample: must be >= 1, got 0"),
     "init views 0": ({"init": {"views_per_step": 0}}, "init.views_per_step: must be >= 1, got 0"),
-    "scene with a slash": ({"scenes": ["a/b"]}, "scenes.0: 'a/b' does not match"),
+    "scene with a slash": ({"scenes": ["a/b"]}, "scenes.0: 'a/b' is not a plain name"),
+    "scene above the results": ({"scenes": [".."]}, "scenes.0: '..' is not a plain name"),
+    "scene of the current folder": ({"scenes": ["."]}, "scenes.0: '.' is not a plain name"),
+    "scene with braces": ({"scenes": ["a{b}"]}, "scenes.0: 'a{b}' is not a plain name"),
+    "scene named too long": ({"scenes": ["a" * 65]}, "scenes.0: '" + "a" * 65 + "' is not a plain name"),
+    "scene named like a run folder": ({"scenes": ["eval"]}, "scenes: 'eval' is the name of a folder results_dir keeps"),
+    "results in the captures": ({"results_dir": "captures"}, "results_dir: captures is captures_dir"),
+    "results inside a capture": ({"results_dir": "captures/demo/out"}, "results_dir: captures/demo/out lies inside"),
+    "samples a float": ({"samples": 2.0}, "samples: 2.0 is not of type 'integer'"),
+    "samples too many": ({"samples": 1000000000}, "samples: must be <= 256"),
+    "evaluation spp too many": ({"evaluate": {"spp": 1000000000}}, "evaluate.spp: must be <= 4096"),
+    "render spp a float": ({"render": {"spp": 16.0}}, "render.spp: 16.0 is not of type 'integer'"),
 }
 
 

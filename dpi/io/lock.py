@@ -1,0 +1,47 @@
+"""One writer per results folder: an advisory lock on `results_dir/.dpi.lock`, held for the life of the process.
+
+Snakemake locks its own working directory; two runs started from two working directories on one results_dir
+would both run every job. The lock lives with the results, so a second run from anywhere is refused with one
+line, and the kernel releases it when the holder exits, even on kill -9 (a stale lock file holds nothing).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import re
+from pathlib import Path
+
+LOCK_NAME = ".dpi.lock"
+_held: dict[Path, int] = {}
+
+
+class ResultsLocked(RuntimeError):
+    """Another process holds the results folder's lock."""
+
+
+def lock_results(results: str | os.PathLike) -> Path:
+    """Hold the lock of `results` (created when missing) until this process exits; a second call in the same
+    process is a no-op. Raises ResultsLocked naming the holder's process and working directory."""
+    folder = Path(results).resolve()
+    if folder in _held:
+        return folder / LOCK_NAME
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / LOCK_NAME
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o666)
+    except OSError as exc:
+        raise ResultsLocked(f"{path}: cannot open the results lock ({exc.strerror}); remove it if it is not a "
+                            "plain file") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        pid = re.match(rb"pid (\d{1,10})\b", os.read(fd, 64))
+        os.close(fd)
+        holder = f"process {int(pid.group(1))}" if pid else "another process"
+        raise ResultsLocked(f"{folder}: another dpi run ({holder}) is writing here; wait for it to finish, or use "
+                            "another results_dir") from None
+    os.ftruncate(fd, 0)
+    os.write(fd, f"pid {os.getpid()}\n".encode())
+    _held[folder] = fd
+    return path
