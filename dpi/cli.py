@@ -154,7 +154,8 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     evaluate_stage(scene.capture_json, scene.sample_dir(args.method, args.k), scene.evaluation(args.method, args.k),
                    args.scene, args.method, args.k, pipeline.evaluate_spp,
                    pipeline.solve_settings(_threads(args, pipeline, "evaluate")),
-                   pipeline.prior_checkpoint(args.scene), views_dir=scene.evaluation_views(args.method, args.k))
+                   pipeline.prior_checkpoint(args.scene), views_dir=scene.evaluation_views(args.method, args.k),
+                   references=pipeline.config["evaluate"]["reference_panoramas"])
 
 
 def existing_evaluations(pipeline) -> list[Path]:

@@ -14,6 +14,7 @@ from dpi import backend
 from dpi.adaptive import AdaptiveConfig
 from dpi.capture import complete_capture, read_capture_json
 from dpi.evaluation.figures import envmap_grid, uncertainty_grid
+from dpi.evaluation.realism import env_realism
 from dpi.evaluation.relighting import relight_held_out
 from dpi.evaluation.sample_metrics import evaluate_sample, render_held_out
 from dpi.evaluation.summary import sample_rows, summarize, write_csv
@@ -85,13 +86,15 @@ def sample_stage(capture_json: str | Path, init_dir: str | Path, out_dir: str | 
 
 def evaluate_stage(capture_json: str | Path, sample_dir: str | Path, out_json: str | Path, scene: str,
                    method: str, k: int, spp: int, settings: SolveConfig,
-                   prior_checkpoint: str | Path | None = None, views_dir: str | Path | None = None) -> None:
+                   prior_checkpoint: str | Path | None = None, views_dir: str | Path | None = None,
+                   references: str | Path | None = None) -> None:
     """Metrics of one sample against held-out views and ground truth, as JSON, with the scene's object
     (scene.yaml `object`, else the scene), its ground-truth env map (for the summary's set metrics) and the
     capture's exposure. With `views_dir`, the held-out views it rendered go there as {view}.exr, in the units
     they were compared in (the capture's radiance divided by that exposure), and its relit views (the truth's
     too) as dpi.evaluation.relighting names them, for the report.
-    Naturalness uses the prior in `prior_checkpoint` (default: the shipped model of the scene's family)."""
+    Naturalness uses the prior in `prior_checkpoint` (default: the shipped model of the scene's family); realism,
+    the panoramas of the folder `references` (config evaluate.reference_panoramas), when given."""
     problem = load_problem(capture_json, settings)
     sample = problem.load_decomposition(sample_dir)
     traces = [Path(sample_dir) / name for name in (SAMPLE_TRACE, INIT_TRACE) if (Path(sample_dir) / name).is_file()]
@@ -102,7 +105,8 @@ def evaluate_stage(capture_json: str | Path, sample_dir: str | Path, out_json: s
     seed = seed_for(scene, method, k, "eval")
     renders = render_held_out(problem, sample, spp, seed)
     relit = relight_held_out(problem, sample, spp, seed)
-    metrics = evaluate_sample(problem, sample, spp, seed, seconds, prior, renders, relit)
+    metrics = {**evaluate_sample(problem, sample, spp, seed, seconds, prior, renders, relit),
+               "env_realism": env_realism(sample.env.numpy(), references)}
     if views_dir is not None:
         Path(views_dir).mkdir(parents=True, exist_ok=True)
         for name, image in {**renders, **({} if isinstance(relit, str) else relit)}.items():

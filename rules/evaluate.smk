@@ -12,6 +12,7 @@ rule evaluate:
         views=directory(SCENE.evaluation_views("{method}", "{k}")),
     params:
         spp=config["evaluate"]["spp"],
+        references=config["evaluate"]["reference_panoramas"],
         solve=solve_params(),
     threads: PIPELINE.threads("evaluate")
     resources:

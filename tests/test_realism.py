@@ -33,3 +33,15 @@ def test_the_distance_ignores_exposure_and_orders_sets_by_likeness():
     d_near, d_flipped, d_flat = (realism_distance(s, real) for s in (near, flipped, flat))
     assert d_near < d_flipped and d_near < d_flat
     assert realism_distance(near, real) == pytest.approx(realism_distance(real, near), rel=1e-9)
+
+
+def test_a_samples_realism_is_its_distance_to_the_reference_folder(tmp_path):
+    from dpi.evaluation.realism import env_realism
+    from dpi.io.exr import write_exr
+
+    refs = [smooth_map(i) for i in range(3)]
+    for i, m in enumerate(refs):
+        write_exr(tmp_path / f"ref_{i}.exr", m)
+    sample = smooth_map(9)
+    assert env_realism(sample, tmp_path) == pytest.approx(realism_distance([sample], refs), rel=1e-6)
+    assert env_realism(sample, None).startswith("missing: no evaluate.reference_panoramas")

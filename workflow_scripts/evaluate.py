@@ -13,4 +13,4 @@ with log_to(snakemake.log[0]):
     evaluate_stage(snakemake.input.capture, Path(snakemake.input.sample).parent, snakemake.output.metrics, w.scene,
                    method, k, snakemake.params.spp,
                    SolveConfig.from_config(snakemake.params.solve, snakemake.threads), snakemake.input.prior,
-                   views_dir=snakemake.output.views)
+                   views_dir=snakemake.output.views, references=snakemake.params.references)

@@ -14,11 +14,14 @@ clutter does not."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 import torch
 from torch.nn import functional as F
 
+from dpi.evaluation.metrics import missing
 from dpi.io.images import luminance
 
 REALISM_HEIGHT = 32
@@ -88,3 +91,19 @@ def realism_distance(maps: list[np.ndarray], references: list[np.ndarray],
     if not maps or not references:
         raise ValueError("realism_distance needs at least one map and one reference")
     return sliced_wasserstein(torch.cat([patches(m) for m in maps]), torch.cat([patches(r) for r in references]), cfg)
+
+
+@lru_cache(maxsize=4)
+def reference_patches(folder: str) -> torch.Tensor:
+    """The patch cloud of every panorama in `folder` (read once a process)."""
+    from dpi.prior.data import list_panoramas, read_panorama
+
+    return torch.cat([patches(read_panorama(path)) for path in list_panoramas(folder)])
+
+
+def env_realism(env: np.ndarray, references: str | Path | None, cfg: RealismConfig = RealismConfig()) -> float | str:
+    """One sample's realism distance to the panoramas of the folder `references` (config
+    evaluate.reference_panoramas), or the missing-value saying none were given."""
+    if references is None:
+        return missing("no evaluate.reference_panoramas")
+    return sliced_wasserstein(patches(env), reference_patches(str(Path(references).resolve())), cfg)

@@ -206,7 +206,8 @@ def run_job(job: Job) -> dict[str, Any]:
                      adaptive=AdaptiveConfig.from_dict(job.config.get("adaptive")), progress=False)
     out = files.evaluation(job.label, job.seed)
     evaluate_stage(files.capture_json, sample_dir, out, job.scene, job.method, job.seed,
-                   job.config["evaluate"]["spp"], settings, job.prior_checkpoint)
+                   job.config["evaluate"]["spp"], settings, job.prior_checkpoint,
+                   references=job.config["evaluate"]["reference_panoramas"])
     metrics = json.loads(out.read_text())["metrics"]
     return {"scene": job.scene, "group": job.group, "method": job.method, "sampler": job.sampler,
             "seed": job.seed, **{k: metrics[k] for k in SAMPLE_METRICS}, "seconds": metrics["sample_seconds"]}

@@ -40,16 +40,29 @@ REAL_LIGHT_SCENES: dict[str, tuple[str, dict[str, Any]]] = {
                                "prior": "outdoor"}),
     "torus_venice": ("real", {**AMBIGUOUS, "shape": "bumpy_torus", "seed": 3, "panorama": "venice_sunset_1k.hdr",
                               "prior": "outdoor"}),
+    "blob_forest": ("real", {**AMBIGUOUS, "shape": "blob", "seed": 1, "panorama": "phalzer_forest_01_1k.hdr",
+                             "prior": "outdoor"}),
+    "torus_market": ("real", {**AMBIGUOUS, "shape": "bumpy_torus", "seed": 4, "panorama": "leadenhall_market_1k.hdr",
+                              "prior": "indoor"}),
+    "blob_studio": ("real", {**AMBIGUOUS, "shape": "blob", "seed": 2, "panorama": "brown_photostudio_02_1k.hdr",
+                             "prior": "indoor"}),
+    "blob_beach_glossy": ("real_glossy", {**GLOSSY, "shape": "blob", "seed": 5,
+                                          "panorama": "spiaggia_di_mondello_1k.hdr", "prior": "outdoor"}),
+    "torus_vestibule_glossy": ("real_glossy", {**GLOSSY, "shape": "bumpy_torus", "seed": 6,
+                                               "panorama": "vestibule_1k.hdr", "prior": "indoor"}),
 }
-"""the posterior study's real-light scenes: ambiguous objects under the manifest's held-out real panoramas
-(dpi/data/panoramas.csv), which no shipped prior trained on; the maps do not ship (`real_light_scenes`)"""
+"""the posterior study's real-light scenes: rough objects seen on an arc (group `real`) and metals seen all around
+(`real_glossy`) under the manifest's held-out real panoramas (dpi/data/panoramas.csv: a city, a low sun, a forest,
+a market hall, a studio, a beach, a vestibule), which no prior trained on; the maps do not ship
+(`real_light_scenes`)"""
 
 
 def real_light_scenes(folder: Path) -> dict[str, tuple[str, dict[str, Any]]]:
     """REAL_LIGHT_SCENES lit by the panoramas in `folder`, each file checked against the manifest's checksum."""
     from dpi.prior.panoramas import panorama_files
 
-    held_out = {path.name: path for path in panorama_files(folder, "outdoor", "held_out")}
+    held_out = {path.name: path for family in ("outdoor", "indoor")
+                for path in panorama_files(folder, family, "held_out")}
     scenes = {}
     for name, (group, synth) in REAL_LIGHT_SCENES.items():
         panorama = synth["panorama"]

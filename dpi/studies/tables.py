@@ -275,18 +275,21 @@ def real_photos(root: Path) -> str:
 
 
 def realism(root: Path) -> str:
-    """Prior realism: each prior's denoising error and NIQE (mean ± std over the maps) on real panoramas held out
-    of training, on the real ones it trained on, on procedural maps and on its own samples
+    """Prior realism on the current held-out real panoramas (the newest rows' settings, which name them): each
+    prior's denoising error and NIQE (mean ± std over the maps) on those panoramas, on the real ones it trained on,
+    on procedural maps and on its own samples, and each set's realism distance to the held-out panoramas
     (benchmarks/prior_realism.py)."""
-    rows = latest(read_rows(root / RESULTS / "prior_realism.csv", ("checkpoint", "family", "kind")),
-                  ("checkpoint", "kind"))
+    rows = read_rows(root / RESULTS / "prior_realism.csv", ("checkpoint", "family", "kind"))
+    current = {r["family"]: r.get("settings_hash") for r in rows}
+    rows = latest([r for r in rows if r.get("settings_hash") == current[r["family"]]], ("checkpoint", "kind"))
     kinds = ("real_held_out", "real_train", "procedural", "samples")
-    rows.sort(key=lambda r: (kinds.index(r["kind"]) if r["kind"] in kinds else 9, r["checkpoint"]))
-    body = [[r["kind"], f"`{r['checkpoint']}`", f"{r['maps']:.0f}",
-             f"{r['denoising_mse']:.4f} ± {r['denoising_mse_std']:.4f}", f"{r['niqe']:.2f} ± {r['niqe_std']:.2f}"]
-            for r in rows]
-    return markdown(["maps", "prior", "n", "denoising MSE (lower: likelier)", "NIQE (lower: more photo-like)"],
-                    body)
+    rows.sort(key=lambda r: (r["family"] != "outdoor", kinds.index(r["kind"]) if r["kind"] in kinds else 9,
+                             r["checkpoint"]))
+    body = [[r["family"], r["kind"], f"`{r['checkpoint']}`", f"{r['maps']:.0f}",
+             f"{r['denoising_mse']:.4f} ± {r['denoising_mse_std']:.4f}", f"{r['niqe']:.2f} ± {r['niqe_std']:.2f}",
+             f"{r['realism']:.3f}" if isinstance(r.get("realism"), float) else "-"] for r in rows]
+    return markdown(["family", "maps", "prior", "n", "denoising MSE (lower: likelier)",
+                     "NIQE (lower: more photo-like)", "realism distance to held-out real (lower: closer)"], body)
 
 
 def presets(root: Path) -> str:
