@@ -129,6 +129,27 @@ def check_signal(path: Path, image: np.ndarray) -> None:
                       "exact, so shading there is underestimated", CaptureWarning, stacklevel=2)
 
 
+PNG_ALPHA_TYPES = (4, 6)
+"""PNG colour types with an alpha channel (grey + alpha, RGBA)"""
+
+
+def png_has_alpha(path: Path) -> bool:
+    """Whether a PNG's header declares an alpha channel (its IHDR colour type, byte 25)."""
+    with open(path, "rb") as handle:
+        head = handle.read(26)
+    return head[:8] == b"\x89PNG\r\n\x1a\n" and len(head) == 26 and head[25] in PNG_ALPHA_TYPES
+
+
+def alpha_masks(images: dict[str, Path]) -> dict[str, Path] | None:
+    """The images as their own masks (read_mask takes a varying alpha) when every one is a PNG with an alpha
+    channel and the first one's alpha varies: cut-outs, as NeRF-synthetic renders are; else None."""
+    paths = list(images.values())
+    if not paths or any(p.suffix.lower() != ".png" or not png_has_alpha(p) for p in paths):
+        return None
+    alpha = decode_ldr(paths[0])[..., -1]
+    return dict(images) if alpha.min() < alpha.max() else None
+
+
 def mask_files(root: Path, images: dict[str, Path], size: tuple[int, int],
                 given: dict[str, Path] | None = None) -> dict[str, Path] | None:
     """view name -> mask file: `given` (transforms.json's mask_path) or masks/ (None without either), checking one
@@ -162,10 +183,12 @@ def mask_files(root: Path, images: dict[str, Path], size: tuple[int, int],
 
 
 def gt_files(root: Path) -> dict[str, Path]:
-    """name -> ground-truth EXR (gt/{name}.exr, any case), each read as every stage reads it (`read_ground_truth`)."""
+    """name -> ground-truth map (gt/{name}.exr, any case; the env map also as gt/envmap.hdr), each read as every stage
+    reads it (`read_ground_truth`)."""
     gt = {}
     for name in GT_NAMES:
-        for path in named_files(root / "gt", (f"{name}.exr",))[:1]:
+        suffixes = (".exr", ".hdr") if name == "envmap" else (".exr",)
+        for path in named_files(root / "gt", tuple(f"{name}{s}" for s in suffixes))[:1]:
             inside_capture(root, path, f"ground truth {name}")
             try:
                 read_ground_truth(path, name)

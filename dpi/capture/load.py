@@ -10,10 +10,11 @@ from pathlib import Path
 import numpy as np
 
 from dpi.cameras import Camera, read_cameras
-from dpi.capture.folder import check_images, check_root, gt_files, image_files, mask_files
+from dpi.capture.folder import alpha_masks, check_images, check_root, gt_files, image_files, mask_files
 from dpi.capture.meshes import check_mesh, mesh_file, mesh_has_uv
 from dpi.capture.mitsuba_scene import camera_xml, xml_cameras
 from dpi.capture.model import Capture, CaptureError, CaptureWarning, View
+from dpi.capture.nerf_synthetic import read_splits, split_files
 from dpi.capture.scene_yaml import read_scene_options
 from dpi.capture.transforms import frame_masks, names_masks, read_transforms_json, transforms_cameras
 from dpi.capture.undistort import with_cameras
@@ -30,12 +31,20 @@ def inspect_capture(root: str | os.PathLike) -> dict[str, bool]:
     root = Path(root)
     check_root(root)
     mesh = mesh_file(root, read_scene_options(root))
+    nerf = nerf_synthetic(root)
+    images = read_splits(root)[0] if nerf else image_files(root) if (root / "images").is_dir() else {}
     return {
-        "cameras": (root / "transforms.json").is_file() or camera_xml(root) is not None,
-        "masks": (root / "masks").is_dir() or names_masks(root / "transforms.json"),
+        "cameras": (root / "transforms.json").is_file() or nerf or camera_xml(root) is not None,
+        "masks": (root / "masks").is_dir() or names_masks(root / "transforms.json") or alpha_masks(images) is not None,
         "mesh": mesh is not None,
         "mesh_has_uv": mesh is not None and mesh.is_file() and mesh_has_uv(mesh),
     }
+
+
+def nerf_synthetic(root: Path) -> bool:
+    """Whether the capture is in the NeRF-synthetic layout: split files (transforms_train.json, ...) and no
+    transforms.json."""
+    return bool(split_files(root)) and not (root / "transforms.json").is_file()
 
 
 def derived_inputs(given: dict[str, bool], scene: SceneLayout) -> dict[str, Path]:
@@ -114,19 +123,27 @@ def load_capture(root: str | os.PathLike) -> Capture:
     root = Path(root).resolve()
     check_root(root)
     options = read_scene_options(root)
-    images = image_files(root)
+    if nerf_synthetic(root):
+        images, transforms = read_splits(root)
+        camera_file = next(iter(split_files(root).values()))
+    else:
+        images = image_files(root)
+        transforms_file = root / "transforms.json"
+        camera_file = transforms_file if transforms_file.is_file() else camera_xml(root)
+        transforms = read_transforms_json(camera_file) if camera_file is not None and camera_file.suffix == ".json" \
+            else None
     names = list(images)
     size = check_images(images)
-    transforms_file = root / "transforms.json"
-    camera_file = transforms_file if transforms_file.is_file() else camera_xml(root)
-    transforms = read_transforms_json(camera_file) if camera_file is not None and camera_file.suffix == ".json" else None
     if camera_file is None:
         cameras = {}
     elif transforms is not None:
         cameras = transforms_cameras(camera_file, transforms, names, size)
     else:
         cameras = xml_cameras(camera_file, names, size)
-    masks = mask_files(root, images, size, frame_masks(camera_file, transforms) if transforms is not None else None)
+    given_masks = frame_masks(camera_file, transforms) if transforms is not None else None
+    if given_masks is None and not (root / "masks").is_dir():
+        given_masks = alpha_masks(images)
+    masks = mask_files(root, images, size, given_masks)
     mesh = mesh_file(root, options)
     if mesh is not None:
         surface = check_mesh(mesh)

@@ -117,6 +117,20 @@ def decode_ldr(path: Path) -> np.ndarray:
     return upright(values, exif_orientation(path))
 
 
+def read_hdr(path: str | os.PathLike) -> np.ndarray:
+    """Linear RGB float32 (H, W, 3) of a Radiance .hdr file (OpenCV's reader); an unreadable file is an ImageError
+    naming it."""
+    import cv2
+
+    path = Path(path)
+    if not path.is_file():
+        raise ImageError(f"{path}: image file does not exist")
+    data = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
+    if data is None or data.dtype != np.float32:
+        raise ImageError(f"{path}: not a readable Radiance HDR file")
+    return np.ascontiguousarray(data[..., ::-1])
+
+
 def read_image(path: str | os.PathLike) -> np.ndarray:
     """Linear RGB float32 (H, W, 3) from an sRGB PNG/JPG or a linear EXR; NaN/Inf is an error."""
     path = Path(path)
@@ -172,6 +186,13 @@ def write_srgb(path: str | os.PathLike, linear: np.ndarray, exposure: float = 1.
     with atomic_path(path) as tmp:
         Image.fromarray(to_uint8(linear, exposure)).save(tmp, format="JPEG" if jpeg else "PNG",
                                                          **({"quality": 92} if jpeg else {}))
+
+
+def write_srgb_alpha(path: str | os.PathLike, linear: np.ndarray, alpha: np.ndarray) -> None:
+    """Write a linear RGB image and a coverage in [0, 1] as an 8-bit sRGB RGBA PNG (a cut-out), atomically."""
+    rgba = np.concatenate([to_uint8(linear), np.round(np.clip(alpha, 0, 1) * 255).astype(np.uint8)[..., None]], -1)
+    with atomic_path(path) as tmp:
+        Image.fromarray(rgba, mode="RGBA").save(tmp, format="PNG")
 
 
 def write_mask(path: str | os.PathLike, mask: np.ndarray) -> None:

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from dpi.io.exr import EXRError, read_exr
-from dpi.io.images import luminance, resize
+from dpi.io.images import ImageError, luminance, read_hdr, resize
 
 
 def texel_angles(height: int) -> tuple[np.ndarray, np.ndarray]:
@@ -139,9 +139,15 @@ def equirect(env: np.ndarray, source: str = "envmap") -> tuple[np.ndarray, list[
 
 
 def read_envmap(path: str | Path, log: bool = True) -> np.ndarray:
-    """An environment map (H, 2H, 3) from an EXR in any layout `equirect` reads (its changes printed
-    as log lines); an unreadable file or NaN/Inf/negative radiance is an error naming the file."""
-    env = read_exr(path)
+    """An environment map (H, 2H, 3) from an EXR (or a Radiance .hdr) in any layout `equirect` reads (its changes
+    printed as log lines); an unreadable file or NaN/Inf/negative radiance is an error naming the file."""
+    if Path(path).suffix.lower() == ".hdr":
+        try:
+            env = read_hdr(path)
+        except ImageError as exc:
+            raise EXRError(str(exc)) from None
+    else:
+        env = read_exr(path)
     if env.shape[-1] == 1:
         env = np.repeat(env, 3, axis=-1)
     if not np.isfinite(env).all() or (env < 0).any():

@@ -23,7 +23,7 @@ from torch.nn import functional as F
 
 from dpi.io.atomic import atomic_path
 from dpi.io.exr import read_exr
-from dpi.io.images import HDR_SUFFIXES, IMAGE_SUFFIXES, luminance, read_image
+from dpi.io.images import HDR_SUFFIXES, IMAGE_SUFFIXES, luminance, read_hdr, read_image
 from dpi.light.envmap import direction_to_uv, pad_equirect, texel_directions
 from dpi.light.tonecurve import Encoding, encoding_from_dict
 
@@ -43,7 +43,7 @@ MAX_TILT_DEG = 4.0
 
 
 def read_panorama(path: str | Path) -> np.ndarray:
-    """Linear float32 (h, w, 3) from .exr/.png/.jpg or Radiance .hdr (via Mitsuba's Bitmap). Slight negatives
+    """Linear float32 (h, w, 3) from .exr/.png/.jpg or Radiance .hdr. Slight negatives
     (a colour-space conversion's out-of-gamut texels, above -NEGATIVE_TOLERANCE x the median luminance) are
     clamped to 0; NaN/Inf or larger negatives are errors naming the file."""
     path = Path(path)
@@ -51,11 +51,7 @@ def read_panorama(path: str | Path) -> np.ndarray:
         image = read_exr(path)[..., :3]
         image = np.repeat(image, 3, axis=-1) if image.shape[-1] == 1 else image
     elif path.suffix.lower() == ".hdr":
-        from dpi import backend
-
-        mi = backend.mitsuba()
-        bitmap = mi.Bitmap(str(path)).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, srgb_gamma=False)
-        image = np.array(bitmap, dtype=np.float32)
+        image = read_hdr(path)
     else:
         return read_image(path)
     if not np.isfinite(image).all():

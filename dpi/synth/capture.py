@@ -24,7 +24,7 @@ from tqdm import tqdm
 from dpi.cameras import from_fov, orbit, write_transforms
 from dpi.io.atomic import write_json, write_text
 from dpi.io.exr import write_exr
-from dpi.io.images import luminance, write_mask, write_srgb
+from dpi.io.images import luminance, write_mask, write_srgb, write_srgb_alpha
 from dpi.layout import SYNTH_MARKER
 from dpi.light.skies import SkyParams, sunsky_envmap
 from dpi.prior.data import read_panorama, resize_area
@@ -43,6 +43,8 @@ FOV_DEG = 35.0
 PROCEDURAL = ("sunsky", "outdoor", "indoor")
 """the ground-truth lights SynthConfig.environment names; anything else is a panorama file"""
 PANORAMA_SUFFIXES = (".exr", ".hdr")
+LAYOUTS = ("dpi", "nerf_synthetic")
+"""how a synthetic capture is laid out (SynthConfig.layout)"""
 
 
 @settings
@@ -90,6 +92,10 @@ class SynthConfig:
     photos_only: bool = False
     """write only images/ and scene.yaml (with the held-out names), like a folder of photos; the
     cameras, masks and mesh go to gt/ (transforms.json, masks/, mesh.ply) to measure derived ones"""
+    layout: str = "dpi"
+    """dpi (images/, masks/, transforms.json) or nerf_synthetic (train/ and test/ RGBA PNGs whose alpha is the
+    object's coverage, transforms_train.json and transforms_test.json with camera_angle_x and file paths without
+    their extension; the held-out views are the test split)"""
     prior: str | None = None
     """scene.yaml `prior` (outdoor | indoor); None writes none, so the scene takes the configured default family"""
     object: str = ""
@@ -147,6 +153,10 @@ def make_synthetic_capture(out_dir: str | Path, cfg: SynthConfig, threads: int |
         raise FileExistsError(f"{out_dir}: exists and is not a synthetic capture made by dpi; not overwriting")
     if cfg.image_format not in ("exr", "png", "jpg"):
         raise ValueError(f"image_format must be exr, png or jpg, got {cfg.image_format!r}")
+    if cfg.layout not in LAYOUTS:
+        raise ValueError(f"layout must be one of {', '.join(LAYOUTS)}, got {cfg.layout!r}")
+    if cfg.layout == "nerf_synthetic" and (cfg.image_format != "png" or cfg.photos_only):
+        raise ValueError("layout nerf_synthetic writes RGBA PNGs with their cameras: image_format png, not photos_only")
     if cfg.background not in BACKGROUNDS:
         raise ValueError(f"background must be one of {', '.join(BACKGROUNDS)}, got {cfg.background!r}")
     out_dir.parent.mkdir(parents=True, exist_ok=True)
@@ -193,19 +203,39 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
         if cfg.background != "env":
             image = composite_backdrop(image, *renderer.object_hits(i, supersample=3), cfg.background, env,
                                        ground=-2.5, wall_radius=2.5 * cfg.camera_distance, seed=cfg.seed)
+        if cfg.layout == "nerf_synthetic":
+            split = "test" if cam.extras["held_out"] else "train"
+            write_srgb_alpha(root / split / f"{cam.name}.png", image, renderer.coverage(i))
+            continue
         for fmt, folder in ((cfg.image_format, "images"), (other, "preview")):
             path = root / folder / f"{cam.name}.{fmt}"
             write_exr(path, image) if fmt == "exr" else write_srgb(path, image)  # png or jpg
         write_mask(given / "masks" / f"{cam.name}.png", renderer.coverage(i) >= 0.5)
 
-    frames = [(f"images/{cam.name}.{cfg.image_format}", cam) for cam in cameras]
-    write_json(given / "transforms.json", write_transforms(frames))
+    if cfg.layout == "nerf_synthetic":
+        write_nerf_synthetic_splits(root, cameras)
+    else:
+        frames = [(f"images/{cam.name}.{cfg.image_format}", cam) for cam in cameras]
+        write_json(given / "transforms.json", write_transforms(frames))
     scene = {**({"prior": cfg.prior} if cfg.prior else {}), "object": cfg.object or cfg.shape}
     if cfg.photos_only:
         scene["held_out"] = [cam.name for cam in cameras if cam.extras["held_out"]]
         scene["focal_length_px"] = float(cameras[0].fx)  # what a photo's EXIF would tell
     write_text(root / "scene.yaml", yaml.safe_dump(scene, sort_keys=False))
     write_json(root / SYNTH_MARKER, asdict(cfg))
+
+
+def write_nerf_synthetic_splits(root: Path, cameras: list) -> None:
+    """transforms_train.json and transforms_test.json as NeRF-synthetic writes them: camera_angle_x, and per frame
+    a file path without its extension and the camera-to-world matrix (OpenGL axes)."""
+    for split, held in (("train", False), ("test", True)):
+        chosen = [cam for cam in cameras if cam.extras["held_out"] == held]
+        if not chosen:
+            continue
+        angle = 2.0 * float(np.arctan(chosen[0].width / (2.0 * chosen[0].fx)))
+        frames = [{"file_path": f"./{split}/{cam.name}", "rotation": 0.0, "transform_matrix": cam.c2w.tolist()}
+                  for cam in chosen]
+        write_json(root / f"transforms_{split}.json", {"camera_angle_x": angle, "frames": frames})
 
 
 def read_marker(capture_dir: str | Path) -> dict | None:
