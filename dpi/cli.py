@@ -37,13 +37,13 @@ from dpi.prior.commands import register as register_prior_commands
 
 
 def _pipeline(args: argparse.Namespace):
-    """The resolved config of the command's --config files; a command on a scene holds its results folder's lock
-    (dpi.io.lock) while it runs."""
+    """The resolved config of the command's --config files; a command on a scene (other than a dry run) holds its
+    results folder's lock (dpi.io.lock) while it runs."""
     from dpi.io.lock import lock_results
     from dpi.pipeline import load_pipeline
 
     pipeline = load_pipeline(args.config)
-    if getattr(args, "scene", None) is not None:
+    if getattr(args, "scene", None) is not None and not getattr(args, "dry_run", False):
         lock_results(pipeline.layout.results)
     return pipeline
 

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from dpi.cameras import Camera, read_cameras
+from dpi.capture.colmap_model import check_colmap_model, colmap_model_dir
 from dpi.capture.folder import alpha_masks, check_images, check_root, gt_files, image_files, mask_files
 from dpi.capture.meshes import check_mesh, mesh_file, mesh_has_uv
 from dpi.capture.mitsuba_scene import camera_xml, xml_cameras
@@ -134,6 +135,9 @@ def load_capture(root: str | os.PathLike) -> Capture:
             else None
     names = list(images)
     size = check_images(images)
+    model_dir = colmap_model_dir(root) if camera_file is None else None
+    if model_dir is not None:
+        check_colmap_model(root, model_dir, names)
     if camera_file is None:
         cameras = {}
     elif transforms is not None:

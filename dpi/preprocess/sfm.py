@@ -127,7 +127,14 @@ def _intrinsics(camera) -> tuple[float, float, float, float, Lens | None]:
         lens = Lens(k1=float(params[3]), k2=float(params[4]) if camera.model_name == "RADIAL" else 0.0)
         keep = lens_shift_px(lens, camera.width, camera.height, params[0]) >= MIN_LENS_SHIFT_PX
         return params[0], params[0], params[1], params[2], lens if keep else None
-    raise SfMError(f"unexpected COLMAP camera model {camera.model_name}")
+    if camera.model_name in ("OPENCV", "OPENCV_FISHEYE"):
+        fisheye = camera.model_name == "OPENCV_FISHEYE"
+        lens = Lens(fisheye=True, k1=float(params[4]), k2=float(params[5]), k3=float(params[6]),
+                    k4=float(params[7])) if fisheye else \
+            Lens(k1=float(params[4]), k2=float(params[5]), p1=float(params[6]), p2=float(params[7]))
+        return params[0], params[1], params[2], params[3], lens
+    raise SfMError(f"COLMAP camera model {camera.model_name} is not read by dpi (use SIMPLE_PINHOLE, PINHOLE, "
+                   "SIMPLE_RADIAL, RADIAL, OPENCV or OPENCV_FISHEYE)")
 
 
 def upright_copies(images: list[Path], folder: Path) -> list[Path]:
@@ -235,33 +242,7 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
         raise SfMError(f"{image_dir}: mean reprojection error {summary['mean_reprojection_error_px']:.2f} px "
                        f"exceeds max_reprojection_error_px={MAX_REPROJECTION_ERROR_PX}", summary)
 
-    cameras = {}
-    for image in model.images.values():
-        if not image.has_pose:
-            continue
-        cam = model.cameras[image.camera_id]
-        name = Path(image.name).stem
-        fx, fy, cx, cy, lens = _intrinsics(cam)
-        cameras[name] = colmap_to_camera(image.cam_from_world().matrix(), cam.width, cam.height, fx, fy, cx, cy, name,
-                                         lens)
-    lens = next(iter(cameras.values())).lens if cameras else None  # one camera for all views (CameraMode.SINGLE)
-    summary["lens"] = lens.to_json() if lens else None
-    rejected = off_centre_views(cameras) if REJECT_OFF_CENTRE else []
-    if rejected:
-        log.warning("dropping %d views that do not look at the object (misregistered): %s", len(rejected), rejected)
-        cameras = {n: c for n, c in cameras.items() if n not in rejected}
-    summary.update(rejected_views=rejected, registered=len(cameras))
-    if len(cameras) < cfg.min_registered_fraction * len(images):
-        raise SfMError(f"{image_dir}: {len(cameras)} of {len(images)} images registered consistently "
-                       f"({len(rejected)} do not look at the object), fewer than "
-                       f"min_registered_fraction={cfg.min_registered_fraction}", summary)
-    pts = [(p.xyz, p.color, p.track.length()) for p in model.points3D.values()]
-    xyz = np.array([p[0] for p in pts], dtype=np.float64).reshape(-1, 3)
-    rgb = np.array([p[1] for p in pts], dtype=np.float64).reshape(-1, 3) / 255.0
-    keep = np.array([p[2] >= MIN_TRACK_LENGTH for p in pts], dtype=bool)
-    on_object = object_points(xyz[keep], list(cameras.values()), OBJECT_VIEW_FRACTION)
-    summary["object_points"] = int(on_object.sum())
-    return SparseModel(cameras, xyz[keep], rgb[keep], on_object, summary)
+    return model_contents(model, summary, len(images), cfg, image_dir)
 
 
 def in_view_fraction(points: np.ndarray, cameras: list[Camera]) -> np.ndarray:
@@ -311,6 +292,57 @@ def up_direction(cameras: list[Camera]) -> np.ndarray:
         return mean_up
     normal = vt[2]
     return normal if normal @ mean_up >= 0 else -normal
+
+
+def model_contents(model, summary: dict, images: int, cfg: SfMConfig, source: Path) -> SparseModel:
+    """The cameras (views that do not look at the object dropped) and sparse points of a COLMAP reconstruction;
+    too few consistent views is an SfMError naming `source`."""
+    cameras = {}
+    for image in model.images.values():
+        if not image.has_pose:
+            continue
+        cam = model.cameras[image.camera_id]
+        name = Path(image.name).stem
+        fx, fy, cx, cy, lens = _intrinsics(cam)
+        cameras[name] = colmap_to_camera(image.cam_from_world().matrix(), cam.width, cam.height, fx, fy, cx, cy, name,
+                                         lens)
+    lens = next(iter(cameras.values())).lens if cameras else None  # one camera for all views (CameraMode.SINGLE)
+    summary["lens"] = lens.to_json() if lens else None
+    rejected = off_centre_views(cameras) if REJECT_OFF_CENTRE else []
+    if rejected:
+        log.warning("dropping %d views that do not look at the object (misregistered): %s", len(rejected), rejected)
+        cameras = {n: c for n, c in cameras.items() if n not in rejected}
+    summary.update(rejected_views=rejected, registered=len(cameras))
+    if len(cameras) < cfg.min_registered_fraction * images:
+        raise SfMError(f"{source}: {len(cameras)} of {images} images registered consistently "
+                       f"({len(rejected)} do not look at the object), fewer than "
+                       f"min_registered_fraction={cfg.min_registered_fraction}", summary)
+    pts = [(p.xyz, p.color, p.track.length()) for p in model.points3D.values()]
+    xyz = np.array([p[0] for p in pts], dtype=np.float64).reshape(-1, 3)
+    rgb = np.array([p[1] for p in pts], dtype=np.float64).reshape(-1, 3) / 255.0
+    keep = np.array([p[2] >= MIN_TRACK_LENGTH for p in pts], dtype=bool)
+    on_object = object_points(xyz[keep], list(cameras.values()), OBJECT_VIEW_FRACTION)
+    summary["object_points"] = int(on_object.sum())
+    return SparseModel(cameras, xyz[keep], rgb[keep], on_object, summary)
+
+
+def read_model(folder: Path, cfg: SfMConfig | None = None) -> SparseModel:
+    """A capture's own COLMAP model (text or binary: cameras, images, points3D), read with pycolmap as it is:
+    its cameras and intrinsics as given, its sparse points kept."""
+    import pycolmap
+
+    cfg = cfg or SfMConfig()
+    try:
+        model = pycolmap.Reconstruction(str(folder))
+    except (RuntimeError, ValueError):
+        raise SfMError(f"{folder}: not a readable COLMAP model (cameras, images and points3D as .txt or .bin)") \
+            from None
+    summary = {"source": str(folder), "images": model.num_images(), "registered": model.num_reg_images(),
+               "points": model.num_points3D(),
+               "mean_reprojection_error_px": float(model.compute_mean_reprojection_error())}
+    if model.num_reg_images() == 0:
+        raise SfMError(f"{folder}: the COLMAP model has no registered image", summary)
+    return model_contents(model, summary, model.num_images(), cfg, folder)
 
 
 def similarity_to_dpi(model: SparseModel) -> tuple[float, np.ndarray, np.ndarray]:

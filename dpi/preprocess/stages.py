@@ -78,10 +78,12 @@ def capture_stage(capture_dir: str | Path, out_json: str | Path) -> None:
 
 
 def poses_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None, threads: int = 1) -> dict:
-    """Structure from motion on the capture's images into out_dir: cameras (transforms.json), sparse points
-    and a summary (dpi.layout.poses_files)."""
+    """The capture's cameras into out_dir: its own COLMAP model when it brings one (dpi.capture.colmap_model; read
+    as given, and brought into dpi's frame unless the capture's mesh is in the model's), else structure from
+    motion on its images; cameras (transforms.json), sparse points and a summary (dpi.layout.poses_files)."""
+    from dpi.capture.colmap_model import colmap_model_dir
     from dpi.capture.undistort import with_cameras
-    from dpi.preprocess.sfm import SfMConfig, SfMError, normalise, run_sfm, write_points_ply
+    from dpi.preprocess.sfm import SfMConfig, SfMError, normalise, read_model, run_sfm, write_points_ply
 
     capture = read_capture_json(capture_json)
     cfg = settings_from_dict(SfMConfig, settings)
@@ -91,8 +93,13 @@ def poses_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | 
     files = poses_files(out_dir)
     images = [v.image for v in capture.views]
     start = time.perf_counter()
+    given = colmap_model_dir(capture.root)
     try:
-        model = normalise(run_sfm(images, out_dir / "colmap", cfg, threads, focal and float(focal)))
+        if given is None:
+            model = normalise(run_sfm(images, out_dir / "colmap", cfg, threads, focal and float(focal)))
+        else:
+            model = read_model(given, cfg)
+            model = model if capture.provenance["mesh"] == "given" else normalise(model)
     except SfMError as exc:
         write_json(files["summary"], {"error": str(exc), **exc.summary})
         raise

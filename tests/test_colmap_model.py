@@ -1,0 +1,70 @@
+"""A capture that brings its COLMAP model (sparse/0, text or binary): read with pycolmap as given instead of
+running structure from motion, checked at validation, its sparse points kept for the masks stage."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pycolmap
+import pytest
+from capture_helpers import NAMES, cameras, make_capture
+from colmap_helpers import write_text_model
+
+from dpi.cameras import read_cameras
+from dpi.capture import CaptureError, load_capture
+from dpi.layout import poses_files
+from dpi.preprocess.sfm import read_points_ply
+from dpi.preprocess.stages import capture_stage, poses_stage
+
+GIVEN = dict(zip(NAMES, cameras()))
+
+
+def colmap_capture(root, binary=False, mesh=True):
+    """A capture without transforms.json whose cameras are a COLMAP model in sparse/0."""
+    make_capture(root, transforms=False, mesh=mesh)
+    write_text_model(root / "sparse" / "0", {n: GIVEN[n] for n in NAMES}, suffix=".png")
+    if binary:
+        model = pycolmap.Reconstruction(str(root / "sparse" / "0"))
+        for f in (root / "sparse" / "0").iterdir():
+            f.unlink()
+        model.write_binary(str(root / "sparse" / "0"))
+    return root
+
+
+@pytest.mark.parametrize("binary", [False, True])
+def test_the_poses_stage_reads_the_model_as_given(tmp_path, binary):
+    root = colmap_capture(tmp_path / "s", binary)
+    capture_stage(root, tmp_path / "out" / "capture.json")
+    summary = poses_stage(tmp_path / "out" / "capture.json", tmp_path / "out" / "poses",
+                          {"min_registered_fraction": 0.5})
+    assert summary["source"].endswith("sparse/0") and summary["registered"] == len(NAMES)
+    read = read_cameras(poses_files(tmp_path / "out" / "poses")["cameras"])
+    for name in NAMES:  # the capture's mesh is in the model's frame, so the cameras stay there
+        np.testing.assert_allclose(read[name].c2w, GIVEN[name].c2w, atol=1e-9)
+        assert read[name].fx == pytest.approx(GIVEN[name].fx)
+    points, _, on_object = read_points_ply(poses_files(tmp_path / "out" / "poses")["points"])
+    assert len(points) > 50 and on_object.all()
+    assert json.loads(poses_files(tmp_path / "out" / "poses")["summary"].read_text())["points"] >= len(points)
+
+
+def test_without_a_mesh_the_model_is_brought_into_dpis_frame_rigidly(tmp_path):
+    root = colmap_capture(tmp_path / "s", mesh=False)
+    capture_stage(root, tmp_path / "out" / "capture.json")
+    poses_stage(tmp_path / "out" / "capture.json", tmp_path / "out" / "poses", {"min_registered_fraction": 0.5})
+    read = read_cameras(poses_files(tmp_path / "out" / "poses")["cameras"])
+    a, b = (read[n].c2w[:3, :3].T @ read[NAMES[0]].c2w[:3, :3] for n in NAMES[1:3])
+    c, d = (GIVEN[n].c2w[:3, :3].T @ GIVEN[NAMES[0]].c2w[:3, :3] for n in NAMES[1:3])
+    np.testing.assert_allclose(a, c, atol=1e-6)  # relative poses as given
+    np.testing.assert_allclose(b, d, atol=1e-6)
+
+
+def test_an_incomplete_or_foreign_model_is_named_at_validation(tmp_path):
+    root = colmap_capture(tmp_path / "s")
+    (root / "sparse" / "0" / "images.txt").unlink()
+    with pytest.raises(CaptureError, match=r"sparse/0: COLMAP model without images.txt"):
+        load_capture(root)
+    other = colmap_capture(tmp_path / "t")
+    write_text_model(other / "sparse" / "0", {f"photo_{i}": c for i, c in enumerate(GIVEN.values())})
+    with pytest.raises(CaptureError, match="registers none of the images in images/"):
+        load_capture(other)
