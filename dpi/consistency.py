@@ -163,8 +163,23 @@ def intrinsics_cause(cameras: list[Camera], names: list[str]) -> str | None:
     return None
 
 
-def mask_cause(scene, cameras: list[Camera], masks: np.ndarray, table: np.ndarray, names: list[str],
-               bad: np.ndarray) -> str:
+def extent(points: np.ndarray) -> float:
+    """Diagonal of the bounding box of pixel positions (n, 2); 0 for none."""
+    return float(np.linalg.norm(points.max(0) - points.min(0))) if len(points) else 0.0
+
+
+def projected_extent(vertices: np.ndarray, camera: Camera) -> float | None:
+    """The diagonal (pixels) of the box of the vertices a camera sees in front of it within its padded frame, or
+    None when it sees none."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pixels, depth = camera.project(vertices)
+    frame = np.array([camera.width, camera.height])
+    seen = (depth > 0) & (pixels >= -frame).all(1) & (pixels <= 2 * frame).all(1)
+    return extent(pixels[seen]) if seen.any() else None
+
+
+def mask_cause(scene, vertices: np.ndarray, cameras: list[Camera], masks: np.ndarray, table: np.ndarray,
+               names: list[str], bad: np.ndarray) -> str:
     """The likely cause of views whose silhouettes contradict their masks: the intrinsics, inverted masks, the
     convention, the order, the scale, or mismatched files."""
     inverted = np.diag(overlaps(~masks, silhouettes(scene, cameras)))
@@ -184,14 +199,56 @@ def mask_cause(scene, cameras: list[Camera], masks: np.ndarray, table: np.ndarra
         return (f"order: cameras and images are matched in another order ({names[i]}'s mask fits the camera given "
                 f"for {names[best[i]]}, IoU {table[i, best[i]]:.2f})")
     area = np.array([silhouette(scene, padded(cameras[i])).sum() for i in bad])  # the part outside the image too
-    ratio = float(np.median(np.sqrt(area / np.maximum(masks[bad].sum((1, 2)), 1))))
+    if area.any():
+        ratio = float(np.median(np.sqrt(area / np.maximum(masks[bad].sum((1, 2)), 1))))
+    else:  # smaller than a pixel, or out of sight: the projected vertices tell which
+        vertices = np.asarray(vertices)[::math.ceil(len(vertices) / MAX_VERTICES)]
+        seen = [(projected_extent(vertices, cameras[i]), extent(np.argwhere(masks[i])[:, ::-1])) for i in bad]
+        seen = [(size, mask) for size, mask in seen if size is not None]
+        if not seen:
+            return ("placement: no camera sees the mesh, not even just outside its image: the mesh and the cameras "
+                    "are in different frames (mismatched files, or a mesh moved after the capture)")
+        ratio = float(np.median([size / max(mask, 1.0) for size, mask in seen]))
     if not 1 / SCALE_TOLERANCE <= ratio <= SCALE_TOLERANCE:
         return (f"scale: the mesh's silhouette is {ratio:.2g}x the mask's size (median over those views): the mesh "
-                "and the cameras are in different units or scales")
+                f"and the cameras are in different units or scales{unit_hint(ratio)}")
     return "the mesh, the cameras and the masks do not show one object from the same places (mismatched files?)"
 
 
-def masks_problem(scene, cameras: list[Camera], masks: list[np.ndarray], names: list[str]) -> str | None:
+UNIT_RATIOS = {10.0: "centimetres against millimetres, or metres against decimetres", 100.0: "centimetres against "
+               "metres", 1000.0: "millimetres against metres"}
+"""size ratios that are a change of units, and which"""
+
+
+def unit_hint(ratio: float) -> str:
+    """A note naming the units a size ratio (either way) is the change of, within 15 %, or ''."""
+    for factor, units in UNIT_RATIOS.items():
+        for value in (factor, 1 / factor):
+            if abs(math.log(ratio / value)) < math.log(1.15):
+                return f" (about {ratio:.3g}x: {units}?)"
+    return ""
+
+
+def back_facing_fraction(vertices: np.ndarray, faces: np.ndarray, cameras: list[Camera]) -> float:
+    """The fraction of the mesh the cameras see (rays through CHECK_SIZE px frames) whose faces point away from
+    them: near 1 for a mesh whose faces are wound inwards (normals facing in), which renders dark."""
+    import open3d as o3d
+
+    scene = raycasting_scene(vertices, faces)
+    away, hits = 0, 0
+    for camera in check_cameras(cameras):
+        origins, directions = pixel_rays(camera)
+        rays = np.concatenate([origins[:, :, 0], directions[:, :, 0]], -1).reshape(-1, 6).astype(np.float32)
+        cast = scene.cast_rays(o3d.core.Tensor(rays))
+        hit = np.isfinite(cast["t_hit"].numpy())
+        normals = cast["primitive_normals"].numpy()[hit]
+        away += int(((normals * rays[hit, 3:]).sum(1) > 0).sum())
+        hits += int(hit.sum())
+    return away / hits if hits else 0.0
+
+
+def masks_problem(scene, vertices: np.ndarray, cameras: list[Camera], masks: list[np.ndarray],
+                  names: list[str]) -> str | None:
     """Why the cameras contradict the masks (views, IoUs, likely cause), or None."""
     small = check_cameras(cameras)
     masks = check_masks(masks, (small[0].width, small[0].height))
@@ -201,7 +258,7 @@ def masks_problem(scene, cameras: list[Camera], masks: list[np.ndarray], names: 
     if len(bad):
         return (f"the cameras contradict the masks: the mesh's silhouette overlaps the mask with IoU < {MIN_IOU:g} in "
                 f"{len(bad)} of {len(names)} views ({listed(names, own, bad)}); likely cause: "
-                + (intrinsics_cause(cameras, names) or mask_cause(scene, small, masks, table, names, bad)))
+                + (intrinsics_cause(cameras, names) or mask_cause(scene, vertices, small, masks, table, names, bad)))
     shift = preferred_shift(table)
     if shift is None:
         return None
@@ -222,6 +279,8 @@ def frame_problem(vertices: np.ndarray, cameras: list[Camera], names: list[str])
     flip = np.array([inside_fraction(vertices, c) for c in flipped(cameras)])
     cause = intrinsics_cause(cameras, names) or (f"{CONVENTION} the mesh lies in every image (at least {100 * flip.min():.0f}% of its vertices)"
              if (flip >= MIN_INSIDE).all() else
+             "placement: no camera sees any of the mesh, so the mesh and the cameras are in different frames "
+             "(mismatched files, or a mesh moved after the capture)" if not inside.any() else
              "the mesh and the cameras are in different frames or scales (mismatched files?)")
     return (f"the cameras do not see the mesh: less than {100 * MIN_INSIDE:.0f}% of its vertices project into the "
             f"image in {len(bad)} of {len(names)} views (fraction inside: {listed(names, inside, bad)}); "
@@ -233,4 +292,4 @@ def cameras_problem(vertices: np.ndarray, faces: np.ndarray, cameras: list[Camer
     """Why the cameras contradict the mesh and the masks (or, without masks, the image frames), or None."""
     if masks is None:
         return frame_problem(vertices, cameras, names)
-    return masks_problem(raycasting_scene(vertices, faces), cameras, masks, names)
+    return masks_problem(raycasting_scene(vertices, faces), vertices, cameras, masks, names)

@@ -93,7 +93,7 @@ def check_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
     try:
         mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many exception types for bad files
-        raise CaptureError(f"{path}: unreadable mesh ({exc})") from exc
+        raise CaptureError(f"{path}: unreadable mesh (trimesh: {type(exc).__name__})") from None
     if len(getattr(mesh, "faces", [])) == 0:
         raise CaptureError(f"{path}: mesh has no faces")
     bad = int((~np.isfinite(mesh.vertices)).any(axis=1).sum())
