@@ -68,3 +68,4 @@ def test_killed_sample_job_reruns_cleanly(tmp_path):
     fresh = read_outputs(sample_dir)
     for name in OUTPUTS:
         np.testing.assert_allclose(resumed[name], fresh[name], rtol=1e-4, atol=1e-5, err_msg=name)
+

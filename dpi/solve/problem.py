@@ -18,6 +18,7 @@ import torch
 
 from dpi.capture import Capture
 from dpi.exposure import MIDDLE_GREY, capture_exposure
+from dpi.io.exr import EXRError
 from dpi.io.images import read_image, read_mask, resize
 from dpi.layout import SAMPLE_TRACE
 from dpi.materials import MaterialTextures
@@ -25,6 +26,10 @@ from dpi.render import RenderConfig, Renderer
 from dpi.settings import ImageSize, MapHeight, TextureSize, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 
+
+
+class CachedFileError(ValueError):
+    """A file the workflow wrote earlier no longer reads; the message names it and how to rebuild it."""
 
 
 @settings
@@ -98,8 +103,15 @@ class InverseProblem:
 
     def load_decomposition(self, folder: str | Path) -> Decomposition:
         """A decomposition folder (scene radiance) in normalised units, its map and textures at the problem's
-        size (an init of another size, e.g. one written before `env_height` changed, is resampled)."""
-        loaded = Decomposition.load(folder, self.settings.texture_size)
+        size (an init of another size, e.g. one written before `env_height` changed, is resampled). A file of it
+        that no longer reads (truncated or damaged on disk after it was written) is a CachedFileError saying how
+        to rebuild it."""
+        try:
+            loaded = Decomposition.load(folder, self.settings.texture_size)
+        except EXRError as exc:
+            raise CachedFileError(f"{exc}; this cached result was damaged after it was written: delete the folder "
+                                  f"{folder} and run the workflow again (it rebuilds what is missing, and what "
+                                  "depends on it)") from None
         h = self.settings.env_height
         return self.to_solver_units(Decomposition(resize(loaded.env, h, 2 * h), loaded.materials, loaded.trace))
 
