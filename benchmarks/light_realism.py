@@ -1,29 +1,38 @@
-"""How real the posterior study's env maps look, method by method, on its real-light scenes.
+"""How real and how well spread the posterior study's env maps are, method by method, on its real-light scenes.
 
     .venv/bin/python benchmarks/light_realism.py --panoramas DIR [--work results/benchmarks/posterior_study]
+        [--study benchmarks/results/posterior_study.csv] [--out benchmarks/results/light_realism.csv]
 
-For every sample the posterior study drew on a real-light scene (dpi.studies.scenes.REAL_LIGHT_SCENES), the
-realism distance (dpi.evaluation.realism) of its env map to the manifest's held-out real panoramas of the scene's
-family, less the scene's own panorama (a map that copies the truth should not pass for realism; its accuracy is
-env PSNR's business). Rows (scene, group, method, sampler, seed, realism) go to
-benchmarks/results/light_realism.csv, rewritten whole; it prints mean +- std per group, method and sampler.
+For every (scene, method, sampler) the posterior study drew on a real-light scene (dpi.studies.scenes.
+REAL_LIGHT_SCENES), over its seeds:
+- realism: each sample's realism distance (dpi.evaluation.realism) to the manifest's held-out real panoramas of
+  the scene's family less the scene's own (a map that copies the truth should not pass for realism; its accuracy
+  is env PSNR's business), mean and std over the samples;
+- calibration (dpi.spread.calibration: ~1 when the truth looks like one more sample);
+- env PSNR / SSIM of the samples' mean map (dpi.spread.mean_log_map) against the truth.
+Rows go to the CSV, rewritten whole; it prints the means per group, method and sampler.
 """
 
 from __future__ import annotations
 
 import argparse
+from collections import defaultdict
 from pathlib import Path
 
+import numpy as np
 import torch
 
+from dpi.capture import read_capture_json, read_ground_truth
+from dpi.evaluation.metrics import env_metrics
 from dpi.evaluation.realism import patches, sliced_wasserstein
 from dpi.io.exr import read_exr
 from dpi.prior.data import read_panorama
 from dpi.prior.panoramas import panorama_files
-from dpi.studies.engine import mean_std_cells, read_rows, results_csv, study_layout, work_dir, write_rows
+from dpi.spread import calibration, mean_log_map
+from dpi.studies.engine import read_rows, results_csv, study_layout, work_dir, write_rows
 from dpi.studies.scenes import REAL_LIGHT_SCENES
 
-COLUMNS = ("scene", "group", "method", "sampler", "seed", "realism")
+METRICS = ("realism", "realism_std", "calibration", "env_mean_psnr", "env_mean_ssim", "env_psnr")
 
 
 def main() -> None:
@@ -32,32 +41,39 @@ def main() -> None:
     parser.add_argument("--work", type=Path, default=work_dir("posterior_study"), help="the posterior study's folder")
     parser.add_argument("--study", type=Path, default=results_csv("posterior_study"),
                         help="the posterior study's CSV: which samples exist, with their method and sampler")
+    parser.add_argument("--out", type=Path, default=results_csv("light_realism"))
     args = parser.parse_args()
     layout = study_layout(args.work)
-    clouds: dict[str, dict[str, torch.Tensor]] = {}
-    for family in ("outdoor", "indoor"):
-        clouds[family] = {path.name: patches(read_panorama(path))
-                          for path in panorama_files(args.panoramas, family, "held_out")}
-    rows = []
+    clouds = {family: {path.name: patches(read_panorama(path))
+                       for path in panorama_files(args.panoramas, family, "held_out")}
+              for family in ("outdoor", "indoor")}
+    samples: dict[tuple, list[Path]] = defaultdict(list)
     for r in read_rows(args.study):
-        if r["scene"] not in REAL_LIGHT_SCENES:
-            continue
-        synth = REAL_LIGHT_SCENES[r["scene"]][1]
-        label = r["method"] if not r["sampler"] else f"{r['method']}_{r['sampler']}"
-        env_file = layout.scene(r["scene"]).sample_files(label, int(r["seed"]))["env"]
-        if not env_file.exists():
-            continue
+        if r["scene"] in REAL_LIGHT_SCENES and r["method"] != "init":
+            label = r["method"] if not r["sampler"] else f"{r['method']}_{r['sampler']}"
+            env = layout.scene(r["scene"]).sample_files(label, int(r["seed"]))["env"]
+            key = (r["scene"], r["group"], r["method"], r["sampler"])
+            if env.exists() and env not in samples[key]:
+                samples[key].append(env)
+    rows = []
+    for (scene, group, method, sampler), files in sorted(samples.items()):
+        synth = REAL_LIGHT_SCENES[scene][1]
         references = torch.cat([c for name, c in clouds[synth["prior"]].items() if name != synth["panorama"]])
-        rows.append({**{k: r[k] for k in COLUMNS[:4]}, "seed": int(r["seed"]),
-                     "realism": round(sliced_wasserstein(patches(read_exr(env_file)), references), 4)})
-    rows = list({tuple(row[k] for k in COLUMNS[:5]): row for row in rows}.values())
-    write_rows(results_csv("light_realism"), rows, settings="")
-    keys = sorted({(row["group"], row["method"], row["sampler"]) for row in rows})
-    print(f"{'group':<12} {'method':<12} {'sampler':<24} {'n':>3} {'realism':>16}")
-    for key in keys:
-        sel = [row for row in rows if (row["group"], row["method"], row["sampler"]) == key]
-        print(f"{key[0]:<12} {key[1]:<12} {key[2]:<24} {len(sel):>3} "
-              f"{mean_std_cells(sel, (('realism', '.3f'),))[0]:>16}")
+        envs = [read_exr(f) for f in files]
+        truth = read_ground_truth(read_capture_json(layout.scene(scene).capture_json).gt["envmap"], "envmap")
+        distances = [sliced_wasserstein(patches(env), references) for env in envs]
+        mean = env_metrics(mean_log_map(envs), truth)
+        rows.append({"scene": scene, "group": group, "method": method, "sampler": sampler, "samples": len(envs),
+                     "realism": round(float(np.mean(distances)), 4), "realism_std": round(float(np.std(distances)), 4),
+                     "calibration": round(calibration(envs, truth), 3), "env_mean_psnr": round(mean["env_psnr"], 3),
+                     "env_mean_ssim": round(mean["env_ssim"], 4),
+                     "env_psnr": round(float(np.mean([env_metrics(e, truth)["env_psnr"] for e in envs])), 3)})
+    write_rows(args.out, rows, settings="")
+    print(f"{'group':<12} {'method':<12} {'sampler':<24} {'n':>3} " + " ".join(f"{m:>14}" for m in METRICS))
+    for key in sorted({(r["group"], r["method"], r["sampler"]) for r in rows}):
+        sel = [r for r in rows if (r["group"], r["method"], r["sampler"]) == key]
+        cells = [f"{np.nanmean([r[m] for r in sel]):.3f}" for m in METRICS]
+        print(f"{key[0]:<12} {key[1]:<12} {key[2]:<24} {len(sel):>3} " + " ".join(f"{c:>14}" for c in cells))
 
 
 if __name__ == "__main__":

@@ -124,14 +124,32 @@ class Job:
     @property
     def settings_hash(self) -> str:
         """Hash of what decides the sample besides its seed: the capture (a panorama by its name, which the
-        manifest's checksum pins), the method and its settings, the workflow sections a sample reads."""
+        manifest's checksum pins), the method and its settings, the workflow sections a sample reads, and for a
+        method that samples with the diffusion prior the prior file's content (a prior retrained under the same
+        name draws its samples again)."""
+        from dpi.solve.methods import REGISTRY
         from dpi.synth.capture import PROCEDURAL
 
         light = self.synth.get("environment")
         synth = {**self.synth, **({"environment": Path(light).name} if light and light not in PROCEDURAL else {})}
         adaptive = {"adaptive": self.config["adaptive"]} if self.config.get("adaptive") else {}
+        samples_prior = self.method in REGISTRY and REGISTRY[self.method].needs_prior and "illumination_prior" in \
+            self.config
+        checkpoint = Path(self.prior_checkpoint)
+        prior = {"prior": file_digest(checkpoint) if checkpoint.is_file() else
+                 str(checkpoint)} if samples_prior else {}
         return settings_hash({"synth": synth, "method": self.method, "settings": self.method_cfg,
-                              "config": {k: self.config.get(k) for k in SAMPLE_SECTIONS}, **adaptive})
+                              "config": {k: self.config.get(k) for k in SAMPLE_SECTIONS}, **adaptive, **prior})
+
+
+@cache
+def file_digest(path: Path) -> str:
+    """SHA-256 of a file's bytes (hex, first 16), once a process."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()[:16]
 
 
 def prior_checkpoints(pairs: Iterable[str]) -> dict[str, str]:
