@@ -135,9 +135,8 @@ class Job:
         adaptive = {"adaptive": self.config["adaptive"]} if self.config.get("adaptive") else {}
         samples_prior = self.method in REGISTRY and REGISTRY[self.method].needs_prior and "illumination_prior" in \
             self.config
-        checkpoint = Path(self.prior_checkpoint)
-        prior = {"prior": file_digest(checkpoint) if checkpoint.is_file() else
-                 str(checkpoint)} if samples_prior else {}
+        checkpoint = Path(self.prior_checkpoint) if samples_prior else None
+        prior = {"prior": file_digest(checkpoint) if checkpoint.is_file() else str(checkpoint)} if checkpoint else {}
         return settings_hash({"synth": synth, "method": self.method, "settings": self.method_cfg,
                               "config": {k: self.config.get(k) for k in SAMPLE_SECTIONS}, **adaptive, **prior})
 
