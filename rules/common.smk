@@ -53,7 +53,9 @@ def capture_files(wildcards):
     if PIPELINE.is_synthetic(wildcards.scene):
         return [str(LAYOUT.synth_marker(wildcards.scene))]
     root = LAYOUT.capture_dir(wildcards.scene)
-    return sorted(str(p) for p in root.rglob("*") if p.is_file() and not p.name.startswith("."))
+    # a brace would read as a wildcard; dpi reads no such file (validation refuses braced image and mask names)
+    return sorted(str(p) for p in root.rglob("*") if p.is_file() and not p.name.startswith(".")
+                  and "{" not in str(p) and "}" not in str(p))
 
 
 def scene_inputs(wildcards):

@@ -60,6 +60,9 @@ def stems(folder: Path, what: str) -> dict[str, Path]:
         if path.suffix.lower() not in IMAGE_SUFFIXES:
             raise CaptureError(f"{path}: unsupported {what} suffix {path.suffix!r} (use {', '.join(IMAGE_SUFFIXES)})")
         inside_capture(folder.parent, path, f"the {what}")
+        if "{" in path.name or "}" in path.name:
+            raise CaptureError(f"{folder}: an {what} name holds a brace ({{ or }}), which workflow paths read as a "
+                               "wildcard: rename it")
         stem = view_name(path.stem)
         other = found.get(stem)
         if other is None:

@@ -204,3 +204,10 @@ def test_the_config_dpi_prints_is_accepted_back(tmp_path):
     assert again.returncode == 0, again.stderr
     assert again.stdout == printed.stdout
     assert json.dumps(read_config(tmp_path / "printed.yaml"))
+
+
+def test_an_image_name_with_a_brace_is_refused_in_one_line(tmp_path):
+    root = make_capture(tmp_path / "s", transforms=False, masks=False)
+    os.rename(root / "images" / "r_0.png", root / "images" / "r_{0}.png")
+    with pytest.raises(CaptureError, match=r"images: an image name holds a brace"):
+        load_capture(root)
