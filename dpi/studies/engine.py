@@ -123,15 +123,17 @@ class Job:
 
     @property
     def settings_hash(self) -> str:
-        """Hash of what decides the sample besides its seed: the capture (a panorama by its name, which the
-        manifest's checksum pins), the method and its settings, the workflow sections a sample reads, and for a
+        """Hash of what decides the sample besides its seed: the capture (a panorama by its name and its
+        content's digest), the method and its settings, the workflow sections a sample reads, and for a
         method that samples with the diffusion prior the prior file's content (a prior retrained under the same
         name draws its samples again)."""
         from dpi.solve.methods import REGISTRY
         from dpi.synth.capture import PROCEDURAL
 
         light = self.synth.get("environment")
-        synth = {**self.synth, **({"environment": Path(light).name} if light and light not in PROCEDURAL else {})}
+        panorama = Path(light) if light and light not in PROCEDURAL else None
+        synth = {**self.synth, **({"environment": f"{panorama.name}@{file_digest(panorama)}"}
+                                  if panorama and panorama.is_file() else {})}
         adaptive = {"adaptive": self.config["adaptive"]} if self.config.get("adaptive") else {}
         samples_prior = self.method in REGISTRY and REGISTRY[self.method].needs_prior and "illumination_prior" in \
             self.config
