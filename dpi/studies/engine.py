@@ -132,8 +132,8 @@ class Job:
 
         light = self.synth.get("environment")
         panorama = Path(light) if light and light not in PROCEDURAL else None
-        synth = {**self.synth, **({"environment": f"{panorama.name}@{file_digest(panorama)}"}
-                                  if panorama and panorama.is_file() else {})}
+        digest = f"@{file_digest(panorama)}" if panorama and panorama.is_file() else ""
+        synth = {**self.synth, **({"environment": panorama.name + digest} if panorama else {})}
         adaptive = {"adaptive": self.config["adaptive"]} if self.config.get("adaptive") else {}
         samples_prior = self.method in REGISTRY and REGISTRY[self.method].needs_prior and "illumination_prior" in \
             self.config
