@@ -161,6 +161,21 @@ def mean_map(root: Path) -> str:
     return grouped_table(rows, ("group", "method", "sampler"), metrics, rank_by="group", order=method_order)
 
 
+LIGHT_METRICS = (Metric("realism distance (lower: more real)", "realism", ".3f", -1),
+                 Metric("calibration (1: ideal)", "calibration", ".2f"),
+                 Metric("mean map: env PSNR [dB]", "env_mean_psnr", ".2f", +1),
+                 Metric("mean map: env SSIM", "env_mean_ssim", ".3f", +1, spread=False),
+                 Metric("one sample: env PSNR [dB]", "env_psnr", ".2f", +1))
+
+
+def light_realism(csv_name: str, root: Path) -> str:
+    """How real and how well spread the env maps are on the real-light scenes (benchmarks/light_realism.py), per
+    group, method and sampler, over scenes: each sample's realism distance to held-out real panoramas (less the
+    scene's own), the calibration of its samples and their mean map's accuracy."""
+    rows = latest(read_rows(root / RESULTS / csv_name), ("scene", "method", "sampler"))
+    return grouped_table(rows, ("group", "method", "sampler"), LIGHT_METRICS, rank_by="group", order=method_order)
+
+
 def calibration(root: Path) -> str:
     """Calibration study: metal and rough objects, means over repeats x lights x objects."""
     rows = latest(read_rows(root / RESULTS / "calibration_study.csv"), CALIBRATION_KEY)
@@ -326,6 +341,9 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "sun_fit": partial(dev_table, ("fit_sun_dev.csv", "sun_refine_dev.csv"), ("scene", "method", "sampler")),
     "glossy_cost_seeds": partial(dev_table, ("glossy_cost_seeds.csv",), ("group", "method", "sampler")),
     "mean_map": mean_map,
+    "light_realism": partial(light_realism, "light_realism.csv"),
+    "light_start": partial(dev_table, ("light_start_dev.csv",), ("group", "method", "sampler")),
+    "light_start_realism": partial(light_realism, "dev/light_start_realism.csv"),
 }
 """every generated table by the name its markers use"""
 
