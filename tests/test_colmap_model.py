@@ -68,3 +68,31 @@ def test_an_incomplete_or_foreign_model_is_named_at_validation(tmp_path):
     write_text_model(other / "sparse" / "0", {f"photo_{i}": c for i, c in enumerate(GIVEN.values())})
     with pytest.raises(CaptureError, match="registers none of the images in images/"):
         load_capture(other)
+
+
+@pytest.mark.slow
+def test_the_workflow_runs_a_colmap_model_capture_with_its_cameras(tmp_path):
+    """A synthetic capture whose transforms.json is replaced by a COLMAP text model of its cameras (and its
+    mesh in the model's frame) runs end to end: the poses stage reads the model, no structure from motion."""
+    from workflow_helpers import TINY_CONFIG, snakemake, write_config
+
+    from dpi.synth.capture import SynthConfig, make_synthetic_capture
+
+    root = make_synthetic_capture(tmp_path / "captures" / "colmap",
+                                  SynthConfig.from_dict(TINY_CONFIG["synthetic"]["tiny"]), progress=False)
+    (root / ".synth.json").unlink()
+    given = read_cameras(root / "transforms.json")
+    held = [n for n, c in given.items() if c.extras.get("held_out")]
+    (root / "transforms.json").unlink()
+    (root / "scene.yaml").write_text(f"held_out: {held}\n")
+    write_text_model(root / "sparse" / "0", given, suffix=".exr")
+    config = {**TINY_CONFIG, "scenes": ["colmap"], "synthetic": {}, "methods": ["none"], "samples": 1,
+              "preprocess": {"sfm": {"min_registered_fraction": 0.5}}}
+    write_config(tmp_path / "config.yaml", config)
+    snakemake(tmp_path)
+    summary = json.loads((tmp_path / "results" / "colmap" / "poses" / "summary.json").read_text())
+    assert summary["source"].endswith("sparse/0") and "match_s" not in summary
+    read = read_cameras(tmp_path / "results" / "colmap" / "poses" / "transforms.json")
+    for name, camera in given.items():
+        np.testing.assert_allclose(read[name].c2w, camera.c2w, atol=1e-6)
+    assert (tmp_path / "results" / "eval" / "summary.csv").is_file()

@@ -145,12 +145,10 @@ class Job:
 
 @cache
 def file_digest(path: Path) -> str:
-    """SHA-256 of a file's bytes (hex, first 16), once a process."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as handle:
-        for block in iter(lambda: handle.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()[:16]
+    """The first 16 hex digits of a file's SHA-256, once a process."""
+    from dpi.prior.panoramas import sha256_of
+
+    return sha256_of(path)[:16]
 
 
 def prior_checkpoints(pairs: Iterable[str]) -> dict[str, str]:
