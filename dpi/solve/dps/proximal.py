@@ -84,7 +84,7 @@ class ProximalConfig:
     """Gauss-Newton iterations on the step's map (the same loss, all the views, dpi.solve.dps.map_solve) before
     its data updates: the map reaches the views from x0_hat, which a few Adam steps do not, by a correction of
     x0_hat on the transport's grid (finer detail stays x0_hat's; 0: Adam only)"""
-    perturb: Weight = 0.7
+    perturb: Weight = 0.35
     """the solve's target is x0_hat plus a smooth random field of perturb x the prior's std of x0 given x_t (r_t of
     DAPS, Zhang et al. 2024, for a prior of std PRIOR_STD): where the views are silent each sample's map moves as
     the prior allows instead of keeping x0_hat's guess, where they speak the solve pulls it back (0: samples near
