@@ -1,7 +1,7 @@
 """How real and how well spread the posterior study's env maps are, method by method, on its real-light scenes.
 
     .venv/bin/python benchmarks/light_realism.py --panoramas DIR [--work results/benchmarks/posterior_study]
-        [--study benchmarks/results/posterior_study.csv] [--out benchmarks/results/light_realism.csv]
+        [--study benchmarks/results/posterior_study.csv ...] [--out benchmarks/results/light_realism.csv]
 
 For every (scene, method, sampler) the posterior study drew on a real-light scene (dpi.studies.scenes.
 REAL_LIGHT_SCENES), over its seeds:
@@ -39,8 +39,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--panoramas", type=Path, required=True, help="folder holding the manifest's panoramas")
     parser.add_argument("--work", type=Path, default=work_dir("posterior_study"), help="the posterior study's folder")
-    parser.add_argument("--study", type=Path, default=results_csv("posterior_study"),
-                        help="the posterior study's CSV: which samples exist, with their method and sampler")
+    parser.add_argument("--study", type=Path, nargs="+", default=[results_csv("posterior_study")],
+                        help="the posterior study's CSVs (and dev CSVs drawn in its folder): which samples exist, with "
+                             "their method and sampler")
     parser.add_argument("--out", type=Path, default=results_csv("light_realism"))
     args = parser.parse_args()
     layout = study_layout(args.work)
@@ -48,7 +49,7 @@ def main() -> None:
                        for path in panorama_files(args.panoramas, family, "held_out")}
               for family in ("outdoor", "indoor")}
     samples: dict[tuple, list[Path]] = defaultdict(list)
-    for r in read_rows(args.study):
+    for r in (row for study in args.study for row in read_rows(study)):
         if r["scene"] in REAL_LIGHT_SCENES and r["method"] != "init":
             label = r["method"] if not r["sampler"] else f"{r['method']}_{r['sampler']}"
             env = layout.scene(r["scene"]).sample_files(label, int(r["seed"]))["env"]

@@ -124,7 +124,8 @@ class Job:
     @property
     def settings_hash(self) -> str:
         """Hash of what decides the sample besides its seed: the capture (a panorama by its name and its
-        content's digest), the method and its settings, the workflow sections a sample reads, and for a
+        content's digest), the method and its settings as it resolves them (its dataclass's defaults included,
+        so a changed default redraws), the workflow sections a sample reads, and for a
         method that samples with the diffusion prior the prior file's content (a prior retrained under the same
         name draws its samples again)."""
         from dpi.solve.methods import REGISTRY
@@ -139,7 +140,13 @@ class Job:
             self.config
         checkpoint = Path(self.prior_checkpoint) if samples_prior else None
         prior = {"prior": file_digest(checkpoint) if checkpoint.is_file() else str(checkpoint)} if checkpoint else {}
-        return settings_hash({"synth": synth, "method": self.method, "settings": self.method_cfg,
+        settings = self.method_cfg
+        if self.method in REGISTRY:
+            from dpi.pipeline import plain
+            from dpi.solve.methods import method_config
+
+            settings = plain(method_config(self.method, self.method_cfg))
+        return settings_hash({"synth": synth, "method": self.method, "settings": settings,
                               "config": {k: self.config.get(k) for k in SAMPLE_SECTIONS}, **adaptive, **prior})
 
 

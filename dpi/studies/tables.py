@@ -147,13 +147,13 @@ def dev_table(csv_names: tuple[str, ...], keys: tuple[str, ...], root: Path) -> 
     return grouped_table(rows, keys, metrics, rank_by=keys[0], order=method_order)
 
 
-def mean_map(root: Path) -> str:
+def mean_map(csv_name: str, root: Path) -> str:
     """One sample's env map against the samples' mean map (benchmarks/mean_map.py) per posterior-study group and
     method folder: a calibrated sampler pays for its spread on each sample, not on what its samples share."""
     groups = {r["scene"]: r["group"] for r in posterior_rows(root)}
     rows = [{**r, "group": groups.get(r["scene"], ""), "method": r["method"].partition("_")[0],
              "sampler": r["method"].partition("_")[2]}  # a folder is METHOD or dps_SAMPLER
-            for r in latest(read_rows(root / RESULTS / "mean_map_posterior.csv"), ("scene", "method"))]
+            for r in latest(read_rows(root / RESULTS / csv_name), ("scene", "method"))]
     metrics = (Metric("one sample: env PSNR [dB]", "sample_env_psnr", ".2f", +1),
                Metric("mean map: env PSNR [dB]", "mean_env_psnr", ".2f", +1),
                Metric("one sample: env SSIM", "sample_env_ssim", ".3f", +1, spread=False),
@@ -340,10 +340,13 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "prior_real": partial(dev_table, ("prior32_real_dev.csv",), ("group", "method", "sampler")),
     "sun_fit": partial(dev_table, ("fit_sun_dev.csv", "sun_refine_dev.csv"), ("scene", "method", "sampler")),
     "glossy_cost_seeds": partial(dev_table, ("glossy_cost_seeds.csv",), ("group", "method", "sampler")),
-    "mean_map": mean_map,
+    "mean_map": partial(mean_map, "mean_map_posterior.csv"),
     "light_realism": partial(light_realism, "light_realism.csv"),
     "light_start": partial(dev_table, ("light_start_dev.csv",), ("group", "method", "sampler")),
     "light_start_realism": partial(light_realism, "dev/light_start_realism.csv"),
+    "light_push": partial(dev_table, ("light_prior_perturb_dev.csv",), ("group", "method", "sampler")),
+    "light_push_realism": partial(light_realism, "dev/light_push_realism.csv"),
+    "light_push_mean_map": partial(mean_map, "dev/light_push_mean_map.csv"),
 }
 """every generated table by the name its markers use"""
 
