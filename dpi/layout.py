@@ -171,10 +171,6 @@ class SceneLayout:
         return (self.root / "benchmarks").joinpath(*parts).with_suffix(".tsv")
 
 
-RUN_FOLDERS = ("eval", "logs", "report", "prior", "prior_data", "report.html")
-"""what results_dir holds besides the scenes' folders: a scene may not take one of these names"""
-
-
 @dataclass(frozen=True)
 class Layout:
     """Capture folders under `captures`, every result under `results` (config keys captures_dir, results_dir)."""
@@ -188,10 +184,14 @@ class Layout:
         return cls(Path(config["results_dir"]), Path(config["captures_dir"]))
 
     def problem(self, scenes: list[str]) -> str | None:
-        """Why results and captures cannot share this layout, or None: a scene named like a run folder, results_dir
-        equal to captures_dir or inside a scene's capture folder (a run would write into the inputs)."""
+        """Why results and captures cannot share this layout, or None: a scene named like one of the run's own
+        entries of results_dir (eval/, logs/, report.html, ...), results_dir equal to captures_dir or inside a
+        scene's capture folder (a run would write into the inputs)."""
+        run = {path.relative_to(self.results).parts[0] for path in (
+            self.summary, self.samples_table, self.report_html, self.report_figures, self.log("run"),
+            self.prior_data("family"), self.prior_dir("family"))}
         for scene in scenes:
-            if scene in RUN_FOLDERS:
+            if scene in run:
                 return f"scenes: {scene!r} is the name of a folder results_dir keeps for the run; rename the scene"
         results, captures = self.results.resolve(), self.captures.resolve()
         if results == captures:
