@@ -5,9 +5,8 @@ Each map is brought to a common footing: area-resampled to REALISM_HEIGHT rows, 
 lamp's energy is judged elsewhere; here it would drown the rest in the distance's tails). Patches of PATCH x PATCH
 texels are then cut at two scales (the map and its 2x coarser copy) and described by their mean colour, their
 texture (texels less the mean, weighted TEXTURE_WEIGHT) and their elevation (a sun belongs in the sky, a road
-below the horizon). The distance between two sets is the sliced
-Wasserstein distance between their patch clouds: the mean over fixed random directions of the L2 distance between
-the two sorted projections (quantile functions). It is 0 for two sets of the same maps, symmetric, and grows as
+below the horizon). The distance between two sets is the sliced Wasserstein distance between their patch clouds:
+the mean over fixed random directions of the L2 distance between the two sorted projections (quantile functions). It is 0 for two sets of the same maps, symmetric, and grows as
 the patches' statistics part: a procedural world's flat facades and uniform skies show where a real panorama's
 clutter does not."""
 
@@ -23,6 +22,7 @@ from torch.nn import functional as F
 
 from dpi.evaluation.metrics import missing
 from dpi.io.images import luminance
+from dpi.prior.data import list_panoramas, read_panorama, resize_area
 
 REALISM_HEIGHT = 32
 """rows every map is resampled to before its patches are cut"""
@@ -51,8 +51,7 @@ class RealismConfig:
 
 def log_map(env: np.ndarray, height: int = REALISM_HEIGHT) -> torch.Tensor:
     """(3, height, 2 height) log radiance of an HDR map (H, W, 3), its median luminance brought to 1."""
-    x = torch.from_numpy(np.ascontiguousarray(env, dtype=np.float32)).permute(2, 0, 1).clamp_min(0)
-    x = F.interpolate(x[None], size=(height, 2 * height), mode="area")[0]
+    x = resize_area(torch.from_numpy(np.ascontiguousarray(env, dtype=np.float32)).permute(2, 0, 1).clamp_min(0), height)
     median = float(luminance(x.permute(1, 2, 0)).median())
     return torch.log(x / max(median, 1e-12) + LOG_FLOOR).clamp(max=LOG_CEILING)
 
@@ -96,8 +95,6 @@ def realism_distance(maps: list[np.ndarray], references: list[np.ndarray],
 @lru_cache(maxsize=4)
 def reference_patches(folder: str) -> torch.Tensor:
     """The patch cloud of every panorama in `folder` (read once a process)."""
-    from dpi.prior.data import list_panoramas, read_panorama
-
     return torch.cat([patches(read_panorama(path)) for path in list_panoramas(folder)])
 
 
