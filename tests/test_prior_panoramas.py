@@ -26,7 +26,8 @@ def folder_and_manifest(tmp_path):
     folder.mkdir()
     for i, name in enumerate(("park.exr", "street.exr", "room.exr", "mine.exr")):
         write_exr(folder / name, panorama(i))
-    rows = {name: Panorama(name, family, "sky" if family == "outdoor" else "indoor", split, "CC0-1.0", "github:o/r", name, "0" * 40, "https://x", sha256_of(folder / name))
+    rows = {name: Panorama(name, family, "sky" if family == "outdoor" else "indoor", split, "CC0-1.0", "github:o/r",
+                           name, "0" * 40, "https://x", sha256_of(folder / name))
             for name, family, split in (("park.exr", "outdoor", "train"), ("street.exr", "outdoor", "held_out"),
                                         ("room.exr", "indoor", "train"))}
     return folder, rows

@@ -32,10 +32,8 @@ def check_colmap_model(root: Path, folder: Path, names: list[str]) -> None:
         if present and len(present) < len(MODEL_FILES):
             absent = ", ".join(f"{n}{suffix}" for n in MODEL_FILES if n not in present)
             raise CaptureError(f"{folder}: COLMAP model without {absent}")
-    for name in MODEL_FILES:
-        for suffix in (".txt", ".bin"):
-            if (folder / f"{name}{suffix}").exists():
-                inside_capture(root, folder / f"{name}{suffix}", "a COLMAP model file")
+        for name in present:
+            inside_capture(root, folder / f"{name}{suffix}", "a COLMAP model file")
     try:
         model = pycolmap.Reconstruction(str(folder))
     except (RuntimeError, ValueError):

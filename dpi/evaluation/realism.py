@@ -6,9 +6,9 @@ lamp's energy is judged elsewhere; here it would drown the rest in the distance'
 texels are then cut at two scales (the map and its 2x coarser copy) and described by their mean colour, their
 texture (texels less the mean, weighted TEXTURE_WEIGHT) and their elevation (a sun belongs in the sky, a road
 below the horizon). The distance between two sets is the sliced Wasserstein distance between their patch clouds:
-the mean over fixed random directions of the L2 distance between the two sorted projections (quantile functions). It is 0 for two sets of the same maps, symmetric, and grows as
-the patches' statistics part: a procedural world's flat facades and uniform skies show where a real panorama's
-clutter does not."""
+the mean over fixed random directions of the L2 distance between the two sorted projections (quantile functions).
+It is 0 for two sets of the same maps, symmetric, and grows as the patches' statistics part: a procedural world's
+flat facades and uniform skies show where a real panorama's clutter does not."""
 
 from __future__ import annotations
 

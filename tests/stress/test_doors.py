@@ -155,12 +155,14 @@ def test_written_files_follow_the_umask(tmp_path):
     assert (tmp_path / "a.txt").stat().st_mode & 0o777 == 0o664
 
 
-HOLD = "import sys, time; from dpi.io.lock import lock_results; lock_results(sys.argv[1]); print('held', flush=True); " \
+HOLD = "import sys, time; from dpi.io.lock import lock_results; lock_results(sys.argv[1]); " \
+       "print('held', flush=True); " \
        "time.sleep(60)"
 
 
 def test_a_second_writer_of_a_results_folder_is_refused_and_a_killed_one_frees_it(tmp_path):
-    holder = subprocess.Popen([sys.executable, "-c", HOLD, str(tmp_path / "results")], stdout=subprocess.PIPE, text=True)
+    holder = subprocess.Popen([sys.executable, "-c", HOLD, str(tmp_path / "results")], stdout=subprocess.PIPE,
+                              text=True)
     try:
         assert holder.stdout.readline().strip() == "held"
         with pytest.raises(ResultsLocked, match=rf"another dpi run \(process {holder.pid}\) is writing here"):
