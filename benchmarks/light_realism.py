@@ -29,7 +29,7 @@ from dpi.io.exr import read_exr
 from dpi.prior.data import read_panorama
 from dpi.prior.panoramas import panorama_files
 from dpi.spread import calibration, mean_log_map
-from dpi.studies.engine import read_rows, results_csv, study_layout, work_dir, write_rows
+from dpi.studies.engine import read_rows, results_csv, sample_label, study_layout, work_dir, write_rows
 from dpi.studies.scenes import REAL_LIGHT_SCENES
 
 METRICS = ("realism", "realism_std", "calibration", "env_mean_psnr", "env_mean_ssim", "env_psnr")
@@ -51,8 +51,7 @@ def main() -> None:
     samples: dict[tuple, list[Path]] = defaultdict(list)
     for r in (row for study in args.study for row in read_rows(study)):
         if r["scene"] in REAL_LIGHT_SCENES and r["method"] != "init":
-            label = r["method"] if not r["sampler"] else f"{r['method']}_{r['sampler']}"
-            env = layout.scene(r["scene"]).sample_files(label, int(r["seed"]))["env"]
+            env = layout.scene(r["scene"]).sample_files(sample_label(r["method"], r["sampler"]), int(r["seed"]))["env"]
             key = (r["scene"], r["group"], r["method"], r["sampler"])
             if env.exists() and env not in samples[key]:
                 samples[key].append(env)

@@ -83,6 +83,11 @@ def study_layout(root: Path) -> Layout:
     return Layout(root / "results", root / "captures")
 
 
+def sample_label(method: str, sampler: str) -> str:
+    """A study sample's method folder: the method, with the dps variant's label."""
+    return method if not sampler else f"{method}_{sampler}"
+
+
 @dataclass(frozen=True)
 class Job:
     """One sample to draw and score, in study folder `root`."""
@@ -100,8 +105,8 @@ class Job:
 
     @property
     def label(self) -> str:
-        """The method's folder: the method, with the dps variant's label."""
-        return self.method if not self.sampler else f"{self.method}_{self.sampler}"
+        """The method's folder (`sample_label`)."""
+        return sample_label(self.method, self.sampler)
 
     @property
     def layout(self) -> Layout:
