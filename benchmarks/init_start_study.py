@@ -57,7 +57,8 @@ def study_scenes(study: str, repeats: int) -> tuple[Path, dict[str, Any], dict[s
 def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth: dict[str, Any]) -> list[dict]:
     """The init's fit from each start on one scene, scored on the held-out views; a row per start."""
     from dpi.evaluation.sample_metrics import novel_view_metrics, render_held_out
-    from dpi.inverse_stages import SolveConfig, load_problem
+    from dpi.solve.problem import SolveConfig
+    from dpi.stages import load_problem
     from dpi.layout import INIT
     from dpi.pipeline import Pipeline
     from dpi.seeding import seed_for

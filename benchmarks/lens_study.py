@@ -21,11 +21,10 @@ import numpy as np
 
 from dpi.cameras import Lens, read_cameras
 from dpi.capture.undistort import distort_image
-from dpi.inverse_stages import SolveConfig, evaluate_stage, init_stage
 from dpi.io.exr import write_exr
 from dpi.io.images import read_image, read_mask, write_mask
-from dpi.preprocess.stages import capture_stage
-from dpi.studies.engine import (append_row, mean_std_cells, prepare_capture, read_rows, results_csv, settings_hash,
+from dpi.stages import capture_stage, evaluate_stage, init_stage
+from dpi.studies.engine import (Job, append_row, mean_std_cells, prepare_capture, read_rows, results_csv, settings_hash,
                                 study_layout, work_dir, workflow_config)
 from dpi.studies.scenes import SIZE
 
@@ -61,16 +60,13 @@ def run(seed: int, lens: Lens, config: dict) -> list[dict]:
     for variant in VARIANTS[1:]:
         distorted_twin(layout.capture_dir("pinhole"), layout.capture_dir(variant), lens, variant == "undistorted")
         shutil.copy(layout.synth_marker("pinhole"), layout.synth_marker(variant))
-    settings = SolveConfig.from_config(config, threads=2)
     rows = []
     for variant in VARIANTS:
-        files = layout.scene(variant)
-        capture_stage(layout.capture_dir(variant), files.capture_json)
-        init_stage(files.capture_json, files.sample_dir("init"), variant, config["init"], settings, progress=False)
-        out = files.evaluation("init", 0)
-        evaluate_stage(files.capture_json, files.sample_dir("init"), out, variant, "init", 0,
-                       config["evaluate"]["spp"], settings)
-        metrics = json.loads(out.read_text())["metrics"]
+        job = Job(root, variant, "", {**CAPTURE, "seed": seed}, "init", "", 0, {}, config).stage_job(threads=2)
+        capture_stage(job)
+        init_stage(job)
+        evaluate_stage(job)
+        metrics = json.loads(job.evaluation.read_text())["metrics"]
         rows.append({"variant": variant, "seed": seed, "k1": lens.k1, "k2": lens.k2,
                      **{k: metrics[k] for k in COLUMNS[4:]}})
     return rows

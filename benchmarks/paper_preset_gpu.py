@@ -4,7 +4,7 @@ preset's init, one dps sample and its evaluation are timed on the demo and on a 
 The network check builds `dpi.prior.unet.PAPER_CONFIG` with random weights, saves it as a raw
 guided-diffusion state dict, loads it back through `load_checkpoint` and times a forward (and a
 forward + backward) of one 128 x 256 map. The stages run through the workflow's own stage functions
-(dpi.inverse_stages) with the preset's settings; Mitsuba's variant is the config's `auto` (cuda_ad_rgb on a GPU).
+(dpi.stages) with the preset's settings; Mitsuba's variant is the config's `auto` (cuda_ad_rgb on a GPU).
 A smoke run on the CPU: `--presets draft --skip-network`.
 
     python benchmarks/paper_preset_gpu.py [--scenes demo blob_sun] [--presets default paper] [--out OUT] [--work DIR]
@@ -86,14 +86,14 @@ def network_check(height: int, device: torch.device) -> list[dict[str, Any]]:
 
 def demo_capture(root: Path) -> Path:
     """The bundled demo as a study scene: copied under root/captures, validated into capture.json."""
-    from dpi.inverse_stages import capture_stage
+    from dpi.preprocess.derive import normalise_capture
 
     layout = study_layout(root)
     if not layout.capture_dir("demo").exists():
         shutil.copytree(DEMO, layout.capture_dir("demo"))
     files = layout.scene("demo")
     if not files.capture_json.exists():
-        capture_stage(layout.capture_dir("demo"), files.capture_json)
+        normalise_capture(layout.capture_dir("demo"), files.capture_json)
     return files.capture_json
 
 
@@ -101,32 +101,35 @@ def scene_rows(root: Path, scene: str, config: dict, threads: int,
                sampler: str | None = None) -> list[dict[str, Any]]:
     """Init (unless one is there), one dps sample (with `sampler`, else the config's) and its evaluation of one
     scene under `config`; a row per stage with its metrics."""
-    from dpi.inverse_stages import SolveConfig, evaluate_stage, init_stage, sample_stage
+    from dataclasses import replace
 
-    settings = SolveConfig.from_config(config, threads)
+    from dpi.stages import StageJob, evaluate_stage, init_stage, sample_stage
+    from dpi.studies.engine import Job
+
     start = time.perf_counter()
-    capture_json = demo_capture(root) if scene == "demo" else prepare_capture(root, scene, SCENES[scene][1], threads)
+    demo_capture(root) if scene == "demo" else prepare_capture(root, scene, SCENES[scene][1], threads)
     files = study_layout(root).scene(scene)
+    dps = {**job_settings(config["method_params"]["dps"]), **({"sampler": sampler} if sampler else {})}
+    synth = SCENES[scene][1] if scene in SCENES else {}
+    job = StageJob(Job(root, scene, "", synth, "dps", "", 0, dps, config).pipeline, scene, "dps", 0, threads,
+                   progress=False)
     rows = [{"part": "capture", "seconds": time.perf_counter() - start, "detail": ""}]
     if files.sample_files(INIT)["trace"].exists():  # made before (here or carried from another machine)
         rows.append({"part": "init", "seconds": float("nan"), "detail": "reused"})
     else:
         start = time.perf_counter()
-        init_stage(capture_json, files.sample_dir(INIT), scene, config["init"], settings, progress=False)
+        init_stage(replace(job, method=INIT))
         rows.append({"part": "init", "seconds": time.perf_counter() - start,
                      "detail": f"{config['init']['iterations']} iterations"})
-    dps = {**job_settings(config["method_params"]["dps"]), **({"sampler": sampler} if sampler else {})}
     start = time.perf_counter()
-    sample_stage(capture_json, files.sample_dir(INIT), files.sample_dir("dps", 0), scene, "dps", 0, dps, settings,
-                 progress=False)
+    sample_stage(job)
     trace = json.loads(files.sample_files("dps", 0)["trace"].read_text())
     rows.append({"part": "dps sample", "seconds": time.perf_counter() - start,
                  "detail": f"sampler {trace['info'].get('sampler')}, {dps.get('steps')} steps, "
                            f"refine {dps.get('refine', {}).get('iterations')}"})
     start = time.perf_counter()
-    out = files.evaluation("dps", 0)
-    evaluate_stage(capture_json, files.sample_dir("dps", 0), out, scene, "dps", 0, config["evaluate"]["spp"], settings)
-    metrics = json.loads(out.read_text())["metrics"]
+    evaluate_stage(job)
+    metrics = json.loads(job.evaluation.read_text())["metrics"]
     rows.append({"part": "evaluate", "seconds": time.perf_counter() - start,
                  "detail": ", ".join(f"{k} {metrics[k]:.3f}" for k in ("novel_psnr", "env_psnr")
                                      if isinstance(metrics.get(k), float))})

@@ -8,7 +8,7 @@ arc, under a sun map, an indoor room and a map clipped to the paper's tone-curve
 free fit already recovers the light and a prior can only tie. With `--panoramas DIR` the `real` group
 joins: ambiguous objects under the manifest's held-out real panoramas (dpi.studies.scenes.REAL_LIGHT_SCENES).
 Each scene gets one initialisation; each method then draws one sample per seed through the workflow's own
-stage functions (dpi.inverse_stages) with config.yaml's settings (preset applied), and the workflow's
+stage functions (dpi.stages) with config.yaml's settings (preset applied), and the workflow's
 evaluation scores it.
 
     .venv/bin/python benchmarks/posterior_study.py [--panoramas DIR] [--scenes ...] [--methods ...] [--seeds 0 1 2]

@@ -31,7 +31,7 @@ from dpi.layout import SYNTH_MARKER, SceneLayout
 from dpi.preprocess.accuracy import align_mesh, chamfer, pose_errors
 from dpi.preprocess.geometry import read_mesh
 from dpi.preprocess.sfm import SfMError
-from dpi.preprocess.stages import capture_stage, geometry_stage, masks_stage, poses_stage, uv_stage
+from dpi.preprocess.derive import derive_geometry, derive_poses, derive_uv, derive_view_masks, normalise_capture
 from dpi.studies.engine import append_row, settings_hash
 from dpi.synth.capture import SynthConfig, make_synthetic_capture
 from dpi.synth.shapes import SHAPES
@@ -42,12 +42,12 @@ CSV = Path(__file__).resolve().parent / "results" / "preprocess_accuracy.csv"
 def run_capture(root: Path, work: Path, threads: int, geometry: dict) -> dict:
     """Run the four stages on one photo capture; accuracy and seconds per stage."""
     scene = SceneLayout(work)
-    capture_stage(root, scene.capture_json)
+    normalise_capture(root, scene.capture_json)
     row, capture_json = {}, scene.capture_json
     truth = read_cameras(root / "gt" / "transforms.json")
     start = time.perf_counter()
     try:
-        poses_stage(capture_json, scene.poses_dir, {"max_features": 2048}, threads=threads)
+        derive_poses(capture_json, scene.poses_dir, {"max_features": 2048}, threads=threads)
         cameras_json, points = scene.poses["cameras"], scene.poses["points"]
         cameras = read_cameras(cameras_json)
         errors = pose_errors(cameras, truth)
@@ -58,7 +58,7 @@ def run_capture(root: Path, work: Path, threads: int, geometry: dict) -> dict:
         cameras_json, points, cameras = root / "gt" / "transforms.json", None, truth
     row["poses_s"] = time.perf_counter() - start
     start = time.perf_counter()
-    summary = masks_stage(capture_json, scene.masks, {}, cameras_json, points)
+    summary = derive_view_masks(capture_json, scene.masks, {}, cameras_json, points)
     row["masks_s"] = time.perf_counter() - start
     ious = [mask_iou(read_mask(scene.masks / f"{n}.png"), read_mask(root / "gt" / "masks" / f"{n}.png"))
             for n in truth if n in cameras]
@@ -66,13 +66,13 @@ def run_capture(root: Path, work: Path, threads: int, geometry: dict) -> dict:
     row.update(mask_prior=summary["prior"] if "grabcut" in methods else "key", iou_mean=np.mean(ious),
                iou_min=np.min(ious))
     start = time.perf_counter()
-    geometry_stage(capture_json, scene.geometry_dir, geometry, cameras_json, scene.masks)
+    derive_geometry(capture_json, scene.geometry_dir, geometry, cameras_json, scene.masks)
     row["geometry_s"] = time.perf_counter() - start
     vertices, faces = read_mesh(scene.geometry["mesh"])
     error = chamfer(align_mesh(vertices, cameras, truth), faces, *read_mesh(root / "gt" / "mesh.ply"))
     row["chamfer_pct"] = 100 * error["chamfer_rel"]
     start = time.perf_counter()
-    uv_stage(capture_json, scene.geometry_dir, {}, scene.geometry["mesh"])
+    derive_uv(capture_json, scene.geometry_dir, {}, scene.geometry["mesh"])
     row["uv_s"] = time.perf_counter() - start
     return row
 

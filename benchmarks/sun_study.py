@@ -67,7 +67,8 @@ def true_light_sample(job: Job) -> None:
     """The `true_light` reference's sample folder (module notes), unless it is there."""
     import torch
 
-    from dpi.inverse_stages import SolveConfig, load_problem
+    from dpi.solve.problem import SolveConfig
+    from dpi.stages import load_problem
     from dpi.light.envmap import read_envmap
     from dpi.prior.data import resize_area
     from dpi.solve.decomposition import Decomposition

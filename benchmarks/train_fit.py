@@ -24,7 +24,8 @@ import numpy as np
 
 from dpi.evaluation.train_fit import ground_truth as truth
 from dpi.evaluation.train_fit import training_fit
-from dpi.inverse_stages import SolveConfig, load_problem
+from dpi.solve.problem import SolveConfig
+from dpi.stages import load_problem
 from dpi.layout import INIT
 
 TOLERANCE = 1.05

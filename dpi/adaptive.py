@@ -12,13 +12,10 @@ Two decisions, each logged where its result is written and switched off in confi
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from dpi.io.atomic import write_json
-from dpi.io.exr import read_exr
 from dpi.materials import MaterialTextures
 from dpi.settings import Weight, settings, settings_from_dict
 from dpi.spread import normalized_env, sample_variance
@@ -80,10 +77,3 @@ def plan_steps(init: MaterialTextures, steps: int, cfg: AdaptiveConfig) -> tuple
         return reduced, (f"{seen}: diffuse (roughness >= {DIFFUSE_ROUGHNESS:g}), the views see only low "
                          f"frequencies of the map; {reduced} of {steps} diffusion steps")
     return steps, f"{seen}: not diffuse; all {steps} diffusion steps"
-
-
-def sample_plan_stage(envmaps: list[str | Path], out_json: str | Path, samples: int, cfg: AdaptiveConfig) -> dict:
-    """Write plan.json for one (scene, method) from its first samples' env maps; returns the plan."""
-    plan = plan_samples([read_exr(path) for path in envmaps], samples, cfg)
-    write_json(out_json, {**plan, "first": [str(p) for p in envmaps], "config": vars(cfg)})
-    return plan

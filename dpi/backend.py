@@ -78,13 +78,16 @@ def choose_variant(prefer: str = "auto") -> str:
 
 
 def set_threads(threads: int) -> None:
-    """Use exactly `threads` CPU threads in torch and Dr.Jit (Snakemake's `threads`)."""
+    """Use exactly `threads` CPU threads in torch, Dr.Jit and OpenCV (Snakemake's `threads`): the one place a job's
+    thread count is set."""
+    import cv2
     import drjit as dr
     import torch
 
     threads = max(1, int(threads))
     torch.set_num_threads(threads)
     dr.set_thread_count(threads)
+    cv2.setNumThreads(threads)
 
 
 def mitsuba(variant: str = "auto", threads: int | None = None) -> Any:

@@ -48,9 +48,14 @@ def _pipeline(args: argparse.Namespace):
     return pipeline
 
 
-def _threads(args: argparse.Namespace, pipeline, kind: str) -> int:
-    """--threads, else the config's threads of the job kind (as the workflow's job has)."""
-    return args.threads or pipeline.threads(kind)
+def _job(args: argparse.Namespace, kind: str, method: str | None = None, k: int = 0):
+    """The stage job record of a command on a scene, as its rule builds it: the resolved config, the scene,
+    method and sample, and --threads, else the config's threads of the job kind (as the workflow's job has)."""
+    from dpi.stages import INIT, StageJob
+
+    pipeline = _pipeline(args)
+    return StageJob(pipeline, getattr(args, "scene", None), method or INIT, k,
+                    threads=args.threads or pipeline.threads(kind))
 
 
 def cmd_config(args: argparse.Namespace) -> None:
@@ -77,10 +82,10 @@ def cmd_validate(args: argparse.Namespace) -> None:
     """Validate a capture folder; optionally write capture.json as the capture stage does (distortion removed
     and a glTF mesh converted beside it)."""
     from dpi.capture import load_capture, read_capture_json
-    from dpi.preprocess.stages import capture_stage
+    from dpi.preprocess.derive import normalise_capture
 
     if args.out:
-        capture_stage(args.capture, args.out)
+        normalise_capture(args.capture, args.out)
         capture = read_capture_json(args.out)
     else:
         capture = load_capture(args.capture)
@@ -90,72 +95,50 @@ def cmd_validate(args: argparse.Namespace) -> None:
 
 def cmd_capture(args: argparse.Namespace) -> None:
     """Rules synth_capture (a synthetic scene whose folder is missing) and capture."""
-    from dpi.preprocess.stages import capture_stage
-    from dpi.synth.capture import make_synthetic_capture
+    from dpi.stages import capture_stage, synth_capture_stage
 
-    pipeline = _pipeline(args)
-    layout = pipeline.layout
-    if pipeline.is_synthetic(args.scene) and not layout.synth_marker(args.scene).is_file():
-        make_synthetic_capture(layout.capture_dir(args.scene), pipeline.synth_settings(args.scene),
-                               threads=_threads(args, pipeline, "synth"), overwrite=True)
-    capture_stage(layout.capture_dir(args.scene), layout.scene(args.scene).capture_json)
-    print(f"wrote {layout.scene(args.scene).capture_json}")
+    job = _job(args, "synth")
+    if job.pipeline.is_synthetic(job.scene) and not job.pipeline.layout.synth_marker(job.scene).is_file():
+        synth_capture_stage(job)
+    capture_stage(job)
+    print(f"wrote {job.paths.capture_json}")
 
 
 def cmd_preprocess(args: argparse.Namespace) -> None:
     """The rules capture, poses, masks, geometry and uv for what a capture lacks."""
-    from dpi.preprocess.stages import STAGES, needed_stages, preprocess_scene
+    from dpi.stages import STAGES, needed_stages, preprocess_scene
 
-    pipeline = _pipeline(args)
-    capture_dir = pipeline.layout.capture_dir(args.scene)
-    stages = needed_stages(pipeline.given(args.scene))
+    job = _job(args, "preprocess")
+    stages = needed_stages(job.pipeline.given(args.scene))
     if args.dry_run:
         for stage in STAGES:
             print(f"{stage:9s} {'run' if stage in stages else 'skipped: given by the capture'}")
         return
-    report = preprocess_scene(capture_dir, pipeline.layout.scene(args.scene), pipeline.config["preprocess"],
-                              _threads(args, pipeline, "preprocess"))
+    report = preprocess_scene(job)
     for stage, summary in report.items():
         print(f"{stage:9s} " + ("given" if summary == "given" else f"derived in {summary.get('seconds', 0):.1f} s"))
-    print(f"wrote {pipeline.layout.scene(args.scene).root}")
+    print(f"wrote {job.paths.root}")
 
 
 def cmd_init(args: argparse.Namespace) -> None:
     """Rule init."""
-    from dpi.inverse_stages import init_stage
-    from dpi.layout import INIT
+    from dpi.stages import init_stage
 
-    pipeline = _pipeline(args)
-    scene = pipeline.layout.scene(args.scene)
-    init_stage(scene.capture_json, scene.sample_dir(INIT), args.scene, pipeline.config["init"],
-               pipeline.solve_settings(_threads(args, pipeline, "init")))
+    init_stage(_job(args, "init"))
 
 
 def cmd_sample(args: argparse.Namespace) -> None:
     """Rule sample."""
-    from dpi.inverse_stages import sample_stage
-    from dpi.layout import INIT
+    from dpi.stages import sample_stage
 
-    pipeline = _pipeline(args)
-    scene = pipeline.layout.scene(args.scene)
-    sample_stage(scene.capture_json, scene.sample_dir(INIT), scene.sample_dir(args.method, args.k), args.scene,
-                 args.method, args.k, pipeline.method_params(args.method),
-                 pipeline.solve_settings(_threads(args, pipeline, "sample")),
-                 prior_checkpoint=pipeline.method_prior(args.scene, args.method),
-                 adaptive=pipeline.adaptive)
+    sample_stage(_job(args, "sample", args.method, args.k))
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
     """Rules evaluate and evaluate_init."""
-    from dpi.inverse_stages import evaluate_stage
+    from dpi.stages import evaluate_stage
 
-    pipeline = _pipeline(args)
-    scene = pipeline.layout.scene(args.scene)
-    evaluate_stage(scene.capture_json, scene.sample_dir(args.method, args.k), scene.evaluation(args.method, args.k),
-                   args.scene, args.method, args.k, pipeline.evaluate_spp,
-                   pipeline.solve_settings(_threads(args, pipeline, "evaluate")),
-                   pipeline.prior_checkpoint(args.scene), views_dir=scene.evaluation_views(args.method, args.k),
-                   references=pipeline.config["evaluate"]["reference_panoramas"])
+    evaluate_stage(_job(args, "evaluate", args.method, args.k))
 
 
 def existing_evaluations(pipeline) -> list[Path]:
@@ -172,13 +155,14 @@ def existing_evaluations(pipeline) -> list[Path]:
 
 def cmd_summary(args: argparse.Namespace) -> None:
     """Rule summary, over the metric files present."""
-    from dpi.inverse_stages import summary_stage
+    from dpi.stages import summary_stage
 
-    pipeline = _pipeline(args)
+    job = _job(args, "evaluate")
+    pipeline = job.pipeline
     evaluations = existing_evaluations(pipeline)
     if not evaluations:
         raise ValueError(f"no metric files of scenes {', '.join(pipeline.scenes)} under {pipeline.layout.results}")
-    summary_stage(evaluations, pipeline.layout.summary, pipeline.layout.samples_table)
+    summary_stage(job, evaluations)
     print(f"wrote {pipeline.layout.summary} ({len(evaluations)} samples)")
 
 
@@ -196,22 +180,23 @@ def cmd_tables(args: argparse.Namespace) -> None:
 
 def cmd_report(args: argparse.Namespace) -> None:
     """Rules envmap_figure and uncertainty (each scene, over the samples present) and report."""
-    from dpi.evaluation.report import build_report
-    from dpi.inverse_stages import envmap_figure_stage, uncertainty_stage
+    from dataclasses import replace
 
-    pipeline = _pipeline(args)
-    layout = pipeline.layout
+    from dpi.stages import envmap_figure_stage, report_stage, uncertainty_stage
+
+    run = _job(args, "evaluate")
+    pipeline = run.pipeline
     for name in pipeline.scenes:
-        scene = layout.scene(name)
+        job = replace(run, scene=name)
+        scene = job.paths
         present = [(m, [k for k in range(pipeline.samples(m)) if scene.sample_files(m, k)["albedo"].is_file()])
                    for m in pipeline.methods]
-        envmap_figure_stage(scene.capture_json, [(m, [scene.sample_files(m, k)["env"] for k in ks])
-                                                 for m, ks in present if ks], scene.envmap_figure)
+        envmap_figure_stage(job, [(m, [scene.sample_files(m, k)["env"] for k in ks]) for m, ks in present if ks])
         spread = [(m, [scene.sample_dir(m, k) for k in ks]) for m, ks in present if len(ks) >= 2]
         if spread:
-            uncertainty_stage(scene.root, spread, scene.uncertainty_figure)
-    build_report(layout, layout.report_html, layout.report_figures)
-    print(f"wrote {layout.report_html}")
+            uncertainty_stage(job, spread)
+    report_stage(run)
+    print(f"wrote {pipeline.layout.report_html}")
 
 
 def cmd_relight(args: argparse.Namespace) -> None:

@@ -3,13 +3,8 @@ import json
 from pathlib import Path
 from functools import lru_cache
 
-from dpi.adaptive import MIN_SAMPLES, stop_rule_applies
-from dpi.capture import PRIORS, derived_inputs
-from dpi.io.lock import lock_results
-from dpi.layout import INIT
-from dpi.pipeline import Pipeline, plain, resolve_config
-from dpi.preprocess.stages import stage_inputs
-from dpi.solve.methods import METHODS as KNOWN_METHODS, REGISTRY
+from dpi.stages import (INIT, METHODS as KNOWN_METHODS, MIN_SAMPLES, PRIORS, REGISTRY, Pipeline, derived_inputs,
+                        lock_results, plain, resolve_config, stage_inputs, stop_rule_applies)
 
 # dpi's defaults (dpi/data/config.yaml), ./config.yaml when present (the checkout's top-level file), then
 # the --configfile files and --config values Snakemake merged into `config`; the preset fills what is

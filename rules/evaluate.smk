@@ -20,7 +20,7 @@ rule evaluate:
     log:
         SCENE.evaluation_log("{method}", "{k}"),
     script:
-        "../workflow_scripts/evaluate.py"
+        "../workflow_scripts/stage.py"
 
 
 use rule evaluate as evaluate_init with:
@@ -43,10 +43,12 @@ rule summary:
     output:
         summary=report(LAYOUT.summary, caption="../report/summary.rst", category="Metrics"),
         samples=LAYOUT.samples_table,
+    params:
+        stage_args=lambda w, input: [[*input.evaluations, *input.planned]],
     log:
         LAYOUT.log("summary"),
     script:
-        "../workflow_scripts/summary.py"
+        "../workflow_scripts/stage.py"
 
 
 rule envmap_figure:
@@ -57,11 +59,11 @@ rule envmap_figure:
     output:
         report(SCENE.envmap_figure, caption="../report/envmaps.rst", category="Env maps"),
     params:
-        rows=lambda w: sample_envmaps(w.scene),
+        stage_args=lambda w: [sample_envmaps(w.scene)],
     log:
         SCENE.log("envmap_figure"),
     script:
-        "../workflow_scripts/envmap_figure.py"
+        "../workflow_scripts/stage.py"
 
 
 rule uncertainty:
@@ -73,12 +75,11 @@ rule uncertainty:
         *[path for m in SPREAD_METHODS for path in SCENE.uncertainty(m).values()],
         figure=report(SCENE.uncertainty_figure, caption="../report/uncertainty.rst", category="Env maps"),
     params:
-        scene=lambda w: str(LAYOUT.scene(w.scene).root),
-        rows=lambda w: sample_folders(w.scene),
+        stage_args=lambda w: [sample_folders(w.scene)],
     log:
         SCENE.log("uncertainty"),
     script:
-        "../workflow_scripts/uncertainty.py"
+        "../workflow_scripts/stage.py"
 
 
 rule report:
@@ -91,9 +92,7 @@ rule report:
     output:
         html=report(LAYOUT.report_html, caption="../report/report.rst", category="Report"),
         figures=directory(LAYOUT.report_figures),
-    params:
-        layout={"results": str(LAYOUT.results), "captures": str(LAYOUT.captures)},
     log:
         LAYOUT.log("report"),
     script:
-        "../workflow_scripts/report.py"
+        "../workflow_scripts/stage.py"

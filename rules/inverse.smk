@@ -17,7 +17,7 @@ rule init:
     benchmark:
         SCENE.benchmark(INIT)
     script:
-        "../workflow_scripts/init.py"
+        "../workflow_scripts/stage.py"
 
 
 rule sample:
@@ -39,7 +39,7 @@ rule sample:
     benchmark:
         SCENE.benchmark("{method}", "{k}")
     script:
-        "../workflow_scripts/sample.py"
+        "../workflow_scripts/stage.py"
 
 
 # The sample stop rule (dpi.adaptive): once a method's first samples exist, decide how many it
@@ -55,4 +55,4 @@ checkpoint sample_plan:
     log:
         SCENE.log("{method}", "plan"),
     script:
-        "../workflow_scripts/sample_plan.py"
+        "../workflow_scripts/stage.py"

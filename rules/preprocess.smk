@@ -10,7 +10,7 @@ rule synth_capture:
     log:
         SCENE.log("synth"),
     script:
-        "../workflow_scripts/synth.py"
+        "../workflow_scripts/stage.py"
 
 
 rule capture:
@@ -18,17 +18,15 @@ rule capture:
         capture_files,
     output:
         SCENE.capture_json,
-    params:
-        capture=lambda w: str(LAYOUT.capture_dir(w.scene)),
     log:
         SCENE.log("capture"),
     script:
-        "../workflow_scripts/capture.py"
+        "../workflow_scripts/stage.py"
 
 
 # Stages that derive what a photo capture lacks (dpi.preprocess). Each is scheduled only when the
 # capture does not give its output, and reads only what the stages before it derived
-# (dpi.preprocess.stages: needed_stages, stage_inputs; dpi.capture.derived_inputs for init and the
+# (dpi.stages.preprocess: needed_stages, stage_inputs; dpi.capture.derived_inputs for init and the
 # methods): poses (COLMAP) -> masks (GrabCut / keying) -> geometry (carved SDF + cleanup) -> uv (xatlas).
 
 
@@ -52,7 +50,7 @@ rule poses:
     benchmark:
         SCENE.benchmark("poses")
     script:
-        "../workflow_scripts/poses.py"
+        "../workflow_scripts/stage.py"
 
 
 rule masks:
@@ -71,7 +69,7 @@ rule masks:
     benchmark:
         SCENE.benchmark("masks")
     script:
-        "../workflow_scripts/masks.py"
+        "../workflow_scripts/stage.py"
 
 
 rule geometry:
@@ -91,7 +89,7 @@ rule geometry:
     benchmark:
         SCENE.benchmark("geometry")
     script:
-        "../workflow_scripts/geometry.py"
+        "../workflow_scripts/stage.py"
 
 
 rule uv:
@@ -111,4 +109,4 @@ rule uv:
     benchmark:
         SCENE.benchmark("uv")
     script:
-        "../workflow_scripts/uv.py"
+        "../workflow_scripts/stage.py"

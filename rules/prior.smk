@@ -18,7 +18,7 @@ rule envmap_dataset:
     log:
         LAYOUT.prior_log("{family}", "envmap_dataset"),
     script:
-        "../workflow_scripts/make_envmap_dataset.py"
+        "../workflow_scripts/stage.py"
 
 
 rule train_prior:
@@ -27,7 +27,6 @@ rule train_prior:
     output:
         LAYOUT.prior_model("{family}"),
     params:
-        checkpoint=lambda w: LAYOUT.prior_checkpoint(w.family),
         job=lambda w: plain(PIPELINE.prior_job(w.family)),
     threads: lambda w: PIPELINE.prior_job(w.family).threads
     log:
@@ -35,4 +34,4 @@ rule train_prior:
     benchmark:
         LAYOUT.prior_benchmark("{family}", "train_prior")
     script:
-        "../workflow_scripts/train_prior.py"
+        "../workflow_scripts/stage.py"

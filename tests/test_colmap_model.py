@@ -15,7 +15,7 @@ from dpi.cameras import read_cameras
 from dpi.capture import CaptureError, load_capture
 from dpi.layout import poses_files
 from dpi.preprocess.sfm import read_points_ply
-from dpi.preprocess.stages import capture_stage, poses_stage
+from dpi.preprocess.derive import derive_poses, normalise_capture
 
 GIVEN = dict(zip(NAMES, cameras()))
 
@@ -35,8 +35,8 @@ def colmap_capture(root, binary=False, mesh=True):
 @pytest.mark.parametrize("binary", [False, True])
 def test_the_poses_stage_reads_the_model_as_given(tmp_path, binary):
     root = colmap_capture(tmp_path / "s", binary)
-    capture_stage(root, tmp_path / "out" / "capture.json")
-    summary = poses_stage(tmp_path / "out" / "capture.json", tmp_path / "out" / "poses",
+    normalise_capture(root, tmp_path / "out" / "capture.json")
+    summary = derive_poses(tmp_path / "out" / "capture.json", tmp_path / "out" / "poses",
                           {"min_registered_fraction": 0.5})
     assert summary["source"].endswith("sparse/0") and summary["registered"] == len(NAMES)
     read = read_cameras(poses_files(tmp_path / "out" / "poses")["cameras"])
@@ -50,8 +50,8 @@ def test_the_poses_stage_reads_the_model_as_given(tmp_path, binary):
 
 def test_without_a_mesh_the_model_is_brought_into_dpis_frame_rigidly(tmp_path):
     root = colmap_capture(tmp_path / "s", mesh=False)
-    capture_stage(root, tmp_path / "out" / "capture.json")
-    poses_stage(tmp_path / "out" / "capture.json", tmp_path / "out" / "poses", {"min_registered_fraction": 0.5})
+    normalise_capture(root, tmp_path / "out" / "capture.json")
+    derive_poses(tmp_path / "out" / "capture.json", tmp_path / "out" / "poses", {"min_registered_fraction": 0.5})
     read = read_cameras(poses_files(tmp_path / "out" / "poses")["cameras"])
     a, b = (read[n].c2w[:3, :3].T @ read[NAMES[0]].c2w[:3, :3] for n in NAMES[1:3])
     c, d = (GIVEN[n].c2w[:3, :3].T @ GIVEN[NAMES[0]].c2w[:3, :3] for n in NAMES[1:3])

@@ -9,7 +9,7 @@ from pathlib import Path
 import networkx as nx
 
 PACKAGE = Path(__file__).resolve().parent.parent / "dpi"
-ABOVE_EVALUATION = {"dpi.inverse_stages", "dpi.cli"}
+ABOVE_EVALUATION = {"dpi.stages", "dpi.stages.evaluate", "dpi.cli"}
 """modules that orchestrate solving and scoring and may import dpi.evaluation"""
 
 

@@ -13,7 +13,7 @@ from dpi.cameras import from_fov, orbit, write_transforms
 from dpi.cli import main
 from dpi.consistency import mask_iou
 from dpi.io.images import read_mask, write_srgb
-from dpi.preprocess.stages import needed_stages
+from dpi.stages import needed_stages
 
 FAST = {"preprocess": {"geometry": {"resolution": 48, "target_faces": 3000,
                                     "remesh_iterations": 1},

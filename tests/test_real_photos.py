@@ -8,17 +8,17 @@ import numpy as np
 import pytest
 
 from dpi.io.images import read_mask
-from dpi.layout import SceneLayout
-from dpi.preprocess.stages import preprocess_scene
+from dpi.stages import preprocess_scene
+from stage_jobs import stage_job
 
 SKULL = Path(__file__).parent / "data" / "skull_photos"
 
 
 @pytest.fixture(scope="module")
 def derived(tmp_path_factory):
-    scene = SceneLayout(tmp_path_factory.mktemp("skull"))
     # stereo carving (two minutes here) is tested on synthetic captures; these photos test the masks and the hull
-    return scene, preprocess_scene(SKULL, scene, {"geometry": {"stereo": False}}, threads=2)
+    job = stage_job(SKULL, tmp_path_factory.mktemp("skull"), preprocess={"geometry": {"stereo": False}})
+    return job.paths, preprocess_scene(job)
 
 
 def test_masks_hold_on_real_photos(derived):

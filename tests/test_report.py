@@ -17,7 +17,8 @@ from dpi.evaluation.metric_table import direction, metric_table
 from dpi.evaluation.relighting import RELIGHT_MAPS, relit_name
 from dpi.evaluation.report import Page, build_report, quality_section, roughness_section
 from dpi.evaluation.summary import write_csv
-from dpi.inverse_stages import capture_stage, uncertainty_stage
+from dpi.preprocess.derive import normalise_capture
+from dpi.stages import Pipeline, StageJob, uncertainty_stage
 from dpi.io.atomic import write_json
 from dpi.io.exr import read_exr, write_exr
 from dpi.layout import INIT, SUMMARY_FILE, Layout, view_file
@@ -66,7 +67,7 @@ def results(tmp_path_factory, tiny_capture) -> Layout:
         marker = json.loads(layout.synth_marker(name).read_text())
         layout.synth_marker(name).write_text(json.dumps({**marker, "roughness": roughness}))
         scene = layout.scene(name)
-        capture_stage(capture, scene.capture_json)
+        normalise_capture(capture, scene.capture_json)
         held_out = [v for v in read_capture_json(scene.capture_json).views if v.held_out]
         for method, samples in METHODS.items():
             for k in range(samples):
@@ -87,8 +88,9 @@ def results(tmp_path_factory, tiny_capture) -> Layout:
             scene.evaluation(method, 0).write_text(json.dumps(record))
         envmap_grid([(m, [scene.sample_files(m, k)["env"] for k in range(n)]) for m, n in METHODS.items()],
                     scene.envmap_figure)
-        uncertainty_stage(scene.root, [(m, [scene.sample_dir(m, k) for k in range(n)]) for m, n in METHODS.items()
-                                       if n >= 2], scene.uncertainty_figure)
+        job = StageJob(Pipeline({"results_dir": str(layout.results), "captures_dir": str(layout.captures)}),
+                       scene.root.name)
+        uncertainty_stage(job, [(m, [scene.sample_dir(m, k) for k in range(n)]) for m, n in METHODS.items() if n >= 2])
     first = layout.scene(next(iter(ROUGHNESS)))  # its masks as the masks stage summarises derived ones
     views = read_capture_json(first.capture_json).views
     flags = {v.name: {"method": "grabcut", "agreement": 0.5 if i == 1 else 0.95, "reliable": i != 1}

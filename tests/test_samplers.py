@@ -4,6 +4,7 @@ the prior alone, every sampler plugs into the one loop, and the sample stage run
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 import math
 
 import numpy as np
@@ -257,8 +258,9 @@ def test_unknown_sampler_is_an_error():
 
 
 def test_sample_stage_draws_a_dps_sample(tiny_capture, tmp_path):
-    from dpi.inverse_stages import SolveConfig, capture_stage, init_stage, sample_stage
     from dpi.prior.train import save_atomic
+    from dpi.stages import capture_stage, init_stage, sample_stage
+    from stage_jobs import stage_job
 
     prior = log_prior()
     checkpoint = tmp_path / "prior.pt"
@@ -266,15 +268,18 @@ def test_sample_stage_draws_a_dps_sample(tiny_capture, tmp_path):
                  "height": 8, "tone": {**prior.encoding.to_dict(), "median_target": 1.0},
                  "diffusion": {"num_timesteps": 1000, "schedule": "linear"}, "model": prior.model.state_dict(),
                  "ema": None, "step": 0}, checkpoint)
-    settings = SolveConfig.from_config({"render": {"spp": 4}, "problem": {"env_height": 4, "texture_size": 8}}, 2)
-    capture_stage(tiny_capture, tmp_path / "capture.json")
-    init_stage(tmp_path / "capture.json", tmp_path / "init", "tiny", {"iterations": 3}, settings, progress=False)
-    sample_stage(tmp_path / "capture.json", tmp_path / "init", tmp_path / "dps", "tiny", "dps", 0,
-                 {"steps": 4, "refine": {"iterations": 2}}, settings, prior_checkpoint=checkpoint, progress=False)
-    trace = json.loads((tmp_path / "dps" / "trace.json").read_text())
+    job = stage_job(tiny_capture, tmp_path / "results", render={"spp": 4},
+                    problem={"env_height": 4, "texture_size": 8, "resolution": None}, init={"iterations": 3},
+                    method_params={"dps": {"steps": 4, "refine": {"iterations": 2}}},
+                    illumination_prior={"checkpoints": {"outdoor": str(checkpoint)}})
+    capture_stage(job)
+    init_stage(job)
+    sample_stage(replace(job, method="dps"))
+    out = job.paths.sample_dir("dps", 0)
+    trace = json.loads((out / "trace.json").read_text())
     assert trace["info"]["sampler"] == "proximal" and len(trace["steps"]) >= 2
-    assert (tmp_path / "dps" / "x0_strip.png").is_file()
-    assert np.isfinite(Decomposition.load(tmp_path / "dps").env.numpy()).all()
+    assert (out / "x0_strip.png").is_file()
+    assert np.isfinite(Decomposition.load(out).env.numpy()).all()
 
 
 def test_a_parametric_sun_is_fitted_and_lands_in_the_map(problem_and_init):

@@ -76,15 +76,15 @@ def test_mean_maps_scores_are_the_truths_when_the_samples_straddle_it(tmp_path):
 
 
 def test_uncertainty_stage_writes_each_methods_maps_and_figure(tmp_path):
-    from dpi.inverse_stages import uncertainty_stage
+    from dpi.stages import Pipeline, StageJob, uncertainty_stage
 
-    scene = SceneLayout(tmp_path / "scene")
+    job = StageJob(Pipeline({"results_dir": str(tmp_path), "captures_dir": str(tmp_path / "captures")}), "scene")
+    scene = job.paths
     for k, factor in enumerate((4.0, 1.0)):
         files = decomposition_files(scene.sample_dir("dps", k))
         write_exr(files["env"], bright_patch(factor).astype(np.float32))
         write_exr(files["albedo"], np.full((4, 4, 3), 0.2 * (k + 1), np.float32))
-    uncertainty_stage(scene.root, [("dps", [scene.sample_dir("dps", k) for k in range(2)])],
-                      scene.uncertainty_figure)
+    uncertainty_stage(job, [("dps", [scene.sample_dir("dps", k) for k in range(2)])])
     env = read_exr(scene.uncertainty("dps")["env"])
     assert env.shape[:2] == (H, 2 * H) and float(env.max()) == pytest.approx(math.log(4.0) / math.sqrt(2), rel=1e-5)
     assert np.abs(read_exr(scene.uncertainty("dps")["albedo"])).max() < 1e-6  # 0.2 and 0.4: one albedo, two scales

@@ -1,5 +1,7 @@
 """Working resolution: images and masks area-downsampled once, cameras scaled with them, reused."""
 
+import shutil
+
 import numpy as np
 import pytest
 
@@ -66,18 +68,16 @@ def test_evaluation_and_report_work_at_the_working_resolution(tiny_capture, tmp_
 
     from dpi.capture import complete_capture, read_capture_json
     from dpi.evaluation.report import evaluated_capture, held_out_rerenders
-    from dpi.inverse_stages import capture_stage, evaluate_stage
-    from dpi.layout import SceneLayout
-    from dpi.render import RenderConfig
-    from dpi.solve.problem import ProblemConfig, SolveConfig
+    from dpi.stages import capture_stage, evaluate_stage
+    from stage_jobs import stage_job
 
-    scene = SceneLayout(tmp_path / "results" / "tiny")
-    capture_stage(tiny_capture, scene.capture_json)
     size = load_capture(tiny_capture).image_size[0] // 2
-    settings = SolveConfig(RenderConfig(spp=4, threads=2), replace(ProblemConfig(env_height=8, texture_size=8),
-                                                                          resolution=size))
-    evaluate_stage(scene.capture_json, tiny_capture / "gt", scene.evaluation("gt", 0), "tiny", "gt", 0, 8, settings,
-                   views_dir=scene.evaluation_views("gt", 0))
+    job = stage_job(tiny_capture, tmp_path / "results", render={"spp": 4}, evaluate={"spp": 8},
+                    problem={"env_height": 8, "texture_size": 8, "resolution": size})
+    scene = job.paths
+    capture_stage(job)
+    shutil.copytree(tiny_capture / "gt", scene.sample_dir("gt", 0))  # the truth, scored as a sample named gt
+    evaluate_stage(replace(job, method="gt"))
     capture = evaluated_capture(scene, complete_capture(read_capture_json(scene.capture_json), scene), "gt")
     assert capture.image_size == (size, size) and (scene.working_dir / f"{size}x{size}").is_dir()
     (name, captured, (rerender,)), *_ = held_out_rerenders(scene, capture, ["gt"], 1.0)

@@ -51,7 +51,7 @@ def nerf_synthetic(root: Path) -> bool:
 def derived_inputs(given: dict[str, bool], scene: SceneLayout) -> dict[str, Path]:
     """What the preprocessing stages derive for a capture that lacks it (keys cameras, masks, mesh), from
     what it gives (`inspect_capture`, `Capture.given`): the files that complete it for init, the methods
-    and evaluation (dpi.preprocess.stages schedules the stages that make them)."""
+    and evaluation (dpi.stages.preprocess schedules the stages that make them)."""
     inputs = {}
     if not given["cameras"]:
         inputs["cameras"] = scene.poses["cameras"]

@@ -5,17 +5,11 @@ from __future__ import annotations
 import argparse
 import json
 
+from dpi.backend import set_threads
 from dpi.capture import PRIORS
 from dpi.light.tonecurve import ENCODINGS
 from dpi.prior.train import DEFAULT_MODEL, LR_SCHEDULES, PriorJobConfig, TrainConfig
 from dpi.settings import field_default
-
-
-def _threads(n: int) -> None:
-    """Use exactly `n` torch threads (and Dr.Jit threads once Mitsuba is imported)."""
-    import torch
-
-    torch.set_num_threads(max(1, n))
 
 
 def cmd_make_envmaps(args: argparse.Namespace) -> None:
@@ -61,7 +55,7 @@ def cmd_train_prior(args: argparse.Namespace) -> None:
     from dpi.prior.train import TrainConfig, export_model, train
     from dpi.settings import SettingsError
 
-    _threads(args.threads)
+    set_threads(args.threads)
     try:
         config = TrainConfig(model=args.model, steps=args.steps, batch_size=args.batch_size, lr=args.lr,
                              warmup_steps=args.warmup_steps, lr_schedule=args.lr_schedule, init=args.init,
@@ -79,7 +73,7 @@ def cmd_sample_prior(args: argparse.Namespace) -> None:
     """Draw unconditional samples from a prior checkpoint and write them as EXR (+ a PNG grid)."""
     from dpi.prior.sample import sample_to_files
 
-    _threads(args.threads)
+    set_threads(args.threads)
     sample_to_files(args.checkpoint, args.out, count=args.count, steps=args.steps, seed=args.seed,
                     random_roll=not args.no_roll, device=args.device)
 

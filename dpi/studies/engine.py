@@ -1,5 +1,6 @@
-"""The one engine the studies run on: a study is a list of jobs (scene, method, dps variant, seed) drawn
-and scored through the workflow's own stage functions (dpi.inverse_stages) into rows of a CSV.
+"""The one engine the studies run on: a study is a list of jobs (scene, method, dps variant, seed), each drawn
+and scored by the workflow's own stage functions (dpi.stages) on the job record a rule would build, into rows
+of a CSV. What a study adds is only its scenes, repeats and the stamped rows.
 
 Every row carries the commit it was made at and a hash of its resolved settings (the scene's synthetic
 capture, the method's settings, the workflow sections a sample reads). A job's row is reused only when one
@@ -19,7 +20,7 @@ import subprocess
 from collections.abc import Callable, Iterable
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import nullcontext
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -113,18 +114,27 @@ class Job:
         return study_layout(self.root)
 
     @property
+    def pipeline(self):
+        """The workflow's pipeline of this one job: the study's config with the scene as its synthetic scene and
+        the method's settings as its entry, results and captures in the study folder."""
+        from dpi.pipeline import Pipeline
+
+        layout = self.layout
+        return Pipeline({**self.config, "results_dir": str(layout.results), "captures_dir": str(layout.captures),
+                         "scenes": [self.scene], "synthetic": {self.scene: self.synth},
+                         "method_params": {**self.config["method_params"], self.method: self.method_cfg}})
+
+    def stage_job(self, threads: int = 1):
+        """The stage job record of this sample (dpi.stages), as the workflow's rule builds it."""
+        from dpi.stages import StageJob
+
+        return StageJob(self.pipeline, self.scene, self.method, self.seed, threads=threads,
+                        label=self.label if self.sampler else None, progress=False)
+
+    @property
     def sample_dir(self) -> Path:
         """Where the sample is (the init's folder for the init row)."""
         return self.layout.scene(self.scene).sample_dir(self.label, self.seed)
-
-    @property
-    def prior_checkpoint(self) -> Path:
-        """The diffusion prior of the scene's family, as the workflow picks it (illumination_prior)."""
-        from dpi.prior.sample import DEFAULT_FAMILY, family_checkpoint
-
-        section = self.config["illumination_prior"]
-        family = self.synth.get("prior") or section.get("family", DEFAULT_FAMILY)
-        return family_checkpoint(family, section["checkpoints"])
 
     @property
     def settings_hash(self) -> str:
@@ -143,7 +153,7 @@ class Job:
         adaptive = {"adaptive": self.config["adaptive"]} if self.config.get("adaptive") else {}
         samples_prior = self.method in REGISTRY and REGISTRY[self.method].needs_prior and "illumination_prior" in \
             self.config
-        checkpoint = Path(self.prior_checkpoint) if samples_prior else None
+        checkpoint = Path(self.pipeline.prior_checkpoint(self.scene)) if samples_prior else None
         prior = {"prior": file_digest(checkpoint) if checkpoint.is_file() else str(checkpoint)} if checkpoint else {}
         settings = self.method_cfg
         if self.method in REGISTRY:
@@ -184,29 +194,26 @@ def workflow_config(env_height: int | None = None, texture_size: int = STUDY_TEX
 
 
 def prepare_capture(root: Path, scene: str, synth: dict, threads: int) -> Path:
-    """The scene's capture and validated capture.json (made once, then reused); the latter's path."""
-    from dpi.inverse_stages import capture_stage
-    from dpi.synth.capture import SynthConfig, make_synthetic_capture
+    """The scene's capture and validated capture.json (made once, then reused), by the workflow's stages; the
+    latter's path."""
+    from dpi.stages import capture_stage, synth_capture_stage
 
-    layout = study_layout(root)
-    files = layout.scene(scene)
-    if not layout.synth_marker(scene).exists():
-        make_synthetic_capture(layout.capture_dir(scene), SynthConfig.from_dict(synth), threads=threads,
-                               progress=False)
-    if not files.capture_json.exists():
-        capture_stage(layout.capture_dir(scene), files.capture_json)
-    return files.capture_json
+    job = Job(root, scene, "", synth, "init", "", 0, {}, workflow_config()).stage_job(threads)
+    if not job.pipeline.layout.synth_marker(scene).exists():
+        synth_capture_stage(job)
+    if not job.paths.capture_json.exists():
+        capture_stage(job)
+    return job.paths.capture_json
 
 
 def prepare_job(job: Job) -> None:
     """A job's scene: capture, capture.json and initialisation (made once, then reused)."""
-    from dpi.inverse_stages import SolveConfig, init_stage
+    from dpi.layout import INIT
+    from dpi.stages import init_stage
 
     prepare_capture(job.root, job.scene, job.synth, threads=2)
-    files = job.layout.scene(job.scene)
-    if not files.sample_files("init")["trace"].exists():
-        init_stage(files.capture_json, files.sample_dir("init"), job.scene, job.config["init"],
-                   SolveConfig.from_config(job.config, 2), progress=False)
+    if not job.layout.scene(job.scene).sample_files(INIT)["trace"].exists():
+        init_stage(replace(job, method=INIT, sampler="").stage_job(threads=2))
 
 
 def claim_sample_dir(job: Job) -> None:
@@ -222,22 +229,16 @@ def claim_sample_dir(job: Job) -> None:
 def run_job(job: Job) -> dict[str, Any]:
     """Draw (except for the init) and evaluate one sample; its row (SAMPLE_COLUMNS)."""
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-    from dpi.adaptive import AdaptiveConfig
-    from dpi.inverse_stages import SolveConfig, evaluate_stage, sample_stage
+    from dpi.layout import INIT
+    from dpi.stages import evaluate_stage, sample_stage
 
-    files, sample_dir = job.layout.scene(job.scene), job.sample_dir
-    settings = SolveConfig.from_config(job.config, threads=1)
-    if job.method != "init":
+    stage = job.stage_job(threads=1)
+    if job.method != INIT:
         claim_sample_dir(job)
-    if job.method != "init" and not files.sample_files(job.label, job.seed)["trace"].exists():
-        sample_stage(files.capture_json, files.sample_dir("init"), sample_dir, job.scene, job.method, job.seed,
-                     job.method_cfg, settings, job.prior_checkpoint,
-                     adaptive=AdaptiveConfig.from_dict(job.config.get("adaptive")), progress=False)
-    out = files.evaluation(job.label, job.seed)
-    evaluate_stage(files.capture_json, sample_dir, out, job.scene, job.method, job.seed,
-                   job.config["evaluate"]["spp"], settings, job.prior_checkpoint,
-                   references=job.config["evaluate"]["reference_panoramas"])
-    metrics = json.loads(out.read_text())["metrics"]
+        if not stage.paths.sample_files(job.label, job.seed)["trace"].exists():
+            sample_stage(stage)
+    evaluate_stage(stage)
+    metrics = json.loads(stage.evaluation.read_text())["metrics"]
     return {"scene": job.scene, "group": job.group, "method": job.method, "sampler": job.sampler,
             "seed": job.seed, **{k: metrics[k] for k in SAMPLE_METRICS}, "seconds": metrics["sample_seconds"]}
 

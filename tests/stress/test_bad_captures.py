@@ -20,7 +20,7 @@ from capture_helpers import NAMES, SIZE, edit_transforms, make_capture, raw_exr
 from dpi.cameras import to_mitsuba
 from dpi.capture import CaptureError, CaptureWarning, inspect_capture, load_capture, read_scene_options
 from dpi.exposure import capture_exposure
-from dpi.inverse_stages import capture_stage
+from dpi.preprocess.derive import normalise_capture
 from dpi.io.images import read_image, read_mask
 
 RNG = np.random.default_rng(7)
@@ -312,7 +312,7 @@ def test_broken_capture_stops_with_one_error_naming_the_file(tmp_path, case):
     break_capture(root)
     out = tmp_path / "results" / "capture.json"
     with pytest.raises(CaptureError) as info:
-        capture_stage(root, out)
+        normalise_capture(root, out)
     message = str(info.value)
     assert message.split(":")[0].endswith(file_name) and words in message and "\n" not in message, message
     assert not out.parent.exists()
@@ -397,5 +397,5 @@ def test_bad_scene_yaml_is_named_by_the_parse_time_inspection(tmp_path, case):
 def test_valid_capture_json_is_written_when_nothing_is_wrong(tmp_path):
     """The control case of the table above: the same builder gives a capture that validates."""
     root = make_capture(tmp_path / "scene")
-    capture_stage(root, tmp_path / "capture.json")
+    normalise_capture(root, tmp_path / "capture.json")
     assert len(json.loads((tmp_path / "capture.json").read_text())["views"]) == len(NAMES)

@@ -14,7 +14,6 @@ from capture_helpers import make_capture
 from workflow_helpers import REPO, SNAKEMAKE, TINY_CONFIG, write_config
 
 from dpi.config_validation import ConfigError, check_config
-from dpi.inverse_stages import SolveConfig, sample_stage
 from dpi.pipeline import CONFIG_SCHEMA, DEFAULT_CONFIG, read_yaml
 from dpi.settings import apply_preset
 
@@ -175,10 +174,13 @@ def test_new_dataclass_fields_need_no_schema_change(monkeypatch):
 
 def test_sample_stage_rejects_a_bad_entry_before_reading_anything(tmp_path):
     """Called outside Snakemake (dpi sample), a bad method entry fails before any input is read or output written."""
-    out = tmp_path / "out"
+    from dpi.stages import Pipeline, StageJob, sample_stage
+
+    config = {**apply_preset(copy.deepcopy(SHIPPED)), "results_dir": str(tmp_path / "out"),
+              "method_params": {"dps": {"steps": -5}}}
     with pytest.raises(ValueError, match=r"^steps: must be >= 2, got -5$"):
-        sample_stage(tmp_path / "missing.json", tmp_path / "init", out, "s", "dps", 0, {"steps": -5}, SolveConfig())
-    assert not out.exists()
+        sample_stage(StageJob(Pipeline(config), "s", "dps"))
+    assert not (tmp_path / "out").exists()
 
 
 def dry_run(workdir: Path, config: dict[str, Any]) -> subprocess.CompletedProcess:

@@ -144,9 +144,9 @@ def test_derived_masks_are_checked_against_a_given_mesh(tmp_path):
     from test_preprocess_masks import sphere_view
 
     from dpi.cameras import from_fov, orbit, write_transforms
-    from dpi.inverse_stages import capture_stage
+    from dpi.preprocess.derive import normalise_capture
     from dpi.io.images import write_srgb
-    from dpi.preprocess.stages import masks_stage
+    from dpi.preprocess.derive import derive_view_masks
 
     root = tmp_path / "capture"
     cameras = [from_fov(c2w, 32, 32, 40.0, f"v{i}") for i, c2w in enumerate(orbit(6, 6.0, (10.0, 35.0)))]
@@ -156,9 +156,9 @@ def test_derived_masks_are_checked_against_a_given_mesh(tmp_path):
     frames["frames"][0]["held_out"] = True
     (root / "transforms.json").write_text(json.dumps(frames))
     trimesh.creation.icosphere(subdivisions=3, radius=2.0).export(root / "mesh.ply")
-    capture_stage(root, tmp_path / "capture.json")
+    normalise_capture(root, tmp_path / "capture.json")
     with pytest.raises(CaptureError) as info:
-        masks_stage(tmp_path / "capture.json", tmp_path / "masks")
+        derive_view_masks(tmp_path / "capture.json", tmp_path / "masks")
     message = str(info.value)
     assert message.startswith(f"{tmp_path / 'masks'}: the cameras contradict the masks") and "\n" not in message
     assert "likely cause: scale: the mesh's silhouette is 2" in message and "the masks are derived" in message
@@ -168,9 +168,9 @@ def test_derived_masks_are_checked_against_a_given_mesh(tmp_path):
 def test_cameras_from_structure_from_motion_are_checked_against_a_given_mesh(tmp_path, monkeypatch, frame_scale):
     """A capture with masks and a mesh but no cameras: the poses stage checks what structure from motion returns
     (stubbed: the true cameras, or the same in a frame twice the size) before writing it."""
-    from dpi.inverse_stages import capture_stage
+    from dpi.preprocess.derive import normalise_capture
     from dpi.preprocess import sfm
-    from dpi.preprocess.stages import poses_stage
+    from dpi.preprocess.derive import derive_poses
 
     root = make_capture(tmp_path / "scene", transforms=False)
     (root / "scene.yaml").write_text("held_out: [r_3]\n")
@@ -181,12 +181,12 @@ def test_cameras_from_structure_from_motion_are_checked_against_a_given_mesh(tmp
     model = sfm.SparseModel(poses, np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, bool), {"registered": 4})
     monkeypatch.setattr(sfm, "run_sfm", lambda *args: model)
     monkeypatch.setattr(sfm, "normalise", lambda m: m)
-    capture_stage(root, tmp_path / "capture.json")
+    normalise_capture(root, tmp_path / "capture.json")
     if frame_scale == 1.0:
-        assert poses_stage(tmp_path / "capture.json", tmp_path / "poses")["registered"] == 4
+        assert derive_poses(tmp_path / "capture.json", tmp_path / "poses")["registered"] == 4
         return
     with pytest.raises(CaptureError) as info:
-        poses_stage(tmp_path / "capture.json", tmp_path / "poses")
+        derive_poses(tmp_path / "capture.json", tmp_path / "poses")
     message = str(info.value)
     assert message.startswith(f"{tmp_path / 'poses' / 'transforms.json'}: the cameras contradict the masks")
     assert "likely cause: scale" in message and "the cameras are structure from motion's" in message

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -18,13 +19,14 @@ from dpi.evaluation.metrics import PSNR_CAP, env_metrics
 from dpi.evaluation.niqe import env_niqe
 from dpi.evaluation.sample_metrics import evaluate_sample
 from dpi.exposure import MIDDLE_GREY, capture_exposure
-from dpi.inverse_stages import SolveConfig, capture_stage, evaluate_stage, init_stage, sample_stage
 from dpi.io.exr import read_exr, write_exr
 from dpi.materials import MaterialTextures
 from dpi.render import RenderConfig
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.problem import InverseProblem, ProblemConfig
+from dpi.solve.problem import InverseProblem, ProblemConfig, SolveConfig
 from dpi.spread import normalized_env
+from dpi.stages import capture_stage, evaluate_stage, init_stage, sample_stage
+from stage_jobs import stage_job
 
 SCALES = (1e-8, 1e-4, 1.0, 1e4, 1e8)
 SETTINGS = SolveConfig(RenderConfig(spp=4, threads=1), ProblemConfig(env_height=4, texture_size=8))
@@ -89,23 +91,28 @@ def scaled_copy(source: Path, target: Path, scale: float) -> Path:
 
 def run_chain(capture: Path, out: Path) -> dict:
     """capture -> init -> one `none` sample -> its evaluation, through the stage functions the rules call."""
-    capture_stage(capture, out / "capture.json")
-    init_stage(out / "capture.json", out / "init", "tiny", {"iterations": 6, "views_per_step": 2}, SETTINGS,
-               progress=False)
-    sample_stage(out / "capture.json", out / "init", out / "none" / "0", "tiny", "none", 0,
-                 {"iterations": 4, "views_per_step": 2}, SETTINGS, progress=False)
-    evaluate_stage(out / "capture.json", out / "none" / "0", out / "eval.json", "tiny", "none", 0, 4, SETTINGS)
-    return {"init_env": read_exr(out / "init" / "envmap.exr"), "env": read_exr(out / "none" / "0" / "envmap.exr"),
-            "albedo": read_exr(out / "none" / "0" / "albedo.exr"),
-            "log": json.loads((out / "init" / "log.json").read_text()),
-            "metrics": json.loads((out / "eval.json").read_text())["metrics"]}
+    job = stage_job(capture, out, threads=1, render={"spp": 4}, evaluate={"spp": 4},
+                    problem={"env_height": 4, "texture_size": 8, "resolution": None},
+                    init={"iterations": 6, "views_per_step": 2},
+                    method_params={"none": {"iterations": 4, "views_per_step": 2}})
+    sample = replace(job, method="none")
+    capture_stage(job)
+    init_stage(job)
+    sample_stage(sample)
+    evaluate_stage(sample)
+    return {"init_env": read_exr(job.sample_dir / "envmap.exr"), "env": read_exr(sample.sample_dir / "envmap.exr"),
+            "albedo": read_exr(sample.sample_dir / "albedo.exr"),
+            "log": json.loads((job.sample_dir / "log.json").read_text()),
+            "metrics": json.loads(sample.evaluation.read_text())["metrics"]}
 
 
 @pytest.fixture(scope="module")
 def chains(tiny_capture, tmp_path_factory):
     """The same pipeline on the tiny capture at every scale in SCALES."""
     root = tmp_path_factory.mktemp("exposure")
-    return {scale: run_chain(scaled_copy(tiny_capture, root / f"capture_{scale:g}", scale), root / f"out_{scale:g}")
+    # every copy is scene `tiny` (in its own captures folder), so each chain draws the same seeds
+    return {scale: run_chain(scaled_copy(tiny_capture, root / f"captures_{scale:g}" / "tiny", scale),
+                             root / f"out_{scale:g}")
             for scale in SCALES}
 
 

@@ -11,7 +11,7 @@ from capture_helpers import make_capture
 
 from dpi.capture import CaptureError, load_capture
 from dpi.consistency import back_facing_fraction
-from dpi.preprocess.stages import capture_stage
+from dpi.preprocess.derive import normalise_capture
 
 
 def moved_mesh(root, scale=1.0, shift=(0.0, 0.0, 0.0), invert=False):
@@ -26,7 +26,7 @@ def moved_mesh(root, scale=1.0, shift=(0.0, 0.0, 0.0), invert=False):
 def test_a_mesh_wound_inwards_is_turned_outwards_at_capture_time(tmp_path):
     root = make_capture(tmp_path / "s")
     moved_mesh(root, invert=True)
-    capture_stage(root, tmp_path / "out" / "capture.json")
+    normalise_capture(root, tmp_path / "out" / "capture.json")
     written = json.loads((tmp_path / "out" / "capture.json").read_text())["mesh"]
     assert written.startswith(str(tmp_path / "out"))
     mesh = trimesh.load(written, force="mesh", process=False)

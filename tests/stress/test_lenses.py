@@ -13,7 +13,7 @@ from dpi.cameras import Camera, Lens, from_fov, look_at
 from dpi.capture import CaptureError, camera_from_json, camera_to_json, load_capture, read_capture_json
 from dpi.capture.undistort import distort_image, intrinsics, undistort_image
 from dpi.io.images import read_image, read_mask
-from dpi.preprocess.stages import capture_stage
+from dpi.preprocess.derive import normalise_capture
 
 BARREL = Lens(k1=-0.12, k2=0.03, p1=0.001, p2=-0.002)
 FISHEYE = Lens(fisheye=True, k1=0.05, k2=-0.01, k3=0.002, k4=0.0)
@@ -89,7 +89,7 @@ def test_the_capture_stage_writes_pinhole_views(tmp_path):
     root = make_capture(tmp_path / "cap")
     original = {n: read_image(root / "images" / f"{n}.png") for n in ("r_0", "r_1")}
     edit_transforms(root, lambda d: d.update(k1=-0.12, k2=0.03))
-    capture_stage(root, tmp_path / "results" / "capture.json")
+    normalise_capture(root, tmp_path / "results" / "capture.json")
     views = read_capture_json(tmp_path / "results" / "capture.json").views
     assert all(v.camera.lens is None for v in views)
     assert all(v.image.parent == tmp_path / "results" / "undistorted" / "images" for v in views)
@@ -99,7 +99,7 @@ def test_the_capture_stage_writes_pinhole_views(tmp_path):
         assert np.allclose(read_image(view.image), expected, atol=1e-6)
         assert read_mask(view.mask).shape == (SIZE, SIZE)
     stamp = (tmp_path / "results" / "undistorted" / "images" / "r_0.exr").stat().st_mtime_ns
-    capture_stage(root, tmp_path / "results" / "capture.json")  # unchanged sources: the copies are reused
+    normalise_capture(root, tmp_path / "results" / "capture.json")  # unchanged sources: the copies are reused
     assert (tmp_path / "results" / "undistorted" / "images" / "r_0.exr").stat().st_mtime_ns == stamp
 
 
@@ -128,7 +128,7 @@ def test_derived_cameras_with_a_lens_give_the_later_stages_pinhole_views(tmp_pat
 
     root = make_capture(tmp_path / "cap", transforms=False)
     scene = SceneLayout(tmp_path / "results")
-    capture_stage(root, scene.capture_json)
+    normalise_capture(root, scene.capture_json)
     capture = read_capture_json(scene.capture_json)
     fitted = {v.name: c for v, c in zip(capture.views, cameras())}
     for camera in fitted.values():

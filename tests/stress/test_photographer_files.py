@@ -113,7 +113,7 @@ def test_a_gltf_mesh_is_read_and_rendered_as_ply(tmp_path, suffix, mi):
     """A glTF mesh (nerfstudio and web exports) loads with its UVs and becomes a PLY that Mitsuba renders."""
     import trimesh
 
-    from dpi.preprocess.stages import capture_stage
+    from dpi.preprocess.derive import normalise_capture
     from dpi.render import RenderConfig, Renderer
 
     root = make_capture(tmp_path / "cap", mesh=False)
@@ -124,7 +124,7 @@ def test_a_gltf_mesh_is_read_and_rendered_as_ply(tmp_path, suffix, mi):
     sphere.export(root / f"mesh{suffix}")
     capture = load_capture(root)
     assert capture.mesh.name == f"mesh{suffix}" and capture.mesh_has_uv
-    capture_stage(root, tmp_path / "results" / "capture.json")
+    normalise_capture(root, tmp_path / "results" / "capture.json")
     from dpi.capture import read_capture_json
 
     converted = read_capture_json(tmp_path / "results" / "capture.json")

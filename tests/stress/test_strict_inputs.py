@@ -19,7 +19,7 @@ from PIL import Image
 from workflow_helpers import REPO, SNAKEMAKE, write_config
 
 from dpi.capture import CaptureError, CaptureWarning, inspect_capture, load_capture
-from dpi.inverse_stages import capture_stage
+from dpi.preprocess.derive import normalise_capture
 from dpi.io.images import read_mask
 
 
@@ -149,7 +149,7 @@ def test_the_report_shows_a_capture_warning(tiny_capture, tmp_path):
         f.write("held_out: []\n")
     scene = layout.scene("mine")
     with pytest.warns(CaptureWarning):
-        capture_stage(root, scene.capture_json)
+        normalise_capture(root, scene.capture_json)
     scene.evaluation("none", 0).parent.mkdir(parents=True)
     scene.evaluation("none", 0).write_text(json.dumps({"exposure": 1.0, "metrics": {}}))
     scene.envmap_figure.parent.mkdir(parents=True, exist_ok=True)
@@ -169,13 +169,18 @@ def truncated_capture(root: Path) -> tuple[Path, str]:
 
 
 def test_the_capture_script_ends_with_the_one_line(tmp_path):
-    """workflow_scripts/capture.py run as Snakemake's `script:` runs it: exit status 1 with the line as the only
-    output (SystemExit prints it on stderr) and in the log, no traceback and no capture.json."""
+    """The capture rule's script (workflow_scripts/stage.py) run as Snakemake's `script:` runs it: exit status 1 with
+    the line as the only output (SystemExit prints it on stderr) and in the log, no traceback and no capture.json."""
+    from dpi.stages import resolve_config
+
     root, line = truncated_capture(tmp_path / "captures" / "mine")
-    log, out = tmp_path / "capture.log", tmp_path / "capture.json"
-    snakemake = SimpleNamespace(log=[str(log)], output=[str(out)], params=SimpleNamespace(capture=str(root)))
+    log, out = tmp_path / "capture.log", tmp_path / "results" / "mine" / "capture.json"
+    config = resolve_config({"captures_dir": str(root.parent), "results_dir": str(tmp_path / "results"),
+                             "scenes": ["mine"]})
+    snakemake = SimpleNamespace(log=[str(log)], rule="capture", config=config, threads=1,
+                                wildcards=SimpleNamespace(scene="mine"), params={})
     with pytest.raises(SystemExit) as info:
-        runpy.run_path(str(REPO / "workflow_scripts" / "capture.py"), init_globals={"snakemake": snakemake})
+        runpy.run_path(str(REPO / "workflow_scripts" / "stage.py"), init_globals={"snakemake": snakemake})
     assert info.value.code == line and log.read_text() == line + "\n" and not out.exists()
 
 

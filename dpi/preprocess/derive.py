@@ -1,56 +1,27 @@
-"""Preprocessing stages as functions of paths and settings: what the rules `capture`, `poses`, `masks`,
-`geometry` and `uv` (and `dpi preprocess`) run. Each reads capture.json plus the outputs of the
-stages before it, and writes its outputs and a summary (counts, errors, seconds) where dpi.layout
-puts them.
-
-Which stages a capture needs (`needed_stages`) and which derived files each reads (`stage_inputs`)
-are decided here once, from what the capture gives; the rules and `dpi preprocess` both ask.
-`dpi.capture.complete_capture` gives the later stages the capture with the derived inputs filled in.
+"""What each preprocessing stage derives, as functions of paths and settings: a validated capture.json, then
+cameras, masks, a surface and its UV atlas. Each reads capture.json plus the files of the stages before it and
+writes its outputs and a summary (counts, errors, seconds) where dpi.layout puts them; dpi.stages.preprocess
+decides which run and with what.
 """
 
 from __future__ import annotations
 
-import logging
 import time
 from pathlib import Path
-from typing import Any
 
+from dpi.backend import set_threads
 from dpi.cameras import Camera, read_cameras, write_transforms
-from dpi.capture import (Capture, CaptureError, camera_fit_problem, inspect_capture, load_capture, read_capture_json,
+from dpi.capture import (Capture, CaptureError, camera_fit_problem, load_capture, read_capture_json,
                          write_capture_json)
 from dpi.io.atomic import write_json
 from dpi.io.images import read_mask
 from dpi.layout import SUMMARY_FILE, SceneLayout, geometry_files, poses_files
 from dpi.settings import settings_from_dict
 
-STAGES = ("poses", "masks", "geometry", "uv")
 SFM_FRAME = ("the cameras are structure from motion's, in its own frame (the object at the origin with radius 1, "
              "+Y up): give the mesh with its cameras (transforms.json), or leave the mesh out")
 DERIVED_MASKS = ("the masks are derived (keying or GrabCut): with the cameras and the mesh right, they are wrong; "
                  "give masks/ or change the mask settings")
-
-log = logging.getLogger(__name__)
-
-
-def needed_stages(given: dict[str, bool]) -> list[str]:
-    """The stages a capture needs, in order, from what it gives (`dpi.capture.inspect_capture`): poses
-    without cameras, masks without masks, geometry without a mesh, uv without a mesh with UVs."""
-    needed = {"poses": not given["cameras"], "masks": not given["masks"], "geometry": not given["mesh"],
-              "uv": not given["mesh_has_uv"]}
-    return [stage for stage in STAGES if needed[stage]]
-
-
-def stage_inputs(stage: str, given: dict[str, bool], scene: SceneLayout) -> dict[str, Path]:
-    """The derived files a preprocessing stage reads besides capture.json, keyed by its stage function's
-    argument names: the outputs of the stages before it, for what the capture does not give."""
-    cameras = {} if given["cameras"] else {"cameras_json": scene.poses["cameras"]}
-    if stage == "masks":
-        return {**cameras, **({} if given["cameras"] else {"points_ply": scene.poses["points"]})}
-    if stage == "geometry":
-        return {**cameras, **({} if given["masks"] else {"masks_dir": scene.masks})}
-    if stage == "uv":
-        return {} if given["mesh"] else {"mesh": scene.geometry["mesh"]}
-    return {}
 
 
 def check_given_mesh(capture: Capture, cameras: dict[str, Camera], masks: dict[str, Path] | None, source: Path,
@@ -66,7 +37,7 @@ def check_given_mesh(capture: Capture, cameras: dict[str, Camera], masks: dict[s
         raise CaptureError(f"{source}: {problem}; {derived}")
 
 
-def capture_stage(capture_dir: str | Path, out_json: str | Path) -> None:
+def normalise_capture(capture_dir: str | Path, out_json: str | Path) -> None:
     """Validate a capture folder once and write its normalised description (capture.json), its views taken
     through a lens undistorted beside it (dpi.capture.undistort) and a glTF mesh converted to PLY (dpi.capture.mesh_convert)."""
     from dpi.capture.mesh_convert import renderable_mesh
@@ -77,7 +48,7 @@ def capture_stage(capture_dir: str | Path, out_json: str | Path) -> None:
     write_capture_json(undistorted_capture(capture, scene.undistorted_dir), out_json)
 
 
-def poses_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None, threads: int = 1) -> dict:
+def derive_poses(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None, threads: int = 1) -> dict:
     """The capture's cameras into out_dir: its own COLMAP model when it brings one (dpi.capture.colmap_model; read
     as given, and brought into dpi's frame unless the capture's mesh is in the model's), else structure from
     motion on its images; cameras (transforms.json), sparse points and a summary (dpi.layout.poses_files)."""
@@ -138,14 +109,7 @@ def pinhole_capture(capture_json: str | Path, cameras_json: str | Path | None) -
     return with_cameras(capture, read_cameras(cameras_json), SceneLayout(Path(capture_json).parent).undistorted_dir)
 
 
-def set_threads(threads: int) -> None:
-    """Use `threads` CPU threads in OpenCV (GrabCut, distance transforms, remapping)."""
-    import cv2
-
-    cv2.setNumThreads(max(1, int(threads)))
-
-
-def masks_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None,
+def derive_view_masks(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None,
                 cameras_json: str | Path | None = None, points_ply: str | Path | None = None,
                 threads: int = 1) -> dict:
     """Foreground masks of every view with a camera: out_dir/{view}.png and a summary."""
@@ -169,7 +133,7 @@ def masks_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | 
     return summary
 
 
-def geometry_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None,
+def derive_geometry(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None,
                    cameras_json: str | Path | None = None, masks_dir: str | Path | None = None,
                    threads: int = 1) -> dict:
     """Carved and cleaned surface of the object into out_dir: mesh and summary (dpi.layout.geometry_files)."""
@@ -186,11 +150,8 @@ def geometry_stage(capture_json: str | Path, out_dir: str | Path, settings: dict
     cfg = settings_from_dict(GeometryConfig, settings)
     images = None
     if cfg.stereo or cfg.ground:
-        import torch
-
         from dpi.io.images import read_image
 
-        torch.set_num_threads(max(1, threads))
         paths = {v.name: v.image for v in capture.views}
         images = [read_image(paths[n]) for n in names]
     start = time.perf_counter()
@@ -203,7 +164,7 @@ def geometry_stage(capture_json: str | Path, out_dir: str | Path, settings: dict
     return summary
 
 
-def uv_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None,
+def derive_uv(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None,
              mesh: str | Path | None = None) -> dict:
     """UV atlas of the reconstructed mesh (or of the capture's mesh without UVs) into out_dir: mesh_uv and
     uv_summary (dpi.layout.geometry_files)."""
@@ -221,27 +182,3 @@ def uv_stage(capture_json: str | Path, out_dir: str | Path, settings: dict | Non
     summary["source"] = str(source)
     write_json(files["uv_summary"], summary)
     return summary
-
-
-def preprocess_scene(capture_dir: str | Path, scene: SceneLayout, settings: dict[str, Any] | None = None,
-                     threads: int = 1) -> dict[str, Any]:
-    """What the workflow's preprocessing rules do for one scene, without Snakemake: capture.json, then the
-    stages the capture needs, in order, each reading `stage_inputs`, into the scene's results folder.
-    `settings`: the config's `preprocess:` section. Returns each stage's summary, or "given"."""
-    settings = settings or {}
-    capture_stage(capture_dir, scene.capture_json)
-    given = inspect_capture(capture_dir)
-    run = {"poses": lambda: poses_stage(scene.capture_json, scene.poses_dir, settings.get("sfm"),
-                                        threads),
-           "masks": lambda: masks_stage(scene.capture_json, scene.masks, settings.get("masks"), threads=threads,
-                                        **stage_inputs("masks", given, scene)),
-           "geometry": lambda: geometry_stage(scene.capture_json, scene.geometry_dir,
-                                              settings.get("geometry"), threads=threads,
-                                              **stage_inputs("geometry", given, scene)),
-           "uv": lambda: uv_stage(scene.capture_json, scene.geometry_dir, settings.get("uv"),
-                                  **stage_inputs("uv", given, scene))}
-    report: dict[str, Any] = dict.fromkeys(STAGES, "given")
-    for stage in needed_stages(given):
-        log.info("preprocess %s: %s", capture_dir, stage)
-        report[stage] = run[stage]()
-    return report
