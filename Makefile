@@ -37,10 +37,10 @@ studies: setup
 	$(VENV)/bin/python benchmarks/resolution_study.py
 	$(VENV)/bin/python benchmarks/lens_study.py
 	$(VENV)/bin/python benchmarks/tradeoff.py --presets draft
-	$(VENV)/bin/dpi tables
+	$(VENV)/bin/python benchmarks/doc_tables.py
 
 tables: setup
-	$(VENV)/bin/dpi tables
+	$(VENV)/bin/python benchmarks/doc_tables.py
 
 clean:
 	rm -rf results .snakemake captures/demo

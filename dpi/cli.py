@@ -166,18 +166,6 @@ def cmd_summary(args: argparse.Namespace) -> None:
     print(f"wrote {pipeline.layout.summary} ({len(evaluations)} samples)")
 
 
-def cmd_tables(args: argparse.Namespace) -> None:
-    """Regenerate the result tables of README.md and docs/studies.md from the committed study CSVs."""
-    from dpi.studies.tables import update_tables
-
-    root = Path(args.root)
-    changed = update_tables(root, check=args.check)
-    for path in changed:
-        print(f"{'out of date' if args.check else 'updated'}: {path}")
-    if args.check and changed:
-        raise ValueError(f"{len(changed)} document(s) hold tables that differ from their CSVs: run `dpi tables`")
-
-
 def cmd_report(args: argparse.Namespace) -> None:
     """Rules envmap_figure and uncertainty (each scene, over the samples present) and report."""
     from dataclasses import replace
@@ -297,10 +285,6 @@ each call; the workflow caches them."""
 
     add("summary", cmd_summary, "aggregate the config's metric files into summary.csv and samples.csv")
     add("report", cmd_report, "the env-map figure of each scene and the HTML report")
-    p = add("tables", cmd_tables, "regenerate the result tables of README.md and docs/studies.md from the study "
-            "CSVs in benchmarks/results/")
-    p.add_argument("--root", default=".", help="the checkout whose documents and CSVs to use (default: .)")
-    p.add_argument("--check", action="store_true", help="change nothing; exit 2 when a table is out of date")
 
     p = add("relight", cmd_relight, "re-render a decomposition under a new environment map and/or from new "
             "views, optionally with edited materials (relighting, material editing)")

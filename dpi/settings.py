@@ -12,11 +12,9 @@ from __future__ import annotations
 import copy
 import difflib
 import functools
-import math
-import types
 from collections.abc import Iterable
-from dataclasses import MISSING, fields
-from typing import Annotated, Any, TypeVar, Union, get_args, get_origin, get_type_hints
+from dataclasses import MISSING, fields, is_dataclass
+from typing import Annotated, Any, TypeVar
 
 from pydantic import ConfigDict, Field, ValidationError
 from pydantic.dataclasses import dataclass as pydantic_dataclass
@@ -37,9 +35,15 @@ class SettingsError(ValueError):
         return type(self), (self.key, self.problem)
 
 
-SETTINGS_MODEL = ConfigDict(extra="forbid", allow_inf_nan=False, use_attribute_docstrings=True)
-"""pydantic's rules for every settings dataclass: unknown fields, non-finite numbers and values outside a
-field's bounds are errors at construction (so also in `dataclasses.replace`)"""
+SETTINGS_MODEL = ConfigDict(strict=True, extra="forbid", allow_inf_nan=False, use_attribute_docstrings=True)
+"""pydantic's rules for every settings dataclass, the one validation of a setting: unknown fields, values of
+another type (strict: 2.5 is no integer, 1 no boolean; an integer is a number), non-finite numbers and values
+outside a field's bounds are errors at construction (so also in `dataclasses.replace`)"""
+
+TYPE_WORDS = {"int_type": "an integer", "float_type": "a number", "bool_type": "true or false",
+              "string_type": "a string", "tuple_type": "a list", "list_type": "a list", "dict_type": "a mapping",
+              "none_required": "null", "literal_error": "one of {expected}"}
+"""pydantic's type errors in the words of a config file"""
 
 _C = TypeVar("_C", bound=type)
 
@@ -93,18 +97,27 @@ def settings_from_dict(cls: type[T], values: dict[str, Any] | None) -> T:
     """A settings dataclass from a (partial) dict; unknown keys, wrong types and out-of-range values are errors."""
     values = dict(values or {})
     check_keys(values, [f.name for f in fields(cls)], f"{cls.__name__} setting")
-    return build(cls, **values)
-
-
-def build(cls: type[T], **values: Any) -> T:
-    """`cls(**values)` after the type check (`check_values`); a field's bound broken is a SettingsError naming it."""
-    check_values(cls, values)
+    for f in fields(cls):
+        section = type(field_default(cls, f.name))
+        if is_dataclass(section) and isinstance(values.get(f.name), dict):  # a nested section, as a mapping
+            try:
+                values[f.name] = settings_from_dict(section, values[f.name])
+            except SettingsError as exc:
+                raise SettingsError(f"{f.name}.{exc.key}", exc.problem) from None
     return cls(**values)
 
 
 def settings_error(exc: ValidationError) -> SettingsError:
-    """pydantic's first error as one `key: must be ..., got ...` line."""
-    error = exc.errors()[0]
+    """pydantic's first error as one `key: must be ..., got ...` line (the members of a union in one line)."""
+    errors = exc.errors()
+    error = errors[0]
+    if error["type"] in TYPE_WORDS:
+        # a union's members fail side by side, each with its member's name last in `loc`
+        field = error["loc"][:-1] if len(errors) > 1 and errors[1]["loc"][:-1] == error["loc"][:-1] else error["loc"]
+        members = [e for e in errors if e["loc"][:len(field)] == field and e["type"] in TYPE_WORDS]
+        words = " or ".join(dict.fromkeys(TYPE_WORDS[e["type"]].format(**(e.get("ctx") or {})) for e in members))
+        key = ".".join(str(part) for part in field) or "settings"
+        return SettingsError(key, f"must be {words}, got {error.get('input')!r}")
     ctx, value = error.get("ctx") or {}, error.get("input")
     if isinstance(ctx.get("error"), SettingsError):  # raised by the class's own check (__post_init__, a validator)
         inner = ctx["error"]
@@ -116,8 +129,6 @@ def settings_error(exc: ValidationError) -> SettingsError:
         return SettingsError(key, f"must be {words[error['type']]} {limit:g}, got {value!r}")
     if error["type"] == "multiple_of":
         return SettingsError(key, f"must be a multiple of {ctx['multiple_of']}, got {value!r}")
-    if error["type"] == "literal_error":
-        return SettingsError(key, f"must be one of {ctx['expected']}, got {value!r}")
     if error["type"] == "value_error":
         return SettingsError(key, f"{error['ctx']['error']}, got {value!r}")
     if error["type"] in ("unexpected_keyword_argument", "extra_forbidden"):
@@ -142,58 +153,6 @@ def check_keys(values: Iterable[Any], known: Iterable[str], what: str) -> None:
         close = difflib.get_close_matches(unknown[0], known, n=1)
         hint = f"; did you mean {close[0]!r}?" if close else ""
         raise SettingsError(unknown[0], f"unknown {what}{hint} (valid: {', '.join(known)})")
-
-
-def check_values(cls: type, values: dict[str, Any]) -> None:
-    """Fail on the first value of the wrong type (by `cls`'s annotations) or non-finite; the bounds are pydantic's."""
-    try:
-        hints = get_type_hints(cls)
-    except NameError:  # an annotation names a type only imported for type checkers: check ranges only
-        hints = {}
-    for key, value in values.items():
-        problem = type_problem(value, hints[key]) if key in hints else None
-        if problem:
-            raise SettingsError(key, problem)
-
-
-def type_problem(value: Any, hint: Any) -> str | None:
-    """Why `value` does not fit the annotation `hint` (or is a non-finite number), or None."""
-    if not _fits(value, hint):
-        return f"must be {_describe(hint)}, got {value!r}"
-    if isinstance(value, float) and not math.isfinite(value):
-        return f"must be a finite number, got {value!r}"
-    return None
-
-
-def _fits(value: Any, hint: Any) -> bool:
-    """Whether `value` is of the annotated type; annotations other than plain types, unions and lists pass."""
-    origin, args = get_origin(hint), get_args(hint)
-    if origin in (Union, types.UnionType):
-        return any(_fits(value, a) for a in args)
-    if hint is type(None):
-        return value is None
-    if hint is bool:
-        return isinstance(value, bool)
-    if hint is int:
-        return isinstance(value, int) and not isinstance(value, bool)
-    if hint is float:
-        return isinstance(value, (int, float)) and not isinstance(value, bool)
-    if hint is str:
-        return isinstance(value, str)
-    if origin in (tuple, list):
-        return isinstance(value, (tuple, list)) and (not args or all(_fits(v, args[0]) for v in value))
-    return True
-
-
-def _describe(hint: Any) -> str:
-    """An annotation in words, for error messages ("an integer", "a number or null", ...)."""
-    origin, args = get_origin(hint), get_args(hint)
-    if origin in (Union, types.UnionType):
-        return " or ".join(_describe(a) for a in args)
-    if origin in (tuple, list):
-        return f"a list of {_describe(args[0]) if args else 'values'}"
-    names = {type(None): "null", bool: "true or false", int: "an integer", float: "a number", str: "a string"}
-    return names.get(hint, getattr(hint, "__name__", str(hint)))
 
 
 def apply_preset(config: dict[str, Any]) -> dict[str, Any]:

@@ -46,7 +46,7 @@ def test_settings_are_grouped_and_each_key_is_checked_where_it_lives():
     assert cfg.proximal.transport.pixels == 512
     with pytest.raises(ValueError, match="inner_steps: unknown DPSConfig setting"):
         DPSConfig.from_dict({"inner_steps": 3})
-    with pytest.raises(ValueError, match="proximal.transport.pixelz: unknown setting"):
+    with pytest.raises(ValueError, match="proximal.transport.pixelz: unknown TransportConfig setting"):
         DPSConfig.from_dict({"proximal": {"transport": {"pixelz": 3}}})
     with pytest.raises(ValueError, match="proximal.transport.spp: must be a multiple of 2"):
         DPSConfig.from_dict({"proximal": {"transport": {"spp": 3}}})

@@ -7,9 +7,8 @@ import pytest
 
 from dpi.prior.sample import DEFAULT_MODELS
 from dpi.studies.engine import (PROVENANCE, SAMPLE_COLUMNS, SETTINGS_STAMP, Job, append_row, claim_sample_dir,
-                                current_commit, read_rows, run_study, settings_hash)
+                                current_commit, latest, read_rows, run_study, settings_hash)
 from dpi.studies.scenes import real_light_scenes
-from dpi.studies.tables import latest
 
 SCORED: list[tuple] = []
 
@@ -73,8 +72,9 @@ def test_a_sample_drawn_with_other_settings_is_drawn_again(tmp_path):
 def test_a_job_reads_the_configured_prior_of_its_family(tmp_path):
     config = {"illumination_prior": {"checkpoints": {"outdoor": "big.pt"}}}
     outdoor, indoor = ({"shape": "blob", "prior": family} for family in ("outdoor", "indoor"))
-    assert Job(tmp_path, "a", "g", outdoor, "dps", "", 0, {}, config).prior_checkpoint == Path("big.pt")
-    assert Job(tmp_path, "b", "g", indoor, "dps", "", 0, {}, config).prior_checkpoint == DEFAULT_MODELS["indoor"]
+    assert Job(tmp_path, "a", "g", outdoor, "dps", "", 0, {}, config).pipeline.prior_checkpoint("a") == Path("big.pt")
+    assert Job(tmp_path, "b", "g", indoor, "dps", "", 0, {}, config).pipeline.prior_checkpoint("b") == \
+        DEFAULT_MODELS["indoor"]
     assert Job(tmp_path, "a", "g", outdoor, "dps", "", 0, {}, config).settings_hash != \
         Job(tmp_path, "a", "g", outdoor, "dps", "", 0, {}, {"illumination_prior": {"checkpoints": {}}}).settings_hash
 

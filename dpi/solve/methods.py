@@ -89,11 +89,12 @@ def dps(job: SampleJob) -> Decomposition:
 
 REGISTRY: dict[str, Method] = {
     **{name: Method(ClassicConfig, classic(name)) for name in PRIOR_NAMES},
+    "sds": Method(SDSConfig, sds, needs_prior=True),
     "dip": Method(DIPConfig, dip),
     "dps": Method(DPSConfig, dps, needs_prior=True, adaptive_steps=True),
-    "sds": Method(SDSConfig, sds, needs_prior=True),
 }
 METHODS = tuple(REGISTRY)
+"""the methods, in the order tables and figures list them (the paper's method last)"""
 METHOD_CONFIGS: dict[str, type] = {name: method.settings for name, method in REGISTRY.items()}
 """method name -> settings dataclass; a `method_params` entry is that class's `from_dict` input"""
 DIFFUSION_METHODS = tuple(name for name, method in REGISTRY.items() if method.needs_prior)

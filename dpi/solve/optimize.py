@@ -20,7 +20,7 @@ import torch
 from tqdm import tqdm
 
 from dpi.materials import MaterialRates, MaterialTextures
-from dpi.settings import Count, Rate, Steps, check_keys, check_values, settings, settings_from_dict
+from dpi.settings import Count, Rate, Steps, check_keys, settings, settings_from_dict
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
@@ -58,7 +58,6 @@ def method_config_from_dict(cls: type[MethodConfig], values: dict[str, Any] | No
     own = {f.name for f in fields(cls)} - {"optimize"}
     check_keys(values, own | {f.name for f in fields(OptimizeConfig)}, f"{cls.__name__} setting")
     mine = {k: v for k, v in values.items() if k in own}
-    check_values(cls, mine)
     defaults = vars(cls().optimize)  # the method's own defaults (e.g. 150 iterations), not OptimizeConfig's
     optimize = OptimizeConfig.from_dict({**defaults, **{k: v for k, v in values.items() if k not in own}})
     return cls(optimize=optimize, **mine)

@@ -5,7 +5,7 @@ of a CSV. What a study adds is only its scenes, repeats and the stamped rows.
 Every row carries the commit it was made at and a hash of its resolved settings (the scene's synthetic
 capture, the method's settings, the workflow sections a sample reads). A job's row is reused only when one
 with the same key *and* settings hash is already in the CSV, so a rerun with other settings writes new rows
-beside the old ones; the tables (dpi.studies.tables) show the newest row of each key.
+beside the old ones; the tables (benchmarks/doc_tables.py) show the newest row of each key (`latest`).
 """
 
 from __future__ import annotations
@@ -122,7 +122,7 @@ class Job:
         layout = self.layout
         return Pipeline({**self.config, "results_dir": str(layout.results), "captures_dir": str(layout.captures),
                          "scenes": [self.scene], "synthetic": {self.scene: self.synth},
-                         "method_params": {**self.config["method_params"], self.method: self.method_cfg}})
+                         "method_params": {**self.config.get("method_params", {}), self.method: self.method_cfg}})
 
     def stage_job(self, threads: int = 1):
         """The stage job record of this sample (dpi.stages), as the workflow's rule builds it."""
@@ -284,6 +284,11 @@ def method_jobs(root: Path, scenes: dict[str, tuple[str, dict]], methods: Iterab
                     jobs.append(Job(root, scene, group, synth, method, sampler, seed, job_settings(cfg), config,
                                     rerun))
     return jobs
+
+
+def latest(rows: list[dict[str, Any]], key: tuple[str, ...]) -> list[dict[str, Any]]:
+    """The newest row of each `key` (the last in the file): a rerun with other settings supersedes older rows."""
+    return list({tuple(row[k] for k in key): row for row in rows}.values())
 
 
 def read_rows(path: Path, text: Iterable[str] = TEXT_COLUMNS) -> list[dict[str, Any]]:

@@ -156,12 +156,13 @@ def test_shipped_configs_pass(path):
 
 def test_new_dataclass_fields_need_no_schema_change(monkeypatch):
     """method_params keys come from the method's dataclass: a field added to it is accepted at once."""
-    from dataclasses import dataclass, field
+    from dataclasses import field
 
+    from dpi.settings import settings
     from dpi.solve import methods
     from dpi.solve.classic import ClassicConfig
 
-    @dataclass
+    @settings
     class Extended(ClassicConfig):
         temperature: float = 1.0
         optimize: object = field(default_factory=lambda: ClassicConfig().optimize)

@@ -14,7 +14,7 @@ from typing import Annotated, Any, Callable
 from pydantic import Field
 
 from dpi.materials import MaterialRates
-from dpi.settings import Rate, SettingsError, build, check_keys, settings, settings_from_dict
+from dpi.settings import Rate, SettingsError, check_keys, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.paper import PaperSampler, paper_step
 from dpi.solve.dps.proximal import ProximalConfig, proximal_step
@@ -101,7 +101,7 @@ class DPSConfig(MaterialRates):
         for name, make in SECTIONS.items():
             if name in values:
                 sections[name] = build_section(name, make, values.pop(name))
-        cfg = build(cls, **values, **sections)
+        cfg = cls(**values, **sections)
         if cfg.sampler not in SAMPLERS:
             raise SettingsError("sampler", f"must be one of {', '.join(SAMPLERS)}, got {cfg.sampler!r}")
         return cfg

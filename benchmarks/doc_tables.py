@@ -1,31 +1,35 @@
 """Result tables generated from the committed study CSVs, never typed: each table is a function of its CSV's
-rows, and `dpi tables` writes it into the documents between the markers `<!-- table:NAME -->` and
-`<!-- /table:NAME -->` (or checks that they are up to date)."""
+rows, written into the documents between the markers `<!-- table:NAME -->` and `<!-- /table:NAME -->`.
+
+    python benchmarks/doc_tables.py            # regenerate every table of the documents (`make tables`)
+    python benchmarks/doc_tables.py --check    # change nothing; exit 2 when a table is out of date
+
+The documentation's tool, not the library's: no module of dpi/ writes a document."""
 
 from __future__ import annotations
 
+import argparse
 import math
 import re
+import sys
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 from typing import Any
 
-from dpi.studies.engine import read_rows
+from dpi.layout import INIT
+from dpi.solve.methods import METHODS
+from dpi.studies.engine import latest, read_rows
 
 RESULTS = Path("benchmarks") / "results"
 """the committed study CSVs, relative to a checkout's root"""
-DOCUMENTS = (Path("README.md"), Path("docs") / "studies.md", Path("dpi") / "data" / "models" / "README.md")
+DOCUMENTS = (Path("README.md"), Path("docs") / "studies.md", Path("docs") / "priors.md")
 """the documents whose tables are generated"""
-METHOD_ORDER = ("init", "none", "global_norm", "smoothness", "chromaticity", "sds", "dip", "dps")
+METHOD_ORDER = (INIT, *METHODS)
+"""rows of a method table: the init, then the methods in their registry's order"""
 
 Row = dict[str, Any]
-
-
-def latest(rows: list[Row], key: tuple[str, ...]) -> list[Row]:
-    """The newest row of each `key` (the last in the file): a rerun with other settings supersedes older rows."""
-    return list({tuple(row[k] for k in key): row for row in rows}.values())
 
 
 @dataclass(frozen=True)
@@ -379,3 +383,20 @@ def update_tables(root: Path, check: bool = False) -> list[Path]:
             if not check:
                 path.write_text(new)
     return changed
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Regenerate (or --check) the tables of the documents under --root."""
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--root", type=Path, default=Path(__file__).resolve().parent.parent,
+                        help="the checkout whose documents and CSVs to use (default: this one)")
+    parser.add_argument("--check", action="store_true", help="change nothing; exit 2 when a table is out of date")
+    args = parser.parse_args(argv)
+    changed = update_tables(args.root, check=args.check)
+    for path in changed:
+        print(f"{'out of date' if args.check else 'updated'}: {path}")
+    return 2 if args.check and changed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
