@@ -315,20 +315,17 @@ def presets(root: Path) -> str:
     """The quality presets of dpi's default config, each with the settings it fills (dpi.settings.apply_preset)."""
     from copy import deepcopy
 
-    from dpi.pipeline import DEFAULT_CONFIG, read_yaml
+    from dpi.pipeline import DEFAULT_CONFIG, Pipeline, read_yaml
     from dpi.settings import apply_preset
-    from dpi.solve.dps.config import GLOSSY_REFINE_FACTOR
-    from dpi.solve.problem import ProblemConfig
 
     base = read_yaml(DEFAULT_CONFIG)
     body = []
     for name in base["presets"]:
-        config = apply_preset({**deepcopy(base), "preset": name})
-        problem = ProblemConfig(**config["problem"])
-        dps = config["method_params"]["dps"]
-        refine = dps["refine"]["iterations"]
-        body.append([f"`{name}`", str(dps["steps"]), f"{refine} ({refine * GLOSSY_REFINE_FACTOR} on a glossy object)",
-                     str(config["render"]["spp"]), str(config["init"]["iterations"]),
+        pipeline = Pipeline(apply_preset({**deepcopy(base), "preset": name}))
+        problem, dps = pipeline.solve_settings().problem, pipeline.method_settings("dps")
+        refine = dps.refine.iterations
+        body.append([f"`{name}`", str(dps.steps), f"{refine} ({refine * dps.glossy.refine_factor} on a glossy object)",
+                     str(pipeline.solve_settings().render.spp), str(pipeline.init_settings.iterations),
                      f"{problem.resolution} px" if problem.resolution else "the capture's own",
                      f"{problem.env_height} x {2 * problem.env_height}", str(problem.texture_size)])
     return markdown(["preset", "diffusion steps", "refinement iterations", "spp", "init iterations",

@@ -17,7 +17,7 @@ from pathlib import Path
 import torch
 
 from dpi.materials import MaterialTextures
-from dpi.settings import Fraction, settings
+from dpi.settings import Fraction, Steps, settings
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.optimize import CHECKPOINT_EVERY, AdamFit, FreeEnvMap, OptimizeConfig
 from dpi.solve.problem import InverseProblem
@@ -39,6 +39,8 @@ CLOSING_STEPS = 20
 class InitConfig(OptimizeConfig):
     """The init's fit (config section `init`): Adam settings and the glossy retry."""
 
+    iterations: Steps = 200
+    """Adam steps of each fit (the rough one, and the glossy retry when it runs)"""
     retry_below: Fraction = 0.4
     """the fit is retried from GLOSSY_START when its roughness 25th percentile ends below this (0: never): a rough
     start stops half-way on a mirror (docs/studies.md, "The init's start")"""

@@ -36,11 +36,12 @@ class CachedFileError(ValueError):
 class ProblemConfig:
     """Resolution of the unknowns and how the data term is measured."""
 
-    env_height: MapHeight = 32
-    """environment map height H (width 2H)"""
+    env_height: MapHeight = 128
+    """environment map height H (width 2H): finer than the prior's 32 rows, the prior's sample upsampled plus the
+    detail the views fit"""
     texture_size: TextureSize = 64
     """material texture resolution R (R x R texels)"""
-    resolution: ImageSize | None = None
+    resolution: ImageSize | None = 96
     """longer image side (px) the views are fitted and evaluated at: larger captures are area-downsampled
     once (dpi.working); None: the capture's own size"""
 

@@ -14,7 +14,7 @@ from typing import Annotated, Any, Callable
 from pydantic import Field
 
 from dpi.materials import MaterialRates
-from dpi.settings import Rate, SettingsError, check_keys, settings, settings_from_dict
+from dpi.settings import Count, Rate, SettingsError, Steps, check_keys, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.paper import PaperSampler, paper_step
 from dpi.solve.dps.proximal import ProximalConfig, proximal_step
@@ -39,23 +39,35 @@ SAMPLERS: dict[str, Sampler] = {"proximal": Sampler(ProximalConfig, proximal_ste
 """dps's samplers by name (the `sampler` setting); the first is the default. The proximal sampler's settings are
 a config section; the paper's are the reference's, fixed"""
 
+
+
+@settings
+class GlossyConfig:
+    """What a glossy init (dpi.solve.init.is_glossy) changes in its samples' settings (`method_params.dps.glossy`);
+    a rough init's samples run the settings as they are. The sample's log says when it applies."""
+
+    inner_steps: Count = 2
+    """the proximal sampler's data updates a step (for its map solve)"""
+    map_solve: Steps = 0
+    """the proximal sampler's map-solve iterations a step: none (a mirror's views pin its light down where they
+    reflect it, and a solve on its finer transport cost env PSNR, docs/studies.md)"""
+    refine_factor: Count = 2
+    """the refinement runs this many times `refine.iterations` (the loop does not move the roughness a mirror's views
+    hinge on)"""
+    refine_views: Count = 1
+    """views the refinement renders a step: its longer refinement at the cost of the rough one's, and its fit no worse
+    (docs/studies.md, "What a glossy sample costs")"""
+    lr_texels: Rate = 0.02
+    """the polish rate on a map with at least the prior's rows: a mirror's views pin down detail the prior's grid
+    cannot hold. A coarser map keeps `refine.lr_texels`: fitting reflections finer than its texels only sharpens it
+    away from the light (docs/studies.md, "The polish on a coarse map")"""
+
+
 SECTIONS: dict[str, Callable[[Any], Any]] = {"proximal": ProximalConfig.from_dict,
                                              "sun": SunConfig.from_dict,
-                                             "refine": partial(settings_from_dict, RefineConfig)}
+                                             "refine": partial(settings_from_dict, RefineConfig),
+                                             "glossy": partial(settings_from_dict, GlossyConfig)}
 """method_params.dps keys that hold a settings section, and the builder of its dataclass from its entry"""
-
-GLOSSY_PROXIMAL = {"inner_steps": 2, "map_solve": 0}
-"""a glossy init's proximal steps: no map solve (a mirror's views pin its light down where they reflect it, and a
-solve on its finer transport cost env PSNR, docs/studies.md), two data updates instead"""
-GLOSSY_REFINE_FACTOR = 2
-"""a glossy init refines this many times longer (the loop does not move the roughness a mirror's views hinge on)"""
-GLOSSY_REFINE_VIEWS = 1
-"""views a glossy init's refinement renders a step: its longer refinement at the cost of the preset's, and its fit
-no worse (docs/studies.md, "What a glossy sample costs")"""
-GLOSSY_LR_TEXELS = 0.02
-"""a glossy init's polish rate on a map with at least the prior's rows: a mirror's views pin down detail the prior's
-grid cannot hold. A coarser map holds no detail beyond the prior's and keeps the light polish: fitting reflections
-finer than its texels only sharpens it away from the light (docs/studies.md, "The polish on a coarse map")"""
 
 
 @settings
@@ -73,6 +85,7 @@ class DPSConfig(MaterialRates):
     proximal: ProximalConfig = field(default_factory=ProximalConfig)
     sun: SunConfig = field(default_factory=SunConfig)
     refine: RefineConfig = field(default_factory=RefineConfig)
+    glossy: GlossyConfig = field(default_factory=GlossyConfig)
 
     @property
     def sampler_settings(self) -> Any:
@@ -81,14 +94,15 @@ class DPSConfig(MaterialRates):
 
     def for_init(self, init: Decomposition, prior_rows: int) -> DPSConfig:
         """The settings a sample from `init` runs with, under a prior of `prior_rows` rows: the one place a glossy
-        init (dpi.solve.init.is_glossy) changes them (GLOSSY_*; its transport:
+        init (dpi.solve.init.is_glossy) changes them, by the `glossy` section (its transport:
         dpi.solve.dps.data_term.sample_transport); a rough init's are these."""
         if not is_glossy(init.materials):
             return self
-        proximal = replace(self.proximal, **GLOSSY_PROXIMAL)
-        lr_texels = GLOSSY_LR_TEXELS if init.env.shape[0] >= prior_rows else self.refine.lr_texels
-        refine = replace(self.refine, iterations=self.refine.iterations * GLOSSY_REFINE_FACTOR,
-                         views_per_step=GLOSSY_REFINE_VIEWS, lr_texels=lr_texels)
+        glossy = self.glossy
+        proximal = replace(self.proximal, inner_steps=glossy.inner_steps, map_solve=glossy.map_solve)
+        lr_texels = glossy.lr_texels if init.env.shape[0] >= prior_rows else self.refine.lr_texels
+        refine = replace(self.refine, iterations=self.refine.iterations * glossy.refine_factor,
+                         views_per_step=glossy.refine_views, lr_texels=lr_texels)
         return replace(self, proximal=proximal, refine=refine)
 
     @classmethod

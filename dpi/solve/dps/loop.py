@@ -71,7 +71,12 @@ def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: D
               seed: int, radiance_scale: float | None = None) -> tuple[DPSRun, DPSState]:
     """The fixed part of one sample and its loop state at its first step (the init's materials, grey albedo):
     x_T ~ N(0, I), or the init map noised to the sampler's start_noise."""
-    cfg = cfg.for_init(init, prior.height)
+    adapted = cfg.for_init(init, prior.height)
+    if adapted is not cfg:
+        print(f"glossy init: method_params.dps.glossy applies (proximal inner_steps {adapted.proximal.inner_steps}, "
+              f"map_solve {adapted.proximal.map_solve}; refine iterations {adapted.refine.iterations}, "
+              f"views_per_step {adapted.refine.views_per_step}, lr_texels {adapted.refine.lr_texels:g})", flush=True)
+    cfg = adapted
     sampler = cfg.sampler_settings
     generator = torch.Generator().manual_seed(seed)
     diffusion = prior.schedule(cfg.steps)

@@ -26,8 +26,8 @@ band 2 fits the views better but bends the map away from the truth"""
 class RefineConfig:
     """Adam settings of the refinement (method_params.dps.refine)."""
 
-    iterations: Steps = 200
-    """Adam iterations on the materials, the gain and the polish"""
+    iterations: Steps = 50
+    """Adam iterations on the materials, the gain and the polish (the paper preset: 200)"""
     views_per_step: Count = 2
     lr_gain: Rate = 0.03
     """Adam rate of the gain's spherical-harmonic coefficients"""
