@@ -24,7 +24,7 @@ from dpi.studies.engine import latest, read_rows
 
 RESULTS = Path("benchmarks") / "results"
 """the committed study CSVs, relative to a checkout's root"""
-DOCUMENTS = (Path("README.md"), Path("docs") / "studies.md", Path("docs") / "priors.md")
+DOCUMENTS = (Path("README.md"), Path("docs") / "studies.md", Path("docs") / "studies_log.md", Path("docs") / "priors.md")
 """the documents whose tables are generated"""
 METHOD_ORDER = (INIT, *METHODS)
 """rows of a method table: the init, then the methods in their registry's order"""

@@ -31,10 +31,11 @@ def test_merge_is_snakemakes_dicts_by_key_and_anything_else_replaced():
 
 def test_layers_defaults_then_local_config_then_files_then_preset(tmp_path):
     defaults = Pipeline(resolve_config())
-    assert defaults.config["render"]["spp"] == defaults.config["presets"]["default"]["render"]["spp"]
+    assert "spp" not in defaults.config["render"]  # the default preset sets nothing: the dataclass's default holds
+    assert defaults.solve_settings().render.spp == RenderConfig().spp
     (tmp_path / "config.yaml").write_text(yaml.safe_dump({"render": {"spp": 3}, "problem": {"texture_size": 8}}))
     local = resolve_config()
-    assert local["render"]["spp"] == 3 and local["problem"] == {"env_height": 128, "texture_size": 8, "resolution": 96}
+    assert local["render"]["spp"] == 3 and local["problem"] == {"texture_size": 8}
     later = resolve_config({"problem": {"texture_size": 4}}, {"preset": "draft", "render": {"max_depth": 2}})
     assert later["problem"]["texture_size"] == 4 and later["render"] == {"spp": 3, "max_depth": 2}
     assert later["init"]["iterations"] == later["presets"]["draft"]["init"]["iterations"]  # unset: the preset's
@@ -43,7 +44,7 @@ def test_layers_defaults_then_local_config_then_files_then_preset(tmp_path):
 def test_a_left_out_key_means_its_dataclass_default():
     pipeline = Pipeline(resolve_config())
     assert "max_depth" not in pipeline.config["render"]
-    assert pipeline.solve_settings(3).render == RenderConfig(spp=pipeline.config["render"]["spp"], threads=3)
+    assert pipeline.solve_settings(3).render == RenderConfig(threads=3)
     assert pipeline.describe()["render"]["max_depth"] == RenderConfig().max_depth
 
 

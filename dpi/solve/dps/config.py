@@ -60,7 +60,7 @@ class GlossyConfig:
     lr_texels: Rate = 0.02
     """the polish rate on a map with at least the prior's rows: a mirror's views pin down detail the prior's grid
     cannot hold. A coarser map keeps `refine.lr_texels`: fitting reflections finer than its texels only sharpens it
-    away from the light (docs/studies.md, "The polish on a coarse map")"""
+    away from the light (docs/studies_log.md, "The polish on a coarse map")"""
 
 
 SECTIONS: dict[str, Callable[[Any], Any]] = {"proximal": ProximalConfig.from_dict,
