@@ -70,7 +70,7 @@ def true_light_sample(job: Job) -> None:
     from dpi.solve.problem import SolveConfig
     from dpi.stages import load_problem
     from dpi.light.envmap import read_envmap
-    from dpi.prior.data import resize_area
+    from dpi.prior.data import resize_map
     from dpi.solve.decomposition import Decomposition
     from dpi.solve.init import starting_materials
     from dpi.solve.optimize import fit
@@ -81,7 +81,7 @@ def true_light_sample(job: Job) -> None:
         return
     problem = load_problem(files.capture_json, SolveConfig.from_config(job.config, threads=1))
     gt = torch.from_numpy(read_envmap(problem.capture.gt["envmap"])).float().permute(2, 0, 1)
-    env = resize_area(gt, problem.settings.env_height).permute(1, 2, 0)
+    env = resize_map(gt, problem.settings.env_height).permute(1, 2, 0)
     init = problem.load_decomposition(files.sample_dir("init"))
     cfg = DPSConfig.from_dict(job.method_cfg)
     trace = Trace()  # dps's refinement; the true map stays as it is

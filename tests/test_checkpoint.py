@@ -123,7 +123,7 @@ def test_cut_dps_sample_continues_to_the_uninterrupted_result(problem_and_init, 
     cfg = DPSConfig.from_dict({"sampler": sampler, "steps": 4, "refine": {"iterations": 1},
                                "proximal": {"start_noise": 1.0}})
     resume = tmp_path / ".resume.pt"
-    # the module whose code calls the network once a step: paper's own (with a graph), else state.predict_x0
+    # the module whose code calls the network once a step: paper's own (with a graph), else state.predicted_step
     module = importlib.import_module("dpi.solve.dps.paper" if sampler == "paper" else "dpi.solve.dps.state")
     with cut_after(monkeypatch, module, "network_step", steps=3):
         dps_sample(problem, tiny_prior(), init, cfg, seed=1, progress=False, checkpoint=resume, checkpoint_every=2)

@@ -10,7 +10,7 @@ from PIL import Image
 from dpi.io.exr import write_exr
 from dpi.light.tonecurve import family_encoding
 from dpi.prior.data import (MEDIAN_TARGETS, EnvmapDataset, augment, clip_highlights, list_panoramas, median_target,
-                            radiance_scale, read_dataset, read_panorama, resize_area, roll_columns, split_files,
+                            radiance_scale, read_dataset, read_panorama, resize_map, roll_columns, split_files,
                             to_prior_space)
 
 ENCODINGS = [("outdoor", "paper"), ("indoor", "paper"), ("outdoor", "log")]
@@ -74,12 +74,12 @@ def test_radiance_scale_maps_median_to_target() -> None:
     assert radiance_scale(radiance, MEDIAN_TARGETS["outdoor"]) == pytest.approx(2.0 / MEDIAN_TARGETS["outdoor"])
 
 
-def test_resize_area_preserves_mean_and_shape() -> None:
+def test_resize_map_preserves_mean_and_shape() -> None:
     image = torch.rand(3, 64, 128)
-    small = resize_area(image, 16)
+    small = resize_map(image, 16)
     assert small.shape == (3, 16, 32)
     assert float(small.mean()) == pytest.approx(float(image.mean()), rel=1e-5)
-    assert resize_area(torch.rand(3, 20, 50), 8).shape == (3, 8, 16)
+    assert resize_map(torch.rand(3, 20, 50), 8).shape == (3, 8, 16)
 
 
 def test_roll_columns_is_a_rotation() -> None:

@@ -45,7 +45,7 @@ def ssim(a: np.ndarray, b: np.ndarray, data_range: float = 1.0) -> float:
     return float(structural_similarity(a, b, data_range=data_range, channel_axis=-1, win_size=win))
 
 
-def resize_area(image: np.ndarray, height: int, width: int) -> np.ndarray:
+def resize_image(image: np.ndarray, height: int, width: int) -> np.ndarray:
     """Area-average (down) or bilinear (up) resampling of an (H, W, C) image."""
     if image.shape[:2] == (height, width):
         return image
@@ -63,7 +63,7 @@ def env_scale(estimate: np.ndarray, reference: np.ndarray) -> float:
 def aligned_env(estimate: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """Tone-mapped scale-aligned estimate and reference (resized to the estimate), both at the reference's
     median luminance MIDDLE_GREY, and the scale aligning the estimate to the reference."""
-    reference = resize_area(reference, *estimate.shape[:2])
+    reference = resize_image(reference, *estimate.shape[:2])
     s = env_scale(estimate, reference)
     gain = middle_grey_gain(luminance(reference))
     return tonemap(gain * s * estimate), tonemap(gain * reference), s
@@ -77,7 +77,7 @@ def env_metrics(estimate: np.ndarray, reference: np.ndarray) -> dict[str, float]
 
 def albedo_mse(estimate: np.ndarray, reference: np.ndarray) -> tuple[float, np.ndarray]:
     """MSE after per-channel least-squares scale alignment; returns (mse, scales)."""
-    reference = resize_area(reference, *estimate.shape[:2])
+    reference = resize_image(reference, *estimate.shape[:2])
     e, r = estimate.reshape(-1, 3).astype(np.float64), reference.reshape(-1, 3).astype(np.float64)
     scales = (e * r).sum(0) / np.maximum((e * e).sum(0), EPS)
     return float(((e * scales - r) ** 2).mean()), scales

@@ -27,7 +27,7 @@ from PIL import Image
 from scipy.ndimage import correlate1d
 from scipy.special import gamma
 
-from dpi.evaluation.metrics import resize_area
+from dpi.evaluation.metrics import resize_image
 from dpi.io.images import linear_to_srgb, luminance
 from dpi.layout import package_data
 from dpi.spread import normalized_env
@@ -128,5 +128,5 @@ def env_niqe(env: np.ndarray, height: int = ENV_HEIGHT) -> float:
     """NIQE of an HDR env map (H, W, 3): median-normalised, Reinhard tone-mapped, sRGB-encoded like a photo,
     upsampled (bilinear) to `height`, grey = Rec. 709 luminance of the encoded values."""
     display = linear_to_srgb(normalized_env(env))
-    display = resize_area(display, height, round(env.shape[1] * height / env.shape[0]))
+    display = resize_image(display, height, round(env.shape[1] * height / env.shape[0]))
     return niqe(255.0 * luminance(display))

@@ -27,7 +27,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from dpi.evaluation.metrics import resize_area
+from dpi.evaluation.metrics import resize_image
 
 WEIGHTS_ENV = "DPI_WEIGHTS"
 ALEXNET_WEIGHTS = "alexnet-owt-7be5be79.pth"
@@ -98,7 +98,7 @@ def lpips_distance(a: np.ndarray, b: np.ndarray, net: nn.Module) -> float:
     h, w = a.shape[:2]
     f = max(1.0, LPIPS_MIN_SIZE / min(h, w))
     size = (round(h * f), round(w * f))
-    x = torch.from_numpy(np.stack([resize_area(a, *size), resize_area(b, *size)])).permute(0, 3, 1, 2).float()
+    x = torch.from_numpy(np.stack([resize_image(a, *size), resize_image(b, *size)])).permute(0, 3, 1, 2).float()
     with torch.no_grad():
         return float(net(x[:1], x[1:], normalize=True))
 

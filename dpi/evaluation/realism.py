@@ -22,7 +22,7 @@ from torch.nn import functional as F
 
 from dpi.evaluation.metrics import missing
 from dpi.io.images import luminance
-from dpi.prior.data import list_panoramas, read_panorama, resize_area
+from dpi.prior.data import list_panoramas, read_panorama, resize_map
 
 REALISM_HEIGHT = 32
 """rows every map is resampled to before its patches are cut"""
@@ -51,7 +51,7 @@ class RealismConfig:
 
 def log_map(env: np.ndarray, height: int = REALISM_HEIGHT) -> torch.Tensor:
     """(3, height, 2 height) log radiance of an HDR map (H, W, 3), its median luminance brought to 1."""
-    x = resize_area(torch.from_numpy(np.ascontiguousarray(env, dtype=np.float32)).permute(2, 0, 1).clamp_min(0), height)
+    x = resize_map(torch.from_numpy(np.ascontiguousarray(env, dtype=np.float32)).permute(2, 0, 1).clamp_min(0), height)
     median = float(luminance(x.permute(1, 2, 0)).median())
     return torch.log(x / max(median, 1e-12) + LOG_FLOOR).clamp(max=LOG_CEILING)
 

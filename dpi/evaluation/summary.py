@@ -17,7 +17,7 @@ import numpy as np
 
 from dpi.capture import read_ground_truth
 from dpi.evaluation.metric_table import split_missing
-from dpi.evaluation.metrics import aligned_env, env_metrics, missing, resize_area
+from dpi.evaluation.metrics import aligned_env, env_metrics, missing, resize_image
 from dpi.evaluation.perceptual import (INCEPTION_WEIGHTS, azimuth_rolls, frechet_distance, inception_features,
                                        missing_weights, pretrained_inception)
 from dpi.evaluation.relighting import RELIGHT_METRICS
@@ -108,7 +108,7 @@ def albedo_invariance(mean_albedos: dict[tuple[str, str, str], np.ndarray]) -> d
     for (obj, method, _), albedo in sorted(mean_albedos.items()):
         per_object[(obj, method)].append(albedo)
     return {(obj, method): missing(f"one illumination of object {obj}") if len(albedos) < 2
-            else sample_variance([resize_area(a, *albedos[0].shape[:2]) for a in albedos])
+            else sample_variance([resize_image(a, *albedos[0].shape[:2]) for a in albedos])
             for (obj, method), albedos in per_object.items()}
 
 

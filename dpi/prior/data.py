@@ -63,7 +63,7 @@ def read_panorama(path: str | Path) -> np.ndarray:
     return np.maximum(image, 0).astype(np.float32)
 
 
-def resize_area(image: torch.Tensor, height: int) -> torch.Tensor:
+def resize_map(image: torch.Tensor, height: int) -> torch.Tensor:
     """Area-resample (C, h, w) to (C, height, 2 height): each output texel averages the input texels it covers."""
     return F.interpolate(image[None], size=(height, 2 * height), mode="area")[0]
 
@@ -193,7 +193,7 @@ class EnvmapDataset:
         """All panoramas of a folder (or the given `files`), area-resampled to `height`, normalised and encoded."""
         target = median_target(family, encoding)
         paths = files if files is not None else list_panoramas(folder)
-        images = [resize_area(torch.from_numpy(read_panorama(p)).permute(2, 0, 1), height) for p in paths]
+        images = [resize_map(torch.from_numpy(read_panorama(p)).permute(2, 0, 1), height) for p in paths]
         return cls(torch.stack([to_prior_space(im, encoding, target) for im in images]), family, encoding)
 
     @classmethod

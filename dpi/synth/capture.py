@@ -27,7 +27,7 @@ from dpi.io.exr import write_exr
 from dpi.io.images import luminance, write_mask, write_srgb, write_srgb_alpha
 from dpi.layout import SYNTH_MARKER
 from dpi.light.skies import SkyParams, sunsky_envmap
-from dpi.prior.data import read_panorama, resize_area
+from dpi.prior.data import read_panorama, resize_map
 from dpi.render import RenderConfig, Renderer
 from dpi.settings import (Count, Elevation, Fraction, ImageSize, Loose, MapHeight, Rate, SamplesPerPixel, Steps,
                           TextureSize, Weight, settings, settings_from_dict)
@@ -136,7 +136,7 @@ def procedural_envmap(cfg: SynthConfig) -> np.ndarray:
         if env.shape[1] != 2 * env.shape[0]:
             raise ValueError(f"{cfg.environment}: environment map must be H x 2H, got {env.shape[:2]}")
         env = env if env.shape[-1] == 3 else np.repeat(env[..., :1], 3, -1)
-        return resize_area(torch.from_numpy(env).permute(2, 0, 1), cfg.env_height).permute(1, 2, 0).numpy()
+        return resize_map(torch.from_numpy(env).permute(2, 0, 1), cfg.env_height).permute(1, 2, 0).numpy()
     if cfg.environment in ("outdoor", "indoor"):
         rng = np.random.default_rng([EVALUATION_SEED_STREAM, cfg.environment_seed])
         return generator(cfg.environment)(cfg.env_height, rng, 1)[0].astype(np.float32)

@@ -41,7 +41,7 @@ import torch
 from dpi.settings import Count, Rate, Share, Steps, Weight, settings, settings_from_dict
 from dpi.solve.dps.data_term import sample_transport
 from dpi.solve.dps.map_solve import PRIOR_STD, MapPrior, Resampling, cached_resampling, posterior_variance, solve_map
-from dpi.solve.dps.state import DPSRun, DPSState, Laps, finite, log_radiance, predict_x0, recentre_
+from dpi.solve.dps.state import DPSRun, DPSState, Laps, finite, log_radiance, predicted_step, recentre_
 from dpi.solve.optimize import all_finite
 from dpi.solve.sun_model import share_penalty, sun_env, wrap_uv_
 from dpi.solve.transport import LightTransport, TransportConfig
@@ -170,7 +170,7 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     settings: ProximalConfig = run.sampler
     laps, i, gen = Laps(), run.index(n), state.generator
     encoding = run.prior.encoding
-    record, x0_hat = predict_x0(run, state, n, laps)
+    record, x0_hat = predicted_step(run, state, n, laps)
     if x0_hat is None:
         return record
     abar = float(run.diffusion.alphas_cumprod[i])

@@ -165,7 +165,7 @@ def network_step(run: DPSRun, x: torch.Tensor, i: int, generator: torch.Generato
     return p_mean_variance(run.diffusion, output, x, t)
 
 
-def predict_x0(run: DPSRun, state: DPSState, n: int, laps: Laps) -> tuple[dict[str, Any], torch.Tensor | None]:
+def predicted_step(run: DPSRun, state: DPSState, n: int, laps: Laps) -> tuple[dict[str, Any], torch.Tensor | None]:
     """Step n's network prediction without a graph (the samplers that need no backward through it): the step's
     record and x0_hat, kept in the snapshots; or, for a non-finite output, the record saying the step was
     skipped and None (x_t is kept)."""
