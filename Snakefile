@@ -14,6 +14,7 @@ include: "rules/preprocess.smk"
 include: "rules/inverse.smk"
 include: "rules/evaluate.smk"
 include: "rules/prior.smk"
+include: "rules/export.smk"
 
 
 rule all:
@@ -21,5 +22,6 @@ rule all:
         LAYOUT.summary,
         all_figures(),
         LAYOUT.report_html,
+        all_exports(),
         sample_plans(),  # a missing plan (more samples requested) is noticed even when the summary exists
     default_target: True

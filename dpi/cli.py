@@ -8,6 +8,7 @@
     dpi evaluate demo dps 0             # (`dpi evaluate demo init` scores the initialisation)
     dpi summary                         # results/eval/summary.csv over the config's scenes and methods
     dpi report                          # the env-map figures and results/report.html
+    dpi export demo                     # results/demo/export/demo.glb and demo.usda, every sample a variant
 
 A stage command reads and writes what its Snakemake rule does (dpi.layout) with the settings the
 workflow resolves (dpi.pipeline): dpi's defaults, ./config.yaml when present, then each `--config`
@@ -187,6 +188,16 @@ def cmd_report(args: argparse.Namespace) -> None:
     print(f"wrote {pipeline.layout.report_html}")
 
 
+def cmd_export(args: argparse.Namespace) -> None:
+    """Rule export, over the samples present."""
+    from dpi.stages import export_stage
+
+    job = _job(args, "evaluate")
+    rows = [(m, [job.paths.sample_dir(m, k) for k in range(job.pipeline.samples(m))
+                 if job.paths.sample_files(m, k)["albedo"].is_file()]) for m in job.pipeline.methods]
+    export_stage(job, [(m, folders) for m, folders in rows if folders])
+
+
 def cmd_relight(args: argparse.Namespace) -> None:
     """Re-render a decomposition under a new environment map, from new views, with material edits."""
     from dataclasses import replace
@@ -285,6 +296,9 @@ each call; the workflow caches them."""
 
     add("summary", cmd_summary, "aggregate the config's metric files into summary.csv and samples.csv")
     add("report", cmd_report, "the env-map figure of each scene and the HTML report")
+
+    add("export", cmd_export, "the scene's samples as one glTF (.glb) and one USD (.usda) asset, every sample a "
+        "variant, with their env maps beside them (results/SCENE/export/)", scene=True)
 
     p = add("relight", cmd_relight, "re-render a decomposition under a new environment map and/or from new "
             "views, optionally with edited materials (relighting, material editing)")

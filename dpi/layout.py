@@ -155,6 +155,23 @@ class SceneLayout:
                 "env_mean": self.root / method / "env_mean.exr"}
 
     @property
+    def export_dir(self) -> Path:
+        """The scene's assets for other tools (dpi.export)."""
+        return self.root / "export"
+
+    def export_asset(self, suffix: str) -> Path:
+        """The scene's asset of a format: export/{scene}.glb, export/{scene}.usda."""
+        return self.export_dir / f"{self.root.name}.{suffix}"
+
+    def export_envmap(self, label: str, suffix: str) -> Path:
+        """A sample's env map beside the assets: export/envmaps/{method}_{k}.hdr (and .exr)."""
+        return self.export_dir / "envmaps" / f"{label}.{suffix}"
+
+    def export_texture(self, label: str, texture: str) -> Path:
+        """A sample's texture as the USD stage reads it: export/textures/{method}_{k}_{texture}.png."""
+        return self.export_dir / "textures" / f"{label}_{texture}.png"
+
+    @property
     def envmap_figure(self) -> Path:
         return self.root / "eval" / "envmaps.png"
 

@@ -133,8 +133,17 @@ SPREAD_METHODS = [m for m in METHODS if first_samples(m) >= 2]
 
 def sample_folders(scene):
     """Per method with a spread, the folders of the samples it draws: [(method, [folders])]."""
-    return [(m, [LAYOUT.scene(scene).sample_dir(m, k) for k in range(drawn_samples(scene, m))])
-            for m in SPREAD_METHODS]
+    return [(m, folders) for m, folders in sample_rows(scene) if m in SPREAD_METHODS]
+
+
+def sample_rows(scene):
+    """Per method of a scene, the folders of the samples it draws: [(method, [folders])] (the export's variants)."""
+    return [(m, [LAYOUT.scene(scene).sample_dir(m, k) for k in range(drawn_samples(scene, m))]) for m in METHODS]
+
+
+def all_exports():
+    """Each scene's glTF and USD assets."""
+    return [LAYOUT.scene(scene).export_asset(suffix) for scene in SCENES for suffix in ("glb", "usda")]
 
 
 def sample_envmaps(scene):

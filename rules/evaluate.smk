@@ -89,6 +89,7 @@ rule report:
         planned=planned_evaluations,
         plans=sample_plans(),
         figures=all_figures(),
+        exports=all_exports(),  # the 3D view embeds each scene's glTF asset
     output:
         html=report(LAYOUT.report_html, caption="../report/report.rst", category="Report"),
         figures=directory(LAYOUT.report_figures),

@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
 # Idempotent set-up: Debian packages (libLLVM >= 16 for Mitsuba's CPU backend, libusb for open3d,
-# headless Chromium for the report test), a local virtualenv (.venv) with the pinned Python packages,
-# and dpi itself (editable).
+# headless Chromium for the report test, Node.js for the report's 3D view and the glTF validator), a local
+# virtualenv (.venv) with the pinned Python packages, dpi itself (editable), and the pinned JavaScript
+# packages of package-lock.json in node_modules/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 VENV=${VENV:-.venv}
 PYTHON=${PYTHON:-python3}
-DEBIAN_PACKAGES=(libllvm19 libusb-1.0-0 chromium)
+DEBIAN_PACKAGES=(libllvm19 libusb-1.0-0 chromium nodejs npm)
 
 missing=()
 for pkg in "${DEBIAN_PACKAGES[@]}"; do
@@ -22,6 +23,11 @@ if [ ${#missing[@]} -gt 0 ]; then
     $SUDO apt-get update -qq
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}" >/dev/null
   fi
+fi
+
+if command -v npm >/dev/null && { [ ! -d node_modules ] || [ package-lock.json -nt node_modules ]; }; then
+  npm ci --no-audit --no-fund --loglevel=error >/dev/null
+  touch node_modules
 fi
 
 stamp="$VENV/.dpi-installed"

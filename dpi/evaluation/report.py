@@ -1,7 +1,8 @@
 """The HTML report of a run (results/report.html): metric table, the paper's Figs. 8-9, and per scene the
 input views, env-map samples, textures and re-rendered held-out views of every method.
 
-Static files only: PNGs in a folder next to the page, relative links, no scripts; it reads offline.
+Static files only: PNGs in a folder next to the page, relative links; it reads offline. The one script is the
+3D view's (dpi.evaluation.view3d: model-viewer, copied next to the page, and the exported asset embedded).
 It draws from what the workflow wrote (dpi.layout), starting at eval/summary.csv: the evaluation's
 metric files and held-out renders, the env-map figure of each scene, the samples' textures. It
 renders nothing itself.
@@ -24,6 +25,7 @@ from dpi.evaluation.figures import (MethodPoint, Rerender, mask_gallery, quality
 from dpi.evaluation.metric_table import metric_table, missing_reason, number, read_summary
 from dpi.evaluation.relighting import RELIGHT_MAPS, channel_scaled, relit_name
 from dpi.evaluation.sample_metrics import masked_srgb
+from dpi.evaluation.view3d import SCRIPT_NAME, model_viewer_script, view3d_section
 from dpi.io.atomic import write_text
 from dpi.io.exr import read_exr
 from dpi.io.images import read_image, read_mask
@@ -237,6 +239,8 @@ def scene_section(scene_name: str, scene: SceneLayout, rows: list[dict[str, str]
                              "summary.csv holds their means (env_log_std, albedo_std), env_calibration and the scores of the "
                              "samples' geometric mean map (env_mean_psnr, env_mean_ssim; {method}/env_mean.exr)."))
 
+    parts += view3d_section(scene_name, scene, page.figures, exposure)
+
     path = page.png(scene_name, "textures")
     gt = ground_truth_textures(capture)
     texture_grid(([("ground truth", gt)] if gt else [])
@@ -323,7 +327,9 @@ def build_report(layout: Layout, out_html: str | Path, figures_dir: str | Path) 
     nav = " &middot; ".join(f"<a href='#scene-{escape(s)}'>{escape(s)}</a>" for s in scenes)
     write_text(out_html, "\n".join([
         "<!DOCTYPE html>", "<html lang='en'>", "<head>", "<meta charset='utf-8'>", "<title>dpi report</title>",
-        f"<style>{STYLE}</style>", "</head>", "<body>", "<h1>dpi report</h1>",
+        f"<style>{STYLE}</style>",
+        *([f"<script src='{page.link(page.figures / SCRIPT_NAME)}'></script>"] if model_viewer_script() else []),
+        "</head>", "<body>", "<h1>dpi report</h1>",
         f"<p>Scenes: {nav} &middot; <a href='#metrics'>metrics</a> &middot; <a href='#quality'>quality vs "
         "diversity</a> &middot; <a href='#roughness'>roughness vs diversity</a></p>",
         *sections, "</body>", "</html>", ""]))

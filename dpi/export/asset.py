@@ -1,0 +1,98 @@
+"""What an exported asset holds, read once for both formats: the mesh exactly as the renderer reads it, and per
+sample its textures encoded as glTF and USD want them and its env map.
+
+Texture convention: dpi's textures index rows by v (row 0 at v = 0, the UVs of the mesh as Mitsuba reads it),
+which is glTF's convention; USD's `st` has t = 0 at the image's bottom row, so its writer flips v.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from dpi.io.exr import read_exr
+from dpi.io.images import to_uint8
+from dpi.layout import decomposition_files
+
+
+@dataclass(frozen=True)
+class AssetMesh:
+    """A triangle mesh with one normal and one UV per vertex (float32), in dpi's frame (+Y up)."""
+
+    positions: np.ndarray
+    normals: np.ndarray
+    uvs: np.ndarray
+    faces: np.ndarray
+
+
+@dataclass(frozen=True)
+class AssetSample:
+    """One decomposition as a variant: its name (`dps 0`), file label (`dps_0`), folder and method."""
+
+    method: str
+    k: int | None
+    folder: Path
+
+    @property
+    def name(self) -> str:
+        return self.method if self.k is None else f"{self.method} {self.k}"
+
+    @property
+    def label(self) -> str:
+        return self.name.replace(" ", "_")
+
+    @property
+    def files(self) -> dict[str, Path]:
+        return decomposition_files(self.folder)
+
+
+def renderer_mesh(path: str | Path) -> AssetMesh:
+    """The mesh file as Mitsuba loads it for rendering (its UVs as the textures index them, smooth normals)."""
+    from dpi import backend
+    from dpi.render import mesh_plugin
+
+    mi = backend.mitsuba()
+    params = mi.traverse(mi.load_dict(mesh_plugin(path)))
+    uvs = np.asarray(params["vertex_texcoords"], np.float32) if "vertex_texcoords" in params else np.zeros(0)
+    if not uvs.size:
+        raise ValueError(f"{path}: the mesh has no UVs; a decomposition's textures need them")
+    return AssetMesh(np.asarray(params["vertex_positions"], np.float32).reshape(-1, 3),
+                     np.asarray(params["vertex_normals"], np.float32).reshape(-1, 3), uvs.reshape(-1, 2),
+                     np.asarray(params["faces"], np.uint32).reshape(-1, 3))
+
+
+def png_bytes(pixels: np.ndarray) -> bytes:
+    """An 8-bit PNG of (H, W), (H, W, 1) or (H, W, 3) uint8 pixels."""
+    out = io.BytesIO()
+    Image.fromarray(pixels[..., 0] if pixels.ndim == 3 and pixels.shape[-1] == 1 else pixels).save(out, format="PNG")
+    return out.getvalue()
+
+
+def unit_to_uint8(values: np.ndarray) -> np.ndarray:
+    """Linear values in [0, 1] as 8-bit (clipped, rounded)."""
+    return np.round(np.clip(values, 0.0, 1.0) * 255).astype(np.uint8)
+
+
+def sample_textures(sample: AssetSample) -> dict[str, np.ndarray]:
+    """A sample's textures as 8-bit images: `base_color` (sRGB), `metallic_roughness` (glTF's packing: roughness
+    in green, metallic in blue, red unused at 255), and `roughness`, `metallic` alone (linear, for USD)."""
+    files = sample.files
+    albedo, roughness, metallic = (read_exr(files[name]) for name in ("albedo", "roughness", "metallic"))
+    r8, m8 = unit_to_uint8(roughness[..., 0]), unit_to_uint8(metallic[..., 0])
+    packed = np.stack([np.full_like(r8, 255), r8, m8], -1)
+    return {"base_color": to_uint8(albedo[..., :3]), "metallic_roughness": packed, "roughness": r8, "metallic": m8}
+
+
+def write_hdr(path: str | Path, env: np.ndarray) -> None:
+    """A linear RGB map as a Radiance .hdr file (OpenCV's writer), atomically."""
+    import cv2
+
+    from dpi.io.atomic import atomic_path
+
+    with atomic_path(path) as tmp:
+        if not cv2.imwrite(str(tmp), np.ascontiguousarray(env[..., 2::-1], np.float32)):
+            raise OSError(f"{path}: could not write the Radiance HDR file")
