@@ -44,6 +44,10 @@ def test_default_target_runs_end_to_end(workdir):
     assert np.isfinite(mean).all() and mean.min() > 0
     assert (workdir / "results" / "report" / "tiny" / "uncertainty.png").is_file()
     assert (workdir / "results" / "tiny" / "logs" / "init.log").is_file()
+    export = workdir / "results" / "tiny" / "export"
+    assert (export / "tiny.glb").is_file() and (export / "tiny.usda").is_file()
+    assert {p.name for p in (export / "envmaps").glob("*.hdr")} == {"init.hdr", "none_0.hdr", "none_1.hdr",
+                                                                    "smoothness_0.hdr", "smoothness_1.hdr"}
 
 
 def test_second_run_does_nothing(workdir):
@@ -53,16 +57,16 @@ def test_second_run_does_nothing(workdir):
 def test_changing_one_method_reruns_only_its_jobs(workdir, tmp_path):
     changed = {"method_params": {"smoothness": {"iterations": 3, "views_per_step": 1}}}
     out = snakemake(workdir, "-n", "--configfile", str(write_config(tmp_path / "c.yaml", changed)))
-    assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "envmap_figure": 1, "uncertainty": 1, "summary": 1, "report": 1,
-                                 "all": 1}
+    assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "envmap_figure": 1, "uncertainty": 1, "export": 1,
+                                 "summary": 1, "report": 1, "all": 1}
     assert "output: results/tiny/none/0/" not in out and "output: results/tiny/none/1/" not in out
 
 
 def test_adding_a_sample_runs_only_the_new_one(workdir, tmp_path):
     more = write_config(tmp_path / "more.yaml", {"samples": 3, "adaptive": {"sample_stop": False}})
     out = snakemake(workdir, "-n", "--configfile", str(more))
-    assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "envmap_figure": 1, "uncertainty": 1, "summary": 1, "report": 1,
-                                 "all": 1}
+    assert planned_jobs(out) == {"sample": 2, "evaluate": 2, "envmap_figure": 1, "uncertainty": 1, "export": 1,
+                                 "summary": 1, "report": 1, "all": 1}
     assert "output: results/tiny/none/2/" in out and "output: results/tiny/none/0/" not in out
 
 
