@@ -116,7 +116,7 @@ class Pipeline:
 
     @property
     def init_settings(self) -> InitConfig:
-        return InitConfig.from_dict(self.config["init"])
+        return InitConfig.from_dict(self.config.get("init"))
 
     @property
     def adaptive(self) -> AdaptiveConfig:

@@ -38,9 +38,10 @@ SAMPLE_METRICS = ("novel_psnr", "env_psnr", "env_ssim", "albedo_mse", "relight_p
 """the workflow's sample metrics a study row keeps"""
 SAMPLE_COLUMNS = ("scene", "group", "method", "sampler", "seed", *SAMPLE_METRICS, "seconds")
 """the columns of a row of one scored sample (run_job)"""
-SAMPLE_SECTIONS = ("problem", "render", "init", "evaluate", "illumination_prior")
-"""the workflow config sections a sample and its evaluation read (besides the method's own settings, and `adaptive`,
-hashed where a study sets it)"""
+TEXT_SECTIONS = ("evaluate", "illumination_prior")
+"""the workflow config sections a sample and its evaluation read as written (the renderer's, the problem's and the
+init's are hashed as their settings dataclasses resolve them, so a default moved between a file and a dataclass
+redraws nothing)"""
 SETTINGS_STAMP = "study_settings_hash.txt"
 """a study sample's settings hash, in its folder: a sample drawn with other settings is drawn again"""
 STUDY_TEXTURES = 32
@@ -162,7 +163,17 @@ class Job:
 
             settings = plain(method_config(self.method, self.method_cfg))
         return settings_hash({"synth": synth, "method": self.method, "settings": settings,
-                              "config": {k: self.config.get(k) for k in SAMPLE_SECTIONS}, **adaptive, **prior})
+                              "config": self.resolved_sections(), **adaptive, **prior})
+
+    def resolved_sections(self) -> dict[str, Any]:
+        """What a sample reads of the workflow config besides its method's settings: the renderer's, problem's and
+        init's settings as resolved (threads left out), and the TEXT_SECTIONS as written."""
+        from dpi.pipeline import plain
+
+        pipeline = self.pipeline
+        solve = pipeline.solve_settings()
+        return {"render": plain(solve.render), "problem": plain(solve.problem), "init": plain(pipeline.init_settings),
+                **{k: self.config.get(k) for k in TEXT_SECTIONS}}
 
 
 @cache
