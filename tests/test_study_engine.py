@@ -86,3 +86,12 @@ def test_real_light_scenes_need_the_manifest_panoramas(tmp_path):
     job = Job(tmp_path, "a", "real", {"environment": str(tmp_path / "x" / "sky.hdr")}, "dps", "", 0, {}, {})
     elsewhere = Job(tmp_path, "a", "real", {"environment": "/data/sky.hdr"}, "dps", "", 0, {}, {})
     assert job.settings_hash == elsewhere.settings_hash  # a panorama by its name, not where it lies
+
+
+def test_a_default_written_out_hashes_like_one_left_out(tmp_path):
+    """The hash reads the resolved settings: spelling out a dataclass default changes nothing, another value does."""
+    def job(config: dict) -> Job:
+        return Job(tmp_path, "blob", "ambiguous", {"shape": "blob"}, "none", "", 0, {}, config)
+
+    assert job({}).settings_hash == job({"render": {"spp": 16}, "init": {"iterations": 200}}).settings_hash
+    assert job({}).settings_hash != job({"render": {"spp": 8}}).settings_hash
