@@ -3,7 +3,7 @@ rule's `stage_args` param when it has one, logged to the rule's log (a capture e
 
 from dpi.capture import CaptureError
 from dpi.io.logs import log_to
-from dpi.stages import RULES, rule_job
+from dpi.stages import rule_job, rule_stage
 
 with log_to(snakemake.log[0], one_line=(CaptureError,)):
-    RULES[snakemake.rule](rule_job(snakemake), *snakemake.params.get("stage_args", ()))
+    rule_stage(snakemake.rule)(rule_job(snakemake), *snakemake.params.get("stage_args", ()))
