@@ -7,7 +7,10 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 VENV=${VENV:-.venv}
 PYTHON=${PYTHON:-python3}
-DEBIAN_PACKAGES=(libllvm19 libusb-1.0-0 chromium nodejs npm)
+DEBIAN_PACKAGES=(libllvm19 libusb-1.0-0 chromium)
+# Node.js from Debian only where none is on the PATH (a NodeSource nodejs brings its own npm, which Debian's conflicts with)
+command -v node >/dev/null || DEBIAN_PACKAGES+=(nodejs)
+command -v npm >/dev/null || DEBIAN_PACKAGES+=(npm)
 
 missing=()
 for pkg in "${DEBIAN_PACKAGES[@]}"; do
