@@ -61,7 +61,7 @@ def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth
     from dpi.stages import load_problem
     from dpi.layout import INIT
     from dpi.pipeline import Pipeline
-    from dpi.seeding import seed_for
+    from dpi.stages.seeding import seed_for
     from dpi.solve.decomposition import Decomposition
     from dpi.solve.init import GLOSSY_START, ROUGH_START, closing_loss, roughness_p25, start_fit
 

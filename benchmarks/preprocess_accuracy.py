@@ -25,7 +25,7 @@ import numpy as np
 from tabulate import tabulate
 
 from dpi.cameras import read_cameras
-from dpi.consistency import mask_iou
+from dpi.capture.consistency import mask_iou
 from dpi.io.images import read_mask
 from dpi.layout import SYNTH_MARKER, SceneLayout
 from dpi.preprocess.accuracy import align_mesh, chamfer, pose_errors

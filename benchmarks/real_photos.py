@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from dpi.consistency import mask_iou
+from dpi.capture.consistency import mask_iou
 from dpi.io.images import read_mask
 from dpi.studies.engine import CHECKOUT as ROOT
 from dpi.studies.engine import append_row, read_rows, results_csv, settings_hash, work_dir

@@ -74,7 +74,7 @@ def truth_at_size(capture_json: Path, gt_dir: Path, height: int, texture: int) -
     """Held-out view PSNR of the true materials under the true map resampled to `height` rows."""
     from dpi.evaluation.sample_metrics import novel_view_metrics, render_held_out
     from dpi.stages import load_problem
-    from dpi.relight import prepare_envmap
+    from dpi.export.relight import prepare_envmap
     from dpi.solve.decomposition import Decomposition
     from dpi.solve.problem import SolveConfig
 

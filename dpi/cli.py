@@ -202,7 +202,7 @@ def cmd_relight(args: argparse.Namespace) -> None:
     """Re-render a decomposition under a new environment map, from new views, with material edits."""
     from dataclasses import replace
 
-    from dpi.relight import MaterialEdit, RelightConfig, relight_sample
+    from dpi.export.relight import MaterialEdit, RelightConfig, relight_sample
 
     edit = MaterialEdit(args.albedo_scale, args.roughness, args.metallic)
     cfg = RelightConfig(args.envmap, args.rotate_deg, args.env_height, args.orbit, args.orbit_elevation_deg,

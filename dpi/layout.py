@@ -111,7 +111,7 @@ class SceneLayout:
 
     @property
     def working_dir(self) -> Path:
-        """Images and masks at the working resolution (dpi.working), a folder per size."""
+        """Images and masks at the working resolution (dpi.capture.working), a folder per size."""
         return self.root / "working"
 
     @property

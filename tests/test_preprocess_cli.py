@@ -11,7 +11,7 @@ from test_preprocess_masks import sphere_view
 
 from dpi.cameras import from_fov, orbit, write_transforms
 from dpi.cli import main
-from dpi.consistency import mask_iou
+from dpi.capture.consistency import mask_iou
 from dpi.io.images import read_mask, write_srgb
 from dpi.stages import needed_stages
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from dpi.cameras import from_fov, orbit, pixel_rays
-from dpi.consistency import mask_iou
+from dpi.capture.consistency import mask_iou
 from dpi.io.images import srgb_to_linear
 from dpi.preprocess.hull import visible_sphere
 from dpi.preprocess.masks import (SPHERE_FRACTION, MaskConfig, clean_mask, derive_masks, drop_outliers,

@@ -13,7 +13,7 @@ from dpi.io.exr import EXRError, read_exr, write_exr
 from dpi.io.images import linear_to_srgb, read_image
 from dpi.light.envmap import direction_to_texel, rotate_azimuth, texel_directions
 from dpi.materials import MaterialTextures
-from dpi.relight import MaterialEdit, RelightConfig, relight_sample
+from dpi.export.relight import MaterialEdit, RelightConfig, relight_sample
 from dpi.render import RenderConfig
 
 RENDER = RenderConfig(spp=32, threads=2)

@@ -8,7 +8,7 @@ import pytest
 from dpi.capture import load_capture
 from dpi.io.exr import read_exr
 from dpi.io.images import read_image, read_mask, working_size
-from dpi.working import working_capture
+from dpi.capture.working import working_capture
 
 
 def test_working_size_keeps_the_aspect_and_never_upsamples():

@@ -19,7 +19,7 @@ from dpi.capture.nerf_synthetic import read_splits, split_files
 from dpi.capture.scene_yaml import read_scene_options
 from dpi.capture.transforms import frame_masks, names_masks, read_transforms_json, transforms_cameras
 from dpi.capture.undistort import with_cameras
-from dpi.consistency import cameras_problem
+from dpi.capture.consistency import cameras_problem
 from dpi.io.images import read_mask
 from dpi.layout import SceneLayout
 
@@ -98,7 +98,7 @@ def held_out_names(root: Path, names: list[str], options: dict, cameras: dict[st
 def camera_fit_problem(mesh: tuple[np.ndarray, np.ndarray], cameras: dict[str, Camera],
                        masks: dict[str, Path] | None) -> str | None:
     """Why the cameras contradict the mesh and the masks (or, without masks, the image frames), or None:
-    `dpi.consistency.cameras_problem` over the views with a camera."""
+    `dpi.capture.consistency.cameras_problem` over the views with a camera."""
     names = list(cameras)
     return cameras_problem(*mesh, [cameras[n] for n in names],
                            None if masks is None else [read_mask(masks[n]) for n in names], names)

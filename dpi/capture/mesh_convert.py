@@ -10,7 +10,7 @@ from pathlib import Path
 
 from dpi.capture.meshes import GLTF_SUFFIXES
 from dpi.capture.model import Capture
-from dpi.consistency import back_facing_fraction
+from dpi.capture.consistency import back_facing_fraction
 from dpi.io.atomic import atomic_path
 
 BACK_FACING = 0.5

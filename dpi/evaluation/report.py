@@ -31,7 +31,7 @@ from dpi.io.exr import read_exr
 from dpi.io.images import read_image, read_mask
 from dpi.layout import SUMMARY_FILE, TEXTURE_NAMES, Layout, SceneLayout, texture_file, view_file
 from dpi.synth.capture import read_marker
-from dpi.working import working_capture
+from dpi.capture.working import working_capture
 
 SCALE_ALIGNMENT = (
     "Illumination and albedo are recovered only up to a global scale, so they are compared after scale "
@@ -194,7 +194,7 @@ def held_out_rerenders(scene: SceneLayout, capture: Capture, methods: list[str],
 
 def evaluated_capture(scene: SceneLayout, capture: Capture, method: str) -> Capture:
     """The capture at the size its held-out views were rendered and scored (the working resolution,
-    dpi.working): the same downsampled images the evaluation compared against."""
+    dpi.capture.working): the same downsampled images the evaluation compared against."""
     if not capture.held_out_views:
         return capture
     height, width = read_exr(view_file(scene.evaluation_views(method, 0), capture.held_out_views[0].name)).shape[:2]

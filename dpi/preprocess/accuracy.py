@@ -1,4 +1,4 @@
-"""Accuracy of derived inputs against ground truth: camera poses and surfaces (masks: dpi.consistency.mask_iou).
+"""Accuracy of derived inputs against ground truth: camera poses and surfaces (masks: dpi.capture.consistency.mask_iou).
 
 Poses from structure from motion live in their own frame, so they are compared after the
 similarity (Umeyama) that best maps their camera centres onto the true ones. Surfaces are

@@ -23,7 +23,7 @@ import numpy as np
 import torch
 
 from dpi.cameras import Camera
-from dpi.consistency import raycasting_scene
+from dpi.capture.consistency import raycasting_scene
 from dpi.preprocess.hull import axes_centre
 from dpi.preprocess.stereo import Matcher, StereoParams, camera_rays, grey, hull_depth_range, neighbour_views
 

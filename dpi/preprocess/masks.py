@@ -39,7 +39,7 @@ import torch
 from pydantic import Field
 
 from dpi.cameras import Camera
-from dpi.consistency import mask_iou
+from dpi.capture.consistency import mask_iou
 from dpi.io.images import read_image, resize, resize_mask, to_uint8, working_size, write_mask
 from dpi.preprocess.hull import marching_cubes, visible_sphere, visual_hull
 from dpi.settings import settings

@@ -33,7 +33,7 @@ import torch
 import torch.nn.functional as F
 
 from dpi.cameras import Camera
-from dpi.consistency import raycasting_scene
+from dpi.capture.consistency import raycasting_scene
 
 BAND_VOXELS = 3.0
 """truncation of the carving distance, in hull voxels"""
@@ -107,7 +107,7 @@ def camera_rays(camera: Camera) -> np.ndarray:
 
 def hull_depth_range(scene, camera: Camera, reach: float) -> tuple[np.ndarray, np.ndarray]:
     """Camera-space depths (h, w) where each pixel's ray enters and leaves a closed mesh (an open3d
-    RaycastingScene, `dpi.consistency.raycasting_scene`, that lies within `reach` of the camera); inf where it misses."""
+    RaycastingScene, `dpi.capture.consistency.raycasting_scene`, that lies within `reach` of the camera); inf where it misses."""
     import open3d as o3d
 
     rays = camera_rays(camera)

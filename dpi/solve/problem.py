@@ -43,7 +43,7 @@ class ProblemConfig:
     """material texture resolution R (R x R texels)"""
     resolution: ImageSize | None = 96
     """longer image side (px) the views are fitted and evaluated at: larger captures are area-downsampled
-    once (dpi.working); None: the capture's own size"""
+    once (dpi.capture.working); None: the capture's own size"""
 
 
 @dataclass

@@ -17,7 +17,7 @@ from dpi.io.atomic import write_json
 from dpi.io.exr import read_exr, write_exr
 from dpi.layout import INIT_TRACE, SAMPLE_TRACE, decomposition_files, view_file
 from dpi.prior.sample import load_scene_prior
-from dpi.seeding import seed_for
+from dpi.stages.seeding import seed_for
 from dpi.spread import albedo_std_map, log_std_map, mean_log_map
 from dpi.stages.inverse import load_problem
 from dpi.stages.job import StageJob

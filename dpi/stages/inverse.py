@@ -14,12 +14,12 @@ from dpi.io.atomic import write_json
 from dpi.io.exr import read_exr
 from dpi.layout import INIT, INIT_TRACE, SceneLayout
 from dpi.prior.sample import load_scene_prior
-from dpi.seeding import seed_for
+from dpi.stages.seeding import seed_for
 from dpi.solve.init import path_traced_init
 from dpi.solve.methods import REGISTRY, SampleJob
 from dpi.solve.problem import InverseProblem, SolveConfig
 from dpi.stages.job import StageJob
-from dpi.working import working_capture
+from dpi.capture.working import working_capture
 
 RESUME_FILE = ".resume.pt"
 """a long job's resume state in its output folder: no Snakemake output, so it outlives the deletion of a

@@ -17,7 +17,7 @@ import trimesh
 from capture_helpers import edit_transforms, make_capture
 
 from dpi.capture import CaptureError, load_capture
-from dpi.consistency import OPENCV_TO_GL, check_cameras, check_masks, overlaps, raycasting_scene, silhouettes
+from dpi.capture.consistency import OPENCV_TO_GL, check_cameras, check_masks, overlaps, raycasting_scene, silhouettes
 from dpi.io.images import read_mask, write_mask
 
 VIEWS = ("r_000", "r_001", "r_002", "r_003", "r_004")

@@ -10,7 +10,7 @@ import trimesh
 from capture_helpers import make_capture
 
 from dpi.capture import CaptureError, load_capture
-from dpi.consistency import back_facing_fraction
+from dpi.capture.consistency import back_facing_fraction
 from dpi.preprocess.derive import normalise_capture
 
 
