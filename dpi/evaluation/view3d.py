@@ -36,17 +36,11 @@ def data_uri(data: bytes, mime: str) -> str:
 
 def display_hdr(path: Path) -> bytes:
     """A Radiance .hdr map as the view shows it: its texels repeated up to MIN_ROWS rows."""
-    import cv2
-
-    from dpi.io.images import read_hdr
+    from dpi.io.images import hdr_bytes, read_hdr
 
     env = read_hdr(path)
     repeat = -(-MIN_ROWS // env.shape[0])
-    env = np.repeat(np.repeat(env, repeat, 0), repeat, 1)
-    ok, data = cv2.imencode(".hdr", np.ascontiguousarray(env[..., ::-1]))
-    if not ok:
-        raise OSError(f"{path}: could not encode the map for the 3D view")
-    return data.tobytes()
+    return hdr_bytes(np.repeat(np.repeat(env, repeat, 0), repeat, 1))
 
 
 def asset_variants(glb: Path) -> list[tuple[str, str]]:

@@ -86,13 +86,3 @@ def sample_textures(sample: AssetSample) -> dict[str, np.ndarray]:
     packed = np.stack([np.full_like(r8, 255), r8, m8], -1)
     return {"base_color": to_uint8(albedo[..., :3]), "metallic_roughness": packed, "roughness": r8, "metallic": m8}
 
-
-def write_hdr(path: str | Path, env: np.ndarray) -> None:
-    """A linear RGB map as a Radiance .hdr file (OpenCV's writer), atomically."""
-    import cv2
-
-    from dpi.io.atomic import atomic_path
-
-    with atomic_path(path) as tmp:
-        if not cv2.imwrite(str(tmp), np.ascontiguousarray(env[..., 2::-1], np.float32)):
-            raise OSError(f"{path}: could not write the Radiance HDR file")

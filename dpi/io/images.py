@@ -131,6 +131,23 @@ def read_hdr(path: str | os.PathLike) -> np.ndarray:
     return np.ascontiguousarray(data[..., ::-1])
 
 
+def hdr_bytes(linear: np.ndarray) -> bytes:
+    """A linear RGB float image (H, W, 3) encoded as a Radiance .hdr file (OpenCV's RGBE writer)."""
+    import cv2
+
+    ok, data = cv2.imencode(".hdr", np.ascontiguousarray(np.asarray(linear, np.float32)[..., 2::-1]))
+    if not ok:
+        raise ImageError("could not encode the image as Radiance HDR")
+    return data.tobytes()
+
+
+def write_hdr(path: str | os.PathLike, linear: np.ndarray) -> None:
+    """Write a linear RGB float image as a Radiance .hdr file, atomically."""
+    data = hdr_bytes(linear)
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+
+
 def read_image(path: str | os.PathLike) -> np.ndarray:
     """Linear RGB float32 (H, W, 3) from an sRGB PNG/JPG or a linear EXR; NaN/Inf is an error."""
     path = Path(path)

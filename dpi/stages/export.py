@@ -9,11 +9,12 @@ from pathlib import Path
 import numpy as np
 
 from dpi.capture import complete_capture, read_capture_json
-from dpi.export.asset import AssetSample, png_bytes, renderer_mesh, sample_textures, unit_to_uint8, write_hdr
+from dpi.export.asset import AssetSample, png_bytes, renderer_mesh, sample_textures, unit_to_uint8
 from dpi.export.gltf import write_glb
 from dpi.export.usd import write_usd
 from dpi.io.atomic import atomic_path
 from dpi.io.exr import read_exr
+from dpi.io.images import write_hdr
 from dpi.layout import INIT
 from dpi.stages.job import StageJob
 
