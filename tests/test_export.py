@@ -146,10 +146,9 @@ def test_the_usd_stage_passes_usds_validators_and_switches_by_variant(exported):
 def test_the_reports_3d_view_renders_and_follows_the_sample(exported, tmp_path):
     """The 3D view of the report in headless Chromium (software WebGL): a picture of the object, and another
     when another sample is chosen."""
-    from dpi.evaluation.view3d import SCRIPT_NAME, view3d_section
+    from dpi.evaluation.view3d import SCRIPT_NAME, install_viewer, view3d_section
 
-    figures = tmp_path / "report"
-    section = "\n".join(view3d_section("tiny", exported.paths, figures, 1.0))
+    section = "\n".join(view3d_section("tiny", exported.paths, install_viewer(tmp_path / "report") is not None, 1.0))
     page = tmp_path / "view.html"
     page.write_text(f"<!DOCTYPE html><html><head><script src='report/{SCRIPT_NAME}'></script><style>"
                     "body { margin: 0; } body > :not(model-viewer):not(script) { display: none; } "

@@ -25,7 +25,7 @@ from dpi.evaluation.figures import (MethodPoint, Rerender, mask_gallery, quality
 from dpi.evaluation.metric_table import metric_table, missing_reason, number, read_summary
 from dpi.evaluation.relighting import RELIGHT_MAPS, channel_scaled, relit_name
 from dpi.evaluation.sample_metrics import masked_srgb
-from dpi.evaluation.view3d import SCRIPT_NAME, model_viewer_script, view3d_section
+from dpi.evaluation.view3d import install_viewer, view3d_section
 from dpi.io.atomic import write_text
 from dpi.io.exr import read_exr
 from dpi.io.images import read_image, read_mask
@@ -82,8 +82,10 @@ def _figure(src: str, alt: str, caption: str) -> str:
 class Page:
     """Where the report's PNGs go and how the page links to them."""
 
-    def __init__(self, html: Path, figures: Path):
+    def __init__(self, html: Path, figures: Path, viewer: Path | None = None):
         self.html, self.figures = html, figures
+        self.viewer = viewer
+        """the 3D views' script next to the page (None: not installed, no 3D view)"""
 
     def png(self, *parts: str) -> Path:
         """Path of a figure PNG under the figures folder."""
@@ -239,7 +241,7 @@ def scene_section(scene_name: str, scene: SceneLayout, rows: list[dict[str, str]
                              "summary.csv holds their means (env_log_std, albedo_std), env_calibration and the scores of the "
                              "samples' geometric mean map (env_mean_psnr, env_mean_ssim; {method}/env_mean.exr)."))
 
-    parts += view3d_section(scene_name, scene, page.figures, exposure)
+    parts += view3d_section(scene_name, scene, page.viewer is not None, exposure)
 
     path = page.png(scene_name, "textures")
     gt = ground_truth_textures(capture)
@@ -316,7 +318,7 @@ def relit_rows(scene: SceneLayout, capture: Capture, methods: list[str]) -> list
 
 def build_report(layout: Layout, out_html: str | Path, figures_dir: str | Path) -> None:
     """Write the report page for the results tree of `layout` and its PNGs into `figures_dir`."""
-    page = Page(Path(out_html), Path(figures_dir))
+    page = Page(Path(out_html), Path(figures_dir), install_viewer(Path(figures_dir)))
     rows = read_summary(layout.summary)
     scenes = list(dict.fromkeys(r["scene"] for r in rows))
     captures = {s: read_capture_json(layout.scene(s).capture_json) for s in scenes}
@@ -328,7 +330,7 @@ def build_report(layout: Layout, out_html: str | Path, figures_dir: str | Path) 
     write_text(out_html, "\n".join([
         "<!DOCTYPE html>", "<html lang='en'>", "<head>", "<meta charset='utf-8'>", "<title>dpi report</title>",
         f"<style>{STYLE}</style>",
-        *([f"<script src='{page.link(page.figures / SCRIPT_NAME)}'></script>"] if model_viewer_script() else []),
+        *([f"<script src='{page.link(page.viewer)}'></script>"] if page.viewer else []),
         "</head>", "<body>", "<h1>dpi report</h1>",
         f"<p>Scenes: {nav} &middot; <a href='#metrics'>metrics</a> &middot; <a href='#quality'>quality vs "
         "diversity</a> &middot; <a href='#roughness'>roughness vs diversity</a></p>",

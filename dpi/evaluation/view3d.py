@@ -30,6 +30,17 @@ def model_viewer_script() -> Path | None:
     return path if path.is_file() else None
 
 
+def install_viewer(figures: Path) -> Path | None:
+    """Copy model-viewer's script into the report's figures folder, once a report; its copy, or None when it is
+    not installed."""
+    script = model_viewer_script()
+    if script is None:
+        return None
+    figures.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(script, figures / SCRIPT_NAME)
+    return figures / SCRIPT_NAME
+
+
 def data_uri(data: bytes, mime: str) -> str:
     return f"data:{mime};base64,{base64.b64encode(data).decode()}"
 
@@ -43,28 +54,29 @@ def display_hdr(path: Path) -> bytes:
     return hdr_bytes(np.repeat(np.repeat(env, repeat, 0), repeat, 1))
 
 
-def asset_variants(glb: Path) -> list[tuple[str, str]]:
+def asset_variants(glb: bytes) -> list[tuple[str, str]]:
     """(variant name, its env map's .hdr path relative to the asset) of an exported asset, in the asset's order."""
     import pygltflib
 
-    gltf = pygltflib.GLTF2().load_binary(str(glb))
-    names = [v["name"] for v in gltf.extensions["KHR_materials_variants"]["variants"]]
+    from dpi.export.gltf import VARIANTS
+
+    gltf = pygltflib.GLTF2.load_from_bytes(glb)
+    names = [v["name"] for v in gltf.extensions[VARIANTS]["variants"]]
     hdr = {m.name: m.extras["dpi"]["envmap_hdr"] for m in gltf.materials}
     return [(name, hdr[name]) for name in names]
 
 
-def view3d_section(scene_name: str, scene: SceneLayout, figures: Path, exposure: float) -> list[str]:
-    """The scene's 3D view (HTML), or a note saying why there is none. `exposure` is the capture's (the view
-    divides radiance by it, as the other figures do)."""
+def view3d_section(scene_name: str, scene: SceneLayout, viewer: bool, exposure: float) -> list[str]:
+    """The scene's 3D view (HTML), or a note saying why there is none. `viewer`: model-viewer's script is on the
+    page (`install_viewer`); `exposure` is the capture's (the view divides radiance by it, as the other figures
+    do)."""
     glb = scene.export_asset("glb")
-    script = model_viewer_script()
-    if not glb.is_file() or script is None:
+    if not glb.is_file() or not viewer:
         why = ("no exported asset (rule export)" if not glb.is_file()
                else "model-viewer is not installed (scripts/setup.sh)")
         return [f"<p class='note'>No 3D view: {why}.</p>"]
-    figures.mkdir(parents=True, exist_ok=True)
-    shutil.copyfile(script, figures / SCRIPT_NAME)
-    variants = asset_variants(glb)
+    asset = glb.read_bytes()
+    variants = asset_variants(asset)
     # model-viewer reads a map as HDR when its URL ends in .hdr: a fragment says so without changing the data
     envs = {name: data_uri(display_hdr(glb.parent / hdr), "image/vnd.radiance") + "#.hdr" for name, hdr in variants}
     element = f"view3d-{scene_name}"
@@ -75,7 +87,7 @@ def view3d_section(scene_name: str, scene: SceneLayout, figures: Path, exposure:
         f"<p class='note'>The exported asset ({escape(glb.name)}: every sample a variant) lit by the chosen sample's "
         "env map; drag to turn it. The same file opens in Blender (File &gt; Import &gt; glTF) and on the web.</p>",
         f"<label>sample <select id='{element}-select'>{options}</select></label>",
-        f"<model-viewer id='{element}' class='view3d' src='{data_uri(glb.read_bytes(), 'model/gltf-binary')}' "
+        f"<model-viewer id='{element}' class='view3d' src='{data_uri(asset, 'model/gltf-binary')}' "
         f"environment-image='{envs[first]}' variant-name='{escape(first)}' exposure='{1.0 / exposure:.6g}' "
         "camera-controls interaction-prompt='none' shadow-intensity='0' "
         "style='width: 480px; height: 360px; background: #333;'></model-viewer>",
