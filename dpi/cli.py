@@ -110,7 +110,7 @@ def cmd_preprocess(args: argparse.Namespace) -> None:
     from dpi.stages import STAGES, needed_stages, preprocess_scene
 
     job = _job(args, "preprocess")
-    stages = needed_stages(job.pipeline.given(args.scene))
+    stages = needed_stages(job.given)
     if args.dry_run:
         for stage in STAGES:
             print(f"{stage:9s} {'run' if stage in stages else 'skipped: given by the capture'}")
@@ -167,21 +167,28 @@ def cmd_summary(args: argparse.Namespace) -> None:
     print(f"wrote {pipeline.layout.summary} ({len(evaluations)} samples)")
 
 
+def present_samples(job) -> list[tuple[str, list[Path]]]:
+    """Per method of the config with samples present in the job's scene, the folders of those samples (what the
+    workflow's rules take from the stop rule's plans)."""
+    rows = [(m, [job.paths.sample_dir(m, k) for k in range(job.pipeline.samples(m))
+                 if job.paths.sample_files(m, k)["albedo"].is_file()]) for m in job.pipeline.methods]
+    return [(m, folders) for m, folders in rows if folders]
+
+
 def cmd_report(args: argparse.Namespace) -> None:
     """Rules envmap_figure and uncertainty (each scene, over the samples present) and report."""
     from dataclasses import replace
 
+    from dpi.layout import ENV_FILE
     from dpi.stages import envmap_figure_stage, report_stage, uncertainty_stage
 
     run = _job(args, "evaluate")
     pipeline = run.pipeline
     for name in pipeline.scenes:
         job = replace(run, scene=name)
-        scene = job.paths
-        present = [(m, [k for k in range(pipeline.samples(m)) if scene.sample_files(m, k)["albedo"].is_file()])
-                   for m in pipeline.methods]
-        envmap_figure_stage(job, [(m, [scene.sample_files(m, k)["env"] for k in ks]) for m, ks in present if ks])
-        spread = [(m, [scene.sample_dir(m, k) for k in ks]) for m, ks in present if len(ks) >= 2]
+        present = present_samples(job)
+        envmap_figure_stage(job, [(m, [folder / ENV_FILE for folder in folders]) for m, folders in present])
+        spread = [(m, folders) for m, folders in present if len(folders) >= 2]
         if spread:
             uncertainty_stage(job, spread)
     report_stage(run)
@@ -193,9 +200,7 @@ def cmd_export(args: argparse.Namespace) -> None:
     from dpi.stages import export_stage
 
     job = _job(args, "evaluate")
-    rows = [(m, [job.paths.sample_dir(m, k) for k in range(job.pipeline.samples(m))
-                 if job.paths.sample_files(m, k)["albedo"].is_file()]) for m in job.pipeline.methods]
-    export_stage(job, [(m, folders) for m, folders in rows if folders])
+    export_stage(job, present_samples(job))
 
 
 def cmd_relight(args: argparse.Namespace) -> None:

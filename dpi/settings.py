@@ -98,8 +98,10 @@ def settings_from_dict(cls: type[T], values: dict[str, Any] | None) -> T:
     values = dict(values or {})
     check_keys(values, [f.name for f in fields(cls)], f"{cls.__name__} setting")
     for f in fields(cls):
+        if not isinstance(values.get(f.name), dict):
+            continue
         section = type(field_default(cls, f.name))
-        if is_dataclass(section) and isinstance(values.get(f.name), dict):  # a nested section, as a mapping
+        if is_dataclass(section):  # a nested section, given as a mapping
             try:
                 values[f.name] = settings_from_dict(section, values[f.name])
             except SettingsError as exc:

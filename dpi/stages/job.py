@@ -65,6 +65,11 @@ class StageJob:
         return self.paths.evaluation_views(self.folder, self.k)
 
     @cached_property
+    def given(self) -> dict[str, bool]:
+        """What the scene's capture gives (cameras, masks, mesh, mesh_has_uv), read once a job."""
+        return self.pipeline.given(self.scene)
+
+    @cached_property
     def solve(self) -> SolveConfig:
         """Renderer and problem settings on the job's threads."""
         return self.pipeline.solve_settings(self.threads)

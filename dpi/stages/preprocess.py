@@ -53,7 +53,7 @@ def capture_stage(job: StageJob) -> None:
 
 
 def _inputs(job: StageJob, stage: str) -> dict[str, Path]:
-    return stage_inputs(stage, job.pipeline.given(job.scene), job.paths)
+    return stage_inputs(stage, job.given, job.paths)
 
 
 def _settings(job: StageJob, section: str) -> dict[str, Any]:
@@ -91,7 +91,7 @@ def preprocess_scene(job: StageJob) -> dict[str, Any]:
     capture needs, in order. Returns each stage's summary, or "given"."""
     capture_stage(job)
     report: dict[str, Any] = dict.fromkeys(STAGES, "given")
-    for stage in needed_stages(job.pipeline.given(job.scene)):
+    for stage in needed_stages(job.given):
         log.info("preprocess %s: %s", job.scene, stage)
         report[stage] = RUN[stage](job)
     return report

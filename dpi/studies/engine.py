@@ -21,7 +21,7 @@ from collections.abc import Callable, Iterable
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import nullcontext
 from dataclasses import dataclass, replace
-from functools import cache
+from functools import cache, cached_property
 from pathlib import Path
 from typing import Any
 
@@ -114,7 +114,7 @@ class Job:
     def layout(self) -> Layout:
         return study_layout(self.root)
 
-    @property
+    @cached_property
     def pipeline(self):
         """The workflow's pipeline of this one job: the study's config with the scene as its synthetic scene and
         the method's settings as its entry, results and captures in the study folder."""
