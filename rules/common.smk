@@ -3,8 +3,8 @@ import json
 from pathlib import Path
 from functools import lru_cache
 
-from dpi.stages import (INIT, METHODS as KNOWN_METHODS, MIN_SAMPLES, PRIORS, REGISTRY, Pipeline, derived_inputs,
-                        lock_results, plain, resolve_config, stage_inputs, stop_rule_applies)
+from dpi.stages import (ENV_FILE, INIT, METHODS as KNOWN_METHODS, MIN_SAMPLES, PRIORS, REGISTRY, Pipeline,
+                        derived_inputs, lock_results, plain, resolve_config, stage_inputs, stop_rule_applies)
 
 # dpi's defaults (dpi/data/config.yaml), ./config.yaml when present (the checkout's top-level file), then
 # the --configfile files and --config values Snakemake merged into `config`; the preset fills what is
@@ -148,5 +148,4 @@ def all_exports():
 
 def sample_envmaps(scene):
     """Per method of a scene, the env maps of the samples it draws: [(method, [paths])]."""
-    return [(m, [LAYOUT.scene(scene).sample_files(m, k)["env"] for k in range(drawn_samples(scene, m))])
-            for m in METHODS]
+    return [(m, [folder / ENV_FILE for folder in folders]) for m, folders in sample_rows(scene)]

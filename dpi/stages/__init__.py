@@ -11,7 +11,7 @@ PROVIDERS = {
     "dpi.adaptive": ("MIN_SAMPLES", "stop_rule_applies"),
     "dpi.capture": ("PRIORS", "derived_inputs"),
     "dpi.io.lock": ("lock_results",),
-    "dpi.layout": ("INIT",),
+    "dpi.layout": ("ENV_FILE", "INIT"),
     "dpi.pipeline": ("Pipeline", "load_pipeline", "plain", "resolve_config"),
     "dpi.solve.methods": ("METHODS", "REGISTRY"),
     "dpi.stages.job": ("StageJob", "rule_job"),
