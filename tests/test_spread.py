@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from dpi.io.exr import read_exr, write_exr
-from dpi.layout import SceneLayout, decomposition_files
+from dpi.layout import decomposition_files
 from dpi.light.envmap import texel_solid_angles
 from dpi.spread import albedo_std_map, calibration, log_std_map, mean_log_map, sphere_mean
 
