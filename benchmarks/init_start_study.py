@@ -63,14 +63,14 @@ def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth
     from dpi.pipeline import Pipeline
     from dpi.stages.seeding import seed_for
     from dpi.solve.decomposition import Decomposition
-    from dpi.solve.init import GLOSSY_START, ROUGH_START, closing_loss, roughness_p25, start_fit
+    from dpi.solve.init import READINGS, closing_loss, roughness_p25, start_fit
 
     problem = load_problem(prepare_capture(root, scene, synth, threads=2), SolveConfig.from_config(config, 2))
     cfg = Pipeline(config).init_settings
     rows = []
-    for start in (ROUGH_START, GLOSSY_START):
+    for reading, start in READINGS.items():
         begin = time.perf_counter()
-        run = start_fit(problem, cfg, start, seed_for(scene, INIT))
+        run = start_fit(problem, cfg, reading, seed_for(scene, INIT))
         run.run(cfg.iterations, progress=False)
         log_env, materials = run.finish()
         pilot = [s["data"] for s in run.trace.steps[slice(*PILOT)] if s.get("data") is not None]
@@ -94,10 +94,10 @@ def row_settings(config: dict[str, Any], synth: dict[str, Any]) -> str:
 def mark(rows: list[dict[str, Any]], cfg: Any) -> list[dict[str, Any]]:
     """Set `chosen` (the fit the init keeps, dpi.solve.init's rule) and `best` on one scene's two rows (first
     start, glossy start)."""
-    from dpi.solve.init import retried, retry_kept
+    from dpi.solve.init import glossy_share
 
     first, glossy = rows
-    keep = retried(cfg, first["init_roughness_p25"]) and retry_kept(first["closing_loss"], glossy["closing_loss"])
+    keep = glossy_share(glossy["closing_loss"] / first["closing_loss"]) > 0.5
     best = max(rows, key=lambda r: r["novel_psnr"])
     for row in rows:
         row.update(chosen=int(row is (glossy if keep else first)), best=int(row is best))

@@ -95,7 +95,7 @@ def main() -> None:
     if not (init_dir / INIT_TRACE).exists():
         problem = InverseProblem(demo, ProblemConfig(base.env_height, base.texture_size),
                                  RenderConfig(spp=base.spp, threads=args.threads))
-        problem.save_decomposition(path_traced_init(problem, PIPELINE.init_settings, seed=0, progress=False),
+        problem.save_decomposition(path_traced_init(problem, PIPELINE.init_settings, seed=0, progress=False).kept,
                                    init_dir, INIT_TRACE)
     prior = load_scene_prior(demo.options, PIPELINE.prior_checkpoint(DEMO))
 

@@ -12,7 +12,7 @@ scene's `SceneLayout` the files under `results/{scene}/`:
     init/                              initialisation: envmap.exr, textures, log.json
     {method}/{k}/                      posterior sample k: envmap.exr, textures, trace.json
     {method}/plan.json                 the sample stop rule's decision
-    {method}/env_log_std.exr, albedo_std.exr   per-texel spread across the method's samples
+    {method}/env_log_std.exr, albedo_std.exr, roughness_std.exr   per-texel spread across the method's samples
     {method}/env_mean.exr              the samples' geometric mean map (median luminance 1)
     eval/{method}/{k}.json             metrics of one sample (eval/init/0.json: the initialisation)
     eval/{method}/{k}/{view}.exr       its held-out views re-rendered by the evaluation
@@ -128,6 +128,11 @@ class SceneLayout:
         """Folder of posterior sample k of a method; the initialisation's for method `init`."""
         return self.root / INIT if method == INIT else self.root / method / str(k)
 
+    def other_reading_dir(self) -> Path:
+        """The init's other reading, where some samples start from it (dpi.solve.init: both readings explain the
+        views about equally)."""
+        return self.root / INIT / "other"
+
     def sample_files(self, method: str, k: int | str = 0) -> dict[str, Path]:
         """decomposition_files of a sample folder, with the trace the stage writes there."""
         return decomposition_files(self.sample_dir(method, k), INIT_TRACE if method == INIT else SAMPLE_TRACE)
@@ -152,6 +157,7 @@ class SceneLayout:
         """A method's maps across its samples (dpi.spread): env log-luminance std, albedo std, and the env maps'
         geometric mean (what they share)."""
         return {"env": self.root / method / "env_log_std.exr", "albedo": self.root / method / "albedo_std.exr",
+                "roughness": self.root / method / "roughness_std.exr",
                 "env_mean": self.root / method / "env_mean.exr"}
 
     @property

@@ -106,6 +106,12 @@ def albedo_std_map(samples: list[np.ndarray]) -> np.ndarray:
     return _std_across([luminance(normalized_albedo(a)) for a in samples])
 
 
+def roughness_std_map(samples: list[np.ndarray]) -> np.ndarray:
+    """(H, W) per-texel std across roughness textures: where the samples read the material differently (a mirror
+    and a rough reading of the same views, dpi.solve.init)."""
+    return _std_across([np.asarray(r)[..., 0] if np.ndim(r) == 3 else np.asarray(r) for r in samples])
+
+
 def sphere_mean(values: np.ndarray) -> float:
     """Solid-angle weighted mean of an (H, 2H) map over the sphere (a map's poles hold little of it)."""
     weights = np.broadcast_to(texel_solid_angles(values.shape[0]), values.shape)

@@ -1,6 +1,7 @@
 """Resume files: a loop cut off after k steps and rerun continues to the result of an uninterrupted run;
 another run's file or a broken one is ignored; the file is gone once the run is done."""
 
+import math
 import importlib
 from contextlib import contextmanager
 
@@ -33,7 +34,7 @@ class Interrupted(Exception):
 def problem_and_init(tiny_capture):
     problem = InverseProblem(load_capture(tiny_capture), ProblemConfig(env_height=4, texture_size=8),
                              RenderConfig(spp=4, threads=2))
-    return problem, path_traced_init(problem, InitConfig(iterations=2), seed=0, progress=False)
+    return problem, path_traced_init(problem, InitConfig(iterations=2, reading="rough"), seed=0, progress=False).kept
 
 
 @contextmanager
@@ -90,30 +91,30 @@ def test_cut_fit_continues_to_the_uninterrupted_result(problem_and_init, tmp_pat
     assert_same_fit(resumed, run_fit(problem, init, env_model, seed=4), NETWORK_CLOSE if env_model == "dip" else CLOSE)
 
 
-def test_cut_init_retry_keeps_the_finished_first_fit_and_continues(problem_and_init, tmp_path, monkeypatch):
+def test_cut_init_keeps_both_readings_half_way_and_continues(problem_and_init, tmp_path, monkeypatch):
     problem = problem_and_init[0]
-    monkeypatch.setattr("dpi.solve.init.RETRY_GAIN", 1.0)
-    cfg = InitConfig(iterations=7, views_per_step=1, retry_below=1.0)  # always retried and kept
+    monkeypatch.setattr("dpi.solve.init.GLOSSY_STOP", math.inf)  # both readings fitted to the end
+    cfg = InitConfig(iterations=8, views_per_step=1)
     resume = tmp_path / ".resume.pt"
-    with cut_after(monkeypatch, problem, "data_loss", steps=7 + 5):  # the first fit, then 5 steps of the retry
+    with cut_after(monkeypatch, problem, "data_loss", steps=4 + 4 + 2):  # both halves, then 2 steps of the rough
         path_traced_init(problem, cfg, seed=5, progress=False, checkpoint=resume, checkpoint_every=3)
-    retry_file = tmp_path / ".resume.glossy.pt"
-    assert resume.is_file() and retry_file.is_file()
+    glossy_file = tmp_path / ".resume.glossy.pt"
+    assert resume.is_file() and glossy_file.is_file()
 
     calls = []
     with monkeypatch.context() as patch:
         real = problem.data_loss
         patch.setattr(problem, "data_loss", lambda *a, **k: calls.append(1) or real(*a, **k))
         resumed = path_traced_init(problem, cfg, seed=5, progress=False, checkpoint=resume, checkpoint_every=3)
-    assert len(calls) == 7 - 3  # the first fit is not redone; the retry goes on from its step 3
+    assert len(calls) == (8 - 6) + (8 - 4)  # the rough fit from its save at step 6, the glossy from its half
     fresh = path_traced_init(problem, cfg, seed=5, progress=False)
-    assert resumed.trace.info["resumed_from_step"] == 3 and not resume.exists() and not retry_file.exists()
-    a, b = resumed.trace.info["retry"], fresh.trace.info["retry"]
-    assert a.pop("kept") == b.pop("kept") == "glossy" and a == pytest.approx(b, rel=CLOSE["rtol"])
-    torch.testing.assert_close(resumed.env, fresh.env, **CLOSE)
-    for (name, x), (_, y) in zip(resumed.materials.items(), fresh.materials.items()):
+    assert not resume.exists() and not glossy_file.exists()
+    a, b = resumed.record, fresh.record
+    assert a["kept"] == b["kept"] and a["closing_loss"] == pytest.approx(b["closing_loss"], rel=CLOSE["rtol"])
+    torch.testing.assert_close(resumed.kept.env, fresh.kept.env, **CLOSE)
+    for (name, x), (_, y) in zip(resumed.kept.materials.items(), fresh.kept.materials.items()):
         torch.testing.assert_close(x, y, **CLOSE, msg=name)
-    assert [s["step"] for s in resumed.trace.steps] == list(range(7))
+    assert [s["step"] for s in resumed.kept.trace.steps] == list(range(8))
 
 
 @pytest.mark.parametrize("sampler", ["paper", "proximal"])

@@ -86,7 +86,7 @@ def test_guidance_is_scaled_to_its_bound():
 def problem_and_init(tiny_capture):
     problem = InverseProblem(load_capture(tiny_capture), ProblemConfig(env_height=4, texture_size=8),
                              RenderConfig(spp=4, threads=2))
-    return problem, path_traced_init(problem, InitConfig(iterations=2), seed=0, progress=False)
+    return problem, path_traced_init(problem, InitConfig(iterations=2, reading="rough"), seed=0, progress=False).kept
 
 
 def test_dps_run_is_finite_and_traced(problem_and_init, monkeypatch):

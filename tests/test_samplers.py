@@ -212,7 +212,7 @@ def test_a_solve_fits_the_views_by_a_field_on_the_transports_grid():
 def problem_and_init(tiny_capture):
     problem = InverseProblem(load_capture(tiny_capture), ProblemConfig(env_height=4, texture_size=8),
                              RenderConfig(spp=4, threads=2))
-    return problem, path_traced_init(problem, InitConfig(iterations=10), seed=0, progress=False)
+    return problem, path_traced_init(problem, InitConfig(iterations=10, reading="rough"), seed=0, progress=False).kept
 
 
 def training_residual(problem: InverseProblem, decomposition: Decomposition) -> float:

@@ -102,7 +102,7 @@ def test_the_bounds_cover_the_settings_a_sample_reads():
 def problem_and_init(tiny_capture):
     problem = InverseProblem(load_capture(tiny_capture), ProblemConfig(env_height=4, texture_size=8),
                              RenderConfig(spp=4, threads=2))
-    return problem, path_traced_init(problem, InitConfig(iterations=2), seed=0, progress=False)
+    return problem, path_traced_init(problem, InitConfig(iterations=2, reading="rough"), seed=0, progress=False).kept
 
 
 @pytest.mark.parametrize("draw", range(4))

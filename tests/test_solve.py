@@ -1,6 +1,7 @@
 """Solvers: init lowers the loss, priors' known answers, NaN guards, seeded reproducibility, dip."""
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -13,8 +14,9 @@ from dpi.settings import SettingsError
 from dpi.solve.classic import ClassicConfig, balanced_weight, classic_sample
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dip import DeepImagePrior, DIPConfig, dip_sample, network_levels
-from dpi.solve.init import (CLOSING_STEPS, GLOSSY_START, START_ALBEDO, InitConfig, closing_loss, is_glossy,
-                            path_traced_init, roughness_p25, starting_materials)
+from dpi.solve.init import (BOTH_BELOW, CLOSING_STEPS, GLOSSY_ALONE_BELOW, READINGS, START_ALBEDO, InitConfig,
+                            closing_loss, glossy_share, is_glossy, path_traced_init, roughness_p25, sample_reading,
+                            starting_materials)
 from dpi.solve.optimize import AdamFit, FreeEnvMap, OptimizeConfig, fit
 from dpi.solve.priors import chromaticity_penalty, global_norm_penalty, make_prior, smoothness_penalty
 from dpi.solve.problem import InverseProblem, ProblemConfig, to_loss_space
@@ -88,8 +90,8 @@ def test_balanced_weight_equalises_terms():
 
 
 def test_init_lowers_the_data_loss(problem):
-    result = path_traced_init(problem, InitConfig(iterations=12, views_per_step=4, lr_env=0.1, retry_below=0.0),
-                              seed=0, progress=False)
+    result = path_traced_init(problem, InitConfig(iterations=12, views_per_step=4, lr_env=0.1, reading="rough"),
+                              seed=0, progress=False).kept
     losses = [s["loss"] for s in result.trace.steps]
     assert np.mean(losses[-3:]) < 0.8 * np.mean(losses[:3])
     assert torch.isfinite(result.env).all() and (result.env > 0).all()
@@ -114,7 +116,7 @@ def test_nan_steps_are_skipped_and_counted(problem):
 
 
 def test_seeded_samples_reproduce_and_differ_across_seeds(problem):
-    init = path_traced_init(problem, InitConfig(iterations=2), seed=0, progress=False)
+    init = path_traced_init(problem, InitConfig(iterations=2, reading="rough"), seed=0, progress=False).kept
     cfg = ClassicConfig(optimize=OptimizeConfig(iterations=2, views_per_step=1))
     a = classic_sample(problem, "smoothness", init, cfg, seed=5, progress=False)
     b = classic_sample(problem, "smoothness", init, cfg, seed=5, progress=False)
@@ -146,7 +148,7 @@ def test_dip_network_is_seamless_seeded_and_shaped():
 
 
 def test_dip_lowers_the_data_loss(problem):
-    init = path_traced_init(problem, InitConfig(iterations=2), seed=0, progress=False)
+    init = path_traced_init(problem, InitConfig(iterations=2, reading="rough"), seed=0, progress=False).kept
     cfg = DIPConfig(optimize=OptimizeConfig(iterations=15, views_per_step=4, lr_env=3e-2), channels=8,
                     code_channels=4, warmup_iterations=20)
     result = dip_sample(problem, init, cfg, seed=5, progress=False)
@@ -158,7 +160,7 @@ def test_dip_lowers_the_data_loss(problem):
 
 
 def test_dip_samples_reproduce_and_differ_across_seeds(problem):
-    init = path_traced_init(problem, InitConfig(iterations=2), seed=0, progress=False)
+    init = path_traced_init(problem, InitConfig(iterations=2, reading="rough"), seed=0, progress=False).kept
     cfg = DIPConfig(optimize=OptimizeConfig(iterations=2, views_per_step=1), channels=8, code_channels=4,
                     warmup_iterations=5)
     a, b, c = (dip_sample(problem, init, cfg, seed=seed, progress=False) for seed in (5, 5, 6))
@@ -194,26 +196,56 @@ def test_a_fit_run_in_stretches_equals_one_uninterrupted_fit(problem):
     assert [s["step"] for s in stretched.trace.steps] == list(range(6))
 
 
-def test_an_init_whose_roughness_falls_is_retried_from_a_metal_and_kept_by_its_closing_loss(problem, monkeypatch):
-    def init(retry_below: float):
-        return path_traced_init(problem, InitConfig(iterations=6, retry_below=retry_below), seed=2, progress=False)
+def test_the_init_fits_both_readings_and_keeps_the_one_most_samples_come_from(problem, monkeypatch):
+    def init(reading: str):
+        return path_traced_init(problem, InitConfig(iterations=6, reading=reading), seed=2, progress=False)
 
-    rough = init(0.0)
-    with monkeypatch.context() as patch:
-        patch.setattr("dpi.solve.init.ROUGH_START", GLOSSY_START)
-        metal = init(0.0)  # each start alone
-    assert "retry" not in rough.trace.info and rough.trace.info["start"] == [0.5, 0.0]
-    for gain, kept, alone in ((1.0, "glossy", metal), (0.0, "first", rough)):  # the retry always / never kept
-        monkeypatch.setattr("dpi.solve.init.RETRY_GAIN", gain)
-        result = init(1.0)
-        retry = result.trace.info["retry"]
-        assert retry["kept"] == kept and result.trace.info["start"] == alone.trace.info["start"]
-        assert retry["first_roughness_p25"] == pytest.approx(roughness_p25(rough.materials), rel=1e-4)
-        assert retry["first_closing_loss"] == pytest.approx(closing_loss(rough.trace), rel=1e-4)
-        assert retry["glossy_closing_loss"] == pytest.approx(closing_loss(metal.trace), rel=1e-4)
-        torch.testing.assert_close(result.env, alone.env, rtol=1e-4, atol=1e-5)
-        torch.testing.assert_close(result.materials.roughness, alone.materials.roughness, rtol=1e-4, atol=1e-5)
-        assert [s["step"] for s in result.trace.steps] == list(range(6))
+    alone = {name: init(name).kept for name in READINGS}  # each reading fitted alone: the same fit, bit for bit
+    assert alone["rough"].trace.info["start"] == [0.5, 0.0] and alone["glossy"].trace.info["start"] == [0.1, 1.0]
+    losses = {name: closing_loss(fit.trace) for name, fit in alone.items()}
+    monkeypatch.setattr("dpi.solve.init.GLOSSY_STOP", math.inf)  # never stopped half-way
+    ratio = losses["glossy"] / losses["rough"]
+    for both, glossy_alone, kept, other in ((4 * ratio, 2 * ratio, "glossy", None),  # glossy clearly better
+                                            (ratio / 2, ratio / 4, "rough", None),  # rough clearly better
+                                            (ratio * 1.1, ratio * 0.95, "glossy", "rough")):  # about equal
+        monkeypatch.setattr("dpi.solve.init.BOTH_BELOW", both)
+        monkeypatch.setattr("dpi.solve.init.GLOSSY_ALONE_BELOW", glossy_alone)
+        result = init("auto")
+        assert result.record["kept"] == kept and result.record["other"] == other
+        assert result.record["closing_loss"] == pytest.approx(losses, rel=1e-4)
+        assert result.record["ratio"] == pytest.approx(ratio, rel=1e-4)
+        torch.testing.assert_close(result.kept.env, alone[kept].env, rtol=1e-4, atol=1e-5)
+        torch.testing.assert_close(result.kept.materials.roughness, alone[kept].materials.roughness, rtol=1e-4,
+                                   atol=1e-5)
+        assert result.kept.trace.info["readings"] is result.record
+        assert (result.other is None) == (other is None)
+        if other:
+            torch.testing.assert_close(result.other.env, alone[other].env, rtol=1e-4, atol=1e-5)
+            assert 0 < result.record["other_share"] < 0.5
+
+
+def test_a_glossy_reading_behind_half_way_stops_there(problem, monkeypatch):
+    monkeypatch.setattr("dpi.solve.init.GLOSSY_STOP", 0.0)  # always behind
+    result = path_traced_init(problem, InitConfig(iterations=6), seed=2, progress=False)
+    assert result.record["stopped"] == "glossy" and result.record["kept"] == "rough" and result.other is None
+    assert [s["step"] for s in result.kept.trace.steps] == list(range(6))
+
+
+def test_glossy_share_falls_from_one_to_zero_across_the_band():
+    assert glossy_share(0.2) == 1.0 and glossy_share(GLOSSY_ALONE_BELOW) == 1.0
+    assert glossy_share(BOTH_BELOW) == 0.0 and glossy_share(1.3) == 0.0 and glossy_share(math.inf) == 0.0
+    middle = math.sqrt(GLOSSY_ALONE_BELOW * BOTH_BELOW)
+    assert glossy_share(middle) == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize("share", [0.0, 0.1, 0.25, 0.4, 0.5])
+def test_sample_readings_start_with_the_kept_one_and_follow_the_share(share):
+    readings = {"kept": "rough", "other": "glossy" if share else None, "other_share": share}
+    drawn = [sample_reading(k, readings) for k in range(20)]
+    assert drawn[0] == "rough"
+    for n in range(1, 21):
+        assert drawn[:n].count("glossy") == pytest.approx(n * share, abs=0.5)
+    assert sample_reading(3, {}) == "rough"  # an init written before the readings
 
 
 def test_closing_loss_is_the_mean_data_loss_of_the_last_steps():

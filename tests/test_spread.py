@@ -67,12 +67,14 @@ def test_mean_maps_scores_are_the_truths_when_the_samples_straddle_it(tmp_path):
     truth = bright_patch(3.0)
     write_exr(tmp_path / "truth.exr", truth.astype(np.float32))
     albedos = [np.full((2, 2, 3), 0.5)] * 2
-    columns = spread_columns([truth * bright_patch(2.0), 5.0 * truth / bright_patch(2.0)], albedos,
+    roughness = [np.full((2, 2, 3), 0.1), np.full((2, 2, 3), 0.5)]  # a mirror and a rough reading
+    columns = spread_columns([truth * bright_patch(2.0), 5.0 * truth / bright_patch(2.0)], albedos, roughness,
                              tmp_path / "truth.exr")
     exact = env_metrics(truth, truth)
     assert columns["env_mean_psnr"] == pytest.approx(exact["env_psnr"])
     assert columns["env_mean_ssim"] == pytest.approx(exact["env_ssim"])
-    assert spread_columns([truth, truth], albedos, None)["env_mean_psnr"] == "missing: no gt/envmap.exr"
+    assert columns["roughness_std"] == pytest.approx(0.4 / math.sqrt(2))
+    assert spread_columns([truth, truth], albedos, roughness, None)["env_mean_psnr"] == "missing: no gt/envmap.exr"
 
 
 def test_uncertainty_stage_writes_each_methods_maps_and_figure(tmp_path):
@@ -84,9 +86,11 @@ def test_uncertainty_stage_writes_each_methods_maps_and_figure(tmp_path):
         files = decomposition_files(scene.sample_dir("dps", k))
         write_exr(files["env"], bright_patch(factor).astype(np.float32))
         write_exr(files["albedo"], np.full((4, 4, 3), 0.2 * (k + 1), np.float32))
+        write_exr(files["roughness"], np.full((4, 4, 3), 0.5 if k else 0.1, np.float32))
     uncertainty_stage(job, [("dps", [scene.sample_dir("dps", k) for k in range(2)])])
     env = read_exr(scene.uncertainty("dps")["env"])
     assert env.shape[:2] == (H, 2 * H) and float(env.max()) == pytest.approx(math.log(4.0) / math.sqrt(2), rel=1e-5)
     assert np.abs(read_exr(scene.uncertainty("dps")["albedo"])).max() < 1e-6  # 0.2 and 0.4: one albedo, two scales
     assert read_exr(scene.uncertainty("dps")["env_mean"]) == pytest.approx(bright_patch(2.0), rel=1e-5)
+    assert read_exr(scene.uncertainty("dps")["roughness"])[..., 0] == pytest.approx(np.full((4, 4), 0.4 / math.sqrt(2)))
     assert scene.uncertainty_figure.stat().st_size > 1000

@@ -70,15 +70,17 @@ def envmap_grid(rows: list[tuple[str, list[Path]]], path: str | Path, reference:
     save_figure(axes[0][0].figure, path)
 
 
-def uncertainty_grid(rows: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]], path: str | Path) -> None:
-    """PNG grid: one row per (method, env mean map (H, 2H, 3), env log-luminance std (H, 2H), albedo std (H, W)):
+def uncertainty_grid(rows: list[tuple[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray]], path: str | Path) -> None:
+    """PNG grid: one row per (method, env mean map (H, 2H, 3), env log-luminance std (H, 2H), albedo std (H, W),
+    roughness std (H, W)):
     what the samples agree on, then where they differ, on one colour scale per std column shared by the
     methods, with a colour bar, so a brighter map is a less certain method."""
-    axes = _panels(len(rows), 3, 3.0, 1.7)
+    axes = _panels(len(rows), 4, 3.0, 1.7)
     for (method, mean, *_), ax in zip(rows, axes[:, 0]):
         ax.imshow(display_env(mean, None), interpolation="nearest")
         ax.set_title(f"{method}: mean map", fontsize=8)
-    for column, (title, top) in enumerate([("env log-luminance std", 2.0), ("albedo std / mean", 0.5)], start=1):
+    for column, (title, top) in enumerate([("env log-luminance std", 2.0), ("albedo std / mean", 0.5),
+                                           ("roughness std", 0.5)], start=1):
         vmax = min(top, max(max(float(np.percentile(r[1 + column], 99)) for r in rows), 1e-3))
         for (method, *maps), ax in zip(rows, axes[:, column]):
             shown = ax.imshow(maps[column], cmap="magma", vmin=0, vmax=vmax, interpolation="nearest")

@@ -26,13 +26,13 @@ from dpi.io.exr import read_exr
 from dpi.io.images import linear_to_srgb
 from dpi.layout import ENV_FILE, INIT, texture_file
 from dpi.spread import (albedo_std_map, calibration, log_std_map, mean_log_map, normalized_albedo, normalized_env,
-                        sample_variance, sphere_mean)
+                        roughness_std_map, sample_variance, sphere_mean)
 
 SUMMARY_METRICS = ("novel_psnr", "novel_ssim", "novel_lpips", "env_psnr", "env_ssim", "env_lpips", "env_niqe",
                    "env_naturalness", "env_realism", "albedo_mse", *RELIGHT_METRICS, "train_fit", "train_fit_over_truth",
                    "sample_seconds")
 SET_METRICS = ("env_fid", "albedo_sigma2_invar")
-SPREAD_METRICS = ("env_log_std", "albedo_std", "env_calibration", "env_mean_psnr", "env_mean_ssim")
+SPREAD_METRICS = ("env_log_std", "albedo_std", "roughness_std", "env_calibration", "env_mean_psnr", "env_mean_ssim")
 
 
 def _mean_std(values: list[Any]) -> tuple[Any, Any]:
@@ -65,9 +65,10 @@ def summarize(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
             row[name], row[f"{name}_std"] = _mean_std([r["metrics"].get(name) for r in recs])
         raw_envs = [read_exr(Path(r["sample_dir"]) / ENV_FILE) for r in recs]
         raw_albedos = [read_exr(Path(r["sample_dir"]) / texture_file("albedo")) for r in recs]
+        roughness = [read_exr(Path(r["sample_dir"]) / texture_file("roughness")) for r in recs]
         envs = [normalized_env(e) for e in raw_envs]
         albedos = [normalized_albedo(a) for a in raw_albedos]
-        row.update(spread_columns(raw_envs, raw_albedos, recs[0].get("gt_envmap")))
+        row.update(spread_columns(raw_envs, raw_albedos, roughness, recs[0].get("gt_envmap")))
         row["env_sigma2_sample"] = sample_variance(envs) if len(recs) > 1 else missing("one sample")
         row["albedo_sigma2_sample"] = sample_variance(albedos) if len(recs) > 1 else missing("one sample")
         row["env_fid"] = fid[method]
@@ -80,13 +81,15 @@ def summarize(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return rows
 
 
-def spread_columns(envs: list[np.ndarray], albedos: list[np.ndarray], truth: str | Path | None) -> dict[str, Any]:
+def spread_columns(envs: list[np.ndarray], albedos: list[np.ndarray], roughness: list[np.ndarray],
+                   truth: str | Path | None) -> dict[str, Any]:
     """How far a method's samples spread (dpi.spread): the mean of its uncertainty maps over the sphere and the
-    texture, its calibration against the true map (~1: the truth looks like one more sample), and the env
+    textures, its calibration against the true map (~1: the truth looks like one more sample), and the env
     PSNR / SSIM of the samples' geometric mean map (what they agree on)."""
     if len(envs) < 2:
         return {name: missing("one sample") for name in SPREAD_METRICS}
-    spread = {"env_log_std": sphere_mean(log_std_map(envs)), "albedo_std": float(albedo_std_map(albedos).mean())}
+    spread = {"env_log_std": sphere_mean(log_std_map(envs)), "albedo_std": float(albedo_std_map(albedos).mean()),
+              "roughness_std": float(roughness_std_map(roughness).mean())}
     if not truth:
         return {**spread, **{name: missing("no gt/envmap.exr") for name in SPREAD_METRICS if name not in spread}}
     reference = read_ground_truth(truth, "envmap")
@@ -140,7 +143,8 @@ def env_fid(records: list[dict[str, Any]]) -> dict[str, Any]:
 def sample_rows(records: list[dict[str, Any]], summary: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """One row per sample: its metrics, then the set metrics of its (scene, method) row of the summary."""
     sets = {(row["scene"], row["method"]): {k: row[k] for k in SET_METRICS} for row in summary}
-    return [{"scene": r["scene"], "method": r["method"], "sampler": r.get("sampler", ""), "sample": r["sample"],
+    return [{"scene": r["scene"], "method": r["method"], "sampler": r.get("sampler", ""),
+             "reading": r.get("reading", ""), "sample": r["sample"],
              **{k: v for k, v in r["metrics"].items() if k != "notes"}, **sets[(r["scene"], r["method"])]}
             for r in records]
 

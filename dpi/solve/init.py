@@ -2,48 +2,57 @@
 
 Its roughness and metallic seed every posterior method; its albedo is reset by the methods.
 The starting map is uniform, at the level that makes a grey (albedo 0.5) diffuse object match
-the mean observed foreground radiance; the textures start constant, as a rough dielectric. Under
-that uniform map roughness changes nothing, so a mirror's roughness gets little gradient and stops
-half-way, with its reflections smeared into the map. When the fit's roughness ends that way (its
-25th percentile below `retry_below`), the init is fitted again from a glossy metal and keeps that
-fit when it explains the views clearly better (docs/studies.md, "The init's start").
+the mean observed foreground radiance; the textures start constant. Under that uniform map roughness
+changes nothing, so a fit from a rough start on a mirror stops half-way, its reflections smeared into the map,
+and a fit from a glossy start on a rough object paints the object's shading into the map: each start keeps its
+reading. So the init fits two readings, a rough dielectric and a glossy metal, and records how well each explains
+the training views (its closing loss). Where one clearly does better, every sample starts from it; where both do
+about equally (few, small views can show a mirror under a sharp light like a rough object under a soft one), the
+samples come from both, in proportion (glossy_share, sample_reading; docs/studies.md, "Two readings").
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import torch
 
 from dpi.materials import MaterialTextures
-from dpi.settings import Fraction, Steps, settings
+from dpi.settings import Steps, settings
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.optimize import CHECKPOINT_EVERY, AdamFit, FreeEnvMap, OptimizeConfig
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
 
 START_ALBEDO = 0.5
-ROUGH_START = (0.5, 0.0)
-"""constant (roughness, metallic) the textures start from: a rough dielectric"""
-GLOSSY_START = (0.1, 1.0)
-"""the retry's (roughness, metallic): a glossy metal"""
-RETRY_GAIN = 0.6
-"""the retry is kept when its closing data loss is below this fraction of the first fit's: a metal under a free
-map explains a rough object's views a little better too, a mirror's far better"""
+READINGS = {"rough": (0.5, 0.0), "glossy": (0.1, 1.0)}
+"""the two readings the init fits, by their constant (roughness, metallic) start: a rough dielectric and a glossy
+metal"""
+BOTH_BELOW, GLOSSY_ALONE_BELOW = 0.6, 0.5
+"""closing-loss ratios (glossy over rough): at or above BOTH_BELOW the rough reading alone explains the views, below
+GLOSSY_ALONE_BELOW the glossy one; in between both do about equally and the samples come from both (a metal under a
+free map explains a rough object's views a little better too: the studies' rough objects close at 0.61-1.13, their
+metals at 0.17-0.48; docs/studies.md, "Two readings")"""
+GLOSSY_STOP = 1.0
+"""the glossy fit stops half-way when its loss there is at least this times the rough fit's: a glossy reading that
+explains the views no better than the rough one half-way does not end below BOTH_BELOW (the metals measured stand
+at 0.41-0.46 half-way)"""
 CLOSING_STEPS = 20
 """steps at the end of a fit whose mean data loss compares two fits (the same seed: the same views and noise)"""
 
 
 @settings
 class InitConfig(OptimizeConfig):
-    """The init's fit (config section `init`): Adam settings and the glossy retry."""
+    """The init's fit (config section `init`): Adam settings and the readings fitted."""
 
     iterations: Steps = 200
-    """Adam steps of each fit (the rough one, and the glossy retry when it runs)"""
-    retry_below: Fraction = 0.4
-    """the fit is retried from GLOSSY_START when its roughness 25th percentile ends below this (0: never): a rough
-    start stops half-way on a mirror (docs/studies.md, "The init's start")"""
+    """Adam steps of each reading's fit"""
+    reading: Literal["auto", "rough", "glossy"] = "auto"
+    """auto: fit a rough dielectric and a glossy metal and sample what explains the views (both, where both do about
+    equally); rough or glossy: fit that reading alone, at half the cost"""
 
 
 def starting_log_env(problem: InverseProblem) -> torch.Tensor:
@@ -91,43 +100,90 @@ def closing_loss(trace: Trace) -> float:
     return sum(losses) / len(losses) if losses else math.inf
 
 
-def retried(cfg: InitConfig, first_roughness_p25: float) -> bool:
-    """Whether the first fit's roughness (its 25th percentile) fell far enough to retry from GLOSSY_START."""
-    return first_roughness_p25 < cfg.retry_below
+def glossy_share(ratio: float) -> float:
+    """The share of samples drawn from the glossy reading, given the closing-loss ratio glossy / rough: 1 below
+    GLOSSY_ALONE_BELOW, 0 at BOTH_BELOW and above, linear in the log ratio in between (how much better the glossy
+    reading explains the views than a metal explains a rough object's)."""
+    if not ratio < BOTH_BELOW:
+        return 0.0
+    if ratio <= GLOSSY_ALONE_BELOW:
+        return 1.0
+    return math.log(BOTH_BELOW / ratio) / math.log(BOTH_BELOW / GLOSSY_ALONE_BELOW)
 
 
-def retry_kept(first_loss: float, retry_loss: float) -> bool:
-    """Whether the retry explains the views clearly better than the first fit (closing losses)."""
-    return retry_loss < RETRY_GAIN * first_loss
+def sample_reading(k: int, readings: dict) -> str:
+    """The reading sample k starts from (`readings`: an init trace's record): sample 0 the kept one, and among the
+    first n samples the nearest whole number to n x its share (ties down) from the other."""
+    other, share = readings.get("other"), readings.get("other_share", 0.0)
+    if not other or share <= 0:
+        return readings.get("kept", "rough")
+    drawn = lambda n: math.ceil(n * share - 0.5)  # noqa: E731 - other-reading samples among the first n
+    return other if drawn(k + 1) > drawn(k) else readings["kept"]
 
 
-def start_fit(problem: InverseProblem, cfg: InitConfig, start: tuple[float, float], seed: int) -> AdamFit:
-    """The init's fit from the uniform starting map and constant (roughness, metallic) textures."""
+def start_fit(problem: InverseProblem, cfg: InitConfig, reading: str, seed: int) -> AdamFit:
+    """The init's fit of one reading from the uniform starting map and that reading's constant (roughness,
+    metallic) textures."""
+    start = READINGS[reading]
     materials = MaterialTextures.constant(problem.settings.texture_size, START_ALBEDO, *start)
     return AdamFit(problem, FreeEnvMap(starting_log_env(problem)), materials, cfg, seed,
-                   Trace(info={"stage": "init", "config": vars(cfg).copy(), "seed": seed, "start": list(start)}))
+                   Trace(info={"stage": "init", "config": vars(cfg).copy(), "seed": seed, "start": list(start),
+                               "reading": reading}))
+
+
+@dataclass
+class InitReadings:
+    """The init's result: the kept reading (what every method starts from), the other where samples come from it
+    too, and the record of both (also in the kept one's trace: info["readings"])."""
+
+    kept: Decomposition
+    other: Decomposition | None
+    record: dict
 
 
 def path_traced_init(problem: InverseProblem, cfg: InitConfig, seed: int, progress: bool = True,
-                     checkpoint: Path | None = None, checkpoint_every: int = CHECKPOINT_EVERY) -> Decomposition:
-    """Fit env map + materials from ROUGH_START, retried from GLOSSY_START when the fit's roughness asks for it;
-    returns the kept fit with its trace (`checkpoint`: the resume file; the retry's is its sibling)."""
-    first = start_fit(problem, cfg, ROUGH_START, seed)
-    first.resume(checkpoint, checkpoint_every)
-    first.run(cfg.iterations, progress)
-    fits = [first]
-    if retried(cfg, roughness_p25(first.materials)):
-        first.save()  # a kill during the retry does not redo the first fit
-        retry = start_fit(problem, cfg, GLOSSY_START, seed)
-        retry.trace.started = first.trace.started
-        retry.resume(checkpoint and checkpoint.with_name(f"{checkpoint.stem}.glossy{checkpoint.suffix}"),
-                     checkpoint_every)
-        retry.run(cfg.iterations, progress)
-        losses = closing_loss(first.trace), closing_loss(retry.trace)
-        keep = retry_kept(*losses)
-        fits = [retry, first] if keep else [first, retry]
-        fits[0].trace.info["retry"] = {"first_roughness_p25": roughness_p25(first.materials),
-                                       "first_closing_loss": losses[0], "glossy_closing_loss": losses[1],
-                                       "kept": "glossy" if keep else "first"}
-    log_env, materials = [fit.finish() for fit in fits][0]
-    return Decomposition(log_env.exp(), materials, fits[0].trace)
+                     checkpoint: Path | None = None, checkpoint_every: int = CHECKPOINT_EVERY) -> InitReadings:
+    """Fit env map + materials from each reading of `cfg.reading` (both for auto: the glossy fit stops half-way
+    when it is clearly behind, GLOSSY_STOP); keep the one most samples come from (glossy_share).
+    `checkpoint`: the rough fit's resume file; the glossy fit's is its sibling."""
+    names = list(READINGS) if cfg.reading == "auto" else [cfg.reading]
+    fits = {name: start_fit(problem, cfg, name, seed) for name in names}
+    for name, fit in fits.items():
+        fit.resume(checkpoint and (checkpoint if name == "rough" else
+                                   checkpoint.with_name(f"{checkpoint.stem}.{name}{checkpoint.suffix}")),
+                   checkpoint_every)
+    half = cfg.iterations // 2 if len(fits) > 1 else cfg.iterations
+    for fit in fits.values():
+        fit.run(half, progress)
+        fit.save()  # a kill later does not redo this half
+    record: dict = {"fitted": names}
+    if len(fits) > 1:
+        record["half_way_ratio"] = closing_loss(fits["glossy"].trace) / closing_loss(fits["rough"].trace)
+        if record["half_way_ratio"] >= GLOSSY_STOP:
+            record["stopped"] = "glossy"
+    for name, fit in fits.items():
+        if record.get("stopped") != name:
+            fit.run(cfg.iterations, progress)
+            fit.save()
+    losses = {name: closing_loss(fit.trace) for name, fit in fits.items()}
+    record["closing_loss"] = losses
+    if len(fits) == 1:
+        record.update(kept=names[0], other=None, other_share=0.0)
+    else:
+        ratio = record["ratio"] = losses["glossy"] / losses["rough"] if "stopped" not in record else math.inf
+        share = glossy_share(ratio)
+        kept = "glossy" if share > 0.5 else "rough"
+        other = "rough" if kept == "glossy" else "glossy"
+        record.update(kept=kept, other=other if 0 < share < 1 else None,
+                      other_share=min(share, 1 - share), glossy_roughness_p25=roughness_p25(fits["glossy"].materials),
+                      rough_roughness_p25=roughness_p25(fits["rough"].materials))
+    results = {}
+    for name in (record["kept"], record["other"]):
+        if name:
+            log_env, materials = fits[name].finish()
+            fits[name].trace.info["readings"] = record
+            results[name] = Decomposition(log_env.exp(), materials, fits[name].trace)
+    for name, fit in fits.items():
+        if name not in results:
+            fit.finish()  # its resume file goes
+    return InitReadings(results[record["kept"]], results.get(record["other"]), record)

@@ -18,7 +18,7 @@ from dpi.io.exr import read_exr, write_exr
 from dpi.layout import INIT_TRACE, SAMPLE_TRACE, decomposition_files, view_file
 from dpi.prior.sample import load_scene_prior
 from dpi.stages.seeding import seed_for
-from dpi.spread import albedo_std_map, log_std_map, mean_log_map
+from dpi.spread import albedo_std_map, log_std_map, mean_log_map, roughness_std_map
 from dpi.stages.inverse import load_problem
 from dpi.stages.job import StageJob
 
@@ -36,7 +36,9 @@ def evaluate_stage(job: StageJob) -> None:
     traces = [sample_dir / name for name in (SAMPLE_TRACE, INIT_TRACE) if (sample_dir / name).is_file()]
     trace = json.loads(traces[0].read_text()) if traces else {}
     seconds = trace["summary"]["seconds"] if traces else None
-    sampler = trace.get("info", {}).get("sampler", "")  # which dps sampler made the sample ("" for other methods)
+    info = trace.get("info", {})
+    sampler = info.get("sampler", "")  # which dps sampler made the sample ("" for other methods)
+    reading = info.get("reading", info.get("readings", {}).get("kept", ""))  # the init's reading it started from
     prior = load_scene_prior(problem.capture.options, job.pipeline.prior_checkpoint(job.scene))
     seed = seed_for(job.scene, job.method, job.k, "eval")
     spp = job.pipeline.evaluate_spp
@@ -49,7 +51,8 @@ def evaluate_stage(job: StageJob) -> None:
     for name, image in {**renders, **({} if isinstance(relit, str) else relit)}.items():
         write_exr(view_file(views, name), image)
     gt_envmap = problem.capture.gt.get("envmap")
-    write_json(job.evaluation, {"scene": job.scene, "method": job.method, "sampler": sampler, "sample": job.k,
+    write_json(job.evaluation, {"scene": job.scene, "method": job.method, "sampler": sampler, "reading": reading,
+                                "sample": job.k,
                                 "sample_dir": str(sample_dir), "object": problem.capture.options.get("object", job.scene),
                                 "gt_envmap": str(gt_envmap) if gt_envmap else None, "exposure": problem.exposure,
                                 "metrics": metrics})
@@ -64,7 +67,8 @@ def envmap_figure_stage(job: StageJob, rows: list[tuple[str, list[str | Path]]])
 
 def uncertainty_stage(job: StageJob, rows: list[tuple[str, list[str | Path]]]) -> None:
     """The spread maps of the job's scene: per (method, its sample folders, 2 or more) the per-texel std of the
-    env maps' log luminance and of the albedo across the samples and the env maps' geometric mean, as EXRs where
+    env maps' log luminance, of the albedo and of the roughness across the samples and the env maps' geometric
+    mean, as EXRs where
     dpi.layout says, and the spread's figure."""
     scene = job.paths
     figure = []
@@ -73,10 +77,13 @@ def uncertainty_stage(job: StageJob, rows: list[tuple[str, list[str | Path]]]) -
         envs = [read_exr(f["env"]) for f in files]
         mean, env = mean_log_map(envs), log_std_map(envs)
         albedo = albedo_std_map([read_exr(f["albedo"]) for f in files])
-        write_exr(scene.uncertainty(method)["env"], env)
-        write_exr(scene.uncertainty(method)["albedo"], albedo)
-        write_exr(scene.uncertainty(method)["env_mean"], mean)
-        figure.append((method, mean, env, albedo))
+        roughness = roughness_std_map([read_exr(f["roughness"]) for f in files])
+        paths = scene.uncertainty(method)
+        write_exr(paths["env"], env)
+        write_exr(paths["albedo"], albedo)
+        write_exr(paths["roughness"], roughness)
+        write_exr(paths["env_mean"], mean)
+        figure.append((method, mean, env, albedo, roughness))
     uncertainty_grid(figure, scene.uncertainty_figure)
 
 

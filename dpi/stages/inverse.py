@@ -4,6 +4,8 @@ dpi.layout says, with the settings of the job's pipeline."""
 
 from __future__ import annotations
 
+import json
+import shutil
 from pathlib import Path
 
 from dpi import backend
@@ -15,7 +17,8 @@ from dpi.io.exr import read_exr
 from dpi.layout import INIT, INIT_TRACE, SceneLayout
 from dpi.prior.sample import load_scene_prior
 from dpi.stages.seeding import seed_for
-from dpi.solve.init import path_traced_init
+from dpi.solve.decomposition import Decomposition
+from dpi.solve.init import path_traced_init, sample_reading
 from dpi.solve.methods import REGISTRY, SampleJob
 from dpi.solve.problem import InverseProblem, SolveConfig
 from dpi.stages.job import StageJob
@@ -44,11 +47,32 @@ def load_problem(capture_json: str | Path, settings: SolveConfig) -> InverseProb
 def init_stage(job: StageJob) -> None:
     """Path-traced initialisation of the job's scene into its init folder (envmap.exr, textures, log.json)."""
     problem = load_problem(job.paths.capture_json, job.solve)
-    out = job.paths.sample_dir(INIT)
+    out, other = job.paths.sample_dir(INIT), job.paths.other_reading_dir()
     result = path_traced_init(problem, job.pipeline.init_settings, seed_for(job.scene, INIT), job.progress,
                               out / RESUME_FILE)
-    result.trace.info["variant"] = backend.mitsuba().variant()
-    problem.save_decomposition(result, out, trace_name=INIT_TRACE)
+    print(f"init readings: {reading_line(result.record)}", flush=True)
+    shutil.rmtree(other, ignore_errors=True)
+    if result.other is not None:
+        problem.save_decomposition(result.other, other, trace_name=INIT_TRACE)
+    result.kept.trace.info["variant"] = backend.mitsuba().variant()
+    problem.save_decomposition(result.kept, out, trace_name=INIT_TRACE)
+
+
+def reading_line(record: dict) -> str:
+    """One line of what the init's readings found (dpi.solve.init)."""
+    losses = ", ".join(f"{name} {loss:.4g}" for name, loss in record["closing_loss"].items())
+    stopped = f"; {record['stopped']} stopped half-way" if record.get("stopped") else ""
+    other = f"; {record['other_share']:.0%} of the samples from the {record['other']} reading" if record["other"] \
+        else ""
+    return f"closing loss {losses}{stopped}; kept {record['kept']}{other}"
+
+
+def sample_init(job: StageJob, problem: InverseProblem) -> tuple[str, Decomposition]:
+    """The reading sample job.k starts from (dpi.solve.init.sample_reading) and its decomposition."""
+    readings = json.loads(job.paths.sample_files(INIT)["trace"].read_text())["info"].get("readings", {})
+    reading = sample_reading(job.k, readings)
+    other = reading != readings.get("kept", reading)
+    return reading, problem.load_decomposition(job.paths.other_reading_dir() if other else job.paths.sample_dir(INIT))
 
 
 def sample_stage(job: StageJob) -> None:
@@ -61,7 +85,8 @@ def sample_stage(job: StageJob) -> None:
     entry = REGISTRY[job.method]
     problem = load_problem(job.paths.capture_json, job.solve)
     out = job.sample_dir
-    sample = SampleJob(problem, problem.load_decomposition(job.paths.sample_dir(INIT)), cfg,
+    reading, init = sample_init(job, problem)
+    sample = SampleJob(problem, init, cfg,
                        seed_for(job.scene, job.method, job.k), out, out / RESUME_FILE,
                        adaptive=job.pipeline.adaptive, progress=job.progress)
     if entry.needs_prior:
@@ -69,7 +94,7 @@ def sample_stage(job: StageJob) -> None:
         scale = problem.capture.options.get("radiance_scale")  # in scene radiance
         sample.radiance_scale = None if scale is None else scale / problem.exposure
     result = entry.sample(sample)
-    result.trace.info.update({"scene": job.scene, "k": job.k})
+    result.trace.info.update({"scene": job.scene, "k": job.k, "reading": reading})
     problem.save_decomposition(result, out)
 
 
