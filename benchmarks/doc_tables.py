@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from dpi.layout import INIT
+from dpi.solve.init import glossy_share
 from dpi.solve.methods import METHODS
 from dpi.studies.engine import latest, read_rows
 
@@ -332,7 +333,66 @@ def presets(root: Path) -> str:
                      "views fitted at (longer side)", "env map", "textures"], body)
 
 
+def readings_forced(root: Path) -> str:
+    """Readings study, --forced: per scene, each reading's init alone and its dps samples (held-out views, env
+    PSNR), with the closing-loss ratio (glossy over rough) and the glossy share the init's rule gives it."""
+    rows = read_rows(root / RESULTS / "readings_forced.csv")
+    body = []
+    for scene in sorted({r["scene"] for r in rows}, key=lambda s: (s.split("_")[1], s.split("_")[2], s)):
+        sel = [r for r in rows if r["scene"] == scene]
+        loss = {r["reading"]: r["closing_loss"] for r in sel if r["method"] == "init"}
+        if len(loss) < 2:
+            continue
+        ratio = loss["glossy"] / loss["rough"]
+        cells = [scene, f"{ratio:.2f}", f"{glossy_share(ratio):.2f}"]
+        for reading in ("rough", "glossy"):
+            init = [r for r in sel if r["reading"] == reading and r["method"] == "init"]
+            dps = [r for r in sel if r["reading"] == reading and r["method"] == "dps"]
+            views = stats(r["novel_psnr"] for r in dps)
+            env = stats(r["env_psnr"] for r in dps)
+            cells += [f"{init[0]['novel_psnr']:.2f}", f"{views[0]:.2f}" if views else "-",
+                      f"{env[0]:.2f}" if env else "-"]
+        body.append(cells)
+    return markdown(["scene", "closing loss, glossy / rough", "glossy share", "rough: init views [dB]",
+                     "rough: dps views [dB]", "rough: dps env [dB]", "glossy: init views [dB]", "glossy: dps views [dB]",
+                     "glossy: dps env [dB]"], body)
+
+
+def readings(root: Path) -> str:
+    """Readings study: per scene, means over repeats of the init and of its dps samples, and the share of samples
+    that started from the glossy reading."""
+    rows = latest(read_rows(root / RESULTS / "readings_study.csv"), ("scene", "repeat"))
+    metrics = (Metric("closing loss, glossy / rough", "ratio", ".2f", spread=False),
+               Metric("samples from the glossy reading", "glossy_samples", ".2f", spread=False),
+               Metric("init: views [dB]", "init_novel_psnr", ".2f", spread=False),
+               Metric("samples: views [dB]", "novel_psnr", ".2f"),
+               Metric("worst sample: views [dB]", "min_novel_psnr", ".2f", spread=False),
+               Metric("init: env [dB]", "init_env_psnr", ".2f", spread=False),
+               Metric("samples: env [dB]", "env_psnr", ".2f"),
+               Metric("worst sample: env [dB]", "min_env_psnr", ".2f", spread=False),
+               Metric("mean map: env [dB]", "env_mean_psnr", ".2f", spread=False),
+               Metric("calibration", "calibration", ".2f", spread=False),
+               Metric("init s", "init_seconds", ".0f", spread=False))
+    return grouped_table(rows, ("light", "views", "roughness"), metrics, order=lambda k: k)
+
+
+def readings_fig9(root: Path) -> str:
+    """Readings study, Fig. 9: per light and views, the metal's (0.05) env sigma2_sample over the 0.8 dielectric's,
+    per repeat."""
+    rows = latest(read_rows(root / RESULTS / "readings_study.csv"), ("scene", "repeat"))
+    spread = {(r["light"], r["views"], r["repeat"], r["roughness"]): r["env_sigma2_sample"] for r in rows}
+    body = []
+    for light, views in sorted({(r["light"], r["views"]) for r in rows}):
+        ratios = [spread[(light, views, rep, 0.05)] / spread[(light, views, rep, 0.8)]
+                  for rep in sorted({r["repeat"] for r in rows})
+                  if (light, views, rep, 0.05) in spread and spread.get((light, views, rep, 0.8))]
+        if ratios:
+            body.append([light, views, str(len(ratios)), " / ".join(f"{x:.2f}" for x in ratios)])
+    return markdown(["light", "views", "n", "metal / rough env sigma2_sample, per repeat"], body)
+
+
 TABLES: dict[str, Callable[[Path], str]] = {
+    "readings": readings, "readings_forced": readings_forced, "readings_fig9": readings_fig9,
     "presets": presets, "posterior": posterior, "posterior_full": posterior_full, "calibration": calibration,
     "fig9": fig9_ratios, "train_fit": train_fit, "resolution": resolution, "roughness": roughness,
     "tradeoff": tradeoff, "lens": lens, "realism": realism, "real_photos": real_photos, "pinned_light": pinned_light,

@@ -1,19 +1,21 @@
-"""The init's start study: does the init's glossy retry pick the start that makes the better init, on every
-study scene?
+"""The init's start study: do the init's readings (dpi.solve.init) keep the reading that makes the better init,
+on every study scene?
 
-For each scene of the posterior, calibration and resolution studies (their captures, their workflow
-configs), the init's fit runs from `init.start` and from `init.glossy_start` (dpi.solve.init.start_fit) to
-the end, recording its closing loss (what the retry is kept by), its mean data loss over steps 20-39
-(`pilot_loss`: a 40-step pilot of each start, the rule tried first), the roughness 25th percentile (what the
-retry is triggered by) and median metallic, and the held-out view PSNR of that start's init. A row per
-scene and start; `chosen` marks the fit the init keeps, `best` the one whose held-out views are best.
+For each scene of the posterior, calibration and resolution studies and the roughness study's 0.2 dielectric
+(their captures, their workflow configs), the init's fit runs from each reading's start (dpi.solve.init.READINGS,
+start_fit) to the end, recording its closing loss (what the readings are compared by), its mean data loss over
+steps 20-39 (`pilot_loss`: a 40-step pilot of each start, a rule tried first), the roughness 25th percentile and
+median metallic, and the held-out view PSNR of that start's init. A row per scene and start; `chosen` marks the
+reading the init keeps (most samples start from it: glossy_share over 0.5), `best` the one whose held-out views
+are best.
 
-    .venv/bin/python benchmarks/init_start_study.py [--studies posterior calibration resolution] [--repeats 1]
+    .venv/bin/python benchmarks/init_start_study.py [--studies posterior calibration resolution roughness]
+        [--repeats 1]
 
 Rows go to benchmarks/results/init_start_study.csv (scenes already there are not rerun; `chosen` is
-recomputed from the rows with config.yaml's rule); then a table of the choices: per study and truth
-material, how often the kept fit is the best one, and the held-out view PSNR of the kept fit, of the first
-start alone (the init before 2026-11-25) and of the best.
+recomputed from the rows with today's rule); then a table of the choices: per study and truth material, how often
+the kept fit is the best one, and the held-out view PSNR of the kept fit, of the rough start alone (the init
+before 2026-11-25) and of the best.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import numpy as np
 from dpi.studies.engine import (append_row, prepare_capture, read_rows, results_csv, settings_hash, work_dir,
                                 workflow_config)
 from dpi.studies.scenes import (POSTERIOR_SCENES, RESOLUTION_SCENES, calibration_scenes, repeat_scene, repeat_synth,
-                                resolution_config, resolution_root)
+                                resolution_config, resolution_root, roughness_scenes)
 
 CSV = results_csv("init_start_study")
 COLUMNS = ("study", "scene", "roughness", "metallic", "start_roughness", "start_metallic", "pilot_loss",
@@ -37,12 +39,13 @@ COLUMNS = ("study", "scene", "roughness", "metallic", "start_roughness", "start_
 PILOT = (20, 40)
 """steps whose mean data loss is `pilot_loss`: the second half of a 40-step pilot"""
 TEXT = ("study", "scene")
-STUDIES = ("posterior", "calibration", "resolution")
+STUDIES = ("posterior", "calibration", "resolution", "roughness")
 
 
 def study_scenes(study: str, repeats: int) -> tuple[Path, dict[str, Any], dict[str, dict[str, Any]]]:
-    """A study's folder, workflow config and scenes (folder name -> synth settings): the calibration study's
-    first `repeats` repeats of the scenes in its CSV."""
+    """A study's folder, workflow config and scenes (folder name -> synth settings): the calibration and roughness
+    studies' first `repeats` repeats of their scenes (the calibration study's: those in its CSV; the roughness
+    study's: its dielectric at 0.2, the one a held-out view misread)."""
     if study == "posterior":
         return work_dir("posterior_study"), workflow_config(), {n: synth for n, (_, synth) in POSTERIOR_SCENES.items()}
     if study == "calibration":
@@ -50,6 +53,12 @@ def study_scenes(study: str, repeats: int) -> tuple[Path, dict[str, Any], dict[s
         return work_dir("calibration_study"), workflow_config(env_height=16), {
             repeat_scene(name, r): repeat_synth(synth, r)
             for name, synth in calibration_scenes().items() if name in studied for r in range(repeats)}
+    if study == "roughness":
+        from roughness_study import MAP_HEIGHT
+
+        return work_dir("roughness_study"), workflow_config(env_height=MAP_HEIGHT), {
+            repeat_scene(name, r): repeat_synth(synth, r)
+            for name, synth in roughness_scenes([0.2]).items() for r in range(repeats)}
     return (resolution_root(work_dir("resolution_study"), 128, 64), resolution_config(128, 64),
             {name: synth for name, (_, synth) in RESOLUTION_SCENES.items()})
 
@@ -82,7 +91,7 @@ def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth
                      "init_metallic_median": float(materials.metallic.median()),
                      "novel_psnr": novel_view_metrics(problem, renders)["novel_psnr"],
                      "seconds": round(time.perf_counter() - begin, 1)})
-    return mark(rows, cfg)
+    return mark(rows)
 
 
 def row_settings(config: dict[str, Any], synth: dict[str, Any]) -> str:
@@ -91,8 +100,8 @@ def row_settings(config: dict[str, Any], synth: dict[str, Any]) -> str:
                           "render": config["render"]})
 
 
-def mark(rows: list[dict[str, Any]], cfg: Any) -> list[dict[str, Any]]:
-    """Set `chosen` (the fit the init keeps, dpi.solve.init's rule) and `best` on one scene's two rows (first
+def mark(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Set `chosen` (the reading the init keeps, dpi.solve.init's rule) and `best` on one scene's two rows (rough
     start, glossy start)."""
     from dpi.solve.init import glossy_share
 
@@ -125,7 +134,7 @@ def summary(rows: list[dict[str, Any]]) -> list[str]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--studies", nargs="*", default=list(STUDIES), choices=STUDIES)
-    parser.add_argument("--repeats", type=int, default=1, help="calibration study repeats per scene")
+    parser.add_argument("--repeats", type=int, default=1, help="calibration and roughness study repeats per scene")
     parser.add_argument("--out", type=Path, default=CSV)
     args = parser.parse_args()
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
@@ -138,11 +147,8 @@ def main() -> None:
             for row in scene_rows(study, root, config, scene, synth):
                 append_row(args.out, row, COLUMNS, row_settings(config, synth))
             print(f"{study} {scene}: done", flush=True)
-    from dpi.pipeline import Pipeline, resolve_config
-
-    cfg = Pipeline(resolve_config({})).init_settings
     rows = read_rows(args.out, TEXT)
-    rows = [row for i in range(0, len(rows), 2) for row in mark(rows[i:i + 2], cfg)]
+    rows = [row for i in range(0, len(rows), 2) for row in mark(rows[i:i + 2])]
     args.out.unlink()
     for row in rows:
         append_row(args.out, row, COLUMNS, row["settings_hash"])

@@ -5,7 +5,7 @@ a procedural room and a held-out real panorama that no study scene uses (with --
 32 px on a 150 deg arc or in 16 views of 48 px all around. Per scene and repeat (its own capture noise and init)
 the workflow's init fits both readings (dpi.solve.init) and `dps` draws `--samples` samples through the stage
 functions; one row of benchmarks/results/readings_study.csv per scene and repeat: the init's closing-loss ratio
-(glossy over rough) and kept reading, the share of samples that started from the glossy reading, the init's and
+(glossy over rough; half-way, and `stopped` 1, where the glossy fit stopped there) and kept reading, the share of samples that started from the glossy reading, the init's and
 the samples' held-out views and env PSNR (mean and worst sample), the samples' mean map, spread and calibration,
 and the init's seconds. Then a table per scene and the metal / rough spread ratios (Fig. 9).
 
@@ -35,7 +35,7 @@ COLUMNS = ("scene", "light", "views", "roughness", "metallic", "repeat", "readin
            "closing_loss", "novel_psnr", "env_psnr", "env_ssim", "albedo_mse", "train_fit", "train_fit_over_truth",
            "seconds")
 TEXT = ("scene", "light", "views", "reading", "method")
-GROUP_COLUMNS = ("scene", "light", "views", "roughness", "metallic", "repeat", "samples", "ratio", "kept",
+GROUP_COLUMNS = ("scene", "light", "views", "roughness", "metallic", "repeat", "samples", "ratio", "stopped", "kept",
                  "glossy_samples", "init_novel_psnr", "init_env_psnr", "init_seconds", "novel_psnr", "env_psnr",
                  "albedo_mse", "seconds", "min_novel_psnr", "min_env_psnr", "env_mean_psnr", "env_sigma2_sample",
                  "calibration")
@@ -116,8 +116,9 @@ def sample_row(job: Job) -> dict[str, Any]:
     scene = job.layout.scene(job.scene)
     info = json.loads(scene.sample_files(job.label, job.seed)["trace"].read_text())["info"]
     readings = json.loads(scene.sample_files(INIT)["trace"].read_text())["info"]["readings"]
-    return {**row, "reading": info.get("reading", readings["kept"]), "ratio": readings.get("ratio", float("nan")),
-            "other_share": readings["other_share"]}
+    stopped = readings.get("stopped") is not None
+    return {**row, "reading": info.get("reading", readings["kept"]), "stopped": int(stopped),
+            "ratio": readings["half_way_ratio"] if stopped else readings["ratio"], "other_share": readings["other_share"]}
 
 
 def group_row(scene: str, synth: dict, repeat: int, rows: list[dict[str, Any]], jobs: list[Job]) -> dict[str, Any]:
@@ -134,7 +135,7 @@ def group_row(scene: str, synth: dict, repeat: int, rows: list[dict[str, Any]], 
     light, views = scene.split("_")[1:3]
     return {"scene": scene, "light": light, "views": views, "roughness": synth["roughness"],
             "metallic": synth["metallic"], "repeat": repeat, "samples": len(samples),
-            "ratio": init["ratio"], "kept": init["reading"],
+            "ratio": init["ratio"], "stopped": init["stopped"], "kept": init["reading"],
             "glossy_samples": sum(r["reading"] == "glossy" for r in samples) / len(samples),
             "init_novel_psnr": init["novel_psnr"], "init_env_psnr": init["env_psnr"], "init_seconds": init["seconds"],
             **{k: float(np.mean([r[k] for r in samples])) for k in ("novel_psnr", "env_psnr", "albedo_mse",
@@ -217,21 +218,22 @@ def main() -> None:
     args.out = args.out or CSV
     dps_cfg = job_settings(config["method_params"].get("dps", {}))
     groups = {}
-    for base, synth0 in scenes.items():
-        for repeat in range(args.repeats):
+    for repeat in range(args.repeats):
+        for base, synth0 in scenes.items():
             scene, synth = repeat_scene(base, repeat), repeat_synth(synth0, repeat)
             groups[(base, repeat)] = [Job(WORK / "auto", scene, "readings", synth, "init", "", 0, {}, config)] + [
                 Job(WORK / "auto", scene, "readings", synth, "dps", "", 1000 * repeat + k, dps_cfg, config)
                 for k in range(args.samples)]
     done = {(r["scene"], int(r["repeat"])) for r in read_rows(args.out, GROUP_TEXT)}
     with pool(max(args.jobs, 1)) as workers:
-        todo = {key: jobs for key, jobs in groups.items() if key not in done}
-        list(workers.map(prepare_job, [jobs[0] for jobs in todo.values()]))
-        for (base, repeat), jobs in todo.items():
-            row = group_row(base, jobs[0].synth, repeat, list(workers.map(sample_row, jobs)), jobs)
-            append_row(args.out, row, GROUP_COLUMNS, settings_hash([j.settings_hash for j in jobs]))
-            print("  ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items()),
-                  flush=True)
+        for repeat in range(args.repeats):  # a whole repeat of every scene before the next
+            todo = {key: jobs for key, jobs in groups.items() if key not in done and key[1] == repeat}
+            list(workers.map(prepare_job, [jobs[0] for jobs in todo.values()]))
+            for (base, _), jobs in todo.items():
+                row = group_row(base, jobs[0].synth, repeat, list(workers.map(sample_row, jobs)), jobs)
+                append_row(args.out, row, GROUP_COLUMNS, settings_hash([j.settings_hash for j in jobs]))
+                print("  ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items()),
+                      flush=True)
     rows = [r for r in read_rows(args.out, GROUP_TEXT) if (r["scene"], int(r["repeat"])) in groups]
     print("\n".join(summary(rows)))
 

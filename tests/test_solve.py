@@ -228,6 +228,7 @@ def test_a_glossy_reading_behind_half_way_stops_there(problem, monkeypatch):
     monkeypatch.setattr("dpi.solve.init.GLOSSY_STOP", 0.0)  # always behind
     result = path_traced_init(problem, InitConfig(iterations=6), seed=2, progress=False)
     assert result.record["stopped"] == "glossy" and result.record["kept"] == "rough" and result.other is None
+    assert result.record["ratio"] is None and json.loads(json.dumps(result.record, allow_nan=False)) == result.record
     assert [s["step"] for s in result.kept.trace.steps] == list(range(6))
 
 
