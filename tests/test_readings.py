@@ -4,7 +4,8 @@ import pytest
 from stage_jobs import stage_job
 
 from dpi.io.atomic import write_json
-from dpi.stages.inverse import reading_line, sample_init
+from dpi.solve.init import readings_line
+from dpi.stages.inverse import sample_init
 
 
 class FolderProblem:
@@ -34,9 +35,24 @@ def test_each_sample_starts_from_its_reading(tmp_path, record, expected):
 def test_the_init_log_line_says_what_was_fitted_and_kept():
     record = {"closing_loss": {"rough": 0.02, "glossy": 0.011}, "kept": "glossy", "other": "rough",
               "other_share": 0.25}
-    line = reading_line(record)
+    line = readings_line(record)
     assert "rough 0.02" in line and "glossy 0.011" in line and "kept glossy" in line
     assert "25% of the samples from the rough reading" in line
-    stopped = reading_line({"closing_loss": {"rough": 0.02, "glossy": 0.05}, "stopped": "glossy", "kept": "rough",
+    stopped = readings_line({"closing_loss": {"rough": 0.02, "glossy": 0.05}, "stopped": "glossy", "kept": "rough",
                             "other": None, "other_share": 0.0})
     assert "glossy stopped half-way" in stopped and "samples from" not in stopped
+
+
+def test_the_report_notes_two_readings_only_where_the_samples_come_from_both(tmp_path):
+    from dpi.evaluation.report import readings_note
+
+    scene = stage_job(tmp_path / "captures" / "scene", tmp_path / "results").paths
+    assert readings_note(scene) == []  # no init yet
+    init = scene.sample_files("init")["trace"]
+    init.parent.mkdir(parents=True)
+    record = {"closing_loss": {"rough": 0.02, "glossy": 0.011}, "kept": "glossy", "other": None, "other_share": 0.0}
+    write_json(init, {"info": {"readings": record}})
+    assert readings_note(scene) == []  # one reading clearly better
+    write_json(init, {"info": {"readings": {**record, "other": "rough", "other_share": 0.25}}})
+    note, = readings_note(scene)
+    assert "Two readings" in note and "25% of the samples from the rough reading" in note

@@ -29,7 +29,8 @@ from dpi.evaluation.view3d import install_viewer, view3d_section
 from dpi.io.atomic import write_text
 from dpi.io.exr import read_exr
 from dpi.io.images import read_image, read_mask
-from dpi.layout import SUMMARY_FILE, TEXTURE_NAMES, Layout, SceneLayout, texture_file, view_file
+from dpi.layout import INIT, SUMMARY_FILE, TEXTURE_NAMES, Layout, SceneLayout, texture_file, view_file
+from dpi.solve.init import readings_line
 from dpi.synth.capture import read_marker
 from dpi.capture.working import working_capture
 
@@ -230,6 +231,7 @@ def scene_section(scene_name: str, scene: SceneLayout, rows: list[dict[str, str]
                          + (", each aligned to the ground truth's (top row) global scale." if reference else
                             "; the capture has no ground truth.")))
 
+    parts += readings_note(scene)
     if scene.uncertainty_figure.is_file():
         path = page.png(scene_name, "uncertainty")
         shutil.copyfile(scene.uncertainty_figure, path)
@@ -237,8 +239,9 @@ def scene_section(scene_name: str, scene: SceneLayout, rows: list[dict[str, str]
                              "What the samples agree on and where the photos do not tell: per method with two or more "
                              "samples, the geometric mean of its maps, then the per-texel std "
                              "across its samples of the env map's log luminance (each map over its median; 0.7 is a "
-                             "factor of 2 either way) and of the albedo (each over its mean). Bright is uncertain; "
-                             "summary.csv holds their means (env_log_std, albedo_std), env_calibration and the scores of the "
+                             "factor of 2 either way), of the albedo (each over its mean) and of the roughness. Bright "
+                             "is uncertain; summary.csv holds their means (env_log_std, albedo_std, roughness_std), "
+                             "env_calibration and the scores of the "
                              "samples' geometric mean map (env_mean_psnr, env_mean_ssim; {method}/env_mean.exr)."))
 
     parts += view3d_section(scene_name, scene, page.viewer is not None, exposure)
@@ -270,6 +273,19 @@ def scene_section(scene_name: str, scene: SceneLayout, rows: list[dict[str, str]
     else:
         parts.append("<p class='note'>No held-out views: nothing to re-render.</p>")
     return "\n".join(parts)
+
+
+def readings_note(scene: SceneLayout) -> list[str]:
+    """A note where the init found two readings that explain the views about equally (dpi.solve.init), so the
+    samples come from both: what it measured and how the samples divide."""
+    trace = scene.sample_files(INIT)["trace"]
+    readings = json.loads(trace.read_text())["info"].get("readings", {}) if trace.is_file() else {}
+    if not readings.get("other"):
+        return []
+    return [f"<p class='warning'><b>Two readings.</b> The views leave the material open: a rough dielectric and a "
+            f"glossy metal explain them about equally ({escape(readings_line(readings))}), so the samples come from "
+            "both; the roughness std below shows where they differ, and samples.csv names each sample's reading."
+            "</p>"]
 
 
 def mask_gallery_section(scene_name: str, scene: SceneLayout, capture: Capture, exposure: float,

@@ -123,6 +123,16 @@ def sample_reading(k: int, readings: dict) -> str:
     return other if drawn(k + 1) > drawn(k) else readings["kept"]
 
 
+def readings_line(record: dict) -> str:
+    """One line of what the init's readings found: each closing loss, what stopped half-way, what was kept and the
+    other reading's share of the samples."""
+    losses = ", ".join(f"{name} {loss:.4g}" for name, loss in record["closing_loss"].items())
+    stopped = f"; {record['stopped']} stopped half-way" if record.get("stopped") else ""
+    other = f"; {record['other_share']:.0%} of the samples from the {record['other']} reading" if record["other"] \
+        else ""
+    return f"closing loss {losses}{stopped}; kept {record['kept']}{other}"
+
+
 def start_fit(problem: InverseProblem, cfg: InitConfig, reading: str, seed: int) -> AdamFit:
     """The init's fit of one reading from the uniform starting map and that reading's constant (roughness,
     metallic) textures."""

@@ -18,7 +18,7 @@ from dpi.layout import INIT, INIT_TRACE, SceneLayout
 from dpi.prior.sample import load_scene_prior
 from dpi.stages.seeding import seed_for
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.init import path_traced_init, sample_reading
+from dpi.solve.init import path_traced_init, readings_line, sample_reading
 from dpi.solve.methods import REGISTRY, SampleJob
 from dpi.solve.problem import InverseProblem, SolveConfig
 from dpi.stages.job import StageJob
@@ -50,21 +50,12 @@ def init_stage(job: StageJob) -> None:
     out, other = job.paths.sample_dir(INIT), job.paths.other_reading_dir()
     result = path_traced_init(problem, job.pipeline.init_settings, seed_for(job.scene, INIT), job.progress,
                               out / RESUME_FILE)
-    print(f"init readings: {reading_line(result.record)}", flush=True)
+    print(f"init readings: {readings_line(result.record)}", flush=True)
     shutil.rmtree(other, ignore_errors=True)
     if result.other is not None:
         problem.save_decomposition(result.other, other, trace_name=INIT_TRACE)
     result.kept.trace.info["variant"] = backend.mitsuba().variant()
     problem.save_decomposition(result.kept, out, trace_name=INIT_TRACE)
-
-
-def reading_line(record: dict) -> str:
-    """One line of what the init's readings found (dpi.solve.init)."""
-    losses = ", ".join(f"{name} {loss:.4g}" for name, loss in record["closing_loss"].items())
-    stopped = f"; {record['stopped']} stopped half-way" if record.get("stopped") else ""
-    other = f"; {record['other_share']:.0%} of the samples from the {record['other']} reading" if record["other"] \
-        else ""
-    return f"closing loss {losses}{stopped}; kept {record['kept']}{other}"
 
 
 def sample_init(job: StageJob, problem: InverseProblem) -> tuple[str, Decomposition]:
