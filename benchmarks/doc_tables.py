@@ -391,8 +391,20 @@ def readings_fig9(root: Path) -> str:
     return markdown(["light", "views", "n", "metal / rough env sigma2_sample, per repeat"], body)
 
 
+def readings_cost(root: Path) -> str:
+    """Readings study, --cost: the init's seconds with both readings over the rough one's alone, per scene."""
+    rows = latest(read_rows(root / RESULTS / "readings_cost.csv"), ("scene", "reading"))
+    seconds = {(r["scene"], r["reading"]): r for r in rows}
+    body = [[scene, f"{seconds[(scene, 'rough')]['seconds']:.1f}", f"{seconds[(scene, 'auto')]['seconds']:.1f}",
+             f"{seconds[(scene, 'auto')]['seconds'] / seconds[(scene, 'rough')]['seconds']:.2f}",
+             "yes" if seconds[(scene, "auto")]["stopped"] else "no"]
+            for scene in sorted({r["scene"] for r in rows}) if (scene, "rough") in seconds and (scene, "auto") in seconds]
+    return markdown(["scene", "rough reading alone [s]", "both readings [s]", "ratio", "glossy stopped half-way"], body)
+
+
 TABLES: dict[str, Callable[[Path], str]] = {
     "readings": readings, "readings_forced": readings_forced, "readings_fig9": readings_fig9,
+    "readings_cost": readings_cost,
     "presets": presets, "posterior": posterior, "posterior_full": posterior_full, "calibration": calibration,
     "fig9": fig9_ratios, "train_fit": train_fit, "resolution": resolution, "roughness": roughness,
     "tradeoff": tradeoff, "lens": lens, "realism": realism, "real_photos": real_photos, "pinned_light": pinned_light,

@@ -5,21 +5,24 @@ a procedural room and a held-out real panorama that no study scene uses (with --
 32 px on a 150 deg arc or in 16 views of 48 px all around. Per scene and repeat (its own capture noise and init)
 the workflow's init fits both readings (dpi.solve.init) and `dps` draws `--samples` samples through the stage
 functions; one row of benchmarks/results/readings_study.csv per scene and repeat: the init's closing-loss ratio
-(glossy over rough; half-way, and `stopped` 1, where the glossy fit stopped there) and kept reading, the share of samples that started from the glossy reading, the init's and
-the samples' held-out views and env PSNR (mean and worst sample), the samples' mean map, spread and calibration,
-and the init's seconds. Then a table per scene and the metal / rough spread ratios (Fig. 9).
+(glossy over rough; half-way, and `stopped` 1, where the glossy fit stopped there) and kept reading, the share of
+samples that started from the glossy reading, the init's and the samples' held-out views and env PSNR (mean and
+worst sample), the samples' mean map, spread and calibration, and the init's seconds. Then a table per scene and
+the metal / rough spread ratios (Fig. 9).
 
     .venv/bin/python benchmarks/readings_study.py --panoramas ../shared/panoramas [--scenes ...] [--repeats 3]
-        [--samples 4] [--jobs 2]
+        [--samples 4] [--jobs 2] [--cost | --forced]
 
-With --forced, each reading's init is fitted alone and `dps` draws samples from each (one row per sample,
-benchmarks/results/readings_forced.csv): the data the readings' rule was chosen on. Rows already in a CSV with the
-same settings hash are kept.
+With --cost, the init is timed with both readings and with the rough one alone, one after the other on the first
+repeat's captures (benchmarks/results/readings_cost.csv). With --forced, each reading's init is fitted alone and
+`dps` draws samples from each (one row per sample, benchmarks/results/readings_forced.csv): the data the readings'
+rule was chosen on. Rows already in a CSV with the same settings hash are kept.
 """
 
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -198,6 +201,34 @@ def forced_readings(args: argparse.Namespace, config: dict, scenes: dict[str, di
                           f"{row['env_psnr']:.2f} fit/truth {row['train_fit_over_truth']:.2f}", flush=True)
 
 
+COST_COLUMNS = ("scene", "reading", "seconds", "stopped")
+
+
+def init_costs(args: argparse.Namespace, config: dict, scenes: dict[str, dict]) -> None:
+    """The init's wall time with both readings (auto) and with the rough reading alone (what the init cost before
+    the readings), one after the other on the first repeat's captures, each alone on the machine."""
+    import time
+
+    from dpi.layout import INIT
+    from dpi.pipeline import Pipeline
+    from dpi.solve.init import path_traced_init
+    from dpi.solve.problem import SolveConfig
+    from dpi.stages import load_problem
+    from dpi.stages.seeding import seed_for
+
+    init = Pipeline(config).init_settings
+    for base, synth0 in scenes.items():
+        scene, synth = repeat_scene(base, 0), repeat_synth(synth0, 0)
+        problem = load_problem(prepare_capture(WORK / "auto", scene, synth, threads=2), SolveConfig.from_config(config, 2))
+        for reading in ("rough", "auto"):
+            begin = time.perf_counter()
+            result = path_traced_init(problem, replace(init, reading=reading), seed_for(scene, INIT), progress=False)
+            row = {"scene": base, "reading": reading, "seconds": time.perf_counter() - begin,
+                   "stopped": int(result.record.get("stopped") is not None)}
+            append_row(args.out, row, COST_COLUMNS, settings_hash({"synth": synth, "init": vars(init)}))
+            print(f"{base} {reading}: {row['seconds']:.1f} s", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--panoramas", type=Path, default=None)
@@ -207,6 +238,9 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=2, help="samples drawn side by side (1 thread each)")
     parser.add_argument("--forced", action="store_true",
                         help="each reading alone, with its own samples (the rule's design data)")
+    parser.add_argument("--cost", action="store_true",
+                        help="time the init with both readings and with the rough one alone (the first repeat's "
+                             "captures, one init at a time)")
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     config = workflow_config()
@@ -214,6 +248,10 @@ def main() -> None:
     if args.forced:
         args.out = args.out or CSV.with_name("readings_forced.csv")
         forced_readings(args, config, scenes)
+        return
+    if args.cost:
+        args.out = args.out or CSV.with_name("readings_cost.csv")
+        init_costs(args, config, scenes)
         return
     args.out = args.out or CSV
     dps_cfg = job_settings(config["method_params"].get("dps", {}))
