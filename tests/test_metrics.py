@@ -56,10 +56,11 @@ def test_sample_variance_known_answer():
 
 
 def toy_record(root, scene, method, albedo, obj=None, seconds=1.0):
-    """An evaluation record of a sample with a constant env map and the given albedo."""
+    """An evaluation record of a sample with a constant env map and roughness and the given albedo."""
     sample_dir = root / scene / method
     write_exr(sample_dir / "envmap.exr", np.ones((4, 8, 3), np.float32))
     write_exr(sample_dir / "albedo.exr", albedo.astype(np.float32))
+    write_exr(sample_dir / "roughness.exr", np.full(albedo.shape, 0.5, np.float32))
     record = {"scene": scene, "method": method, "sample": 0, "sample_dir": str(sample_dir), "gt_envmap": None,
               "metrics": {"sample_seconds": seconds}}
     return record if obj is None else {**record, "object": obj}
