@@ -81,31 +81,24 @@ def study_scenes(panoramas: Path | None) -> dict[str, dict[str, Any]]:
 
 
 def reading_init(root: Path, scene: str, synth: dict, config: dict, reading: str) -> float:
-    """The init of one reading alone in study folder `root`, made once; its closing loss."""
-    from dpi.layout import INIT, INIT_TRACE
-    from dpi.pipeline import Pipeline
-    from dpi.solve.init import closing_loss, start_fit
-    from dpi.solve.decomposition import Decomposition
-    from dpi.solve.trace import Trace
-    from dpi.stages import load_problem
-    from dpi.stages.seeding import seed_for
-    from dpi.solve.problem import SolveConfig
+    """The init of one reading alone (`init.reading`) in study folder `root`, made once; its closing loss."""
     import json
 
-    job = Job(root, scene, "", synth, INIT, "", 0, {}, config)
-    folder = job.layout.scene(scene).sample_dir(INIT)
+    from dpi.layout import INIT, INIT_TRACE
+    from dpi.pipeline import Pipeline
+    from dpi.solve.init import path_traced_init
+    from dpi.solve.problem import SolveConfig
+    from dpi.stages import load_problem
+    from dpi.stages.seeding import seed_for
+
+    folder = Job(root, scene, "", synth, INIT, "", 0, {}, config).layout.scene(scene).sample_dir(INIT)
     trace = folder / INIT_TRACE
-    if trace.exists():
-        return float(json.loads(trace.read_text())["info"]["closing_loss"])
-    problem = load_problem(prepare_capture(root, scene, synth, threads=2), SolveConfig.from_config(config, 2))
-    cfg = Pipeline(config).init_settings
-    fit = start_fit(problem, cfg, reading, seed_for(scene, INIT))
-    fit.run(cfg.iterations, progress=False)
-    log_env, materials = fit.finish()
-    fit.trace.info["closing_loss"] = closing_loss(fit.trace)
-    problem.save_decomposition(Decomposition(log_env.exp(), materials, fit.trace), folder, trace_name=INIT_TRACE)
-    assert isinstance(fit.trace, Trace)
-    return fit.trace.info["closing_loss"]
+    if not trace.exists():
+        problem = load_problem(prepare_capture(root, scene, synth, threads=2), SolveConfig.from_config(config, 2))
+        cfg = replace(Pipeline(config).init_settings, reading=reading)
+        problem.save_decomposition(path_traced_init(problem, cfg, seed_for(scene, INIT), progress=False).kept, folder,
+                                   trace_name=INIT_TRACE)
+    return float(json.loads(trace.read_text())["info"]["readings"]["closing_loss"][reading])
 
 
 def sample_row(job: Job) -> dict[str, Any]:
@@ -120,7 +113,7 @@ def sample_row(job: Job) -> dict[str, Any]:
     info = json.loads(scene.sample_files(job.label, job.seed)["trace"].read_text())["info"]
     readings = json.loads(scene.sample_files(INIT)["trace"].read_text())["info"]["readings"]
     stopped = readings.get("stopped") is not None
-    return {**row, "reading": info.get("reading", readings["kept"]), "stopped": int(stopped),
+    return {**row, "reading": info["reading"], "stopped": int(stopped),
             "ratio": readings["half_way_ratio"] if stopped else readings["ratio"], "other_share": readings["other_share"]}
 
 

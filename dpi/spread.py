@@ -107,9 +107,9 @@ def albedo_std_map(samples: list[np.ndarray]) -> np.ndarray:
 
 
 def roughness_std_map(samples: list[np.ndarray]) -> np.ndarray:
-    """(H, W) per-texel std across roughness textures: where the samples read the material differently (a mirror
-    and a rough reading of the same views, dpi.solve.init)."""
-    return _std_across([np.asarray(r)[..., 0] if np.ndim(r) == 3 else np.asarray(r) for r in samples])
+    """(H, W) per-texel std across roughness textures (H, W, C) as read_exr gives them: where the samples read the
+    material differently (a mirror and a rough reading of the same views, dpi.solve.init)."""
+    return _std_across([r[..., 0] for r in samples])
 
 
 def sphere_mean(values: np.ndarray) -> float:

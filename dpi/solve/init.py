@@ -38,8 +38,8 @@ free map explains a rough object's views a little better too: the dielectrics me
 metals at 0.17-0.54; docs/studies.md, "Two readings")"""
 GLOSSY_STOP = 0.8
 """the glossy fit stops half-way when its loss there is at least this times the rough fit's: clearly above
-BOTH_BELOW, which a ratio half-way has not come back from (on the readings study's dev scenes it fell by at most
-0.06 from half-way to the end; docs/studies.md, "Two readings")"""
+BOTH_BELOW (on the readings study's dev scenes that ended below 0.7, the ratio half-way stood at most 0.02 above
+where it ended; docs/studies.md, "Two readings")"""
 
 
 CLOSING_STEPS = 20

@@ -38,7 +38,7 @@ def evaluate_stage(job: StageJob) -> None:
     seconds = trace["summary"]["seconds"] if traces else None
     info = trace.get("info", {})
     sampler = info.get("sampler", "")  # which dps sampler made the sample ("" for other methods)
-    reading = info.get("reading", info.get("readings", {}).get("kept", ""))  # the init's reading it started from
+    reading = info.get("reading", "")  # the init's reading (the sample's: the one it started from)
     prior = load_scene_prior(problem.capture.options, job.pipeline.prior_checkpoint(job.scene))
     seed = seed_for(job.scene, job.method, job.k, "eval")
     spp = job.pipeline.evaluate_spp
@@ -68,8 +68,7 @@ def envmap_figure_stage(job: StageJob, rows: list[tuple[str, list[str | Path]]])
 def uncertainty_stage(job: StageJob, rows: list[tuple[str, list[str | Path]]]) -> None:
     """The spread maps of the job's scene: per (method, its sample folders, 2 or more) the per-texel std of the
     env maps' log luminance, of the albedo and of the roughness across the samples and the env maps' geometric
-    mean, as EXRs where
-    dpi.layout says, and the spread's figure."""
+    mean, as EXRs where dpi.layout says, and the spread's figure."""
     scene = job.paths
     figure = []
     for method, folders in rows:
