@@ -3,10 +3,11 @@ on every study scene?
 
 For each scene of the posterior, calibration and resolution studies and the roughness study's 0.2 dielectric
 (their captures, their workflow configs), the init's fit runs from each reading's start (dpi.solve.init.READINGS,
-start_fit) to the end, recording its closing loss (what the readings are compared by), its mean data loss over
-steps 20-39 (`pilot_loss`: a 40-step pilot of each start, a rule tried first), the roughness 25th percentile and
-median metallic, and the held-out view PSNR of that start's init. A row per scene and start; `chosen` marks the
-reading the init keeps (most samples start from it: glossy_share over 0.5), `best` the one whose held-out views
+start_fit) to the end, recording its closing loss half-way (`half_way_loss`: which fit stops there) and at the
+end (what the readings are compared by when both finish), its mean data loss over steps 20-39 (`pilot_loss`: a
+40-step pilot of each start, a rule tried first), the roughness 25th percentile and median metallic, and the
+held-out view PSNR of that start's init. A row per scene and start; `chosen` marks the reading the init keeps (the
+one not stopped half-way; where both finish, the one most samples start from), `best` the one whose held-out views
 are best.
 
     .venv/bin/python benchmarks/init_start_study.py [--studies posterior calibration resolution roughness]
@@ -35,7 +36,7 @@ from dpi.studies.scenes import (POSTERIOR_SCENES, RESOLUTION_SCENES, calibration
 
 CSV = results_csv("init_start_study")
 COLUMNS = ("study", "scene", "roughness", "metallic", "start_roughness", "start_metallic", "pilot_loss",
-           "closing_loss", "init_roughness_p25", "init_metallic_median", "novel_psnr", "chosen", "best", "seconds")
+           "half_way_loss", "closing_loss", "init_roughness_p25", "init_metallic_median", "novel_psnr", "chosen", "best", "seconds")
 PILOT = (20, 40)
 """steps whose mean data loss is `pilot_loss`: the second half of a 40-step pilot"""
 TEXT = ("study", "scene")
@@ -80,13 +81,15 @@ def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth
     for reading, start in READINGS.items():
         begin = time.perf_counter()
         run = start_fit(problem, cfg, reading, seed_for(scene, INIT))
+        run.run(cfg.iterations // 2, progress=False)
+        half_way = closing_loss(run.trace)
         run.run(cfg.iterations, progress=False)
         log_env, materials = run.finish()
         pilot = [s["data"] for s in run.trace.steps[slice(*PILOT)] if s.get("data") is not None]
         renders = render_held_out(problem, Decomposition(log_env.exp(), materials), config["evaluate"]["spp"], 0)
         rows.append({"study": study, "scene": scene, "roughness": synth["roughness"], "metallic": synth["metallic"],
                      "start_roughness": start[0], "start_metallic": start[1], "pilot_loss": float(np.mean(pilot)),
-                     "closing_loss": closing_loss(run.trace),
+                     "half_way_loss": half_way, "closing_loss": closing_loss(run.trace),
                      "init_roughness_p25": roughness_p25(materials),
                      "init_metallic_median": float(materials.metallic.median()),
                      "novel_psnr": novel_view_metrics(problem, renders)["novel_psnr"],
@@ -101,12 +104,13 @@ def row_settings(config: dict[str, Any], synth: dict[str, Any]) -> str:
 
 
 def mark(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Set `chosen` (the reading the init keeps, dpi.solve.init's rule) and `best` on one scene's two rows (rough
-    start, glossy start)."""
-    from dpi.solve.init import glossy_share
+    """Set `chosen` (the reading the init keeps, dpi.solve.init's rule: the one not stopped half-way, else the one
+    most samples come from) and `best` on one scene's two rows (rough start, glossy start)."""
+    from dpi.solve.init import glossy_share, half_way_stop
 
     first, glossy = rows
-    keep = glossy_share(glossy["closing_loss"] / first["closing_loss"]) > 0.5
+    stopped = half_way_stop(glossy["half_way_loss"] / first["half_way_loss"])
+    keep = stopped == "rough" or (stopped is None and glossy_share(glossy["closing_loss"] / first["closing_loss"]) > 0.5)
     best = max(rows, key=lambda r: r["novel_psnr"])
     for row in rows:
         row.update(chosen=int(row is (glossy if keep else first)), best=int(row is best))

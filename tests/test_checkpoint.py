@@ -93,7 +93,7 @@ def test_cut_fit_continues_to_the_uninterrupted_result(problem_and_init, tmp_pat
 
 def test_cut_init_keeps_both_readings_half_way_and_continues(problem_and_init, tmp_path, monkeypatch):
     problem = problem_and_init[0]
-    monkeypatch.setattr("dpi.solve.init.GLOSSY_STOP", math.inf)  # both readings fitted to the end
+    monkeypatch.setattr("dpi.solve.init.BOTH_FINISH", (0.0, math.inf))  # both readings fitted to the end
     cfg = InitConfig(iterations=8, views_per_step=1)
     resume = tmp_path / ".resume.pt"
     with cut_after(monkeypatch, problem, "data_loss", steps=4 + 4 + 2):  # both halves, then 2 steps of the rough

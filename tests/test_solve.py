@@ -203,7 +203,7 @@ def test_the_init_fits_both_readings_and_keeps_the_one_most_samples_come_from(pr
     alone = {name: init(name).kept for name in READINGS}  # each reading fitted alone: the same fit, bit for bit
     assert alone["rough"].trace.info["start"] == [0.5, 0.0] and alone["glossy"].trace.info["start"] == [0.1, 1.0]
     losses = {name: closing_loss(fit.trace) for name, fit in alone.items()}
-    monkeypatch.setattr("dpi.solve.init.GLOSSY_STOP", math.inf)  # never stopped half-way
+    monkeypatch.setattr("dpi.solve.init.BOTH_FINISH", (0.0, math.inf))  # both always finish
     ratio = losses["glossy"] / losses["rough"]
     for both, glossy_alone, kept, other in ((4 * ratio, 2 * ratio, "glossy", None),  # glossy clearly better
                                             (ratio / 2, ratio / 4, "rough", None),  # rough clearly better
@@ -224,12 +224,17 @@ def test_the_init_fits_both_readings_and_keeps_the_one_most_samples_come_from(pr
             assert 0 < result.record["other_share"] < 0.5
 
 
-def test_a_glossy_reading_behind_half_way_stops_there(problem, monkeypatch):
-    monkeypatch.setattr("dpi.solve.init.GLOSSY_STOP", 0.0)  # always behind
+@pytest.mark.parametrize("behind", ["glossy", "rough"])
+def test_the_reading_behind_half_way_stops_there(problem, monkeypatch, behind):
+    band = (0.0, 0.0) if behind == "glossy" else (math.inf, math.inf)  # every half-way ratio above / below the band
+    monkeypatch.setattr("dpi.solve.init.BOTH_FINISH", band)
     result = path_traced_init(problem, InitConfig(iterations=6), seed=2, progress=False)
-    assert result.record["stopped"] == "glossy" and result.record["kept"] == "rough" and result.other is None
-    assert result.record["ratio"] is None and json.loads(json.dumps(result.record, allow_nan=False)) == result.record
+    kept = "rough" if behind == "glossy" else "glossy"
+    assert result.record["stopped"] == behind and result.record["kept"] == kept and result.other is None
+    assert result.record["ratio"] is None and result.record["other_share"] == 0.0
+    assert json.loads(json.dumps(result.record, allow_nan=False)) == result.record
     assert [s["step"] for s in result.kept.trace.steps] == list(range(6))
+    assert result.kept.trace.info["reading"] == kept
 
 
 def test_glossy_share_falls_from_one_to_zero_across_the_band():

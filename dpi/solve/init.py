@@ -36,10 +36,12 @@ BOTH_BELOW, GLOSSY_ALONE_BELOW = 0.6, 0.5
 GLOSSY_ALONE_BELOW the glossy one; in between both do about equally and the samples come from both (a metal under a
 free map explains a rough object's views a little better too: the dielectrics measured close at 0.58-1.46, the
 metals at 0.17-0.54; docs/studies.md, "Two readings")"""
-GLOSSY_STOP = 0.8
-"""the glossy fit stops half-way when its loss there is at least this times the rough fit's: clearly above
-BOTH_BELOW (on the readings study's dev scenes that ended below 0.7, the ratio half-way stood at most 0.02 above
-where it ended; docs/studies.md, "Two readings")"""
+BOTH_FINISH = (0.45, 0.55)
+"""half-way closing-loss ratios (glossy over rough) between which both fits finish; below, the rough fit stops
+half-way and the glossy reading is kept alone, at or above the upper bound the glossy fit stops and the rough one is
+kept (half-way, the readings study's metals stood at 0.20-0.46 and its dielectrics at 0.53-2.08; the ratio still
+moves in the second half, by up to +0.43 on a dielectric, so only those near the line finish both; docs/studies.md,
+"Two readings")"""
 
 
 CLOSING_STEPS = 20
@@ -123,6 +125,13 @@ def sample_reading(k: int, readings: dict) -> str:
     return other if through > before else readings["kept"]
 
 
+def half_way_stop(ratio: float) -> str | None:
+    """The reading whose fit stops half-way, given the closing-loss ratio glossy / rough there (BOTH_FINISH): None
+    when both finish."""
+    low, high = BOTH_FINISH
+    return None if low <= ratio < high else "rough" if ratio < low else "glossy"
+
+
 def readings_line(record: dict) -> str:
     """One line of what the init's readings found: each closing loss, what stopped half-way, what was kept and the
     other reading's share of the samples."""
@@ -155,8 +164,8 @@ class InitReadings:
 
 def path_traced_init(problem: InverseProblem, cfg: InitConfig, seed: int, progress: bool = True,
                      checkpoint: Path | None = None, checkpoint_every: int = CHECKPOINT_EVERY) -> InitReadings:
-    """Fit env map + materials from each reading of `cfg.reading` (both for auto: the glossy fit stops half-way
-    when it is clearly behind, GLOSSY_STOP); keep the one most samples come from (glossy_share).
+    """Fit env map + materials from each reading of `cfg.reading` (both for auto: the one clearly behind half-way
+    stops there, BOTH_FINISH); keep the one most samples come from (glossy_share).
     `checkpoint`: the rough fit's resume file; the glossy fit's is its sibling."""
     names = list(READINGS) if cfg.reading == "auto" else [cfg.reading]
     fits = {name: start_fit(problem, cfg, name, seed) for name in names}
@@ -171,8 +180,8 @@ def path_traced_init(problem: InverseProblem, cfg: InitConfig, seed: int, progre
     record: dict = {"fitted": names}
     if len(fits) > 1:
         record["half_way_ratio"] = closing_loss(fits["glossy"].trace) / closing_loss(fits["rough"].trace)
-        if record["half_way_ratio"] >= GLOSSY_STOP:
-            record["stopped"] = "glossy"
+        if stopped := half_way_stop(record["half_way_ratio"]):
+            record["stopped"] = stopped
     for name, fit in fits.items():
         if record.get("stopped") != name:
             fit.run(cfg.iterations, progress)
@@ -183,7 +192,7 @@ def path_traced_init(problem: InverseProblem, cfg: InitConfig, seed: int, progre
         record.update(kept=names[0], other=None, other_share=0.0)
     else:
         ratio = record["ratio"] = None if "stopped" in record else losses["glossy"] / losses["rough"]
-        share = 0.0 if ratio is None else glossy_share(ratio)
+        share = float(record.get("stopped") == "rough") if ratio is None else glossy_share(ratio)
         kept = "glossy" if share > 0.5 else "rough"
         other = "rough" if kept == "glossy" else "glossy"
         record.update(kept=kept, other=other if 0 < share < 1 else None,
