@@ -1,15 +1,17 @@
 """Foreground masks: colour keying on a plain background, GrabCut from the sphere and sparse-point
 hull prior on a textured one, consensus rounds from the views' visual hull, outlier points, the
-hull's projection, and the clean-up (largest part, small holes)."""
+hull's projection, the clean-up (largest part, small holes), the masks' witnesses (points, edges, other views) and
+a segmenter the user brings."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 
 from dpi.cameras import from_fov, orbit, pixel_rays
 from dpi.capture.consistency import mask_iou
-from dpi.io.images import srgb_to_linear
+from dpi.io.images import read_mask, srgb_to_linear
 from dpi.preprocess.hull import visible_sphere
 from dpi.preprocess.masks import (SPHERE_FRACTION, MaskConfig, clean_mask, derive_masks, drop_outliers,
                                   mesh_silhouette, object_mask, refine_masks)
@@ -154,3 +156,106 @@ def test_a_mask_that_disagrees_with_the_others_is_found():
     relative = agreement / np.median(agreement)  # as derive_masks judges a view: against its peers
     assert relative[3] < 0.6 * MASK_AGREEMENT
     assert (np.delete(relative, 3) >= MASK_AGREEMENT).all(), agreement
+
+
+def test_points_outside_a_cut_mask_are_counted(cameras):
+    """Every point of the sphere projects inside its true silhouette; a mask without its left half loses about the
+    points that project there."""
+    from dpi.preprocess.mask_confidence import point_coverage
+
+    camera, points = cameras[0], surface_points(400)
+    _, truth = sphere_view(camera, "plain")
+    assert point_coverage(camera, truth, points) == 1.0
+    cut = truth.copy()
+    xy, _ = camera.project(points)
+    middle = int(np.median(xy[:, 0]))
+    cut[:, :middle] = False
+    assert point_coverage(camera, cut, points) == pytest.approx((xy[:, 0] >= middle + 1).mean(), abs=0.08)
+    assert point_coverage(camera, truth, points[:5]) is None  # too few points witness nothing
+
+
+def test_an_outline_through_the_object_or_the_background_has_no_edge_under_it(cameras):
+    from dpi.io.images import to_uint8
+    from dpi.preprocess.mask_confidence import EDGE_SUPPORT_MIN, edge_support
+
+    big = from_fov(cameras[0].c2w, 96, 96, 40.0)
+    image, truth = sphere_view(big, "textured")
+    image8 = to_uint8(image)
+    assert edge_support(image8, truth) > 0.9
+    yy, xx = np.mgrid[:96, :96]
+    centre = np.array(np.nonzero(truth)).mean(1)
+    inner = (yy - centre[0]) ** 2 + (xx - centre[1]) ** 2 < (0.6 * np.sqrt(truth.sum() / np.pi)) ** 2
+    assert edge_support(image8, inner) < EDGE_SUPPORT_MIN  # a disc inside the sphere: an outline over smooth shading
+    assert edge_support(image8, np.zeros_like(truth)) is None
+
+
+def test_the_verdict_names_each_failed_witness_and_a_mostly_unreliable_capture_stops():
+    from dpi.preprocess.mask_confidence import check_usable, verdict
+
+    assert verdict({"method": "grabcut", "point_coverage": 0.99, "edge_support": 0.9, "agreement": 0.9}, 0.8) == []
+    why = verdict({"method": "grabcut", "point_coverage": 0.6, "edge_support": 0.2, "agreement": 0.5}, 0.8)
+    assert len(why) == 3 and "40% of the object's points" in why[0] and "80% of its outline" in why[1]
+    assert verdict({"method": "consensus hull"}, None) == ["segmentation lost the object (the hull's projection "
+                                                           "stands in)"]
+    check_usable({"views": {"a": {}, "b": {}}, "unreliable": ["a"]}, "masks")  # half: goes on
+    with pytest.raises(ValueError, match=r"^masks: the derived masks of 2 of 3 views are unreliable \(a, b\);.*"
+                                         r"mask_path.*weights") as error:
+        check_usable({"views": {"a": {}, "b": {}, "c": {}}, "unreliable": ["a", "b"]}, "masks")
+    assert "\n" not in str(error.value)
+
+
+class RedFromBlue(torch.nn.Module):
+    """A tiny segmenter: foreground where red exceeds blue, inside the prompt's probable region."""
+
+    def __init__(self):
+        super().__init__()
+        self.mix = torch.nn.Conv2d(4, 1, 1)
+        with torch.no_grad():
+            self.mix.weight.copy_(torch.tensor([20.0, 0.0, -20.0, 5.0]).reshape(1, 4, 1, 1))
+            self.mix.bias.fill_(-2.0)
+
+    def forward(self, image: torch.Tensor, prompt: torch.Tensor) -> torch.Tensor:
+        return self.mix(torch.cat([image, prompt], 1))
+
+
+def red_sphere_photos(cameras, folder) -> tuple[dict, list[np.ndarray]]:
+    """Photos of a red sphere on a blue wall; the true masks."""
+    from dpi.io.images import write_srgb
+
+    images, truths = {}, []
+    for camera in cameras:
+        _, truth = sphere_view(camera, "plain")
+        image = np.where(truth[..., None], [0.6, 0.1, 0.05], [0.1, 0.15, 0.5])
+        write_srgb(folder / f"{camera.name}.png", image)
+        images[camera.name] = folder / f"{camera.name}.png"
+        truths.append(truth)
+    return images, truths
+
+
+def test_a_segmenter_the_user_brings_cuts_the_masks(cameras, tmp_path, monkeypatch):
+    images, truths = red_sphere_photos(cameras[:4], tmp_path)
+    weights = tmp_path / "weights" / "red.pt2"
+    weights.parent.mkdir()
+    h, w = torch.export.Dim("h", min=8, max=4096), torch.export.Dim("w", min=8, max=4096)
+    example = (torch.rand(1, 3, 32, 24), torch.rand(1, 1, 32, 24))
+    torch.export.save(torch.export.export(RedFromBlue(), example, dynamic_shapes=({2: h, 3: w}, {2: h, 3: w})),
+                      str(weights))
+    monkeypatch.setenv("DPI_WEIGHTS", str(weights.parent))
+    summary = derive_masks(images, {c.name: c for c in cameras[:4]}, tmp_path / "masks",
+                           MaskConfig(weights="red.pt2"), surface_points())
+    assert summary["segmenter"] == str(weights)
+    for camera, truth in zip(cameras[:4], truths):
+        assert summary["views"][camera.name]["method"] == "learned"
+        assert mask_iou(read_mask(tmp_path / "masks" / f"{camera.name}.png"), truth) > 0.95
+
+
+def test_a_missing_or_broken_segmenter_is_one_line(cameras, tmp_path):
+    images, _ = red_sphere_photos(cameras[:3], tmp_path)
+    views = {c.name: c for c in cameras[:3]}
+    with pytest.raises(ValueError, match=r"preprocess.masks.weights: .*nowhere.pt2 is not a file"):
+        derive_masks(images, views, tmp_path / "masks", MaskConfig(weights=str(tmp_path / "nowhere.pt2")))
+    (tmp_path / "junk.pt2").write_bytes(b"not a network")
+    with pytest.raises(ValueError, match=r"junk.pt2: not a segmenter saved with torch.export.save"):
+        derive_masks(images, views, tmp_path / "masks", MaskConfig(weights=str(tmp_path / "junk.pt2")))
+    with pytest.raises(ValueError, match="method learned needs preprocess.masks.weights"):
+        derive_masks(images, views, tmp_path / "masks", MaskConfig(method="learned"))

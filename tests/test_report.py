@@ -93,7 +93,8 @@ def results(tmp_path_factory, tiny_capture) -> Layout:
         uncertainty_stage(job, [(m, [scene.sample_dir(m, k) for k in range(n)]) for m, n in METHODS.items() if n >= 2])
     first = layout.scene(next(iter(ROUGHNESS)))  # its masks as the masks stage summarises derived ones
     views = read_capture_json(first.capture_json).views
-    flags = {v.name: {"method": "grabcut", "agreement": 0.5 if i == 1 else 0.95, "reliable": i != 1}
+    flags = {v.name: {"method": "grabcut", "agreement": 0.95, "point_coverage": 0.5 if i == 1 else 1.0,
+                      "reliable": i != 1, **({"why": "50% of the object's points fall outside"} if i == 1 else {})}
              for i, v in enumerate(views)}
     write_json(first.masks / SUMMARY_FILE, {"views": flags})
     write_summary(layout.summary, summary_rows())
@@ -142,7 +143,7 @@ def test_every_image_of_the_report_loads_in_chromium(results, tmp_path):
     first = next(iter(ROUGHNESS))
     assert f"{first} masks" in alts and not any(f"{scene} masks" in alts for scene in list(ROUGHNESS)[1:])
     flagged = read_capture_json(results.scene(first).capture_json).views[1].name
-    assert "derived masks of 1 of" in page.read_text() and f"unreliable ({flagged})" in page.read_text()
+    assert "derived masks of 1 of" in page.read_text() and f"unreliable ({flagged}: 50% of the object&#x27;s points fall outside)" in page.read_text()
 
     loaded = Images(chromium_dom(page, tmp_path))
     assert loaded.table and len(loaded.images) == len(written.images)

@@ -288,27 +288,34 @@ def readings_note(scene: SceneLayout) -> list[str]:
             "</p>"]
 
 
+def mask_title(name: str, view: dict) -> str:
+    """A gallery title: the view's name and its mask's witnesses (dpi.preprocess.mask_confidence) that were measured."""
+    witnesses = [f"{label} {view[key]:.2f}" for key, label in
+                 (("point_coverage", "points"), ("edge_support", "edges"), ("agreement", "hull")) if key in view]
+    return "\n".join([name, " ".join(witnesses)]) if witnesses else name
+
+
 def mask_gallery_section(scene_name: str, scene: SceneLayout, capture: Capture, exposure: float,
                          page: Page) -> list[str]:
-    """Where the masks were derived: every photo with its mask's outline and the mask's agreement with the hull
-    the masks carve together, and a warning naming the views whose masks are unreliable (dpi.preprocess.masks)."""
+    """Where the masks were derived: every photo with its mask's outline and witnesses, and a warning naming the
+    views whose masks are unreliable and why (dpi.preprocess.mask_confidence)."""
     summary_file = scene.masks / SUMMARY_FILE
     if not summary_file.is_file():
         return []
     views = json.loads(summary_file.read_text())["views"]
     shown = [v for v in capture.views if v.name in views and v.mask is not None]
     flagged = [not views[v.name].get("reliable", True) for v in shown]
-    titles = [f"{v.name}\n{views[v.name]['agreement']:.2f}" if "agreement" in views[v.name] else v.name for v in shown]
     path = page.png(scene_name, "masks")
-    mask_gallery([read_image(v.image) / exposure for v in shown], [read_mask(v.mask) for v in shown], titles, flagged,
-                 path)
+    mask_gallery([read_image(v.image) / exposure for v in shown], [read_mask(v.mask) for v in shown],
+                 [mask_title(v.name, views[v.name]) for v in shown], flagged, path)
+    reasons = "; ".join(f"{v.name}: {views[v.name].get('why', 'unreliable')}" for v, bad in zip(shown, flagged) if bad)
     parts = [f"<p class='warning'><b>Warning:</b> the derived masks of {sum(flagged)} of {len(shown)} views are "
-             f"unreliable ({escape(', '.join(v.name for v, bad in zip(shown, flagged) if bad))}): they disagree with "
-             "what the other views' masks carve, or fell back to the hull's projection. Check them before trusting "
-             "the decompositions.</p>"] if any(flagged) else []
+             f"unreliable ({escape(reasons)}). Check them before trusting the decompositions.</p>"] if any(flagged) \
+        else []
     parts.append(_figure(page.link(path), f"{scene_name} masks",
-                         "The derived masks: each photo with its mask's outline and, below its name, the mask's "
-                         "agreement (IoU) with the projection of the hull the masks carve together; unreliable "
+                         "The derived masks: each photo with its mask's outline and, below its name, its witnesses: the "
+                         "share of the object's sparse points inside it (points), the share of its outline on an "
+                         "image edge (edges) and its IoU with the hull the masks carve together (hull); unreliable "
                          "masks are outlined and framed in red."))
     return parts
 

@@ -136,10 +136,17 @@ def derive_view_masks(capture_json: str | Path, out_dir: str | Path, settings: d
 def derive_geometry(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None,
                    cameras_json: str | Path | None = None, masks_dir: str | Path | None = None,
                    threads: int = 1) -> dict:
-    """Carved and cleaned surface of the object into out_dir: mesh and summary (dpi.layout.geometry_files)."""
+    """Carved and cleaned surface of the object into out_dir: mesh and summary (dpi.layout.geometry_files); stops
+    first when the derived masks are mostly unreliable (dpi.preprocess.mask_confidence.check_usable)."""
     from dpi.preprocess.geometry import GeometryConfig, reconstruct_surface, write_mesh_ply
 
     set_threads(threads)
+    if masks_dir and (Path(masks_dir) / SUMMARY_FILE).is_file():
+        import json
+
+        from dpi.preprocess.mask_confidence import check_usable
+
+        check_usable(json.loads((Path(masks_dir) / SUMMARY_FILE).read_text()), str(masks_dir))
     capture = pinhole_capture(capture_json, cameras_json)
     cameras = {v.name: v.camera for v in capture.views if v.camera}
     masks = ({p.stem: p for p in Path(masks_dir).glob("*.png")} if masks_dir

@@ -1,6 +1,7 @@
-"""Foreground masks from photos and cameras, without a learned model.
+"""Foreground masks from photos and cameras: classical methods, or a learned segmenter the user brings.
 
-Two classical methods, chosen per image:
+Two classical methods, chosen per image (a learned segmenter, dpi.preprocess.segmenter, takes their place when
+`weights` names one: prompted by GrabCut's first prior, its masks are kept as it cuts them):
 - **colour keying** when the background is uniform (the image border has one colour, as in a
   studio or turntable capture): foreground is every pixel whose colour differs from the key;
 - **GrabCut** otherwise, started from a soft prior: the disc of the sphere every camera sees whole
@@ -21,11 +22,10 @@ projection is the mask.
 Either way the largest connected component is kept and small holes are filled; holes larger
 than `FILL_HOLES_BELOW` of the object (the hole of a torus) are kept.
 
-**Confidence.** Each final mask is compared with the projection of the hull that all the masks carve
-(a voxel goes only where several views see it outside): its IoU with that outline is the view's
-`agreement`. The hull of a few views is fatter than the object, so a mask is judged against its peers: one
-that is the consensus fallback, or agrees less than `MASK_AGREEMENT` times the median view, is unreliable;
-the summary, the log and the report name those views.
+**Confidence** (dpi.preprocess.mask_confidence): each final mask is checked against the object's sparse points
+(the share inside it), the image's edges (the share of its outline on one) and the hull that all the masks carve
+(its IoU with that outline, `agreement`, against the median view's); a view that fails one is unreliable, and the
+summary, the log and the report name it and why.
 """
 
 from __future__ import annotations
@@ -42,11 +42,13 @@ from dpi.cameras import Camera
 from dpi.capture.consistency import mask_iou
 from dpi.io.images import read_image, resize, resize_mask, to_uint8, working_size, write_mask
 from dpi.preprocess.hull import marching_cubes, visible_sphere, visual_hull
+from dpi.preprocess.mask_confidence import (AGREEMENT_VOTE_SHARE, MASK_AGREEMENT, edge_support, point_coverage,
+                                             verdict)
 from dpi.settings import settings
 
 log = logging.getLogger(__name__)
 
-METHODS = ("auto", "grabcut", "key")
+METHODS = ("auto", "grabcut", "key", "learned")
 
 
 GRABCUT_ITERATIONS = 5
@@ -83,7 +85,12 @@ class MaskConfig:
     """Settings of mask extraction."""
 
     method: str = "auto"
-    """auto (keying on a uniform background, else GrabCut) | grabcut | key"""
+    """auto (the learned segmenter when `weights` names one, else keying on a uniform background, else GrabCut) |
+    grabcut | key | learned"""
+    weights: str | None = None
+    """a segmenter the user brings (dpi.preprocess.segmenter, a torch.export .pt2 file): a path, or a name in
+    $DPI_WEIGHTS;
+    None: the classical methods alone"""
     max_size: Annotated[int, Field(ge=16)] | None = 480
     """longer image side (px) the masks are computed at: larger photos are area-downsampled (with their
     cameras) and the masks upsampled to the photos' size (GrabCut's fixed smoothness is tuned to small
@@ -222,17 +229,22 @@ def clean_mask(mask: np.ndarray, fill_holes_below: float) -> np.ndarray:
 
 
 def object_mask(image: np.ndarray, camera: Camera, cfg: MaskConfig, sphere: tuple[np.ndarray, float],
-                points: np.ndarray | None = None) -> tuple[np.ndarray, str]:
-    """First-pass foreground mask (h, w) of one linear RGB image, and the method used ("key" or "grabcut").
+                points: np.ndarray | None = None, segmenter=None) -> tuple[np.ndarray, str]:
+    """First-pass foreground mask (h, w) of one linear RGB image, and the method used ("key", "grabcut" or
+    "learned": `segmenter`, a loaded network, prompted like GrabCut).
 
-    GrabCut starts from `first_prior` of the sphere (centre, radius) and the object's points (N, 3)."""
+    GrabCut and the segmenter start from `first_prior` of the sphere (centre, radius) and the object's points (N, 3)."""
+    from dpi.preprocess.segmenter import learned_mask
+
     image8 = to_uint8(image)
     colour, spread = border_colour(image8)
     method = cfg.method
     if method == "auto":
-        method = "key" if spread < KEY_MAX_SPREAD else "grabcut"
+        method = "learned" if segmenter is not None else "key" if spread < KEY_MAX_SPREAD else "grabcut"
     if method == "key":
         mask = key_mask(image8, colour, max(KEY_THRESHOLD, 2 * spread))
+    elif method == "learned":
+        mask = learned_mask(segmenter, image8, first_prior(camera, sphere, points))
     else:
         mask = grabcut(image8, first_prior(camera, sphere, points), GRABCUT_ITERATIONS)
     return clean_mask(mask, FILL_HOLES_BELOW), method
@@ -291,13 +303,6 @@ def refine_masks(images8: list[np.ndarray | None], cameras: list[Camera], masks:
     return masks, methods
 
 
-MASK_AGREEMENT = 0.85
-"""a mask is reliable when its IoU with the projection of the hull the masks carve together reaches this share
-of the median view's"""
-AGREEMENT_VOTE_SHARE = 0.25
-"""share of the views that must see a voxel outside their masks to carve it, for the agreement's hull"""
-
-
 def mask_agreement(cameras: list[Camera], masks: list[np.ndarray], resolution: int) -> list[float] | None:
     """Each view's IoU with the projection of the hull carved where AGREEMENT_VOTE_SHARE of the views see a voxel
     outside their masks (None when no hull can be carved, e.g. masks that share no object)."""
@@ -316,8 +321,14 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
 
     Views without a camera get no mask. `points`: the object's sparse points (N, 3), if any."""
     cfg = cfg or MaskConfig()
+    from dpi.preprocess.segmenter import load_segmenter, weights_file
+
     if cfg.method not in METHODS:
         raise ValueError(f"mask method must be one of {', '.join(METHODS)}, got {cfg.method!r}")
+    if cfg.method == "learned" and not cfg.weights:
+        raise ValueError("preprocess.masks.method learned needs preprocess.masks.weights (a segmenter's .pt2 file)")
+    segmenter = load_segmenter(weights_file(cfg.weights)) if cfg.weights and cfg.method in ("auto", "learned") \
+        else None
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     names = [n for n in images if n in cameras]
@@ -330,10 +341,11 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
     sphere = (centre, SPHERE_FRACTION * radius)
     if points is not None:
         points = drop_outliers(points, OUTLIER_STD_RATIO)
-    first = [object_mask(picture, camera, cfg, sphere, points) for picture, camera in zip(pictures, views)]
+    first = [object_mask(picture, camera, cfg, sphere, points, segmenter) for picture, camera in zip(pictures, views)]
     masks, methods = [m for m, _ in first], [method for _, method in first]
     use_points = points is not None and len(points) >= MIN_POINTS
-    summary = {"views": {}, "prior": "sphere and sparse points" if use_points else "sphere", "consensus_rounds": 0}
+    summary = {"views": {}, "prior": "sphere and sparse points" if use_points else "sphere", "consensus_rounds": 0,
+               **({"segmenter": str(weights_file(cfg.weights))} if segmenter is not None else {})}
     if "grabcut" in methods:
         to_cut = [to_uint8(p) if method == "grabcut" else None for p, method in zip(pictures, methods)]
         refined, new_methods = refine_masks(to_cut, views, masks)
@@ -342,22 +354,30 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
         summary["consensus_rounds"] = len(CONSENSUS_ROUNDS)
     agreement = mask_agreement(views, masks, CONSENSUS_RESOLUTION) if len(views) >= 3 else None
     floor = None if agreement is None else MASK_AGREEMENT * float(np.median(agreement))
-    if (width, height) != full:
-        masks = [resize_mask(mask, *full) for mask in masks]
-    for i, (name, mask, method) in enumerate(zip(names, masks, methods)):
+    reasons = {}
+    for i, (name, picture, camera, mask, method) in enumerate(zip(names, pictures, views, masks, methods)):
         if not mask.any():
             raise ValueError(f"{images[name]}: empty foreground mask ({method}); check the capture or the mask settings")
-        write_mask(out_dir / f"{name}.png", mask)
         view = {"method": method, "foreground_fraction": round(float(mask.mean()), 4)}
-        if agreement is not None:
-            view["agreement"] = round(agreement[i], 4)
-            view["reliable"] = method != "consensus hull" and agreement[i] >= floor
+        for key, value in (("agreement", None if agreement is None else agreement[i]),
+                           ("point_coverage", point_coverage(camera, mask, points)),
+                           ("edge_support", edge_support(to_uint8(picture), mask))):
+            if value is not None:
+                view[key] = round(value, 4)
+        reasons[name] = verdict(view, floor)
+        view["reliable"] = not reasons[name]
+        if reasons[name]:
+            view["why"] = "; ".join(reasons[name])
         summary["views"][name] = view
-    summary["unreliable"] = [n for n, v in summary["views"].items() if not v.get("reliable", True)]
+    if (width, height) != full:
+        masks = [resize_mask(mask, *full) for mask in masks]
+    for name, mask in zip(names, masks):
+        write_mask(out_dir / f"{name}.png", mask)
+    summary["unreliable"] = [n for n, why in reasons.items() if why]
     if summary["unreliable"]:
-        log.warning("masks unreliable for %d of %d views (%s): they disagree with what the other views' masks carve "
-                    "or fell back to the hull's projection; look at them before trusting a decomposition",
-                    len(summary["unreliable"]), len(names), ", ".join(summary["unreliable"]))
+        log.warning("masks unreliable for %d of %d views; look at them before trusting a decomposition: %s",
+                    len(summary["unreliable"]), len(names),
+                    "; ".join(f"{n} ({summary['views'][n]['why']})" for n in summary["unreliable"]))
     return summary
 
 
