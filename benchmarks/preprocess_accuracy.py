@@ -3,8 +3,10 @@
 Renders photo-only captures (PNG images, no cameras, masks or mesh; ground truth hidden in gt/)
 of a convex blob, a bumpy torus (a hole, self-occlusion) and a bowl (a cavity, a flat foot) in front
 of a textured or a plain backdrop, seen from the upper hemisphere only (`--elevations`, like a
-table-top capture), runs poses -> masks -> geometry -> uv as the workflow does, and prints one row
-per capture: pose errors after Umeyama alignment, mask IoU, Chamfer distance (% of the bounding-box
+table-top capture) all around or on an arc (`--arc 180`: a half circle in front of the object, whose hull is
+open behind it), runs poses -> masks -> geometry -> uv as the workflow does, and prints one row
+per capture: pose errors after Umeyama alignment, mask IoU, what the masks' witnesses flagged (views under 0.8
+IoU and how many of them were flagged; views over 0.9 IoU flagged), Chamfer distance (% of the bounding-box
 diagonal) and the seconds of every stage; rows (shape, views, size, rotation_deg, mask_iou,
 chamfer_pct, seconds, ...) are appended to benchmarks/results/preprocess_accuracy.csv. Not a timed
 test: numbers depend on the machine.
@@ -63,8 +65,9 @@ def run_capture(root: Path, work: Path, threads: int, geometry: dict) -> dict:
     ious = [mask_iou(read_mask(scene.masks / f"{n}.png"), read_mask(root / "gt" / "masks" / f"{n}.png"))
             for n in truth if n in cameras]
     methods = {v["method"] for v in summary["views"].values()}
+    flagged = [summary["views"][n].get("reliable", True) is False for n in truth if n in cameras]
     row.update(mask_prior=summary["prior"] if "grabcut" in methods else "key", iou_mean=np.mean(ious),
-               iou_min=np.min(ious))
+               iou_min=np.min(ious), **flag_counts(ious, flagged))
     start = time.perf_counter()
     derive_geometry(capture_json, scene.geometry_dir, geometry, cameras_json, scene.masks)
     row["geometry_s"] = time.perf_counter() - start
@@ -77,17 +80,27 @@ def run_capture(root: Path, work: Path, threads: int, geometry: dict) -> dict:
     return row
 
 
-def append_csv(path: Path, row: dict, views: int, size: int, elevations: list[float]) -> None:
+def flag_counts(ious: list[float], flagged: list[bool]) -> dict[str, int]:
+    """How the masks' witnesses judged the views: views under 0.8 IoU and how many of them were flagged, views over
+    0.9 IoU that were flagged (issue 66's acceptance: every one of the first, at most one of the last)."""
+    below = [f for iou, f in zip(ious, flagged) if iou < 0.8]
+    return {"masks_below_08": len(below), "flagged_below_08": sum(below),
+            "flagged_above_09": sum(f for iou, f in zip(ious, flagged) if iou > 0.9)}
+
+
+def append_csv(path: Path, row: dict, views: int, size: int, elevations: list[float], arc: float) -> None:
     """One capture's row in the study CSV (a header when the file is new)."""
     record = {"shape": row["shape"], "background": row["background"], "views": views, "size": size,
-              "elevations_deg": " ".join(f"{e:g}" for e in elevations), "support_plane": row["support_plane"],
-              "stereo": row["stereo"],
+              "elevations_deg": " ".join(f"{e:g}" for e in elevations), "arc_deg": arc,
+              "support_plane": row["support_plane"], "stereo": row["stereo"],
               "rotation_deg": row.get("rot_deg_mean", ""),
-              "mask_iou": row.get("iou_mean", ""), "chamfer_pct": row.get("chamfer_pct", ""),
+              "mask_iou": row.get("iou_mean", ""), "mask_iou_min": row.get("iou_min", ""),
+              **{k: row.get(k, "") for k in ("masks_below_08", "flagged_below_08", "flagged_above_09")},
+              "chamfer_pct": row.get("chamfer_pct", ""),
               "seconds": sum(v for k, v in row.items() if k.endswith("_s") and k != "render_s"),
               "error": row.get("error", "")}
-    settings = {k: record[k] for k in ("shape", "background", "views", "size", "elevations_deg", "support_plane",
-                                       "stereo")}
+    settings = {k: record[k] for k in ("shape", "background", "views", "size", "elevations_deg", "arc_deg",
+                                       "support_plane", "stereo")}
     append_row(path, {k: f"{v:.4g}" if isinstance(v, float) else v for k, v in record.items()}, tuple(record),
                settings_hash(settings))
 
@@ -103,6 +116,7 @@ def main() -> None:
     parser.add_argument("--stereo", action=argparse.BooleanOptionalAction, default=True,
                         help="carve what multi-view stereo sees as empty inside the hull (GeometryConfig.stereo)")
     parser.add_argument("--backgrounds", nargs="+", default=["textured", "plain"])
+    parser.add_argument("--arc", type=float, default=360.0, help="the cameras' sweep around the object, degrees")
     parser.add_argument("--views", type=int, default=32)
     parser.add_argument("--size", type=int, default=240)
     parser.add_argument("--spp", type=int, default=8)
@@ -114,11 +128,12 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for shape in args.shapes:
             for background in args.backgrounds:
-                name = f"{shape}_{background}_{args.views}x{args.size}_{args.spp}spp"
+                name = f"{shape}_{background}_{args.views}x{args.size}_{args.spp}spp_{args.arc:g}deg"
                 root = Path(args.captures or tmp) / name
                 cfg = SynthConfig(shape=shape, views=args.views, held_out_every=8, width=args.size, height=args.size,
-                                  spp=args.spp, texture_size=256, camera_distance=6.0, elevations_deg=tuple(args.elevations),
-                                  albedo_detail=0.6, background=background, image_format="png", photos_only=True)
+                                  spp=args.spp, texture_size=256, camera_distance=6.0,
+                                  elevations_deg=tuple(args.elevations), arc_deg=args.arc, albedo_detail=0.6,
+                                  background=background, image_format="png", photos_only=True)
                 start = time.perf_counter()
                 if not (root / SYNTH_MARKER).is_file():
                     make_synthetic_capture(root, cfg, threads=args.threads, progress=False)
@@ -130,7 +145,7 @@ def main() -> None:
                     row = {"error": f"{type(exc).__name__}: {str(exc)[:80]}"}
                 rows.append({"shape": shape, "background": background, "render_s": render_s, **row})
                 append_csv(args.out, {**rows[-1], "support_plane": args.support_plane, "stereo": args.stereo},
-                           args.views, args.size, args.elevations)
+                           args.views, args.size, args.elevations, args.arc)
                 print(tabulate([rows[-1]], headers="keys", floatfmt=".3g"), flush=True)
     print(f"\n{args.views} views of {args.size}x{args.size}, {args.spp} spp, {args.threads} threads")
     print(tabulate(rows, headers="keys", floatfmt=".3g"))
