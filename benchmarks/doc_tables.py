@@ -287,10 +287,13 @@ def real_photos(root: Path) -> str:
     held-out views per method; the newest row per capture."""
     rows = latest(read_rows(root / RESULTS / "real_photos.csv", ("capture", "size")), ("capture",))
     body = [[r["capture"], f"{r['views']:.0f} of {r['size']}", f"{r['registered']:.0%}", f"{r['reprojection_px']:.2f}",
-             f"{r['mask_iou']:.3f} (min {r['mask_iou_min']:.2f})", f"{r['masks_flagged']:.0f}",
+             f"{r['mask_iou']:.3f} (min {r['mask_iou_min']:.2f})",
+             f"{r['masks_flagged']:.0f} ({r['flagged_below_08']:.0f} of {r['masks_below_08']:.0f} / "
+             f"{r['flagged_above_09']:.0f})",
              " / ".join(f"{r[f'{m}_view_psnr']:.2f}" for m in ("init", "dps", "none")), f"{r['seconds'] / 60:.1f}"]
             for r in rows]
-    return markdown(["capture", "photos", "registered", "reproj. [px]", "mask IoU vs checked", "masks flagged",
+    return markdown(["capture", "photos", "registered", "reproj. [px]", "mask IoU vs checked",
+                     "masks flagged (checked: < 0.8 / > 0.9 IoU)",
                      "held-out PSNR init / dps / none [dB]", "min"], body)
 
 
@@ -392,19 +395,33 @@ def readings_fig9(root: Path) -> str:
 
 
 def readings_cost(root: Path) -> str:
-    """Readings study, --cost: the init's seconds with both readings over the rough one's alone, per scene."""
+    """Readings study, --cost: the init's seconds with both readings over the rough one's alone, per scene, and
+    whether one of the two fits stopped half-way."""
     rows = latest(read_rows(root / RESULTS / "readings_cost.csv"), ("scene", "reading"))
     seconds = {(r["scene"], r["reading"]): r for r in rows}
     body = [[scene, f"{seconds[(scene, 'rough')]['seconds']:.1f}", f"{seconds[(scene, 'auto')]['seconds']:.1f}",
              f"{seconds[(scene, 'auto')]['seconds'] / seconds[(scene, 'rough')]['seconds']:.2f}",
              "yes" if seconds[(scene, "auto")]["stopped"] else "no"]
             for scene in sorted({r["scene"] for r in rows}) if (scene, "rough") in seconds and (scene, "auto") in seconds]
-    return markdown(["scene", "rough reading alone [s]", "both readings [s]", "ratio", "glossy stopped half-way"], body)
+    return markdown(["scene", "rough reading alone [s]", "both readings [s]", "ratio", "one stopped half-way"], body)
+
+
+def mask_witnesses(root: Path) -> str:
+    """Synthetic photo captures (benchmarks/preprocess_accuracy.py --out .../mask_witnesses.csv): derived masks
+    against the truth, and what the masks' witnesses flagged, per shape and sweep."""
+    rows = latest(read_rows(root / RESULTS / "mask_witnesses.csv", ("shape", "background", "elevations_deg")),
+                  ("shape", "background", "views", "size", "arc_deg", "stereo"))
+    body = [[r["shape"], r["background"], f"{r['views']:g} of {r['size']:g} px", f"{r['arc_deg']:g}",
+             f"{r['mask_iou']:.3f}", f"{r['mask_iou_min']:.3f}",
+             f"{r['flagged_below_08']:g} of {r['masks_below_08']:g}", f"{r['flagged_above_09']:g}"]
+            for r in sorted(rows, key=lambda r: (r["arc_deg"], r["shape"]))]
+    return markdown(["shape", "backdrop", "views", "sweep [deg]", "mask IoU", "min", "flagged, views under 0.8",
+                     "flagged, views over 0.9"], body)
 
 
 TABLES: dict[str, Callable[[Path], str]] = {
     "readings": readings, "readings_forced": readings_forced, "readings_fig9": readings_fig9,
-    "readings_cost": readings_cost,
+    "readings_cost": readings_cost, "mask_witnesses": mask_witnesses,
     "presets": presets, "posterior": posterior, "posterior_full": posterior_full, "calibration": calibration,
     "fig9": fig9_ratios, "train_fit": train_fit, "resolution": resolution, "roughness": roughness,
     "tradeoff": tradeoff, "lens": lens, "realism": realism, "real_photos": real_photos, "pinned_light": pinned_light,

@@ -8,7 +8,7 @@ open behind it), runs poses -> masks -> geometry -> uv as the workflow does, and
 per capture: pose errors after Umeyama alignment, mask IoU, what the masks' witnesses flagged (views under 0.8
 IoU and how many of them were flagged; views over 0.9 IoU flagged), Chamfer distance (% of the bounding-box
 diagonal) and the seconds of every stage; rows (shape, views, size, rotation_deg, mask_iou,
-chamfer_pct, seconds, ...) are appended to benchmarks/results/preprocess_accuracy.csv. Not a timed
+chamfer_pct, poses_s, ..., seconds) are appended to benchmarks/results/preprocess_accuracy.csv. Not a timed
 test: numbers depend on the machine.
 
     .venv/bin/python benchmarks/preprocess_accuracy.py                     # defaults below
@@ -30,7 +30,7 @@ from dpi.cameras import read_cameras
 from dpi.capture.consistency import mask_iou
 from dpi.io.images import read_mask
 from dpi.layout import SYNTH_MARKER, SceneLayout
-from dpi.preprocess.accuracy import align_mesh, chamfer, pose_errors
+from dpi.preprocess.accuracy import align_mesh, chamfer, flag_counts, pose_errors
 from dpi.preprocess.geometry import read_mesh
 from dpi.preprocess.sfm import SfMError
 from dpi.preprocess.derive import derive_geometry, derive_poses, derive_uv, derive_view_masks, normalise_capture
@@ -41,7 +41,7 @@ from dpi.synth.shapes import SHAPES
 CSV = Path(__file__).resolve().parent / "results" / "preprocess_accuracy.csv"
 
 
-def run_capture(root: Path, work: Path, threads: int, geometry: dict) -> dict:
+def run_capture(root: Path, work: Path, threads: int, sfm: dict, geometry: dict) -> dict:
     """Run the four stages on one photo capture; accuracy and seconds per stage."""
     scene = SceneLayout(work)
     normalise_capture(root, scene.capture_json)
@@ -49,7 +49,7 @@ def run_capture(root: Path, work: Path, threads: int, geometry: dict) -> dict:
     truth = read_cameras(root / "gt" / "transforms.json")
     start = time.perf_counter()
     try:
-        derive_poses(capture_json, scene.poses_dir, {"max_features": 2048}, threads=threads)
+        derive_poses(capture_json, scene.poses_dir, sfm, threads=threads)
         cameras_json, points = scene.poses["cameras"], scene.poses["points"]
         cameras = read_cameras(cameras_json)
         errors = pose_errors(cameras, truth)
@@ -80,27 +80,20 @@ def run_capture(root: Path, work: Path, threads: int, geometry: dict) -> dict:
     return row
 
 
-def flag_counts(ious: list[float], flagged: list[bool]) -> dict[str, int]:
-    """How the masks' witnesses judged the views: views under 0.8 IoU and how many of them were flagged, views over
-    0.9 IoU that were flagged (issue 66's acceptance: every one of the first, at most one of the last)."""
-    below = [f for iou, f in zip(ious, flagged) if iou < 0.8]
-    return {"masks_below_08": len(below), "flagged_below_08": sum(below),
-            "flagged_above_09": sum(f for iou, f in zip(ious, flagged) if iou > 0.9)}
-
-
 def append_csv(path: Path, row: dict, views: int, size: int, elevations: list[float], arc: float) -> None:
     """One capture's row in the study CSV (a header when the file is new)."""
     record = {"shape": row["shape"], "background": row["background"], "views": views, "size": size,
               "elevations_deg": " ".join(f"{e:g}" for e in elevations), "arc_deg": arc,
-              "support_plane": row["support_plane"], "stereo": row["stereo"],
-              "rotation_deg": row.get("rot_deg_mean", ""),
+              "support_plane": row["support_plane"], "stereo": row["stereo"], "matcher": row["matcher"],
+              "max_features": row["max_features"], "rotation_deg": row.get("rot_deg_mean", ""),
               "mask_iou": row.get("iou_mean", ""), "mask_iou_min": row.get("iou_min", ""),
               **{k: row.get(k, "") for k in ("masks_below_08", "flagged_below_08", "flagged_above_09")},
               "chamfer_pct": row.get("chamfer_pct", ""),
+              **{stage: row.get(stage, "") for stage in ("poses_s", "masks_s", "geometry_s", "uv_s")},
               "seconds": sum(v for k, v in row.items() if k.endswith("_s") and k != "render_s"),
               "error": row.get("error", "")}
     settings = {k: record[k] for k in ("shape", "background", "views", "size", "elevations_deg", "arc_deg",
-                                       "support_plane", "stereo")}
+                                       "support_plane", "stereo", "matcher", "max_features")}
     append_row(path, {k: f"{v:.4g}" if isinstance(v, float) else v for k, v in record.items()}, tuple(record),
                settings_hash(settings))
 
@@ -117,6 +110,8 @@ def main() -> None:
                         help="carve what multi-view stereo sees as empty inside the hull (GeometryConfig.stereo)")
     parser.add_argument("--backgrounds", nargs="+", default=["textured", "plain"])
     parser.add_argument("--arc", type=float, default=360.0, help="the cameras' sweep around the object, degrees")
+    parser.add_argument("--max-features", type=int, default=2048, help="SIFT features per image (SfMConfig)")
+    parser.add_argument("--matcher", default="auto", help="SfMConfig.matcher: auto, exhaustive or sequential")
     parser.add_argument("--views", type=int, default=32)
     parser.add_argument("--size", type=int, default=240)
     parser.add_argument("--spp", type=int, default=8)
@@ -140,11 +135,13 @@ def main() -> None:
                 render_s = time.perf_counter() - start
                 try:
                     row = run_capture(root, Path(tmp) / f"work_{name}", args.threads,
+                                      {"max_features": args.max_features, "matcher": args.matcher},
                                       {"support_plane": args.support_plane, "stereo": args.stereo})
                 except Exception as exc:  # a failing stage is a result too
                     row = {"error": f"{type(exc).__name__}: {str(exc)[:80]}"}
                 rows.append({"shape": shape, "background": background, "render_s": render_s, **row})
-                append_csv(args.out, {**rows[-1], "support_plane": args.support_plane, "stereo": args.stereo},
+                append_csv(args.out, {**rows[-1], "support_plane": args.support_plane, "stereo": args.stereo,
+                                      "matcher": args.matcher, "max_features": args.max_features},
                            args.views, args.size, args.elevations, args.arc)
                 print(tabulate([rows[-1]], headers="keys", floatfmt=".3g"), flush=True)
     print(f"\n{args.views} views of {args.size}x{args.size}, {args.spp} spp, {args.threads} threads")

@@ -4,8 +4,8 @@ Runs Snakemake on the capture from its photos and cameras (masks, geometry, UVs,
 samples, evaluation, report), then scores what a user sees: the poses the capture's cameras came from (the
 `poses` stage's own summary, `poses_summary.json`, fitted at 2400 px, the size COLMAP needs on these photos),
 each derived mask's IoU against the hand-checked one (`checked_masks/`, the skull without its stand), the views
-the mask check flagged, and the held-out views' PSNR per method. One row per run goes to
-benchmarks/results/real_photos.csv.
+the masks' witnesses flagged (and how they judged the checked views: those under 0.8 IoU flagged, those over 0.9
+flagged), and the held-out views' PSNR per method. One row per run goes to benchmarks/results/real_photos.csv.
 
     .venv/bin/python benchmarks/real_photos.py [--cores 2] [--samples 2] [--stereo]
 """
@@ -25,6 +25,7 @@ import yaml
 
 from dpi.capture.consistency import mask_iou
 from dpi.io.images import read_mask
+from dpi.preprocess.accuracy import flag_counts
 from dpi.studies.engine import CHECKOUT as ROOT
 from dpi.studies.engine import append_row, read_rows, results_csv, settings_hash, work_dir
 
@@ -34,7 +35,8 @@ WORK = work_dir("real_photos")
 CSV = results_csv("real_photos")
 METHODS = ("init", "dps", "none")
 COLUMNS = ("capture", "views", "size", "registered", "reprojection_px", "mask_iou", "mask_iou_min",
-           "masks_flagged", *(f"{m}_view_psnr" for m in METHODS), "seconds")
+           "masks_flagged", "masks_below_08", "flagged_below_08", "flagged_above_09",
+           *(f"{m}_view_psnr" for m in METHODS), "seconds")
 
 
 def mask_scores(masks: Path, checked: Path) -> dict[str, float]:
@@ -79,7 +81,8 @@ def main() -> None:
     row = {"capture": SCENE, "views": len(ious), "size": f"{size[1]}x{size[0]}",
            "registered": poses["registered"] / poses["images"], "reprojection_px": poses["mean_reprojection_error_px"],
            "mask_iou": float(np.mean(list(ious.values()))), "mask_iou_min": min(ious.values()),
-           "masks_flagged": len(flagged), **{f"{m}_view_psnr": psnr.get(m, float("nan")) for m in METHODS},
+           "masks_flagged": len(flagged), **flag_counts(list(ious.values()), [v in flagged for v in ious]),
+           **{f"{m}_view_psnr": psnr.get(m, float("nan")) for m in METHODS},
            "seconds": seconds}
     append_row(CSV, row, COLUMNS, settings_hash(config))
     worst = sorted(ious, key=ious.get)[:3]

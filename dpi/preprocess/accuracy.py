@@ -3,7 +3,8 @@
 Poses from structure from motion live in their own frame, so they are compared after the
 similarity (Umeyama) that best maps their camera centres onto the true ones. Surfaces are
 compared by the symmetric Chamfer distance between points sampled uniformly on both meshes,
-as a fraction of the true mesh's bounding-box diagonal.
+as a fraction of the true mesh's bounding-box diagonal. The masks' confidence is judged against the masks' true
+IoU (`flag_counts`).
 """
 
 from __future__ import annotations
@@ -85,3 +86,11 @@ def align_mesh(vertices: np.ndarray, estimated: dict[str, Camera], truth: dict[s
     names = [n for n in truth if n in estimated]
     s, r, t = umeyama(np.array([estimated[n].center for n in names]), np.array([truth[n].center for n in names]))
     return vertices @ (s * r).T + t
+
+
+def flag_counts(ious: list[float], flagged: list[bool]) -> dict[str, int]:
+    """How the masks' witnesses judged views whose true IoU is known: views under 0.8 IoU and how many of them were
+    flagged, views over 0.9 IoU that were flagged (a truthful confidence flags all of the first, few of the last)."""
+    below = [f for iou, f in zip(ious, flagged) if iou < 0.8]
+    return {"masks_below_08": len(below), "flagged_below_08": sum(below),
+            "flagged_above_09": sum(f for iou, f in zip(ious, flagged) if iou > 0.9)}
