@@ -291,7 +291,7 @@ def readings_note(scene: SceneLayout) -> list[str]:
 def mask_title(name: str, view: dict) -> str:
     """A gallery title: the view's name and its mask's witnesses (dpi.preprocess.mask_confidence) that were measured."""
     witnesses = [f"{label} {view[key]:.2f}" for key, label in
-                 (("point_coverage", "points"), ("edge_support", "edges"), ("agreement", "hull")) if key in view]
+                 (("point_coverage", "p"), ("edge_support", "e"), ("agreement", "h")) if key in view]
     return "\n".join([name, " ".join(witnesses)]) if witnesses else name
 
 
@@ -314,9 +314,9 @@ def mask_gallery_section(scene_name: str, scene: SceneLayout, capture: Capture, 
         else []
     parts.append(_figure(page.link(path), f"{scene_name} masks",
                          "The derived masks: each photo with its mask's outline and, below its name, its witnesses: the "
-                         "share of the object's sparse points inside it (points), the share of its outline on an "
-                         "image edge (edges) and its IoU with the hull the masks carve together (hull); unreliable "
-                         "masks are outlined and framed in red."))
+                         "share of the object's sparse points inside it (p), the share of its outline on an image "
+                         "edge (e) and its IoU with the hull the masks carve together (h); unreliable masks are "
+                         "outlined and framed in red."))
     return parts
 
 
