@@ -365,7 +365,7 @@ def readings(root: Path) -> str:
     """Readings study: per scene, means over repeats of the init and of its dps samples, and the share of samples
     that started from the glossy reading."""
     rows = latest(read_rows(root / RESULTS / "readings_study.csv"), ("scene", "repeat"))
-    metrics = (Metric("closing loss, glossy / rough", "ratio", ".2f", spread=False),
+    metrics = (Metric("closing loss, glossy / rough (half-way where one stopped)", "ratio", ".2f", spread=False),
                Metric("samples from the glossy reading", "glossy_samples", ".2f", spread=False),
                Metric("init: views [dB]", "init_novel_psnr", ".2f", spread=False),
                Metric("samples: views [dB]", "novel_psnr", ".2f"),
