@@ -293,7 +293,7 @@ def real_photos(root: Path) -> str:
              " / ".join(f"{r[f'{m}_view_psnr']:.2f}" for m in ("init", "dps", "none")), f"{r['seconds'] / 60:.1f}"]
             for r in rows]
     return markdown(["capture", "photos", "registered", "reproj. [px]", "mask IoU vs checked",
-                     "masks flagged (checked: < 0.8 / > 0.9 IoU)",
+                     "flagged (checked: <0.8 / >0.9 IoU)",
                      "held-out PSNR init / dps / none [dB]", "min"], body)
 
 
