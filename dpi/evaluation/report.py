@@ -313,10 +313,10 @@ def mask_gallery_section(scene_name: str, scene: SceneLayout, capture: Capture, 
              f"unreliable ({escape(reasons)}). Check them before trusting the decompositions.</p>"] if any(flagged) \
         else []
     parts.append(_figure(page.link(path), f"{scene_name} masks",
-                         "The derived masks: each photo with its mask's outline and, below its name, its witnesses: the "
-                         "share of the object's sparse points inside it (p), the share of its outline on an image "
-                         "edge (e) and its IoU with the hull the masks carve together (h); unreliable masks are "
-                         "outlined and framed in red."))
+                         "The derived masks: each photo with its mask's outline and, below its name, its witnesses: "
+                         "the share of the object's sparse points inside it (p), the share of its outline on an "
+                         "image edge (e) and its IoU with the hull the masks carve together (h); unreliable masks "
+                         "are outlined and framed in red."))
     return parts
 
 
