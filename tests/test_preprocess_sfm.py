@@ -65,3 +65,36 @@ def test_featureless_images_fail_with_a_clear_error(tmp_path):
     with pytest.raises(SfMError, match="no model") as info:
         run_sfm(sorted((tmp_path / "images").glob("*.png")), tmp_path / "colmap", SfMConfig())
     assert info.value.summary["images"] == 3
+
+
+@pytest.fixture(scope="module")
+def photos(tmp_path_factory):
+    """32 photos of 240 px in front of the textured backdrop, all around (file order = the walk's order)."""
+    from dpi.synth.capture import SynthConfig, make_synthetic_capture
+
+    root = tmp_path_factory.mktemp("walk")
+    make_synthetic_capture(root, SynthConfig(views=32, held_out_every=0, width=240, height=240, spp=4, env_height=16,
+                                             texture_size=128, camera_distance=6.0, elevations_deg=(15.0, 30.0),
+                                             albedo_detail=0.6, background="textured", image_format="png",
+                                             photos_only=True), threads=2, progress=False)
+    return sorted((root / "images").glob("*.png"))
+
+
+def test_photos_out_of_order_are_matched_in_full_when_their_order_registers_too_few(photos, tmp_path, monkeypatch):
+    """matcher auto on a larger capture: neighbours in file order first; shuffled names break the walk's order, so
+    every pair is matched and every photo registers."""
+    import shutil
+
+    monkeypatch.setattr("dpi.preprocess.sfm.EXHAUSTIVE_MAX_IMAGES", 4)
+    monkeypatch.setattr("dpi.preprocess.sfm.SEQUENTIAL_OVERLAP", 4)
+    in_order = run_sfm(photos, tmp_path / "ordered")
+    assert in_order.summary["matcher"] == "sequential" and in_order.summary["registered"] == len(photos)
+
+    shuffled = tmp_path / "shuffled"
+    shuffled.mkdir()
+    order = np.random.default_rng(3).permutation(len(photos))
+    for k, i in enumerate(order):
+        shutil.copy(photos[i], shuffled / f"{k:03d}.png")
+    model = run_sfm(sorted(shuffled.glob("*.png")), tmp_path / "colmap")
+    assert model.summary["matcher"] == "sequential, then exhaustive"
+    assert model.summary["registered"] == len(photos)

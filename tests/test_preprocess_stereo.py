@@ -180,3 +180,29 @@ def test_box_mean_matches_an_average_pool_that_ignores_the_padding(window):
     half = window // 2
     pooled = F.avg_pool2d(x, window, stride=1, padding=half, count_include_pad=False)
     assert torch.allclose(_box(x, window), pooled, atol=1e-6)
+
+
+@pytest.mark.parametrize("factor, passes", [(0.5, 1), (2.0, 2)])
+def test_a_second_stereo_pass_runs_only_where_the_first_opened_a_concavity(monkeypatch, factor, passes):
+    """stereo_carve stops after a pass that removed less than NEXT_PASS_FROM of the hull (a convex object)."""
+    from dpi.preprocess import geometry
+
+    n = 16
+    grid = (np.stack(np.indices((n, n, n)), -1) - (n - 1) / 2) / (n / 2)
+    field = np.linalg.norm(grid, axis=-1) - 0.8  # a sphere, negative inside
+
+    share = factor * geometry.NEXT_PASS_FROM
+
+    def carve(field, origin, size, cameras, depths, cfg):  # removes `share` of the current hull's voxels
+        inside = np.flatnonzero(field < 0)
+        out = field.copy()
+        out.flat[inside[: int(np.ceil(share * len(inside)))]] = 1.0
+        return out
+
+    monkeypatch.setattr("dpi.preprocess.stereo.depth_maps", lambda cameras, images, masks, *mesh_and_cfg: [
+        np.zeros((4, 4))])
+    monkeypatch.setattr("dpi.preprocess.stereo.carve_with_depths", carve)
+    carved, summary = geometry.stereo_carve(field, np.zeros(3), 2 / n, [], [np.ones((4, 4), bool)], [],
+                                           geometry.GeometryConfig())
+    assert summary["passes"] == passes
+    assert summary["voxels_removed"] == int(((field < 0) & (carved >= 0)).sum()) > 0

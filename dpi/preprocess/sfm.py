@@ -2,8 +2,9 @@
 
 `run_sfm` runs COLMAP's classic pipeline on the capture's images: SIFT features with one camera
 shared by all images (a single pinhole, or known intrinsics), exhaustive matching for small
-captures and sequential matching (neighbours in file order, with loop closure off) for large
-ones, then incremental mapping. Registered views whose image does not contain the point all
+captures and sequential matching (neighbours in file order, with loop closure off) for larger
+ones, whose photos a walk-around takes in order (where that registers too few, the remaining pairs are matched
+too and the mapping runs again), then incremental mapping. Registered views whose image does not contain the point all
 cameras look at are dropped as misregistered (a walk-around keeps the object in frame). The
 model is checked (enough images registered, one model, a small mean reprojection error) and
 each failure stops with an `SfMError` that carries the summary. `normalise` then moves the model into dpi's frame: the object (the sparse points that
@@ -48,8 +49,9 @@ class SfMError(RuntimeError):
         self.summary = summary or {}
 
 
-EXHAUSTIVE_MAX_IMAGES = 120
-"""largest capture matched exhaustively under matcher=auto"""
+EXHAUSTIVE_MAX_IMAGES = 40
+"""largest capture matched exhaustively under matcher=auto; larger ones are matched sequentially first (a fraction
+of the pairs), and exhaustively only where that registers too few images"""
 INIT_MIN_INLIERS = 50
 """verified matches the initial image pair needs (COLMAP's default 100 suits large photos)"""
 MIN_POSE_INLIERS = 30
@@ -78,7 +80,8 @@ class SfMConfig:
     """Settings of the COLMAP pipeline and of the checks on its result."""
 
     matcher: str = "auto"
-    """auto (exhaustive up to EXHAUSTIVE_MAX_IMAGES images, else sequential) | exhaustive | sequential"""
+    """auto (exhaustive up to EXHAUSTIVE_MAX_IMAGES images, else sequential, then exhaustive where that registers
+    fewer than min_registered_fraction) | exhaustive | sequential"""
     max_image_size: Annotated[int, Field(ge=64)] = 1600
     """images are downscaled to this longest side for feature extraction"""
     max_features: Count = 8192
@@ -192,22 +195,8 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
                               extraction_options=extraction, device=device)
     times["extract_s"] = time.perf_counter() - start
 
-    start = time.perf_counter()
     matching = pycolmap.FeatureMatchingOptions()
     matching.num_threads = threads
-    matcher = cfg.matcher
-    if matcher == "auto":
-        matcher = "exhaustive" if len(images) <= EXHAUSTIVE_MAX_IMAGES else "sequential"
-    if matcher == "exhaustive":
-        pycolmap.match_exhaustive(database, matching_options=matching, device=device)
-    else:
-        pairing = pycolmap.SequentialPairingOptions()
-        pairing.overlap = SEQUENTIAL_OVERLAP
-        pairing.num_threads = threads
-        pycolmap.match_sequential(database, matching_options=matching, pairing_options=pairing, device=device)
-    times["match_s"] = time.perf_counter() - start
-
-    start = time.perf_counter()
     options = pycolmap.IncrementalPipelineOptions()
     options.num_threads = threads
     options.random_seed = options.mapper.random_seed = options.triangulation.random_seed = COLMAP_SEED
@@ -217,8 +206,39 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
     if focal_length_px:
         options.ba_refine_focal_length = False
         options.mapper.abs_pose_refine_focal_length = False
-    models = pycolmap.incremental_mapping(database, image_dir, work / "sparse", options)
-    times["map_s"] = time.perf_counter() - start
+
+    def match_and_map(matcher: str) -> dict:
+        """Match the database's images by `matcher` (pairs already matched are kept) and map them afresh."""
+        start = time.perf_counter()
+        if matcher == "exhaustive":
+            pycolmap.match_exhaustive(database, matching_options=matching, device=device)
+        else:
+            pairing = pycolmap.SequentialPairingOptions()
+            pairing.overlap = SEQUENTIAL_OVERLAP
+            pairing.num_threads = threads
+            pycolmap.match_sequential(database, matching_options=matching, pairing_options=pairing, device=device)
+        times["match_s"] = times.get("match_s", 0.0) + time.perf_counter() - start
+        start = time.perf_counter()
+        shutil.rmtree(work / "sparse")
+        (work / "sparse").mkdir()
+        found = pycolmap.incremental_mapping(database, image_dir, work / "sparse", options)
+        times["map_s"] = times.get("map_s", 0.0) + time.perf_counter() - start
+        return found
+
+    def enough(found: dict) -> bool:
+        return bool(found) and max(m.num_reg_images() for m in found.values()) >= cfg.min_registered_fraction * len(
+            images)
+
+    matcher = cfg.matcher
+    if matcher == "auto" and len(images) <= EXHAUSTIVE_MAX_IMAGES:
+        matcher = "exhaustive"
+    models = match_and_map("sequential" if matcher == "auto" else matcher)
+    if matcher == "auto":
+        matcher = "sequential"
+        if not enough(models):
+            log.warning("sequential matching registered too few of %d images (out of file order?): matching every "
+                        "pair", len(images))
+            models, matcher = match_and_map("exhaustive"), "sequential, then exhaustive"
 
     sizes = sorted((m.num_reg_images() for m in models.values()), reverse=True)
     summary = {"images": len(images), "matcher": matcher, "models": len(models), "model_sizes": sizes,
