@@ -110,7 +110,8 @@ def mark(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
     first, glossy = rows
     stopped = half_way_stop(glossy["half_way_loss"] / first["half_way_loss"])
-    keep = stopped == "rough" or (stopped is None and glossy_share(glossy["closing_loss"] / first["closing_loss"]) > 0.5)
+    closing = glossy["closing_loss"] / first["closing_loss"]
+    keep = stopped == "rough" or (stopped is None and glossy_share(closing) > 0.5)
     best = max(rows, key=lambda r: r["novel_psnr"])
     for row in rows:
         row.update(chosen=int(row is (glossy if keep else first)), best=int(row is best))

@@ -357,7 +357,8 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
     reasons = {}
     for i, (name, picture, camera, mask, method) in enumerate(zip(names, pictures, views, masks, methods)):
         if not mask.any():
-            raise ValueError(f"{images[name]}: empty foreground mask ({method}); check the capture or the mask settings")
+            raise ValueError(f"{images[name]}: empty foreground mask ({method}); check the capture or the mask "
+                             "settings")
         view = {"method": method, "foreground_fraction": round(float(mask.mean()), 4)}
         for key, value in (("agreement", None if agreement is None else agreement[i]),
                            ("point_coverage", point_coverage(camera, mask, points)),

@@ -1,15 +1,15 @@
 """Camera poses from plain photos: structure from motion with COLMAP (pycolmap), normalised for dpi.
 
 `run_sfm` runs COLMAP's classic pipeline on the capture's images: SIFT features with one camera
-shared by all images (a single pinhole, or known intrinsics), exhaustive matching for small
-captures and sequential matching (neighbours in file order, with loop closure off) for larger
-ones, whose photos a walk-around takes in order (where that registers too few, the remaining pairs are matched
-too and the mapping runs again), then incremental mapping. Registered views whose image does not contain the point all
-cameras look at are dropped as misregistered (a walk-around keeps the object in frame). The
-model is checked (enough images registered, one model, a small mean reprojection error) and
-each failure stops with an `SfMError` that carries the summary. `normalise` then moves the model into dpi's frame: the object (the sparse points that
-most cameras have in view) centred at the origin with radius 1, +Y up (the normal of the ring
-of cameras, signed like the cameras' own up), and the first camera looking along -Z.
+shared by all images (a single pinhole, or known intrinsics), exhaustive matching for small captures and
+sequential matching (neighbours in file order, with loop closure off) for larger ones, whose photos a walk-around
+takes in order (where that registers too few, the remaining pairs are matched too and the mapping runs again),
+then incremental mapping. Registered views whose image does not contain the point all cameras look at are dropped
+as misregistered (a walk-around keeps the object in frame). The model is checked (enough images registered, one
+model, a small mean reprojection error) and each failure stops with an `SfMError` that carries the summary.
+`normalise` then moves the model into dpi's frame: the object (the sparse points that most cameras have in view)
+centred at the origin with radius 1, +Y up (the normal of the ring of cameras, signed like the cameras' own up),
+and the first camera looking along -Z.
 
 COLMAP's `cam_from_world` maps world points into OpenCV camera axes (x right, y down, looking
 along +z); dpi's cameras are OpenGL camera-to-world matrices (y up, looking along -z), so
