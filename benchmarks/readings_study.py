@@ -5,7 +5,7 @@ a procedural room and a held-out real panorama that no study scene uses (with --
 32 px on a 150 deg arc or in 16 views of 48 px all around. Per scene and repeat (its own capture noise and init)
 the workflow's init fits both readings (dpi.solve.init) and `dps` draws `--samples` samples through the stage
 functions; one row of benchmarks/results/readings_study.csv per scene and repeat: the init's closing-loss ratio
-(glossy over rough; half-way, and `stopped` 1, where the glossy fit stopped there) and kept reading, the share of
+(glossy over rough; half-way, and `stopped` 1, where one of the two fits stopped there) and kept reading, the share of
 samples that started from the glossy reading, the init's and the samples' held-out views and env PSNR (mean and
 worst sample), the samples' mean map, spread and calibration, and the init's seconds. Then a table per scene and
 the metal / rough spread ratios (Fig. 9).

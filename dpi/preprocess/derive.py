@@ -15,6 +15,7 @@ from dpi.capture import (Capture, CaptureError, camera_fit_problem, load_capture
                          write_capture_json)
 from dpi.io.atomic import write_json
 from dpi.io.images import read_mask
+from dpi.io.structured import read_json
 from dpi.layout import SUMMARY_FILE, SceneLayout, geometry_files, poses_files
 from dpi.settings import settings_from_dict
 
@@ -142,11 +143,9 @@ def derive_geometry(capture_json: str | Path, out_dir: str | Path, settings: dic
 
     set_threads(threads)
     if masks_dir and (Path(masks_dir) / SUMMARY_FILE).is_file():
-        import json
-
         from dpi.preprocess.mask_confidence import check_usable
 
-        check_usable(json.loads((Path(masks_dir) / SUMMARY_FILE).read_text()), str(masks_dir))
+        check_usable(read_json(Path(masks_dir) / SUMMARY_FILE), str(masks_dir))
     capture = pinhole_capture(capture_json, cameras_json)
     cameras = {v.name: v.camera for v in capture.views if v.camera}
     masks = ({p.stem: p for p in Path(masks_dir).glob("*.png")} if masks_dir

@@ -25,6 +25,7 @@ import torch
 from dpi.cameras import Camera
 from dpi.capture.consistency import raycasting_scene
 from dpi.preprocess.hull import axes_centre
+from dpi.preprocess.morphology import grow
 from dpi.preprocess.stereo import Matcher, StereoParams, camera_rays, grey, hull_depth_range, neighbour_views
 
 GROUND_GROW = 0.7
@@ -96,12 +97,7 @@ def view_matcher(greys: list[np.ndarray], cameras: list[Camera], neighbours: lis
 
 def background_band(mask: np.ndarray) -> np.ndarray:
     """Pixels between BAND[0] and BAND[1] pixels outside a mask: background near the object."""
-    import cv2
-
-    def grown(r: int) -> np.ndarray:
-        return cv2.dilate(mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2)) > 0
-
-    return grown(BAND[1]) & ~grown(BAND[0])
+    return grow(mask, BAND[1]) & ~grow(mask, BAND[0])
 
 
 def _half(image: np.ndarray, camera: Camera) -> tuple[np.ndarray, Camera]:

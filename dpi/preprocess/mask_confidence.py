@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from dpi.cameras import Camera
+from dpi.preprocess.morphology import grow
 
 MASK_AGREEMENT = 0.85
 """a mask is reliable when its IoU with the projection of the hull the masks carve together reaches this share
@@ -45,16 +46,6 @@ def _size(mask: np.ndarray) -> float:
     return max(float(np.sqrt(mask.sum())), 1.0)
 
 
-def _grow(mask: np.ndarray, pixels: int) -> np.ndarray:
-    """Dilate a boolean mask by a disc of radius `pixels`."""
-    import cv2
-
-    if pixels <= 0:
-        return mask.astype(bool)
-    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * pixels + 1, 2 * pixels + 1))
-    return cv2.dilate(mask.astype(np.uint8), disc) > 0
-
-
 def point_coverage(camera: Camera, mask: np.ndarray, points: np.ndarray | None) -> float | None:
     """Share of the object's points (N, 3) in front of the camera and inside the frame that fall inside the mask
     (h, w), grown by POINT_TOLERANCE; None with fewer than MIN_POINTS_IN_VIEW such points."""
@@ -66,7 +57,7 @@ def point_coverage(camera: Camera, mask: np.ndarray, points: np.ndarray | None) 
     inside = (depth > 0) & (col >= 0) & (col < w) & (row >= 0) & (row < h)
     if inside.sum() < MIN_POINTS_IN_VIEW:
         return None
-    grown = _grow(mask, max(1, int(round(POINT_TOLERANCE * _size(mask)))))
+    grown = grow(mask, max(1, int(round(POINT_TOLERANCE * _size(mask)))))
     return float(grown[row[inside], col[inside]].mean())
 
 
@@ -87,11 +78,11 @@ def edge_support(image8: np.ndarray, mask: np.ndarray) -> float | None:
     along the image border is left out (the frame cut it there). None for an empty mask or outline."""
     if not mask.any():
         return None
-    outline = mask & _grow(~mask, 1)
+    outline = mask & grow(~mask, 1)
     outline[[0, -1], :] = outline[:, [0, -1]] = False
     if not outline.any():
         return None
-    near = _grow(image_edges(image8), max(2, int(round(EDGE_RADIUS * _size(mask)))))
+    near = grow(image_edges(image8), max(2, int(round(EDGE_RADIUS * _size(mask)))))
     return float(near[outline].mean())
 
 

@@ -44,6 +44,7 @@ from dpi.io.images import read_image, resize, resize_mask, to_uint8, working_siz
 from dpi.preprocess.hull import marching_cubes, visible_sphere, visual_hull
 from dpi.preprocess.mask_confidence import (AGREEMENT_VOTE_SHARE, MASK_AGREEMENT, edge_support, point_coverage,
                                              verdict)
+from dpi.preprocess.morphology import grow, shrink
 from dpi.settings import settings
 
 log = logging.getLogger(__name__)
@@ -113,21 +114,6 @@ def key_mask(image8: np.ndarray, colour: np.ndarray, threshold: float) -> np.nda
     return np.linalg.norm(image8.astype(np.float64) / 255 - colour, axis=-1) > threshold
 
 
-def _grow(mask: np.ndarray, pixels: int) -> np.ndarray:
-    """Dilate a boolean mask by a disc of radius `pixels`."""
-    import cv2
-
-    if pixels <= 0:
-        return mask
-    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * pixels + 1, 2 * pixels + 1))
-    return cv2.dilate(mask.astype(np.uint8), disc) > 0
-
-
-def _shrink(mask: np.ndarray, pixels: int) -> np.ndarray:
-    """Erode a boolean mask by a disc of radius `pixels`."""
-    return ~_grow(~mask, pixels)
-
-
 def _border_background(labels: np.ndarray, border: float = 0.03) -> None:
     """Mark a strip along the image border (a `border` fraction of the shorter side) as background."""
     import cv2
@@ -177,9 +163,9 @@ def first_prior(camera: Camera, sphere: tuple[np.ndarray, float], points: np.nda
     hull = points_hull(camera, points) if points is not None and len(points) >= MIN_POINTS else None
     if hull is not None:
         size = max(np.sqrt(hull.sum()), 1.0)
-        region |= _grow(hull, int(round(HULL_MARGIN * size)))
+        region |= grow(hull, int(round(HULL_MARGIN * size)))
         if HULL_CORE > 0:
-            core = _shrink(hull, int(round(HULL_CORE * size)))
+            core = shrink(hull, int(round(HULL_CORE * size)))
     labels = np.where(region, cv2.GC_PR_FGD, cv2.GC_PR_BGD).astype(np.uint8)
     labels[core] = cv2.GC_FGD
     _border_background(labels)
@@ -192,9 +178,9 @@ def band_prior(outline: np.ndarray, band: int) -> np.ndarray:
     import cv2
 
     labels = np.full(outline.shape, cv2.GC_BGD, np.uint8)
-    labels[_grow(outline, band)] = cv2.GC_PR_BGD
+    labels[grow(outline, band)] = cv2.GC_PR_BGD
     labels[outline] = cv2.GC_PR_FGD
-    labels[_shrink(outline, band)] = cv2.GC_FGD
+    labels[shrink(outline, band)] = cv2.GC_FGD
     return labels
 
 
@@ -327,8 +313,8 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
         raise ValueError(f"mask method must be one of {', '.join(METHODS)}, got {cfg.method!r}")
     if cfg.method == "learned" and not cfg.weights:
         raise ValueError("preprocess.masks.method learned needs preprocess.masks.weights (a segmenter's .pt2 file)")
-    segmenter = load_segmenter(weights_file(cfg.weights)) if cfg.weights and cfg.method in ("auto", "learned") \
-        else None
+    weights = weights_file(cfg.weights) if cfg.weights and cfg.method in ("auto", "learned") else None
+    segmenter = load_segmenter(weights) if weights else None
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     names = [n for n in images if n in cameras]
@@ -342,12 +328,13 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
     if points is not None:
         points = drop_outliers(points, OUTLIER_STD_RATIO)
     first = [object_mask(picture, camera, cfg, sphere, points, segmenter) for picture, camera in zip(pictures, views)]
+    images8 = [to_uint8(picture) for picture in pictures]
     masks, methods = [m for m, _ in first], [method for _, method in first]
     use_points = points is not None and len(points) >= MIN_POINTS
     summary = {"views": {}, "prior": "sphere and sparse points" if use_points else "sphere", "consensus_rounds": 0,
-               **({"segmenter": str(weights_file(cfg.weights))} if segmenter is not None else {})}
+               **({"segmenter": str(weights)} if weights else {})}
     if "grabcut" in methods:
-        to_cut = [to_uint8(p) if method == "grabcut" else None for p, method in zip(pictures, methods)]
+        to_cut = [image8 if method == "grabcut" else None for image8, method in zip(images8, methods)]
         refined, new_methods = refine_masks(to_cut, views, masks)
         masks = refined
         methods = [old if new == "kept" else new for old, new in zip(methods, new_methods)]
@@ -355,14 +342,14 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
     agreement = mask_agreement(views, masks, CONSENSUS_RESOLUTION) if len(views) >= 3 else None
     floor = None if agreement is None else MASK_AGREEMENT * float(np.median(agreement))
     reasons = {}
-    for i, (name, picture, camera, mask, method) in enumerate(zip(names, pictures, views, masks, methods)):
+    for i, (name, image8, camera, mask, method) in enumerate(zip(names, images8, views, masks, methods)):
         if not mask.any():
             raise ValueError(f"{images[name]}: empty foreground mask ({method}); check the capture or the mask "
                              "settings")
         view = {"method": method, "foreground_fraction": round(float(mask.mean()), 4)}
         for key, value in (("agreement", None if agreement is None else agreement[i]),
                            ("point_coverage", point_coverage(camera, mask, points)),
-                           ("edge_support", edge_support(to_uint8(picture), mask))):
+                           ("edge_support", edge_support(image8, mask))):
             if value is not None:
                 view[key] = round(value, 4)
         reasons[name] = verdict(view, floor)
