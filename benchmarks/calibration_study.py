@@ -10,7 +10,7 @@ and the workflow's evaluation scores them.
 Per (scene, method, sampler, repeat), one row of benchmarks/results/calibration_study.csv: the
 samples' mean env PSNR / SSIM, albedo MSE, novel-view PSNR and seconds, their env sigma2_sample,
 and their calibration: the mean squared scale-aligned log-radiance distance of the samples to the
-truth over the mean pairwise distance between them (dpi.spread.calibration; ~1 when the truth looks
+truth over the mean pairwise distance between them (dpi.solve.spread.calibration; ~1 when the truth looks
 like one more sample, >> 1 when the samples agree on a wrong guess). Then it prints mean +- std per
 material, method and sampler, and the metal / rough ratio of sigma2_sample per object and repeat.
 
@@ -67,7 +67,7 @@ def group_row(key: tuple[str, str, str, int], rows: list[dict[str, Any]], jobs: 
     """The study's row of one group of samples: means of the sample metrics, spread and calibration."""
     from dpi.capture import load_capture
     from dpi.io.exr import read_exr
-    from dpi.spread import calibration, normalized_env, sample_variance
+    from dpi.solve.spread import calibration, normalized_env, sample_variance
 
     scene, method, sampler, repeat = key
     synth = jobs[0].synth

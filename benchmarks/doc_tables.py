@@ -18,7 +18,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from dpi.layout import INIT
+from dpi.io.layout import INIT
 from dpi.solve.init import glossy_share
 from dpi.solve.methods import METHODS
 from dpi.studies.engine import latest, read_rows
@@ -125,7 +125,7 @@ def posterior_rows(root: Path) -> list[Row]:
 def posterior(root: Path) -> str:
     """Posterior study, the README's headline: every method (dps with its default sampler) per scene group,
     over scenes and seeds."""
-    from dpi.settings import field_default
+    from dpi.io.settings import field_default
     from dpi.solve.dps.config import DPSConfig
 
     default = field_default(DPSConfig, "sampler")
@@ -316,11 +316,11 @@ def realism(root: Path) -> str:
 
 
 def presets(root: Path) -> str:
-    """The quality presets of dpi's default config, each with the settings it fills (dpi.settings.apply_preset)."""
+    """The quality presets of dpi's default config, each with the settings it fills (dpi.io.settings.apply_preset)."""
     from copy import deepcopy
 
-    from dpi.pipeline import DEFAULT_CONFIG, Pipeline, read_yaml
-    from dpi.settings import apply_preset
+    from dpi.config.pipeline import DEFAULT_CONFIG, Pipeline, read_yaml
+    from dpi.io.settings import apply_preset
 
     base = read_yaml(DEFAULT_CONFIG)
     body = []

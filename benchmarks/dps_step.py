@@ -37,12 +37,12 @@ from typing import Any, Iterator
 import numpy as np
 import torch
 
-from dpi import backend
+from dpi.render import backend
 from dpi.capture import load_capture
-from dpi.layout import INIT
-from dpi.materials import MaterialTextures
+from dpi.io.layout import INIT
+from dpi.solve.materials import MaterialTextures
 from dpi.prior.sample import load_scene_prior
-from dpi.render import RenderConfig, Renderer
+from dpi.render.renderer import RenderConfig, Renderer
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, start_run
 from dpi.solve.dps.state import DPSRun

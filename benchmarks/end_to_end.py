@@ -22,7 +22,7 @@ import time
 
 import yaml
 
-from dpi.layout import SYNTH_MARKER
+from dpi.io.layout import SYNTH_MARKER
 from dpi.studies.engine import CHECKOUT as ROOT
 from dpi.studies.engine import append_row, results_csv, settings_hash, work_dir
 

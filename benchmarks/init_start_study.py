@@ -69,8 +69,8 @@ def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth
     from dpi.evaluation.sample_metrics import novel_view_metrics, render_held_out
     from dpi.solve.problem import SolveConfig
     from dpi.stages import load_problem
-    from dpi.layout import INIT
-    from dpi.pipeline import Pipeline
+    from dpi.io.layout import INIT
+    from dpi.config.pipeline import Pipeline
     from dpi.stages.seeding import seed_for
     from dpi.solve.decomposition import Decomposition
     from dpi.solve.init import READINGS, closing_loss, roughness_p25, start_fit

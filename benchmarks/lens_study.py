@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dpi.cameras import Lens, read_cameras
+from dpi.capture.cameras import Lens, read_cameras
 from dpi.capture.undistort import distort_image
 from dpi.io.exr import write_exr
 from dpi.io.images import read_image, read_mask, write_mask

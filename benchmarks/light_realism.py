@@ -8,8 +8,8 @@ REAL_LIGHT_SCENES), over its seeds:
 - realism: each sample's realism distance (dpi.evaluation.realism) to the manifest's held-out real panoramas of
   the scene's family less the scene's own (a map that copies the truth should not pass for realism; its accuracy
   is env PSNR's business), mean and std over the samples;
-- calibration (dpi.spread.calibration: ~1 when the truth looks like one more sample);
-- env PSNR / SSIM of the samples' mean map (dpi.spread.mean_log_map) against the truth.
+- calibration (dpi.solve.spread.calibration: ~1 when the truth looks like one more sample);
+- env PSNR / SSIM of the samples' mean map (dpi.solve.spread.mean_log_map) against the truth.
 Rows go to the CSV, rewritten whole; it prints the means per group, method and sampler.
 """
 
@@ -28,7 +28,7 @@ from dpi.evaluation.realism import patches, sliced_wasserstein
 from dpi.io.exr import read_exr
 from dpi.prior.data import read_panorama
 from dpi.prior.panoramas import panorama_files
-from dpi.spread import calibration, mean_log_map
+from dpi.solve.spread import calibration, mean_log_map
 from dpi.studies.engine import read_rows, results_csv, sample_label, study_layout, work_dir, write_rows
 from dpi.studies.scenes import REAL_LIGHT_SCENES
 

@@ -1,4 +1,4 @@
-"""How near the truth the samples' geometric mean map is, against one sample (dpi.spread.mean_log_map).
+"""How near the truth the samples' geometric mean map is, against one sample (dpi.solve.spread.mean_log_map).
 
 A calibrated sample is as far from the truth as from another sample, so each one pays env accuracy for a
 spread that covers its error; what the samples agree on, their mean in log radiance, need not. For every
@@ -21,8 +21,8 @@ import numpy as np
 from dpi.capture import read_capture_json, read_ground_truth
 from dpi.evaluation.metrics import env_metrics
 from dpi.io.exr import read_exr
-from dpi.layout import ENV_FILE
-from dpi.spread import mean_log_map
+from dpi.io.layout import ENV_FILE
+from dpi.solve.spread import mean_log_map
 from dpi.studies.engine import settings_hash, write_rows
 
 

@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from dpi import backend
+from dpi.render import backend
 from dpi.evaluation.metrics import tonemap
 from dpi.io.images import luminance, write_srgb
 from dpi.light.envmap import texel_solid_angles

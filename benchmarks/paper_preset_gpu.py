@@ -29,7 +29,7 @@ from typing import Any, Callable
 
 import torch
 
-from dpi.layout import INIT
+from dpi.io.layout import INIT
 from dpi.studies.engine import PROVENANCE, current_commit, job_settings, prepare_capture, settings_hash, study_layout
 from dpi.studies.scenes import POSTERIOR_SCENES as SCENES
 
@@ -147,8 +147,8 @@ def main() -> None:
     parser.add_argument("--sampler", default=None, help="dps sampler of the samples (default: the config's)")
     args = parser.parse_args()
 
-    from dpi import backend
-    from dpi.pipeline import resolve_config
+    from dpi.render import backend
+    from dpi.config.pipeline import resolve_config
 
     args.out.mkdir(parents=True, exist_ok=True)
     table = args.out / "paper_preset_gpu.csv"

@@ -26,10 +26,10 @@ from pathlib import Path
 import numpy as np
 from tabulate import tabulate
 
-from dpi.cameras import read_cameras
+from dpi.capture.cameras import read_cameras
 from dpi.capture.consistency import mask_iou
 from dpi.io.images import read_mask
-from dpi.layout import SYNTH_MARKER, SceneLayout
+from dpi.io.layout import SYNTH_MARKER, SceneLayout
 from dpi.preprocess.accuracy import align_mesh, chamfer, flag_counts, pose_errors
 from dpi.preprocess.geometry import read_mesh
 from dpi.preprocess.sfm import SfMError

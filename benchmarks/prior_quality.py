@@ -29,7 +29,7 @@ import torch
 from scipy import linalg
 from torch.nn import functional as F
 
-from dpi import backend
+from dpi.render import backend
 from dpi.io.images import linear_to_srgb, luminance
 from dpi.light.envmap import top_energy_share
 from dpi.light.tonecurve import Encoding

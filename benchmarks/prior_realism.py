@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from dpi import backend
+from dpi.render import backend
 from dpi.evaluation.naturalness import naturalness, prior_image
 from dpi.evaluation.niqe import env_niqe
 from dpi.evaluation.realism import realism_distance

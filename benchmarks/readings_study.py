@@ -84,8 +84,8 @@ def reading_init(root: Path, scene: str, synth: dict, config: dict, reading: str
     """The init of one reading alone (`init.reading`) in study folder `root`, made once; its closing loss."""
     import json
 
-    from dpi.layout import INIT, INIT_TRACE
-    from dpi.pipeline import Pipeline
+    from dpi.io.layout import INIT, INIT_TRACE
+    from dpi.config.pipeline import Pipeline
     from dpi.solve.init import path_traced_init
     from dpi.solve.problem import SolveConfig
     from dpi.stages import load_problem
@@ -106,7 +106,7 @@ def sample_row(job: Job) -> dict[str, Any]:
     init's readings record (its closing-loss ratio, the glossy reading's share)."""
     import json
 
-    from dpi.layout import INIT
+    from dpi.io.layout import INIT
 
     row = run_job(job)
     scene = job.layout.scene(job.scene)
@@ -123,7 +123,7 @@ def group_row(scene: str, synth: dict, repeat: int, rows: list[dict[str, Any]], 
     from dpi.capture import load_capture
     from dpi.evaluation.metrics import env_metrics
     from dpi.io.exr import read_exr
-    from dpi.spread import calibration, mean_log_map, normalized_env, sample_variance
+    from dpi.solve.spread import calibration, mean_log_map, normalized_env, sample_variance
 
     init, samples = rows[0], rows[1:]
     envs = [read_exr(j.layout.scene(j.scene).sample_files(j.label, j.seed)["env"]) for j in jobs[1:]]
@@ -202,8 +202,8 @@ def init_costs(args: argparse.Namespace, config: dict, scenes: dict[str, dict]) 
     the readings), one after the other on the first repeat's captures, each alone on the machine."""
     import time
 
-    from dpi.layout import INIT
-    from dpi.pipeline import Pipeline
+    from dpi.io.layout import INIT
+    from dpi.config.pipeline import Pipeline
     from dpi.solve.init import path_traced_init
     from dpi.solve.problem import SolveConfig
     from dpi.stages import load_problem

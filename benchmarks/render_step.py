@@ -15,10 +15,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from dpi.cameras import from_fov, orbit
+from dpi.capture.cameras import from_fov, orbit
 from dpi.io.exr import read_exr
-from dpi.materials import MaterialTextures
-from dpi.render import RenderConfig, Renderer
+from dpi.solve.materials import MaterialTextures
+from dpi.render.renderer import RenderConfig, Renderer
 from dpi.synth.capture import SynthConfig, make_synthetic_capture
 
 DEMO = Path(__file__).resolve().parent.parent / "captures" / "demo"

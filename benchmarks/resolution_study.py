@@ -122,7 +122,7 @@ def main() -> None:
         cells = [f"{h}: {truth_at_size(study_layout(resolution_root(WORK, h, t)).scene(scene).capture_json, truth, h, t):.2f}"
                  for h in args.heights for t in args.textures]
         print(f"{scene:<13} {group:<7} " + "  ".join(cells))
-    from dpi.pipeline import Pipeline
+    from dpi.config.pipeline import Pipeline
 
     print(f"(dps sampler {Pipeline(size_config(16, 64)).method_settings('dps').sampler}; "
           f"{np.mean([r['seconds'] for r in rows]):.0f} s a sample on average)")

@@ -57,7 +57,7 @@ def current_rows(args: argparse.Namespace, config: dict) -> list[dict[str, Any]]
 def point_row(key: tuple[float, int], jobs: list[Job]) -> dict[str, Any]:
     """The study's row of one (roughness, repeat): the spread of its samples' maps."""
     from dpi.io.exr import read_exr
-    from dpi.spread import normalized_env, sample_variance
+    from dpi.solve.spread import normalized_env, sample_variance
 
     envs = [read_exr(job.layout.scene(job.scene).sample_files(job.label, job.seed)["env"]) for job in jobs]
     return {"roughness": key[0], "metallic": jobs[0].synth["metallic"], "repeat": key[1], "samples": len(jobs),

@@ -34,7 +34,7 @@ from dpi.capture import load_capture
 from dpi.io.exr import read_exr
 from dpi.io.images import luminance
 from dpi.light.envmap import texel_directions, top_energy_share
-from dpi.light.skies import sun_direction
+from dpi.worlds.skies import sun_direction
 from dpi.solve.dps import DPSConfig
 from dpi.studies.engine import (Job, dps_variants, job_settings, mean_std_cells, method_jobs, run_job, run_study,
                                 workflow_config)

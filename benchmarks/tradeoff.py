@@ -21,9 +21,9 @@ from pathlib import Path
 
 from dpi.capture import load_capture
 from dpi.evaluation.sample_metrics import evaluate_sample
-from dpi.layout import INIT, INIT_TRACE
+from dpi.io.layout import INIT, INIT_TRACE
 from dpi.prior.sample import load_scene_prior
-from dpi.render import RenderConfig
+from dpi.render.renderer import RenderConfig
 from dpi.solve.dps import dps_sample
 from dpi.solve.init import path_traced_init
 from dpi.solve.problem import InverseProblem, ProblemConfig

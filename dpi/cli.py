@@ -10,8 +10,8 @@
     dpi report                          # the env-map figures and results/report.html
     dpi export demo                     # results/demo/export/demo.glb and demo.usda, every sample a variant
 
-A stage command reads and writes what its Snakemake rule does (dpi.layout) with the settings the
-workflow resolves (dpi.pipeline): dpi's defaults, ./config.yaml when present, then each `--config`
+A stage command reads and writes what its Snakemake rule does (dpi.io.layout) with the settings the
+workflow resolves (dpi.config.pipeline): dpi's defaults, ./config.yaml when present, then each `--config`
 file, so `snakemake --configfile my.yaml` and `dpi ... --config my.yaml` give the same files. The
 tools work on paths:
 
@@ -31,7 +31,7 @@ from pathlib import Path
 import yaml
 
 from dpi.capture import PRIORS, CaptureError
-from dpi.config_validation import ConfigError
+from dpi.config.validation import ConfigError
 from dpi.io.lock import ResultsLocked
 from dpi.preprocess.sfm import SfMError
 from dpi.prior.commands import register as register_prior_commands
@@ -41,7 +41,7 @@ def _pipeline(args: argparse.Namespace):
     """The resolved config of the command's --config files; a command on a scene (other than a dry run) holds its
     results folder's lock (dpi.io.lock) while it runs."""
     from dpi.io.lock import lock_results
-    from dpi.pipeline import load_pipeline
+    from dpi.config.pipeline import load_pipeline
 
     pipeline = load_pipeline(args.config)
     if getattr(args, "scene", None) is not None and not getattr(args, "dry_run", False):
@@ -62,8 +62,8 @@ def _job(args: argparse.Namespace, kind: str, method: str | None = None, k: int 
 def cmd_config(args: argparse.Namespace) -> None:
     """Print the resolved config, or with --schema the JSON schema it is checked against."""
     if args.schema:
-        from dpi.config_validation import config_schema
-        from dpi.pipeline import CONFIG_SCHEMA
+        from dpi.config.validation import config_schema
+        from dpi.config.pipeline import CONFIG_SCHEMA
 
         print(json.dumps(config_schema(CONFIG_SCHEMA), indent=1))
         return
@@ -144,7 +144,7 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
 
 def existing_evaluations(pipeline) -> list[Path]:
     """The metric files present of the config's scenes: the initialisation and each method's samples."""
-    from dpi.layout import INIT
+    from dpi.io.layout import INIT
 
     paths = []
     for name in pipeline.scenes:
@@ -179,7 +179,7 @@ def cmd_report(args: argparse.Namespace) -> None:
     """Rules envmap_figure and uncertainty (each scene, over the samples present) and report."""
     from dataclasses import replace
 
-    from dpi.layout import ENV_FILE
+    from dpi.io.layout import ENV_FILE
     from dpi.stages import envmap_figure_stage, report_stage, uncertainty_stage
 
     run = _job(args, "evaluate")
@@ -230,7 +230,7 @@ def _rgb(text: str) -> tuple[float, float, float]:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the `dpi` command."""
-    from dpi.layout import INIT
+    from dpi.io.layout import INIT
     from dpi.solve.methods import METHODS
 
     parser = argparse.ArgumentParser(prog="dpi", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -1,4 +1,4 @@
-# The resolved config (dpi.pipeline) and the small input functions every rule shares.
+# The resolved config (dpi.config.pipeline) and the small input functions every rule shares.
 import json
 from pathlib import Path
 from functools import lru_cache
@@ -9,7 +9,7 @@ from dpi.stages import (ENV_FILE, INIT, METHODS as KNOWN_METHODS, MIN_SAMPLES, P
 # dpi's defaults (dpi/data/config.yaml), ./config.yaml when present (the checkout's top-level file), then
 # the --configfile files and --config values Snakemake merged into `config`; the preset fills what is
 # unset, and the schema and settings dataclasses check it, with the key's path in one message, before
-# the DAG is built. `dpi` resolves the same way (dpi.pipeline.resolve_config owns the order).
+# the DAG is built. `dpi` resolves the same way (dpi.config.pipeline.resolve_config owns the order).
 config.update(resolve_config(config))
 PIPELINE = Pipeline(config)
 LAYOUT = PIPELINE.layout

@@ -42,8 +42,8 @@ rule sample:
         "../workflow_scripts/stage.py"
 
 
-# The sample stop rule (dpi.adaptive): once a method's first samples exist, decide how many it
-# draws in all. Only methods with more than dpi.adaptive.MIN_SAMPLES samples wait for it.
+# The sample stop rule (dpi.solve.adaptive): once a method's first samples exist, decide how many it
+# draws in all. Only methods with more than dpi.solve.adaptive.MIN_SAMPLES samples wait for it.
 checkpoint sample_plan:
     input:
         lambda w: [LAYOUT.scene(w.scene).sample_files(w.method, k)["env"] for k in range(MIN_SAMPLES)],

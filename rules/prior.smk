@@ -1,6 +1,6 @@
 # Diffusion prior: procedural env-map datasets, then DDPM training on them. Settings: the config's
 # `prior:` section (dpi.prior.train.PriorJobConfig and TrainConfig fields; a family's own mapping
-# overrides them), read through dpi.pipeline.Pipeline.prior_job.
+# overrides them), read through dpi.config.pipeline.Pipeline.prior_job.
 
 
 wildcard_constraints:

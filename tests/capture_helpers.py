@@ -11,7 +11,7 @@ import numpy as np
 import OpenEXR
 import trimesh
 
-from dpi.cameras import Camera, from_fov, orbit, write_transforms
+from dpi.capture.cameras import Camera, from_fov, orbit, write_transforms
 from dpi.io.exr import write_exr
 from dpi.io.images import write_mask, write_srgb
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from dpi.cameras import Camera
+from dpi.capture.cameras import Camera
 from dpi.preprocess.sfm import CV_TO_GL
 
 

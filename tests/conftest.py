@@ -16,7 +16,7 @@ TINY_SYNTH = dict(shape="blob", views=5, held_out_every=5, width=24, height=24, 
 @pytest.fixture(scope="session")
 def mi():
     """The mitsuba module with dpi's variant selection (llvm_ad_rgb on CPU)."""
-    from dpi.backend import mitsuba
+    from dpi.render.backend import mitsuba
 
     return mitsuba(threads=2)
 

@@ -1,10 +1,10 @@
-"""The adaptive decisions of dpi.adaptive on known inputs: agreeing or differing samples, diffuse or glossy init."""
+"""The adaptive decisions of dpi.solve.adaptive on known inputs: agreeing or differing samples, diffuse or glossy init."""
 
 import numpy as np
 import pytest
 
-from dpi.adaptive import AdaptiveConfig, plan_samples, plan_steps, stop_rule_applies
-from dpi.materials import MaterialTextures
+from dpi.solve.adaptive import AdaptiveConfig, plan_samples, plan_steps, stop_rule_applies
+from dpi.solve.materials import MaterialTextures
 
 rng = np.random.default_rng(0)
 SKY = rng.uniform(0.1, 5.0, size=(8, 16, 3)).astype(np.float32)

@@ -2,7 +2,7 @@
 
 import pytest
 
-from dpi import backend
+from dpi.render import backend
 
 
 def test_llvm_major_parses_debian_and_versioned_names():

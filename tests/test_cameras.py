@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dpi.cameras import (Camera, from_fov, from_mitsuba_matrix, look_at, orbit, pixel_rays, read_transforms, to_mitsuba,
+from dpi.capture.cameras import (Camera, from_fov, from_mitsuba_matrix, look_at, orbit, pixel_rays, read_transforms, to_mitsuba,
                          write_transforms)
 
 

@@ -10,7 +10,7 @@ import pytest
 import trimesh
 from capture_helpers import NAMES, SIZE, cameras, edit_transforms, garbage, image, make_capture, raw_exr
 
-from dpi.cameras import look_at
+from dpi.capture.cameras import look_at
 from dpi.capture import Capture, CaptureError, inspect_capture, load_capture, read_capture_json, write_capture_json
 from dpi.io.exr import write_exr
 from dpi.io.images import write_mask, write_srgb
@@ -24,7 +24,7 @@ def capture_root(tmp_path: Path) -> Path:
 
 def write_mitsuba_uv_ply(path: Path) -> None:
     """A one-triangle PLY with per-vertex UVs, written by Mitsuba."""
-    from dpi.backend import mitsuba
+    from dpi.render.backend import mitsuba
 
     mi = mitsuba()
     mesh = mi.Mesh("uv_triangle", 3, 1, has_vertex_texcoords=True)

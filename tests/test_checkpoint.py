@@ -10,7 +10,7 @@ import torch
 from test_dps import tiny_prior
 
 from dpi.capture import load_capture
-from dpi.render import RenderConfig
+from dpi.render.renderer import RenderConfig
 from dpi.solve.checkpoint import run_key
 from dpi.solve.dip import DeepImagePrior, DIPConfig
 from dpi.solve.dps import DPSConfig, dps_sample

@@ -9,7 +9,7 @@ import yaml
 from workflow_helpers import REPO, SNAKEMAKE, planned_jobs
 
 from dpi.cli import main
-from dpi.pipeline import merge, read_yaml, resolve_config
+from dpi.config.pipeline import merge, read_yaml, resolve_config
 
 TOP_LEVEL = REPO / "config.yaml"
 

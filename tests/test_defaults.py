@@ -9,16 +9,16 @@ from typing import Any
 
 import yaml
 
-from dpi.config_validation import SECTIONS
-from dpi.pipeline import DEFAULT_CONFIG, Pipeline, plain, read_yaml, resolve_config
-from dpi.settings import field_default
+from dpi.config.validation import SECTIONS
+from dpi.config.pipeline import DEFAULT_CONFIG, Pipeline, plain, read_yaml, resolve_config
+from dpi.io.settings import field_default
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def dataclass_defaults() -> dict[str, Any]:
     """The config as the settings dataclasses alone fill it: each section they own, every field its default."""
-    from dpi.config_validation import builder
+    from dpi.config.validation import builder
     from dpi.solve.methods import METHODS, method_config
     from dpi.solve.optimize import flat_config
 

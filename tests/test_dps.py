@@ -10,7 +10,7 @@ from dpi.light.tonecurve import TONE_CURVES
 from dpi.prior.diffusion import base_diffusion
 from dpi.prior.sample import Prior
 from dpi.prior.unet import SMALL_CONFIGS, UNetModel
-from dpi.render import RenderConfig
+from dpi.render.renderer import RenderConfig
 from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample
 from dpi.solve.dps.paper import rho_schedule, scale_to_bound
 from dpi.solve.init import InitConfig, path_traced_init
@@ -62,7 +62,7 @@ def test_a_glossy_init_changes_the_settings_in_one_place():
     """DPSConfig.for_init: a glossy init skips the map's solve, takes two updates a step and refines twice as long,
     one view a step, with a freer polish where its map has the prior's rows (a coarser map keeps the light polish);
     a rough init keeps the settings."""
-    from dpi.materials import MaterialTextures
+    from dpi.solve.materials import MaterialTextures
     from dpi.solve.decomposition import Decomposition
 
     cfg = DPSConfig.from_dict({"refine": {"iterations": 50, "lr_texels": 0.005}})

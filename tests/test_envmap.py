@@ -55,7 +55,7 @@ def test_padding_layouts(extra):
 
 
 def test_sunsky_sun_lands_in_its_texel_with_ground_below(mi):
-    from dpi.light.skies import SkyParams, sun_direction, sunsky_envmap
+    from dpi.worlds.skies import SkyParams, sun_direction, sunsky_envmap
 
     env = sunsky_envmap(16, SkyParams(sun_elevation_deg=30.0, sun_azimuth_deg=100.0))
     assert env.shape == (16, 32, 3) and np.isfinite(env).all() and (env >= 0).all()

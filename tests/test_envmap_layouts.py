@@ -10,7 +10,7 @@ from dpi.capture import CaptureError, load_capture, write_capture_json
 from dpi.io.exr import read_exr, write_exr
 from dpi.light.envmap import EnvmapLayoutError, equirect, read_envmap
 from dpi.export.relight import RelightConfig, relight_sample
-from dpi.render import RenderConfig
+from dpi.render.renderer import RenderConfig
 
 
 def smooth_map(height: int, width: int) -> np.ndarray:

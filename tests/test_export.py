@@ -88,7 +88,7 @@ def test_the_mesh_is_the_renderers_and_a_texel_reads_as_the_renderer_reads_it(ex
     """glTF samples texel (row v H, column u W) at uv (u, v); so does the renderer's bitmap texture (row 0 at
     v = 0), so the exported textures need no flip."""
     from dpi.capture import complete_capture, read_capture_json
-    from dpi.render import texture_plugin
+    from dpi.render.renderer import texture_plugin
 
     gltf = glb(exported)
     capture = complete_capture(read_capture_json(exported.paths.capture_json), exported.paths)

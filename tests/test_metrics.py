@@ -11,7 +11,7 @@ from dpi.evaluation.metrics import PSNR_CAP, albedo_mse, env_metrics, psnr, ssim
 from dpi.evaluation.perceptual import INCEPTION_WEIGHTS, WEIGHTS_ENV
 from dpi.evaluation.summary import sample_rows, summarize, write_csv
 from dpi.io.exr import write_exr
-from dpi.spread import sample_variance
+from dpi.solve.spread import sample_variance
 
 
 def test_psnr_known_answers():

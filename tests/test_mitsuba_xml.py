@@ -1,4 +1,4 @@
-"""Mitsuba XML cameras and shapes: agreement with Mitsuba's own parser and with dpi.cameras."""
+"""Mitsuba XML cameras and shapes: agreement with Mitsuba's own parser and with dpi.capture.cameras."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dpi.cameras import from_mitsuba_matrix, look_at
-from dpi.io.mitsuba_xml import MitsubaXMLError, read_mesh_shapes, read_sensors, transform_matrix
+from dpi.capture.cameras import from_mitsuba_matrix, look_at
+from dpi.capture.mitsuba_xml import MitsubaXMLError, read_mesh_shapes, read_sensors, transform_matrix
 
 LOOKATS = [((0.0, 0.5, 4.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0)),
            ((-1.2, 0.5, 1.2), (0.4, 0.45, 0.5), (0.0, 1.0, 0.0)),
@@ -19,7 +19,7 @@ LOOKATS = [((0.0, 0.5, 4.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0)),
 @pytest.fixture(scope="module")
 def mi():
     """Mitsuba with dpi's variant choice (imported once per module: it takes seconds)."""
-    from dpi.backend import mitsuba
+    from dpi.render.backend import mitsuba
 
     return mitsuba()
 

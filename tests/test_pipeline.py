@@ -1,4 +1,4 @@
-"""dpi.pipeline and dpi.layout: one config resolution, one typed view of it, one place for every path."""
+"""dpi.config.pipeline and dpi.io.layout: one config resolution, one typed view of it, one place for every path."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ import pytest
 import yaml
 
 from dpi.cli import main
-from dpi.layout import INIT, Layout, package_data
-from dpi.pipeline import DEFAULT_CONFIG, Pipeline, merge, read_yaml, resolve_config
+from dpi.io.layout import INIT, Layout, package_data
+from dpi.config.pipeline import DEFAULT_CONFIG, Pipeline, merge, read_yaml, resolve_config
 from dpi.prior.sample import DEFAULT_FAMILY, DEFAULT_MODELS
-from dpi.render import RenderConfig
+from dpi.render.renderer import RenderConfig
 
 REPO = Path(__file__).resolve().parent.parent
 

@@ -9,7 +9,7 @@ import pytest
 import yaml
 from test_preprocess_masks import sphere_view
 
-from dpi.cameras import from_fov, orbit, write_transforms
+from dpi.capture.cameras import from_fov, orbit, write_transforms
 from dpi.cli import main
 from dpi.capture.consistency import mask_iou
 from dpi.io.images import read_mask, write_srgb
@@ -60,7 +60,7 @@ def test_dry_run_lists_the_needed_stages(capture_with_cameras, tmp_path, capsys)
 
 def test_preprocess_derives_masks_mesh_and_uvs_and_skips_given_cameras(capture_with_cameras, tmp_path, capsys):
     from dpi.capture import complete_capture, read_capture_json
-    from dpi.layout import SceneLayout
+    from dpi.io.layout import SceneLayout
 
     _, truths = capture_with_cameras
     assert main(["preprocess", "capture", "--config", folders(tmp_path, FAST), "--threads", "1"]) == 0

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dpi.cameras import from_fov, orbit, pixel_rays
+from dpi.capture.cameras import from_fov, orbit, pixel_rays
 from dpi.preprocess.accuracy import chamfer
 from dpi.preprocess.geometry import GeometryConfig, reconstruct_surface, signed_volume
 from dpi.preprocess.hull import signed_distance_2d

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dpi.cameras import from_fov, look_at, orbit
+from dpi.capture.cameras import from_fov, look_at, orbit
 from dpi.preprocess.ground import fit_ground, ground_pixels, plane_depths, remove_ground
 from dpi.preprocess.stereo import StereoParams, camera_rays, grey, neighbour_views
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import torch
 
-from dpi.cameras import from_fov, orbit, pixel_rays
+from dpi.capture.cameras import from_fov, orbit, pixel_rays
 from dpi.capture.consistency import mask_iou
 from dpi.io.images import read_mask, srgb_to_linear
 from dpi.preprocess.hull import visible_sphere
@@ -145,7 +145,7 @@ def test_a_mask_that_disagrees_with_the_others_is_found():
     """Masks of a sphere from eight views agree with the hull they carve; one shifted mask does not."""
     import trimesh
 
-    from dpi.cameras import from_fov, orbit
+    from dpi.capture.cameras import from_fov, orbit
     from dpi.preprocess.masks import MASK_AGREEMENT, mask_agreement, mesh_silhouette
 
     sphere = trimesh.creation.icosphere(subdivisions=3)

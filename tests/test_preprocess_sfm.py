@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dpi.cameras import from_fov, orbit
+from dpi.capture.cameras import from_fov, orbit
 from dpi.preprocess.accuracy import pose_errors, umeyama
 from dpi.preprocess.sfm import SfMConfig, SfMError, SparseModel, colmap_to_camera, normalise, run_sfm, transform_camera
 

@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from dpi.cameras import from_fov, look_at, orbit
+from dpi.capture.cameras import from_fov, look_at, orbit
 from dpi.preprocess.stereo import (StereoParams, camera_rays, carve_with_depths, free_space, highlights,
                                    hull_depth_range, sweep_depth)
 

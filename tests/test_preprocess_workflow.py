@@ -58,7 +58,7 @@ def photo_run(tmp_path_factory) -> Path:
 
 
 def test_photo_capture_is_derived_and_fitted(photo_run):
-    from dpi.cameras import read_cameras
+    from dpi.capture.cameras import read_cameras
     from dpi.capture import read_capture_json
     from dpi.capture.consistency import mask_iou
     from dpi.io.images import read_mask

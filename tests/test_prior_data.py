@@ -125,7 +125,7 @@ def test_packed_dataset_round_trips_within_a_quantum(tmp_path) -> None:
 
 
 def test_hdr_files_are_read(tmp_path) -> None:
-    from dpi import backend
+    from dpi.render import backend
 
     mi = backend.mitsuba()
     image = np.random.default_rng(1).uniform(0.01, 20, (8, 16, 3)).astype(np.float32)

@@ -9,7 +9,7 @@ import pytest
 
 from dpi.io.images import luminance
 from dpi.light.envmap import direction_to_texel, texel_solid_angles
-from dpi.light.skies import SkyParams, sun_direction, sunsky_envmap
+from dpi.worlds.skies import SkyParams, sun_direction, sunsky_envmap
 from dpi.light.sunlight import draw_sun_np
 from dpi.worlds.daylight import (Daylight, irradiance, overcast, physical_daylight, random_sun_elevation,
                                  upper_hemisphere)

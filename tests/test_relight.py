@@ -12,9 +12,9 @@ from dpi.cli import main
 from dpi.io.exr import EXRError, read_exr, write_exr
 from dpi.io.images import linear_to_srgb, read_image
 from dpi.light.envmap import direction_to_texel, rotate_azimuth, texel_directions
-from dpi.materials import MaterialTextures
+from dpi.solve.materials import MaterialTextures
 from dpi.export.relight import MaterialEdit, RelightConfig, relight_sample
-from dpi.render import RenderConfig
+from dpi.render.renderer import RenderConfig
 
 RENDER = RenderConfig(spp=32, threads=2)
 

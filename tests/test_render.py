@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 import torch
 
-from dpi.cameras import Camera, from_fov, look_at
-from dpi.materials import MaterialTextures
-from dpi.render import RenderConfig, Renderer
+from dpi.capture.cameras import Camera, from_fov, look_at
+from dpi.solve.materials import MaterialTextures
+from dpi.render.renderer import RenderConfig, Renderer
 from dpi.synth.shapes import blob, write_ply
 
 

@@ -21,7 +21,7 @@ from dpi.preprocess.derive import normalise_capture
 from dpi.stages import Pipeline, StageJob, uncertainty_stage
 from dpi.io.atomic import write_json
 from dpi.io.exr import read_exr, write_exr
-from dpi.layout import INIT, SUMMARY_FILE, Layout, view_file
+from dpi.io.layout import INIT, SUMMARY_FILE, Layout, view_file
 
 METHODS = {INIT: 1, "none": 2, "dps": 2}
 ROUGHNESS = {"glossy": 0.1, "rough": 0.6}

@@ -13,12 +13,12 @@ import torch
 
 from dpi.capture import load_capture
 from dpi.light.tonecurve import LogEncoding
-from dpi.materials import MaterialTextures
+from dpi.solve.materials import MaterialTextures
 from dpi.prior.diffusion import base_diffusion
 from dpi.prior.sample import Prior, draw_samples
 from dpi.prior.unet import SMALL_CONFIGS, UNetModel
-from dpi.render import RenderConfig
-from dpi.settings import SettingsError, settings_from_dict
+from dpi.render.renderer import RenderConfig
+from dpi.io.settings import SettingsError, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, start_run
 from dpi.solve.dps.map_solve import PRIOR_STD, Resampling, posterior_variance
@@ -332,7 +332,7 @@ def test_a_written_dps_map_holds_one_sun_drawn_as_a_disc(tiny_capture, problem_a
 
 def test_dps_moves_the_albedo_at_its_own_rate_in_the_loop_and_the_refinement(problem_and_init):
     """dps's albedo rate is its own (half the other methods'), and a config's lr_albedo reaches both stages."""
-    from dpi.materials import MaterialRates
+    from dpi.solve.materials import MaterialRates
 
     problem, init = problem_and_init
     for entry, rate in (({}, 0.01), ({"lr_albedo": 0.03}, 0.03)):

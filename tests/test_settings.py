@@ -6,7 +6,7 @@ from typing import Annotated
 
 import pytest
 
-from dpi.settings import Count, Loose, Rate, SettingsError, apply_preset, settings, settings_from_dict
+from dpi.io.settings import Count, Loose, Rate, SettingsError, apply_preset, settings, settings_from_dict
 
 PRESETS = {"draft": {"render": {"spp": 4}, "method_params": {"dps": {"steps": 25, "refine_iterations": 50}}},
            "paper": {"render": {"spp": 64}, "problem": {"env_height": 64}}}

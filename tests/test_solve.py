@@ -8,9 +8,9 @@ import pytest
 import torch
 
 from dpi.capture import load_capture
-from dpi.materials import MaterialTextures
-from dpi.render import RenderConfig
-from dpi.settings import SettingsError
+from dpi.solve.materials import MaterialTextures
+from dpi.render.renderer import RenderConfig
+from dpi.io.settings import SettingsError
 from dpi.solve.classic import ClassicConfig, balanced_weight, classic_sample
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dip import DeepImagePrior, DIPConfig, dip_sample, network_levels
@@ -107,7 +107,7 @@ def test_nan_steps_are_skipped_and_counted(problem):
 
     trace = Trace()
     log_env = torch.zeros(4, 8, 3)
-    from dpi.materials import MaterialTextures
+    from dpi.solve.materials import MaterialTextures
 
     out_env, mats = fit(problem, log_env, MaterialTextures.constant(8), OptimizeConfig(iterations=4),
                         seed=0, trace=trace, prior=sometimes_nan, prior_weight=1.0, progress=False)

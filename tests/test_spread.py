@@ -1,4 +1,4 @@
-"""The spread of samples (dpi.spread) and its outputs: uncertainty maps, their summary and the calibration."""
+"""The spread of samples (dpi.solve.spread) and its outputs: uncertainty maps, their summary and the calibration."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from dpi.io.exr import read_exr, write_exr
-from dpi.layout import decomposition_files
+from dpi.io.layout import decomposition_files
 from dpi.light.envmap import texel_solid_angles
-from dpi.spread import albedo_std_map, calibration, log_std_map, mean_log_map, sphere_mean
+from dpi.solve.spread import albedo_std_map, calibration, log_std_map, mean_log_map, sphere_mean
 
 H = 8
 

@@ -8,7 +8,7 @@ import pytest
 from dpi.capture import load_capture
 from dpi.io.exr import read_exr, write_exr
 from dpi.io.images import read_mask
-from dpi.layout import SYNTH_MARKER
+from dpi.io.layout import SYNTH_MARKER
 from dpi.synth.capture import SynthConfig, ground_truth_envmap, make_synthetic_capture
 from dpi.synth.shapes import SHAPES, make_shape
 from dpi.synth.textures import procedural_materials

@@ -6,7 +6,7 @@ import torch
 
 from dpi.capture import load_capture
 from dpi.evaluation.train_fit import ground_truth, training_fit
-from dpi.render import RenderConfig
+from dpi.render.renderer import RenderConfig
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.problem import InverseProblem, ProblemConfig
 

@@ -129,7 +129,7 @@ def test_dpi_commands_give_the_workflow_files(workdir, tmp_path, monkeypatch):
 
     from dpi.cli import main
     from dpi.io.exr import read_exr
-    from dpi.layout import INIT, SceneLayout
+    from dpi.io.layout import INIT, SceneLayout
 
     wd = tmp_path / "wd"
     wd.mkdir()

@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from dpi.cameras import Camera, pixel_rays
+from dpi.capture.cameras import Camera, pixel_rays
 from dpi.io.images import resize_mask, working_size
 
 CHECK_SIZE = 64

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dpi.cameras import Camera, read_cameras
+from dpi.capture.cameras import Camera, read_cameras
 from dpi.capture.colmap_model import check_colmap_model, colmap_model_dir
 from dpi.capture.folder import alpha_masks, check_images, check_root, gt_files, image_files, mask_files
 from dpi.capture.meshes import check_mesh, mesh_file, mesh_has_uv
@@ -21,7 +21,7 @@ from dpi.capture.transforms import frame_masks, names_masks, read_transforms_jso
 from dpi.capture.undistort import with_cameras
 from dpi.capture.consistency import cameras_problem
 from dpi.io.images import read_mask
-from dpi.layout import SceneLayout
+from dpi.io.layout import SceneLayout
 
 MIN_TRAIN_VIEWS = 3
 """a capture with fewer training views gets a warning: too few to constrain the light and the materials"""

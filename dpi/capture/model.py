@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dpi.cameras import DISTORTION_KEYS, Camera, Lens
+from dpi.capture.cameras import DISTORTION_KEYS, Camera, Lens
 from dpi.io.atomic import write_json
 
 

@@ -8,7 +8,7 @@ import os
 import re
 from pathlib import Path
 
-from dpi.cameras import json_value
+from dpi.capture.cameras import json_value
 from dpi.capture.model import CaptureError, inside_capture
 from dpi.io.structured import StructuredFileError, read_yaml
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path, PurePosixPath
 
-from dpi.cameras import Camera, TransformsError, camera_problem, read_transforms
+from dpi.capture.cameras import Camera, TransformsError, camera_problem, read_transforms
 from dpi.capture.folder import view_name
 from dpi.capture.model import CaptureError, inside_capture
 from dpi.io.images import IMAGE_SUFFIXES

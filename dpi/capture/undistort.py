@@ -15,7 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from dpi.cameras import Camera, Lens
+from dpi.capture.cameras import Camera, Lens
 from dpi.capture.model import Capture
 from dpi.capture.view_copies import cached_copies, source_stamp
 from dpi.io.images import read_image, read_mask

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from dpi.cameras import Camera
+from dpi.capture.cameras import Camera
 from dpi.capture.model import View
 from dpi.io.atomic import write_json
 from dpi.io.exr import write_exr

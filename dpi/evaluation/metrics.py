@@ -16,7 +16,7 @@ import numpy as np
 import torch
 from skimage.metrics import structural_similarity
 
-from dpi.exposure import middle_grey_gain, robust_level
+from dpi.solve.exposure import middle_grey_gain, robust_level
 from dpi.io.images import luminance, resize, tonemap
 
 EPS = 1e-6

@@ -29,8 +29,8 @@ from scipy.special import gamma
 
 from dpi.evaluation.metrics import resize_image
 from dpi.io.images import linear_to_srgb, luminance
-from dpi.layout import package_data
-from dpi.spread import normalized_env
+from dpi.io.layout import package_data
+from dpi.solve.spread import normalized_env
 
 PRISTINE_MODEL = package_data("niqe_pristine.npz")
 PATCH_SIZE = 96

@@ -3,7 +3,7 @@ input views, env-map samples, textures and re-rendered held-out views of every m
 
 Static files only: PNGs in a folder next to the page, relative links; it reads offline. The one script is the
 3D view's (dpi.evaluation.view3d: model-viewer, copied next to the page, and the exported asset embedded).
-It draws from what the workflow wrote (dpi.layout), starting at eval/summary.csv: the evaluation's
+It draws from what the workflow wrote (dpi.io.layout), starting at eval/summary.csv: the evaluation's
 metric files and held-out renders, the env-map figure of each scene, the samples' textures. It
 renders nothing itself.
 """
@@ -29,7 +29,7 @@ from dpi.evaluation.view3d import install_viewer, view3d_section
 from dpi.io.atomic import write_text
 from dpi.io.exr import read_exr
 from dpi.io.images import read_image, read_mask
-from dpi.layout import INIT, SUMMARY_FILE, TEXTURE_NAMES, Layout, SceneLayout, texture_file, view_file
+from dpi.io.layout import INIT, SUMMARY_FILE, TEXTURE_NAMES, Layout, SceneLayout, texture_file, view_file
 from dpi.solve.init import readings_line
 from dpi.synth.capture import read_marker
 from dpi.capture.working import working_capture

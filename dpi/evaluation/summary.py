@@ -1,6 +1,6 @@
 """The summary over samples, methods and scenes (summary.csv, samples.csv): per (scene, method) the
 means of the per-sample metrics, sigma2_sample of env and albedo, the spread maps' means and the samples'
-calibration against the true map (dpi.spread), env-map FID per method over all
+calibration against the true map (dpi.solve.spread), env-map FID per method over all
 scenes, and albedo sigma2_invar per (object, method) across the scenes (illuminations) of one object.
 """
 
@@ -24,8 +24,8 @@ from dpi.evaluation.relighting import RELIGHT_METRICS
 from dpi.io.atomic import atomic_path
 from dpi.io.exr import read_exr
 from dpi.io.images import linear_to_srgb
-from dpi.layout import ENV_FILE, INIT, texture_file
-from dpi.spread import (albedo_std_map, calibration, log_std_map, mean_log_map, normalized_albedo, normalized_env,
+from dpi.io.layout import ENV_FILE, INIT, texture_file
+from dpi.solve.spread import (albedo_std_map, calibration, log_std_map, mean_log_map, normalized_albedo, normalized_env,
                         roughness_std_map, sample_variance, sphere_mean)
 
 SUMMARY_METRICS = ("novel_psnr", "novel_ssim", "novel_lpips", "env_psnr", "env_ssim", "env_lpips", "env_niqe",
@@ -83,7 +83,7 @@ def summarize(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 def spread_columns(envs: list[np.ndarray], albedos: list[np.ndarray], roughness: list[np.ndarray],
                    truth: str | Path | None) -> dict[str, Any]:
-    """How far a method's samples spread (dpi.spread): the mean of its uncertainty maps over the sphere and the
+    """How far a method's samples spread (dpi.solve.spread): the mean of its uncertainty maps over the sphere and the
     textures, its calibration against the true map (~1: the truth looks like one more sample), and the env
     PSNR / SSIM of the samples' geometric mean map (what they agree on)."""
     if len(envs) < 2:

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from dpi.layout import TEXTURE_NAMES
+from dpi.io.layout import TEXTURE_NAMES
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.problem import InverseProblem, to_loss_space
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dpi.layout import SceneLayout
+from dpi.io.layout import SceneLayout
 
 MODEL_VIEWER = Path(__file__).resolve().parents[2] / "node_modules" / "@google" / "model-viewer" / "dist" / \
     "model-viewer-umd.min.js"

@@ -16,7 +16,7 @@ from PIL import Image
 
 from dpi.io.exr import read_exr
 from dpi.io.images import to_uint8
-from dpi.layout import decomposition_files
+from dpi.io.layout import decomposition_files
 
 
 @dataclass(frozen=True)
@@ -52,8 +52,8 @@ class AssetSample:
 
 def renderer_mesh(path: str | Path) -> AssetMesh:
     """The mesh file as Mitsuba loads it for rendering (its UVs as the textures index them, smooth normals)."""
-    from dpi import backend
-    from dpi.render import mesh_plugin
+    from dpi.render import backend
+    from dpi.render.renderer import mesh_plugin
 
     mi = backend.mitsuba()
     params = mi.traverse(mi.load_dict(mesh_plugin(path)))

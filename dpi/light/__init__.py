@@ -1,1 +1,1 @@
-"""Light: environment maps, the sun, procedural skies, the tone curves of the prior's encoding."""
+"""Light: environment maps, the sun, the tone curves of the prior's encoding."""

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dpi.cameras import Camera
+from dpi.capture.cameras import Camera
 
 
 def umeyama(source: np.ndarray, target: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:

@@ -1,6 +1,6 @@
 """What each preprocessing stage derives, as functions of paths and settings: a validated capture.json, then
 cameras, masks, a surface and its UV atlas. Each reads capture.json plus the files of the stages before it and
-writes its outputs and a summary (counts, errors, seconds) where dpi.layout puts them; dpi.stages.preprocess
+writes its outputs and a summary (counts, errors, seconds) where dpi.io.layout puts them; dpi.stages.preprocess
 decides which run and with what.
 """
 
@@ -9,15 +9,15 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from dpi.backend import set_threads
-from dpi.cameras import Camera, read_cameras, write_transforms
+from dpi.render.backend import set_threads
+from dpi.capture.cameras import Camera, read_cameras, write_transforms
 from dpi.capture import (Capture, CaptureError, camera_fit_problem, load_capture, read_capture_json,
                          write_capture_json)
 from dpi.io.atomic import write_json
 from dpi.io.images import read_mask
 from dpi.io.structured import read_json
-from dpi.layout import SUMMARY_FILE, SceneLayout, geometry_files, poses_files
-from dpi.settings import settings_from_dict
+from dpi.io.layout import SUMMARY_FILE, SceneLayout, geometry_files, poses_files
+from dpi.io.settings import settings_from_dict
 
 SFM_FRAME = ("the cameras are structure from motion's, in its own frame (the object at the origin with radius 1, "
              "+Y up): give the mesh with its cameras (transforms.json), or leave the mesh out")
@@ -52,7 +52,7 @@ def normalise_capture(capture_dir: str | Path, out_json: str | Path) -> None:
 def derive_poses(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None, threads: int = 1) -> dict:
     """The capture's cameras into out_dir: its own COLMAP model when it brings one (dpi.capture.colmap_model; read
     as given, and brought into dpi's frame unless the capture's mesh is in the model's), else structure from
-    motion on its images; cameras (transforms.json), sparse points and a summary (dpi.layout.poses_files)."""
+    motion on its images; cameras (transforms.json), sparse points and a summary (dpi.io.layout.poses_files)."""
     from dpi.capture.colmap_model import colmap_model_dir
     from dpi.capture.undistort import with_cameras
     from dpi.preprocess.sfm import SfMConfig, SfMError, normalise, read_model, run_sfm, write_points_ply
@@ -137,7 +137,7 @@ def derive_view_masks(capture_json: str | Path, out_dir: str | Path, settings: d
 def derive_geometry(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None,
                    cameras_json: str | Path | None = None, masks_dir: str | Path | None = None,
                    threads: int = 1) -> dict:
-    """Carved and cleaned surface of the object into out_dir: mesh and summary (dpi.layout.geometry_files); stops
+    """Carved and cleaned surface of the object into out_dir: mesh and summary (dpi.io.layout.geometry_files); stops
     first when the derived masks are mostly unreliable (dpi.preprocess.mask_confidence.check_usable)."""
     from dpi.preprocess.geometry import GeometryConfig, reconstruct_surface, write_mesh_ply
 
@@ -173,7 +173,7 @@ def derive_geometry(capture_json: str | Path, out_dir: str | Path, settings: dic
 def derive_uv(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None,
              mesh: str | Path | None = None) -> dict:
     """UV atlas of the reconstructed mesh (or of the capture's mesh without UVs) into out_dir: mesh_uv and
-    uv_summary (dpi.layout.geometry_files)."""
+    uv_summary (dpi.io.layout.geometry_files)."""
     from dpi.preprocess.geometry import read_mesh
     from dpi.preprocess.uv import UVConfig, uv_atlas, write_uv_mesh
 

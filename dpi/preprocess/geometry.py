@@ -18,9 +18,9 @@ from typing import TYPE_CHECKING, Annotated
 import numpy as np
 from pydantic import Field
 
-from dpi.cameras import Camera
+from dpi.capture.cameras import Camera
 from dpi.preprocess.hull import cut_below, marching_cubes, seen_from_above, support_plane, visual_hull
-from dpi.settings import Count, Steps, settings
+from dpi.io.settings import Count, Steps, settings
 
 if TYPE_CHECKING:
     from dpi.preprocess.stereo import StereoParams

@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from dpi.cameras import Camera
+from dpi.capture.cameras import Camera
 from dpi.capture.consistency import raycasting_scene
 from dpi.preprocess.hull import axes_centre
 from dpi.preprocess.morphology import grow

@@ -21,7 +21,7 @@ import logging
 
 import numpy as np
 
-from dpi.cameras import Camera
+from dpi.capture.cameras import Camera
 
 log = logging.getLogger(__name__)
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dpi.cameras import Camera
+from dpi.capture.cameras import Camera
 from dpi.preprocess.morphology import grow
 
 MASK_AGREEMENT = 0.85

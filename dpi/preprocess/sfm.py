@@ -14,7 +14,7 @@ and the first camera looking along -Z.
 COLMAP's `cam_from_world` maps world points into OpenCV camera axes (x right, y down, looking
 along +z); dpi's cameras are OpenGL camera-to-world matrices (y up, looking along -z), so
 `c2w_gl = inverse(cam_from_world) @ diag(1, -1, -1, 1)`. COLMAP's pixel centres sit at
-half-integers, as in `dpi.cameras.pixel_rays`, so the principal point carries over unchanged.
+half-integers, as in `dpi.capture.cameras.pixel_rays`, so the principal point carries over unchanged.
 """
 
 from __future__ import annotations
@@ -30,10 +30,10 @@ import numpy as np
 from PIL import Image, ImageOps
 from pydantic import Field
 
-from dpi.cameras import Camera, Lens
+from dpi.capture.cameras import Camera, Lens
 from dpi.io.images import exif_orientation
 from dpi.preprocess.hull import axes_centre, visible_sphere
-from dpi.settings import Count, Fraction, settings
+from dpi.io.settings import Count, Fraction, settings
 
 log = logging.getLogger(__name__)
 

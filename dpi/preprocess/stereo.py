@@ -32,7 +32,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from dpi.cameras import Camera
+from dpi.capture.cameras import Camera
 from dpi.capture.consistency import raycasting_scene
 
 BAND_VOXELS = 3.0

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dpi.settings import Steps, TextureSize, settings
+from dpi.io.settings import Steps, TextureSize, settings
 from dpi.synth.shapes import TriangleMesh
 
 

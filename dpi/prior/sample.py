@@ -13,7 +13,7 @@ from PIL import Image
 from dpi.capture import PRIORS
 from dpi.io.atomic import atomic_path, write_json
 from dpi.io.exr import write_exr
-from dpi.layout import package_data
+from dpi.io.layout import package_data
 from dpi.light.tonecurve import Encoding, encoding_from_dict
 from dpi.prior.diffusion import Diffusion, base_diffusion, evenly_spaced_timesteps, respaced, sample
 from dpi.prior.unet import UNetModel, load_checkpoint

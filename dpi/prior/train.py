@@ -26,7 +26,7 @@ from dpi.prior.data import EnvmapDataset, clip_highlights, median_target, read_d
 from dpi.prior.diffusion import base_diffusion, evenly_spaced_timesteps, respaced, sample, training_losses
 from dpi.prior.sample import write_grid
 from dpi.prior.unet import SMALL_CONFIGS, CheckpointError, UNetModel, count_parameters, load_checkpoint
-from dpi.settings import Count, Fraction, MapHeight, Rate, SettingsError, Steps, settings, settings_from_dict
+from dpi.io.settings import Count, Fraction, MapHeight, Rate, SettingsError, Steps, settings, settings_from_dict
 
 CHECKPOINT_FORMAT = "dpi-prior-v1"
 LR_SCHEDULES = ("constant", "cosine")

@@ -20,7 +20,7 @@ from pydantic import Field
 from torch import nn
 from torch.nn import functional as F
 
-from dpi.settings import Count, Loose, settings
+from dpi.io.settings import Count, Loose, settings
 
 
 CHANNELS = 3

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import torch
 
-from dpi.settings import Weight, settings
+from dpi.io.settings import Weight, settings
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.init import starting_materials
 from dpi.solve.optimize import OptimizeConfig, fit, flat_config, method_config_from_dict

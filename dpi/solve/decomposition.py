@@ -8,9 +8,9 @@ from pathlib import Path
 import torch
 
 from dpi.io.exr import write_exr
-from dpi.layout import ENV_FILE, SAMPLE_TRACE
+from dpi.io.layout import ENV_FILE, SAMPLE_TRACE
 from dpi.light.envmap import read_envmap
-from dpi.materials import MaterialTextures
+from dpi.solve.materials import MaterialTextures
 from dpi.solve.trace import Trace
 
 

@@ -20,8 +20,8 @@ from typing import Literal
 
 import torch
 
-from dpi.materials import MaterialTextures
-from dpi.settings import Steps, settings
+from dpi.solve.materials import MaterialTextures
+from dpi.io.settings import Steps, settings
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.optimize import CHECKPOINT_EVERY, AdamFit, FreeEnvMap, OptimizeConfig
 from dpi.solve.problem import InverseProblem

@@ -11,7 +11,7 @@ from typing import Any, Callable
 
 import torch
 
-from dpi.adaptive import AdaptiveConfig, plan_steps
+from dpi.solve.adaptive import AdaptiveConfig, plan_steps
 from dpi.prior.sample import Prior, write_grid
 from dpi.solve.classic import ClassicConfig, classic_sample
 from dpi.solve.decomposition import Decomposition
@@ -74,7 +74,7 @@ def sds(job: SampleJob) -> Decomposition:
 
 
 def dps(job: SampleJob) -> Decomposition:
-    """The paper's diffusion posterior sampling; fewer steps on a diffuse scene (dpi.adaptive, recorded in the
+    """The paper's diffusion posterior sampling; fewer steps on a diffuse scene (dpi.solve.adaptive, recorded in the
     trace's info) and the x0_hat strip next to the sample."""
     cfg = job.settings
     requested = cfg.steps

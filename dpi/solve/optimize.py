@@ -19,8 +19,8 @@ from typing import Any, Callable, TypeVar
 import torch
 from tqdm import tqdm
 
-from dpi.materials import MaterialRates, MaterialTextures
-from dpi.settings import Count, Rate, Steps, check_keys, settings, settings_from_dict
+from dpi.solve.materials import MaterialRates, MaterialTextures
+from dpi.io.settings import Count, Rate, Steps, check_keys, settings, settings_from_dict
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
@@ -53,7 +53,7 @@ MethodConfig = TypeVar("MethodConfig")
 def method_config_from_dict(cls: type[MethodConfig], values: dict[str, Any] | None) -> MethodConfig:
     """A method's config dataclass, whose `optimize` field is an OptimizeConfig, from one flat dict
     (a `method_params` entry): its own keys by name, the rest for OptimizeConfig; unknown keys, wrong
-    types and out-of-range values are errors (dpi.settings)."""
+    types and out-of-range values are errors (dpi.io.settings)."""
     values = dict(values or {})
     own = {f.name for f in fields(cls)} - {"optimize"}
     check_keys(values, own | {f.name for f in fields(OptimizeConfig)}, f"{cls.__name__} setting")

@@ -2,7 +2,7 @@
 
 Everything a solver needs to evaluate the data term ||y_i - R(env, materials, c_i)||^2 over
 masked foreground pixels, for any subset of training views. The images are held in normalised
-units (divided by the capture's `exposure`, see dpi.exposure), so every decomposition a solver
+units (divided by the capture's `exposure`, see dpi.solve.exposure), so every decomposition a solver
 works on is too; decomposition files hold scene radiance, and `load_decomposition` /
 `save_decomposition` convert at that boundary.
 """
@@ -17,13 +17,13 @@ import numpy as np
 import torch
 
 from dpi.capture import Capture
-from dpi.exposure import MIDDLE_GREY, capture_exposure
+from dpi.solve.exposure import MIDDLE_GREY, capture_exposure
 from dpi.io.exr import EXRError
 from dpi.io.images import read_image, read_mask, resize
-from dpi.layout import SAMPLE_TRACE
-from dpi.materials import MaterialTextures
-from dpi.render import RenderConfig, Renderer
-from dpi.settings import ImageSize, MapHeight, TextureSize, settings, settings_from_dict
+from dpi.io.layout import SAMPLE_TRACE
+from dpi.solve.materials import MaterialTextures
+from dpi.render.renderer import RenderConfig, Renderer
+from dpi.io.settings import ImageSize, MapHeight, TextureSize, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 
 

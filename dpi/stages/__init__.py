@@ -8,11 +8,11 @@ from importlib import import_module
 from typing import Any
 
 PROVIDERS = {
-    "dpi.adaptive": ("MIN_SAMPLES", "stop_rule_applies"),
+    "dpi.solve.adaptive": ("MIN_SAMPLES", "stop_rule_applies"),
     "dpi.capture": ("PRIORS", "derived_inputs"),
     "dpi.io.lock": ("lock_results",),
-    "dpi.layout": ("ENV_FILE", "INIT"),
-    "dpi.pipeline": ("Pipeline", "load_pipeline", "plain", "resolve_config"),
+    "dpi.io.layout": ("ENV_FILE", "INIT"),
+    "dpi.config.pipeline": ("Pipeline", "load_pipeline", "plain", "resolve_config"),
     "dpi.solve.methods": ("METHODS", "REGISTRY"),
     "dpi.stages.job": ("StageJob", "rule_job"),
     "dpi.stages.preprocess": ("STAGES", "capture_stage", "geometry_stage", "masks_stage", "needed_stages",

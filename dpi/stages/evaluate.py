@@ -15,10 +15,10 @@ from dpi.evaluation.sample_metrics import evaluate_sample, render_held_out
 from dpi.evaluation.summary import sample_rows, summarize, write_csv
 from dpi.io.atomic import write_json
 from dpi.io.exr import read_exr, write_exr
-from dpi.layout import INIT_TRACE, SAMPLE_TRACE, decomposition_files, view_file
+from dpi.io.layout import INIT_TRACE, SAMPLE_TRACE, decomposition_files, view_file
 from dpi.prior.sample import load_scene_prior
 from dpi.stages.seeding import seed_for
-from dpi.spread import albedo_std_map, log_std_map, mean_log_map, roughness_std_map
+from dpi.solve.spread import albedo_std_map, log_std_map, mean_log_map, roughness_std_map
 from dpi.stages.inverse import load_problem
 from dpi.stages.job import StageJob
 
@@ -68,7 +68,7 @@ def envmap_figure_stage(job: StageJob, rows: list[tuple[str, list[str | Path]]])
 def uncertainty_stage(job: StageJob, rows: list[tuple[str, list[str | Path]]]) -> None:
     """The spread maps of the job's scene: per (method, its sample folders, 2 or more) the per-texel std of the
     env maps' log luminance, of the albedo and of the roughness across the samples and the env maps' geometric
-    mean, as EXRs where dpi.layout says, and the spread's figure."""
+    mean, as EXRs where dpi.io.layout says, and the spread's figure."""
     scene = job.paths
     figure = []
     for method, folders in rows:

@@ -15,7 +15,7 @@ from dpi.export.usd import write_usd
 from dpi.io.atomic import atomic_path
 from dpi.io.exr import read_exr
 from dpi.io.images import write_hdr
-from dpi.layout import INIT
+from dpi.io.layout import INIT
 from dpi.stages.job import StageJob
 
 SPREAD_NOTE = ("spread_textures: per method with 2 or more samples, its samples' per-texel albedo std "

@@ -1,6 +1,6 @@
 """Stages of rules/inverse.smk: the path-traced initialisation, posterior sample k of a method, and the sample
 stop rule's plan. Each reads the scene's capture.json (completed by what preprocessing derived) and writes where
-dpi.layout says, with the settings of the job's pipeline."""
+dpi.io.layout says, with the settings of the job's pipeline."""
 
 from __future__ import annotations
 
@@ -8,13 +8,13 @@ import json
 import shutil
 from pathlib import Path
 
-from dpi import backend
-from dpi.adaptive import MIN_SAMPLES, plan_samples
+from dpi.render import backend
+from dpi.solve.adaptive import MIN_SAMPLES, plan_samples
 from dpi.capture import complete_capture, read_capture_json
-from dpi.exposure import MIDDLE_GREY
+from dpi.solve.exposure import MIDDLE_GREY
 from dpi.io.atomic import write_json
 from dpi.io.exr import read_exr
-from dpi.layout import INIT, INIT_TRACE, SceneLayout
+from dpi.io.layout import INIT, INIT_TRACE, SceneLayout
 from dpi.prior.sample import load_scene_prior
 from dpi.stages.seeding import seed_for
 from dpi.solve.decomposition import Decomposition
@@ -69,7 +69,7 @@ def sample_init(job: StageJob, problem: InverseProblem) -> tuple[str, Decomposit
 def sample_stage(job: StageJob) -> None:
     """Posterior sample k of the job's method into its folder (envmap, textures, trace.json).
 
-    A method that uses the diffusion prior loads the one of the scene's family (dpi.pipeline); scene.yaml's
+    A method that uses the diffusion prior loads the one of the scene's family (dpi.config.pipeline); scene.yaml's
     `radiance_scale` is in the capture's radiance. `dps` runs fewer steps on a diffuse scene (config
     `adaptive`); the decision and its reason are in the trace's info."""
     cfg = job.pipeline.method_settings(job.method)
@@ -90,7 +90,7 @@ def sample_stage(job: StageJob) -> None:
 
 
 def sample_plan_stage(job: StageJob) -> dict:
-    """The stop rule's plan.json for the job's (scene, method), from its first samples' env maps (dpi.adaptive)."""
+    """The stop rule's plan.json for the job's (scene, method), from its first samples' env maps (dpi.solve.adaptive)."""
     envmaps = [job.paths.sample_files(job.method, k)["env"] for k in range(MIN_SAMPLES)]
     cfg = job.pipeline.adaptive
     plan = plan_samples([read_exr(path) for path in envmaps], job.pipeline.samples(job.method), cfg)

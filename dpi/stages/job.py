@@ -1,5 +1,5 @@
 """The job record every stage takes: which scene, method and sample, the resolved pipeline (settings and
-`dpi.layout` paths), and the threads the job may use. The rules, the `dpi` command and the study engine
+`dpi.io.layout` paths), and the threads the job may use. The rules, the `dpi` command and the study engine
 build it the same way and hand it to the same stage functions."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-from dpi.layout import INIT, SceneLayout
-from dpi.pipeline import Pipeline
+from dpi.io.layout import INIT, SceneLayout
+from dpi.config.pipeline import Pipeline
 from dpi.solve.problem import SolveConfig
 
 
@@ -35,7 +35,7 @@ class StageJob:
 
     @cached_property
     def paths(self) -> SceneLayout:
-        """The scene's folder of results (dpi.layout)."""
+        """The scene's folder of results (dpi.io.layout)."""
         if self.scene is None:
             raise ValueError("a run-wide job has no scene paths")
         return self.pipeline.layout.scene(self.scene)

@@ -9,7 +9,7 @@ import logging
 from pathlib import Path
 from typing import Any
 
-from dpi.layout import SceneLayout
+from dpi.io.layout import SceneLayout
 from dpi.preprocess.derive import derive_geometry, derive_poses, derive_uv, derive_view_masks, normalise_capture
 from dpi.stages.job import StageJob
 from dpi.synth.capture import make_synthetic_capture

@@ -1,9 +1,9 @@
 """Stages of rules/prior.smk: a family's procedural env-map dataset, then its diffusion prior trained on it,
-with the settings of config `prior:` (dpi.pipeline.Pipeline.prior_job)."""
+with the settings of config `prior:` (dpi.config.pipeline.Pipeline.prior_job)."""
 
 from __future__ import annotations
 
-from dpi import backend
+from dpi.render import backend
 from dpi.prior.procedural import make_envmap_dataset
 from dpi.prior.train import train_and_export
 from dpi.stages.job import StageJob

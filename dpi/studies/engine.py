@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from dpi.layout import Layout
+from dpi.io.layout import Layout
 
 PROVENANCE = ("commit", "settings_hash")
 """the columns every study row ends with"""
@@ -118,7 +118,7 @@ class Job:
     def pipeline(self):
         """The workflow's pipeline of this one job: the study's config with the scene as its synthetic scene and
         the method's settings as its entry, results and captures in the study folder."""
-        from dpi.pipeline import Pipeline
+        from dpi.config.pipeline import Pipeline
 
         layout = self.layout
         return Pipeline({**self.config, "results_dir": str(layout.results), "captures_dir": str(layout.captures),
@@ -158,7 +158,7 @@ class Job:
         prior = {"prior": file_digest(checkpoint) if checkpoint.is_file() else str(checkpoint)} if checkpoint else {}
         settings = self.method_cfg
         if self.method in REGISTRY:
-            from dpi.pipeline import plain
+            from dpi.config.pipeline import plain
             from dpi.solve.methods import method_config
 
             settings = plain(method_config(self.method, self.method_cfg))
@@ -168,7 +168,7 @@ class Job:
     def resolved_sections(self) -> dict[str, Any]:
         """What a sample reads of the workflow config besides its method's settings: the renderer's, problem's and
         init's settings as resolved (threads left out), and the TEXT_SECTIONS as written."""
-        from dpi.pipeline import plain
+        from dpi.config.pipeline import plain
 
         pipeline = self.pipeline
         solve = pipeline.solve_settings()
@@ -198,7 +198,7 @@ def prior_checkpoints(pairs: Iterable[str]) -> dict[str, str]:
 def workflow_config(env_height: int | None = None, texture_size: int = STUDY_TEXTURES) -> dict[str, Any]:
     """The workflow's resolved config (defaults and preset) with textures of `texture_size`, the map at the
     preset's size or at `env_height` rows."""
-    from dpi.pipeline import resolve_config
+    from dpi.config.pipeline import resolve_config
 
     sizes = {"texture_size": texture_size, **({"env_height": env_height} if env_height else {})}
     return resolve_config({"problem": sizes})
@@ -219,7 +219,7 @@ def prepare_capture(root: Path, scene: str, synth: dict, threads: int) -> Path:
 
 def prepare_job(job: Job) -> None:
     """A job's scene: capture, capture.json and initialisation (made once, then reused)."""
-    from dpi.layout import INIT
+    from dpi.io.layout import INIT
     from dpi.stages import init_stage
 
     prepare_capture(job.root, job.scene, job.synth, threads=2)
@@ -240,7 +240,7 @@ def claim_sample_dir(job: Job) -> None:
 def run_job(job: Job) -> dict[str, Any]:
     """Draw (except for the init) and evaluate one sample; its row (SAMPLE_COLUMNS)."""
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-    from dpi.layout import INIT
+    from dpi.io.layout import INIT
     from dpi.stages import evaluate_stage, sample_stage
 
     stage = job.stage_job(threads=1)
@@ -262,7 +262,7 @@ def job_settings(settings: dict) -> dict:
 def dps_variants(config: dict, extra: list[str]) -> dict[str, dict]:
     """dps settings per sampler label: each built-in sampler, plus `NAME:key=value,...` variants (a dotted key
     names a section's setting: `proximal.inner_steps=4`)."""
-    from dpi.pipeline import merge
+    from dpi.config.pipeline import merge
     from dpi.solve.dps import SAMPLERS
 
     base = config["method_params"].get("dps", {})

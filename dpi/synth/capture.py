@@ -21,15 +21,15 @@ import yaml
 from pydantic import Field
 from tqdm import tqdm
 
-from dpi.cameras import from_fov, orbit, write_transforms
+from dpi.capture.cameras import from_fov, orbit, write_transforms
 from dpi.io.atomic import write_json, write_text
 from dpi.io.exr import write_exr
 from dpi.io.images import luminance, write_mask, write_srgb, write_srgb_alpha
-from dpi.layout import SYNTH_MARKER
-from dpi.light.skies import SkyParams, sunsky_envmap
+from dpi.io.layout import SYNTH_MARKER
+from dpi.worlds.skies import SkyParams, sunsky_envmap
 from dpi.prior.data import read_panorama, resize_map
-from dpi.render import RenderConfig, Renderer
-from dpi.settings import (Count, Elevation, Fraction, ImageSize, Loose, MapHeight, Rate, SamplesPerPixel, Steps,
+from dpi.render.renderer import RenderConfig, Renderer
+from dpi.io.settings import (Count, Elevation, Fraction, ImageSize, Loose, MapHeight, Rate, SamplesPerPixel, Steps,
                           TextureSize, Weight, settings, settings_from_dict)
 from dpi.synth.backdrop import BACKGROUNDS, add_detail, composite_backdrop
 from dpi.synth.shapes import make_shape, write_ply

@@ -115,7 +115,7 @@ def make_shape(name: str, resolution: int = 48, seed: int = 0) -> TriangleMesh:
 
 def write_ply(path: str | Path, mesh: TriangleMesh) -> None:
     """Write a PLY with per-vertex UVs through Mitsuba's own writer, so Mitsuba reads it back exactly."""
-    from dpi import backend
+    from dpi.render import backend
     from dpi.io.atomic import atomic_path
 
     mi = backend.mitsuba()

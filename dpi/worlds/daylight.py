@@ -1,6 +1,6 @@
 """Daylight over procedural outdoor scenes: a sky radiance map plus the sun as a direction and an irradiance.
 
-The physical sky and sun come from Mitsuba's `sunsky` (`dpi.light.skies.sunsky_envmap`): the sun-to-sky
+The physical sky and sun come from Mitsuba's `sunsky` (`dpi.worlds.skies.sunsky_envmap`): the sun-to-sky
 ratio is the model's, never clamped. The sun is kept apart from the sky so that scene geometry can
 shade surfaces with it (n.s times its irradiance) and hide it; `add_sun` draws it back as a disc with
 its aureole (dpi.light.sunlight), its power preserved. Broken clouds dim the sun; an overcast deck
@@ -16,7 +16,7 @@ import numpy as np
 
 from dpi.io.images import luminance
 from dpi.light.envmap import direction_to_texel, texel_angles, texel_directions, texel_solid_angles
-from dpi.light.skies import SkyParams, sun_direction, sunsky_envmap
+from dpi.worlds.skies import SkyParams, sun_direction, sunsky_envmap
 from dpi.light.sunlight import draw_sun_np
 
 LOW_SUN_PROBABILITY = 0.3  # share of suns drawn between 0.5 and 10 degrees of elevation

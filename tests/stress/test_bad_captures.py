@@ -17,9 +17,9 @@ import pytest
 import trimesh
 from capture_helpers import NAMES, SIZE, edit_transforms, make_capture, raw_exr
 
-from dpi.cameras import to_mitsuba
+from dpi.capture.cameras import to_mitsuba
 from dpi.capture import CaptureError, CaptureWarning, inspect_capture, load_capture, read_scene_options
-from dpi.exposure import capture_exposure
+from dpi.solve.exposure import capture_exposure
 from dpi.preprocess.derive import normalise_capture
 from dpi.io.images import read_image, read_mask
 

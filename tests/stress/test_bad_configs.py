@@ -13,9 +13,9 @@ import pytest
 from capture_helpers import make_capture
 from workflow_helpers import REPO, SNAKEMAKE, TINY_CONFIG, write_config
 
-from dpi.config_validation import ConfigError, check_config
-from dpi.pipeline import CONFIG_SCHEMA, DEFAULT_CONFIG, read_yaml
-from dpi.settings import apply_preset
+from dpi.config.validation import ConfigError, check_config
+from dpi.config.pipeline import CONFIG_SCHEMA, DEFAULT_CONFIG, read_yaml
+from dpi.io.settings import apply_preset
 
 SHIPPED = read_yaml(DEFAULT_CONFIG)
 
@@ -29,7 +29,7 @@ def merged(base: dict[str, Any], patch: dict[str, Any]) -> dict[str, Any]:
 
 
 def checked(config: dict[str, Any]) -> None:
-    """What dpi.pipeline.resolve_config does with a merged config before the DAG is built."""
+    """What dpi.config.pipeline.resolve_config does with a merged config before the DAG is built."""
     check_config(apply_preset(config), CONFIG_SCHEMA)
 
 
@@ -158,7 +158,7 @@ def test_new_dataclass_fields_need_no_schema_change(monkeypatch):
     """method_params keys come from the method's dataclass: a field added to it is accepted at once."""
     from dataclasses import field
 
-    from dpi.settings import settings
+    from dpi.io.settings import settings
     from dpi.solve import methods
     from dpi.solve.classic import ClassicConfig
 

@@ -143,7 +143,7 @@ def test_derived_masks_are_checked_against_a_given_mesh(tmp_path):
     projects into the images), the derived masks then stop the masks stage with one line naming their folder."""
     from test_preprocess_masks import sphere_view
 
-    from dpi.cameras import from_fov, orbit, write_transforms
+    from dpi.capture.cameras import from_fov, orbit, write_transforms
     from dpi.preprocess.derive import normalise_capture
     from dpi.io.images import write_srgb
     from dpi.preprocess.derive import derive_view_masks

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from capture_helpers import SIZE, cameras, edit_transforms, make_capture
 
-from dpi.cameras import Camera, Lens, from_fov, look_at
+from dpi.capture.cameras import Camera, Lens, from_fov, look_at
 from dpi.capture import CaptureError, camera_from_json, camera_to_json, load_capture, read_capture_json
 from dpi.capture.undistort import distort_image, intrinsics, undistort_image
 from dpi.io.images import read_image, read_mask
@@ -121,10 +121,10 @@ def test_a_fitted_lens_is_kept_only_where_it_moves_pixels():
 def test_derived_cameras_with_a_lens_give_the_later_stages_pinhole_views(tmp_path):
     """Structure from motion fitted a lens (poses/transforms.json): the masks, geometry and inverse stages see
     the views undistorted, with pinhole cameras."""
-    from dpi.cameras import write_transforms
+    from dpi.capture.cameras import write_transforms
     from dpi.capture import complete_capture
     from dpi.capture.undistort import with_cameras
-    from dpi.layout import SceneLayout
+    from dpi.io.layout import SceneLayout
 
     root = make_capture(tmp_path / "cap", transforms=False)
     scene = SceneLayout(tmp_path / "results")

@@ -3,10 +3,10 @@
 import pytest
 import torch
 
-from dpi.cameras import from_fov, look_at
+from dpi.capture.cameras import from_fov, look_at
 from dpi.capture import load_capture
-from dpi.materials import MaterialTextures
-from dpi.render import RenderConfig, Renderer
+from dpi.solve.materials import MaterialTextures
+from dpi.render.renderer import RenderConfig, Renderer
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.optimize import OptimizeConfig, fit
 from dpi.solve.problem import InverseProblem, ProblemConfig

@@ -114,7 +114,7 @@ def test_a_gltf_mesh_is_read_and_rendered_as_ply(tmp_path, suffix, mi):
     import trimesh
 
     from dpi.preprocess.derive import normalise_capture
-    from dpi.render import RenderConfig, Renderer
+    from dpi.render.renderer import RenderConfig, Renderer
 
     root = make_capture(tmp_path / "cap", mesh=False)
     sphere = trimesh.creation.icosphere(subdivisions=2)

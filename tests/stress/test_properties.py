@@ -5,7 +5,7 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dpi.cameras import Camera, look_at, read_transforms, write_transforms
+from dpi.capture.cameras import Camera, look_at, read_transforms, write_transforms
 from dpi.light.envmap import direction_to_texel, directions_from_angles, texel_directions
 from dpi.light.tonecurve import TONE_CURVES, LogEncoding
 

@@ -141,7 +141,7 @@ def test_weak_captures_are_warned_about(tmp_path, case):
 def test_the_report_shows_a_capture_warning(tiny_capture, tmp_path):
     """A scene without held-out views: its section of the report opens with the warning."""
     from dpi.evaluation.report import Page, scene_section
-    from dpi.layout import Layout
+    from dpi.io.layout import Layout
 
     layout = Layout(tmp_path / "results", tmp_path / "captures")
     root = shutil.copytree(tiny_capture, layout.capture_dir("mine"))

@@ -13,8 +13,8 @@ from typing import Annotated, Any, Callable
 
 from pydantic import Field
 
-from dpi.materials import MaterialRates
-from dpi.settings import Count, Rate, SettingsError, Steps, check_keys, settings, settings_from_dict
+from dpi.solve.materials import MaterialRates
+from dpi.io.settings import Count, Rate, SettingsError, Steps, check_keys, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.paper import PaperSampler, paper_step
 from dpi.solve.dps.proximal import ProximalConfig, proximal_step

@@ -20,7 +20,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from dpi.materials import MaterialRates, MaterialTextures
+from dpi.solve.materials import MaterialRates, MaterialTextures
 from dpi.prior.diffusion import q_sample
 from dpi.prior.sample import Prior
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity

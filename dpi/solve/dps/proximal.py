@@ -38,7 +38,7 @@ from typing import Any
 
 import torch
 
-from dpi.settings import Count, Rate, Share, Steps, Weight, settings, settings_from_dict
+from dpi.io.settings import Count, Rate, Share, Steps, Weight, settings, settings_from_dict
 from dpi.solve.dps.data_term import sample_transport
 from dpi.solve.dps.map_solve import PRIOR_STD, MapPrior, Resampling, cached_resampling, posterior_variance, solve_map
 from dpi.solve.dps.state import DPSRun, DPSState, Laps, finite, log_radiance, predicted_step, recentre_

@@ -15,7 +15,7 @@ import torch
 
 from dpi.io.images import luminance
 from dpi.light.sunlight import merge_spots_into_sun
-from dpi.materials import MaterialTextures
+from dpi.solve.materials import MaterialTextures
 from dpi.prior.diffusion import Diffusion, model_output_with_random_roll, model_timesteps, p_mean_variance
 from dpi.prior.sample import Prior
 from dpi.solve.decomposition import Decomposition

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from dpi.materials import MaterialTextures
-from dpi.settings import SettingsError, Share, Weight, settings, settings_from_dict
+from dpi.solve.materials import MaterialTextures
+from dpi.io.settings import SettingsError, Share, Weight, settings, settings_from_dict
 from dpi.solve.init import GLOSSY_ROUGHNESS, is_glossy
 from dpi.solve.sun_model import SunExtraction
 

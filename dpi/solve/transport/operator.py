@@ -9,7 +9,7 @@ from functools import cached_property
 import numpy as np
 import torch
 
-from dpi.materials import MaterialTextures
+from dpi.solve.materials import MaterialTextures
 
 
 def apply_light(matrix: torch.Tensor, light: torch.Tensor) -> torch.Tensor:

@@ -8,7 +8,7 @@ from typing import Annotated
 import torch
 from pydantic import Field
 
-from dpi.settings import Count, settings
+from dpi.io.settings import Count, settings
 
 MAX_TRANSPORT_HEIGHT = 32
 """the largest map (rows) a transport takes by default (the shipped priors' size): its normal equations take
@@ -53,7 +53,7 @@ mirror to a matte surface"""
 def roughness_levels(roughness: torch.Tensor, count: int) -> list[torch.Tensor]:
     """The roughness textures a transport is recorded under: the given one, then `count` copies shifted so that
     their medians spread evenly in log alpha over ROUGHNESS_RANGE (its detail kept, clamped to the valid range)."""
-    from dpi.materials import RANGES
+    from dpi.solve.materials import RANGES
 
     centre = float(roughness.detach().median())
     low, high = (math.log(r ** 2) for r in ROUGHNESS_RANGE)

@@ -5,7 +5,7 @@ a `camera.xml` holding one `<sensor type="perspective">` per input image. This m
 both with `xml.etree` (no Mitsuba needed): it expands `$variables` from `<default>` entries,
 composes `<transform name="to_world">` chains exactly as Mitsuba does (each child multiplies
 on the left), turns the field of view into pixel intrinsics and converts each sensor into a
-dpi `Camera` through `dpi.cameras.from_mitsuba_matrix`.
+dpi `Camera` through `dpi.capture.cameras.from_mitsuba_matrix`.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dpi.cameras import Camera, from_mitsuba_matrix
+from dpi.capture.cameras import Camera, from_mitsuba_matrix
 
 SENSOR_TYPES = ("perspective", "thinlens")
 MESH_SHAPE_TYPES = ("obj", "ply")

@@ -1,5 +1,5 @@
 """The pipeline's facts, each with one owner: how a config is resolved, what it means in typed settings,
-where every artefact lives (dpi.layout) and which methods exist (dpi.solve.methods).
+where every artefact lives (dpi.io.layout) and which methods exist (dpi.solve.methods).
 
 **Config resolution** (`resolve_config`), the same for the Snakemake workflow and the `dpi` command:
 
@@ -9,8 +9,8 @@ where every artefact lives (dpi.layout) and which methods exist (dpi.solve.metho
 3. each file given with `snakemake --configfile` or `dpi --config`, in order, and Snakemake's
    `--config key=value`, merged key by key as Snakemake merges config files (a dict is merged into
    the dict below it, anything else replaces);
-4. the quality preset fills what is still unset (`dpi.settings.apply_preset`);
-5. the schema and the settings dataclasses check it (`dpi.config_validation`), with the key's path in
+4. the quality preset fills what is still unset (`dpi.io.settings.apply_preset`);
+5. the schema and the settings dataclasses check it (`dpi.config.validation`), with the key's path in
    the one message.
 
 What a key left out means is said once, by its settings dataclass (render, problem, init, adaptive,
@@ -27,14 +27,14 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-from dpi.adaptive import AdaptiveConfig
+from dpi.solve.adaptive import AdaptiveConfig
 from dpi.capture import PRIORS, inspect_capture, read_scene_options
-from dpi.config_validation import check_config, preprocess_settings
+from dpi.config.validation import check_config, preprocess_settings
 from dpi.io.structured import read_yaml as read_structured_yaml
-from dpi.layout import Layout, package_data
+from dpi.io.layout import Layout, package_data
 from dpi.prior.sample import DEFAULT_FAMILY, family_checkpoint
 from dpi.prior.train import PriorJobConfig
-from dpi.settings import apply_preset
+from dpi.io.settings import apply_preset
 from dpi.solve.init import InitConfig
 from dpi.solve.methods import REGISTRY, method_config
 from dpi.solve.problem import SolveConfig
@@ -66,7 +66,7 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
 
 def resolve_config(*overrides: dict[str, Any]) -> dict[str, Any]:
     """The checked workflow config: the defaults, ./config.yaml when present, then `overrides` in order, then
-    the quality preset (module docstring). Raises dpi.config_validation.ConfigError naming the key."""
+    the quality preset (module docstring). Raises dpi.config.validation.ConfigError naming the key."""
     config = read_yaml(DEFAULT_CONFIG)
     for layer in ([read_yaml(LOCAL_CONFIG)] if LOCAL_CONFIG.is_file() else []) + list(overrides):
         config = merge(config, layer)

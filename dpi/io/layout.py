@@ -154,7 +154,7 @@ class SceneLayout:
         return self.log("eval", method) if method == INIT else self.log("eval", method, str(k))
 
     def uncertainty(self, method: str) -> dict[str, Path]:
-        """A method's maps across its samples (dpi.spread): env log-luminance std, albedo std, and the env maps'
+        """A method's maps across its samples (dpi.solve.spread): env log-luminance std, albedo std, and the env maps'
         geometric mean (what they share)."""
         return {"env": self.root / method / "env_log_std.exr", "albedo": self.root / method / "albedo_std.exr",
                 "roughness": self.root / method / "roughness_std.exr",

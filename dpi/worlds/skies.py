@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dpi import backend
+from dpi.render import backend
 from dpi.light.envmap import direction_to_texel, directions_from_angles, texel_angles, texel_solid_angles
 
 # Proper rotation taking +Y (dpi up) to +Z (sunsky up): (x, y, z) -> (x, -z, y).

@@ -13,8 +13,8 @@ import torch
 
 from dpi.io.exr import read_exr, write_exr
 from dpi.io.images import resize
-from dpi.layout import TEXTURE_NAMES, texture_file
-from dpi.settings import Rate, settings
+from dpi.io.layout import TEXTURE_NAMES, texture_file
+from dpi.io.settings import Rate, settings
 
 CHANNELS = dict(zip(TEXTURE_NAMES, (3, 1, 1)))
 RANGES = {"albedo": (0.0, 1.0), "roughness": (0.02, 1.0), "metallic": (0.0, 1.0)}

@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from dpi.materials import MaterialTextures
-from dpi.settings import Weight, settings, settings_from_dict
-from dpi.spread import normalized_env, sample_variance
+from dpi.solve.materials import MaterialTextures
+from dpi.io.settings import Weight, settings, settings_from_dict
+from dpi.solve.spread import normalized_env, sample_variance
 
 DIFFUSE_ROUGHNESS = 0.6
 """init roughness that (at its 25th percentile) makes a scene diffuse: a GGX lobe ~30 deg wide"""

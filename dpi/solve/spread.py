@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from dpi.exposure import robust_level
+from dpi.solve.exposure import robust_level
 from dpi.io.images import luminance, resize, tonemap
 from dpi.light.envmap import texel_solid_angles
 

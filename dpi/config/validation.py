@@ -9,7 +9,7 @@ Two passes, both before Snakemake builds the DAG (rules/common.smk):
    method's config (dpi.solve.methods, so new dataclass fields are accepted without touching the
    schema), `synthetic.{scene}` by SynthConfig, `preprocess.{stage}` by the stage's config, `render`,
    `problem`, `init`, `adaptive` and each family's `prior` by theirs; each dataclass checks types,
-   ranges (dpi.settings) and its own values, and its defaults say what a left-out key means.
+   ranges (dpi.io.settings) and its own values, and its defaults say what a left-out key means.
 Prior families are checked against dpi.capture.PRIORS. The quality presets are checked the same way,
 whether chosen or not.
 """
@@ -26,16 +26,16 @@ from jsonschema import Draft202012Validator, validators
 from jsonschema.exceptions import ValidationError, best_match
 from pydantic import TypeAdapter
 
-from dpi.adaptive import AdaptiveConfig
+from dpi.solve.adaptive import AdaptiveConfig
 from dpi.capture import PRIORS
-from dpi.layout import Layout
+from dpi.io.layout import Layout
 from dpi.preprocess.geometry import GeometryConfig
 from dpi.preprocess.masks import MaskConfig
 from dpi.preprocess.sfm import SfMConfig
 from dpi.preprocess.uv import UVConfig
 from dpi.prior.train import PriorJobConfig
-from dpi.render import RenderConfig
-from dpi.settings import SettingsError, check_keys, settings_from_dict
+from dpi.render.renderer import RenderConfig
+from dpi.io.settings import SettingsError, check_keys, settings_from_dict
 from dpi.solve.init import InitConfig
 from dpi.solve.methods import METHODS, method_config
 from dpi.solve.problem import ProblemConfig
