@@ -17,6 +17,8 @@ Rows go to benchmarks/results/posterior_study.csv (one per scene, method, sample
 hash; rows already there with the same settings are kept and not rerun, so an interrupted study
 continues, and other settings add rows), then it prints mean +- std per group, method and sampler.
 `--dps NAME:key=value,...` adds a dps variant (dev sweeps: `--out benchmarks/results/dev/NAME.csv`).
+`--workflow FILE.yaml` writes the same scenes and methods as a workflow config instead, for the workflow's
+report (the paper's Tables 2-3 as a workflow).
 """
 
 from __future__ import annotations
@@ -27,12 +29,11 @@ from pathlib import Path
 from typing import Any
 
 from dpi.studies.engine import (SAMPLE_COLUMNS, dps_variants, mean_std_cells, method_jobs, prior_checkpoints,
-                                run_job, run_study, workflow_config)
+                                results_csv, run_job, run_study, work_dir, workflow_config, write_workflow)
 from dpi.studies.scenes import POSTERIOR_SCENES, REAL_LIGHT_SCENES, real_light_scenes
 
-ROOT = Path(__file__).resolve().parent.parent
-WORK = ROOT / "results" / "benchmarks" / "posterior_study"
-CSV = ROOT / "benchmarks" / "results" / "posterior_study.csv"
+WORK = work_dir("posterior_study")
+CSV = results_csv("posterior_study")
 METHODS = ("init", "none", "smoothness", "sds", "dip", "dps")
 
 
@@ -70,6 +71,8 @@ def main() -> None:
     parser.add_argument("--rerun", action="store_true", help="redo rows already in the CSV (their samples too)")
     parser.add_argument("--work", type=Path, default=WORK,
                         help="study folder: captures, inits and samples (another folder: other inits, dev studies)")
+    parser.add_argument("--workflow", type=Path, default=None, metavar="FILE.yaml",
+                        help="write the study as a workflow config instead (snakemake --configfile FILE.yaml)")
     args = parser.parse_args()
 
     config = workflow_config()
@@ -86,6 +89,9 @@ def main() -> None:
     if priors:  # the priors' name joins the dps label: rows and sample folders apart from the shipped prior's
         label = "+".join(sorted({Path(checkpoint).stem.split("_", 1)[-1] for checkpoint in priors.values()}))
         jobs = [replace(job, sampler=f"{job.sampler}@{label}") if job.method == "dps" else job for job in jobs]
+    if args.workflow:
+        write_workflow(jobs, args.workflow)
+        return
     rows = run_study(jobs, args.out, SAMPLE_COLUMNS, run_job, args.jobs)
     print("\n".join(summary(rows)))
 

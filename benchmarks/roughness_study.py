@@ -10,6 +10,7 @@ beside it; it prints mean +- std per roughness.
     .venv/bin/python benchmarks/roughness_study.py [--roughness 0.05 0.2 0.5 0.9] [--repeats 3] [--jobs 2]
 
 Samples already drawn are reused; rows already in the CSV with the same settings hash are kept.
+`--workflow FILE.yaml` writes the same sweep as a workflow config instead (the report shows the curve).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from dpi.studies.engine import (Job, append_row, pool, prepare_job, read_rows, results_csv, run_job, work_dir,
-                                workflow_config)
+                                workflow_config, write_workflow)
 from dpi.studies.scenes import repeat_scene, repeat_synth, roughness_scenes
 
 WORK = work_dir("roughness_study")
@@ -94,10 +95,15 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=50)
     parser.add_argument("--jobs", type=int, default=2, help="samples drawn side by side (1 thread each)")
     parser.add_argument("--out", type=Path, default=CSV)
+    parser.add_argument("--workflow", type=Path, default=None, metavar="FILE.yaml",
+                        help="write the study as a workflow config instead (snakemake --configfile FILE.yaml)")
     args = parser.parse_args()
 
     config = {**workflow_config(env_height=MAP_HEIGHT), "adaptive": {"sample_stop": False, "diffuse_steps": False}}
     groups = point_jobs(args, config)
+    if args.workflow:
+        write_workflow([job for jobs in groups.values() for job in jobs], args.workflow)
+        return
     keyed = {(*key, jobs[0].settings_hash): jobs for key, jobs in groups.items()}
     done = {(r["roughness"], int(r["repeat"]), r["settings_hash"]) for r in read_rows(args.out, ())}
     todo = {k: v for k, v in keyed.items() if k not in done}

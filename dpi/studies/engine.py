@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from dpi.io.layout import Layout
+from dpi.io.layout import INIT, Layout
 
 PROVENANCE = ("commit", "settings_hash")
 """the columns every study row ends with"""
@@ -219,7 +219,6 @@ def prepare_capture(root: Path, scene: str, synth: dict, threads: int) -> Path:
 
 def prepare_job(job: Job) -> None:
     """A job's scene: capture, capture.json and initialisation (made once, then reused)."""
-    from dpi.io.layout import INIT
     from dpi.stages import init_stage
 
     prepare_capture(job.root, job.scene, job.synth, threads=2)
@@ -240,7 +239,6 @@ def claim_sample_dir(job: Job) -> None:
 def run_job(job: Job) -> dict[str, Any]:
     """Draw (except for the init) and evaluate one sample; its row (SAMPLE_COLUMNS)."""
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-    from dpi.io.layout import INIT
     from dpi.stages import evaluate_stage, sample_stage
 
     stage = job.stage_job(threads=1)
@@ -295,6 +293,34 @@ def method_jobs(root: Path, scenes: dict[str, tuple[str, dict]], methods: Iterab
                     jobs.append(Job(root, scene, group, synth, method, sampler, seed, job_settings(cfg), config,
                                     rerun))
     return jobs
+
+
+def study_workflow(jobs: list[Job], name: str) -> dict[str, Any]:
+    """A study's scenes, methods, sample counts and settings as one workflow config (`snakemake --configfile`),
+    results under results/studies/NAME: the same study with the workflow's report and logs. dps keeps its
+    configured sampler only (a workflow has one dps), and the init is every workflow's own."""
+    from dpi.io.settings import field_default
+    from dpi.solve.dps import DPSConfig
+
+    config = jobs[0].config
+    sampler = config["method_params"].get("dps", {}).get("sampler", field_default(DPSConfig, "sampler"))
+    plain = [j for j in jobs if j.method != INIT and j.sampler.split("@")[0] in ("", sampler)]
+    counts: dict[tuple[str, str], int] = {}
+    for job in plain:
+        counts[job.scene, job.method] = counts.get((job.scene, job.method), 0) + 1
+    return {**config, "results_dir": f"results/studies/{name}", "captures_dir": "results/studies/captures",
+            "scenes": list(dict.fromkeys(j.scene for j in plain)),
+            "synthetic": {j.scene: j.synth for j in plain},
+            "methods": list(dict.fromkeys(j.method for j in plain)), "samples": max(counts.values()),
+            "method_params": {**config.get("method_params", {}), **{j.method: j.method_cfg for j in plain}}}
+
+
+def write_workflow(jobs: list[Job], path: Path) -> None:
+    """`study_workflow` of `jobs` written to `path` (YAML), named after the file."""
+    from dpi.io.atomic import write_text
+
+    write_text(path, yaml.safe_dump(study_workflow(jobs, path.stem), sort_keys=False))
+    print(f"wrote {path}: snakemake --cores 2 --configfile {path}")
 
 
 def latest(rows: list[dict[str, Any]], key: tuple[str, ...]) -> list[dict[str, Any]]:

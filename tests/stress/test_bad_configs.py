@@ -147,11 +147,9 @@ def test_unknown_preset_is_named():
         checked(merged(SHIPPED, {"preset": "fast"}))
 
 
-@pytest.mark.parametrize("path", [DEFAULT_CONFIG, *sorted((REPO / "experiments").glob("*.yaml"))],
-                         ids=lambda p: p.name)
-def test_shipped_configs_pass(path):
-    """dpi's defaults and the experiments merged over them are valid, every preset included."""
-    checked(merged(SHIPPED, read_yaml(path)))
+def test_shipped_config_passes():
+    """dpi's defaults are valid, every preset included."""
+    checked(merged(SHIPPED, read_yaml(DEFAULT_CONFIG)))
 
 
 def test_new_dataclass_fields_need_no_schema_change(monkeypatch):
