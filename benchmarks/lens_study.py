@@ -24,8 +24,9 @@ from dpi.capture.undistort import distort_image
 from dpi.io.exr import write_exr
 from dpi.io.images import read_image, read_mask, write_mask
 from dpi.stages import capture_stage, evaluate_stage, init_stage
+from dpi.io.layout import Layout
 from dpi.studies.engine import (Job, append_row, mean_std_cells, prepare_capture, read_rows, results_csv, settings_hash,
-                                study_layout, work_dir, workflow_config)
+                                work_dir, workflow_config)
 from dpi.studies.scenes import SIZE
 
 WORK = work_dir("lens_study")
@@ -55,7 +56,7 @@ def distorted_twin(source: Path, target: Path, lens: Lens, declare: bool) -> Non
 def run(seed: int, lens: Lens, config: dict) -> list[dict]:
     """The three variants of one seed's capture: their init's held-out view PSNR, env PSNR and albedo MSE."""
     root = WORK / f"seed{seed}"
-    layout = study_layout(root)
+    layout = Layout.of_study(root)
     prepare_capture(root, "pinhole", {**CAPTURE, "seed": seed}, threads=2)
     for variant in VARIANTS[1:]:
         distorted_twin(layout.capture_dir("pinhole"), layout.capture_dir(variant), lens, variant == "undistorted")

@@ -29,7 +29,8 @@ from dpi.io.exr import read_exr
 from dpi.prior.data import read_panorama
 from dpi.prior.panoramas import panorama_files
 from dpi.solve.spread import calibration, mean_log_map
-from dpi.studies.engine import read_rows, results_csv, sample_label, study_layout, work_dir, write_rows
+from dpi.io.layout import Layout
+from dpi.studies.engine import read_rows, results_csv, sample_label, work_dir, write_rows
 from dpi.studies.scenes import REAL_LIGHT_SCENES
 
 METRICS = ("realism", "realism_std", "calibration", "env_mean_psnr", "env_mean_ssim", "env_psnr")
@@ -44,7 +45,7 @@ def main() -> None:
                              "their method and sampler")
     parser.add_argument("--out", type=Path, default=results_csv("light_realism"))
     args = parser.parse_args()
-    layout = study_layout(args.work)
+    layout = Layout.of_study(args.work)
     clouds = {family: {path.name: patches(read_panorama(path))
                        for path in panorama_files(args.panoramas, family, "held_out")}
               for family in ("outdoor", "indoor")}

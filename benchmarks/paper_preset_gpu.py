@@ -29,8 +29,8 @@ from typing import Any, Callable
 
 import torch
 
-from dpi.io.layout import INIT
-from dpi.studies.engine import PROVENANCE, current_commit, job_settings, prepare_capture, settings_hash, study_layout
+from dpi.io.layout import INIT, Layout
+from dpi.studies.engine import PROVENANCE, current_commit, job_settings, prepare_capture, settings_hash
 from dpi.studies.scenes import POSTERIOR_SCENES as SCENES
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -88,7 +88,7 @@ def demo_capture(root: Path) -> Path:
     """The bundled demo as a study scene: copied under root/captures, validated into capture.json."""
     from dpi.preprocess.derive import normalise_capture
 
-    layout = study_layout(root)
+    layout = Layout.of_study(root)
     if not layout.capture_dir("demo").exists():
         shutil.copytree(DEMO, layout.capture_dir("demo"))
     files = layout.scene("demo")
@@ -108,7 +108,7 @@ def scene_rows(root: Path, scene: str, config: dict, threads: int,
 
     start = time.perf_counter()
     demo_capture(root) if scene == "demo" else prepare_capture(root, scene, SCENES[scene][1], threads)
-    files = study_layout(root).scene(scene)
+    files = Layout.of_study(root).scene(scene)
     dps = {**job_settings(config["method_params"]["dps"]), **({"sampler": sampler} if sampler else {})}
     synth = SCENES[scene][1] if scene in SCENES else {}
     job = StageJob(Job(root, scene, "", synth, "dps", "", 0, dps, config).pipeline, scene, "dps", 0, threads,

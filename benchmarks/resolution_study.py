@@ -27,8 +27,9 @@ from typing import Any
 import numpy as np
 import torch
 
+from dpi.io.layout import Layout
 from dpi.studies.engine import (Job, job_settings, mean_std_cells, prior_checkpoints, results_csv, run_job, run_study,
-                                study_layout, work_dir)
+                                work_dir)
 from dpi.studies.scenes import RESOLUTION_SCENES as SCENES
 from dpi.studies.scenes import resolution_config as size_config
 from dpi.studies.scenes import resolution_root
@@ -101,7 +102,7 @@ def main() -> None:
 
     from dpi.synth.capture import SynthConfig, make_synthetic_capture
 
-    layout = study_layout(WORK)
+    layout = Layout.of_study(WORK)
     for scene, (_, synth) in SCENES.items():  # the shared captures first, one at a time
         if not layout.synth_marker(scene).exists():
             make_synthetic_capture(layout.capture_dir(scene), SynthConfig.from_dict(synth), threads=2, progress=False)
@@ -119,7 +120,7 @@ def main() -> None:
     print("truth at each size: held-out view PSNR [dB] of the true materials under the true map resampled")
     for scene, (group, _) in SCENES.items():
         truth = layout.capture_dir(scene) / "gt"
-        cells = [f"{h}: {truth_at_size(study_layout(resolution_root(WORK, h, t)).scene(scene).capture_json, truth, h, t):.2f}"
+        cells = [f"{h}: {truth_at_size(Layout.of_study(resolution_root(WORK, h, t)).scene(scene).capture_json, truth, h, t):.2f}"
                  for h in args.heights for t in args.textures]
         print(f"{scene:<13} {group:<7} " + "  ".join(cells))
     from dpi.config.pipeline import Pipeline

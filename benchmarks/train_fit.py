@@ -26,7 +26,7 @@ from dpi.evaluation.train_fit import ground_truth as truth
 from dpi.evaluation.train_fit import training_fit
 from dpi.solve.problem import SolveConfig
 from dpi.stages import load_problem
-from dpi.io.layout import INIT
+from dpi.io.layout import INIT, Layout
 
 TOLERANCE = 1.05
 """a sample counts as fitting worse than the init when its MSE exceeds the init's by more than this factor
@@ -47,10 +47,10 @@ def main() -> None:
     parser.add_argument("--scenes", nargs="*", default=None, help="scenes to score (default: all)")
     args = parser.parse_args()
 
-    from dpi.studies.engine import settings_hash, study_layout, workflow_config, write_rows
+    from dpi.studies.engine import settings_hash, workflow_config, write_rows
 
     config = workflow_config()
-    layout = study_layout(args.root)
+    layout = Layout.of_study(args.root)
     rows = []
     for capture_json in sorted(args.root.glob("results/*/capture.json")):
         scene = capture_json.parent.name

@@ -212,7 +212,7 @@ class Layout:
         scene's capture folder (a run would write into the inputs)."""
         run = {path.relative_to(self.results).parts[0] for path in (
             self.summary, self.samples_table, self.report_html, self.report_figures, self.log("run"),
-            self.prior_data("family"), self.prior_dir("family"))}
+            self.prior_data("family"), self.prior_dir("family"), self.study_dir("study"))}
         for scene in scenes:
             if scene in run:
                 return f"scenes: {scene!r} is the name of a folder results_dir keeps for the run; rename the scene"
@@ -263,6 +263,15 @@ class Layout:
 
     def prior_dir(self, family: str) -> Path:
         return self.results / "prior" / family
+
+    def study_dir(self, name: str) -> Path:
+        """A study's folder (benchmarks/*.py): its own run, laid out as `Layout.of_study` says."""
+        return self.results / "benchmarks" / name
+
+    @classmethod
+    def of_study(cls, root: Path) -> "Layout":
+        """The run in study folder `root`: its captures/ and results/ side by side."""
+        return cls(root / "results", root / "captures")
 
     def prior_model(self, family: str) -> Path:
         """A prior trained by the workflow (EMA weights), usable in illumination_prior.checkpoints."""

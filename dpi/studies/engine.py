@@ -48,11 +48,13 @@ STUDY_TEXTURES = 32
 """texture size of the study problems: their views are 32 px, so the default's 64 would not be seen"""
 CHECKOUT = Path(__file__).resolve().parents[2]
 """the checkout the studies run in (their folders and CSVs are the repository's)"""
+CHECKOUT_LAYOUT = Layout(CHECKOUT / "results", CHECKOUT / "captures")
+"""the checkout's own run, whose results hold the studies' folders"""
 
 
 def work_dir(study: str) -> Path:
-    """A study's folder of captures, inits and samples: results/benchmarks/STUDY (not committed)."""
-    return CHECKOUT / "results" / "benchmarks" / study
+    """A study's folder of captures, inits and samples (not committed)."""
+    return CHECKOUT_LAYOUT.study_dir(study)
 
 
 def results_csv(study: str) -> Path:
@@ -78,11 +80,6 @@ def current_commit() -> str:
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
     return head + ("-dirty" if dirty else "")
-
-
-def study_layout(root: Path) -> Layout:
-    """A study folder holds captures/ and results/ like a workflow run."""
-    return Layout(root / "results", root / "captures")
 
 
 def sample_label(method: str, sampler: str) -> str:
@@ -112,7 +109,7 @@ class Job:
 
     @property
     def layout(self) -> Layout:
-        return study_layout(self.root)
+        return Layout.of_study(self.root)
 
     @cached_property
     def pipeline(self):
@@ -297,7 +294,7 @@ def method_jobs(root: Path, scenes: dict[str, tuple[str, dict]], methods: Iterab
 
 def study_workflow(jobs: list[Job], name: str) -> dict[str, Any]:
     """A study's scenes, methods, sample counts and settings as one workflow config (`snakemake --configfile`),
-    results under results/studies/NAME: the same study with the workflow's report and logs. dps keeps its
+    in study folder NAME (`work_dir`): the same study with the workflow's report and logs. dps keeps its
     configured sampler only (a workflow has one dps), and the init is every workflow's own."""
     from dpi.io.settings import field_default
     from dpi.solve.dps import DPSConfig
@@ -308,7 +305,8 @@ def study_workflow(jobs: list[Job], name: str) -> dict[str, Any]:
     counts: dict[tuple[str, str], int] = {}
     for job in plain:
         counts[job.scene, job.method] = counts.get((job.scene, job.method), 0) + 1
-    return {**config, "results_dir": f"results/studies/{name}", "captures_dir": "results/studies/captures",
+    layout = Layout.of_study(work_dir(name))
+    return {**config, "results_dir": str(layout.results), "captures_dir": str(layout.captures),
             "scenes": list(dict.fromkeys(j.scene for j in plain)),
             "synthetic": {j.scene: j.synth for j in plain},
             "methods": list(dict.fromkeys(j.method for j in plain)), "samples": max(counts.values()),

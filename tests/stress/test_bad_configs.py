@@ -122,6 +122,8 @@ BAD = {  # case: (patch of config.yaml, the message's start)
     "scene with braces": ({"scenes": ["a{b}"]}, "scenes.0: 'a{b}' is not a plain name"),
     "scene named too long": ({"scenes": ["a" * 65]}, "scenes.0: '" + "a" * 65 + "' is not a plain name"),
     "scene named like a run folder": ({"scenes": ["eval"]}, "scenes: 'eval' is the name of a folder results_dir keeps"),
+    "scene named like the studies' folder": ({"scenes": ["benchmarks"]},
+                                              "scenes: 'benchmarks' is the name of a folder results_dir keeps"),
     "results in the captures": ({"results_dir": "captures"}, "results_dir: captures is captures_dir"),
     "results inside a capture": ({"results_dir": "captures/demo/out"}, "results_dir: captures/demo/out lies inside"),
     "samples a float": ({"samples": 2.0}, "samples: 2.0 is not of type 'integer'"),
