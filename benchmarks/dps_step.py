@@ -37,15 +37,15 @@ from typing import Any, Iterator
 import numpy as np
 import torch
 
-from dpi.render import backend
 from dpi.capture import load_capture
 from dpi.io.layout import INIT
-from dpi.solve.materials import MaterialTextures
 from dpi.prior.sample import load_scene_prior
+from dpi.render import backend
 from dpi.render.renderer import RenderConfig, Renderer
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, start_run
 from dpi.solve.dps.state import DPSRun
+from dpi.solve.materials import MaterialTextures
 from dpi.solve.problem import InverseProblem, ProblemConfig
 from dpi.studies.demo_costs import DEMO, capture_at, demo_pipeline, preset_setting
 

@@ -66,14 +66,14 @@ def study_scenes(study: str, repeats: int) -> tuple[Path, dict[str, Any], dict[s
 
 def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth: dict[str, Any]) -> list[dict]:
     """The init's fit from each start on one scene, scored on the held-out views; a row per start."""
-    from dpi.evaluation.sample_metrics import novel_view_metrics, render_held_out
-    from dpi.solve.problem import SolveConfig
-    from dpi.stages import load_problem
-    from dpi.io.layout import INIT
     from dpi.config.pipeline import Pipeline
-    from dpi.stages.seeding import seed_for
+    from dpi.evaluation.sample_metrics import novel_view_metrics, render_held_out
+    from dpi.io.layout import INIT
     from dpi.solve.decomposition import Decomposition
     from dpi.solve.init import READINGS, closing_loss, roughness_p25, start_fit
+    from dpi.solve.problem import SolveConfig
+    from dpi.stages import load_problem
+    from dpi.stages.seeding import seed_for
 
     problem = load_problem(prepare_capture(root, scene, synth, threads=2), SolveConfig.from_config(config, 2))
     cfg = Pipeline(config).init_settings

@@ -23,8 +23,8 @@ from dpi.capture.cameras import Lens, read_cameras
 from dpi.capture.undistort import distort_image
 from dpi.io.exr import write_exr
 from dpi.io.images import read_image, read_mask, write_mask
-from dpi.stages import capture_stage, evaluate_stage, init_stage
 from dpi.io.layout import Layout
+from dpi.stages import capture_stage, evaluate_stage, init_stage
 from dpi.studies.engine import (Job, append_row, mean_std_cells, prepare_capture, read_rows, results_csv, settings_hash,
                                 work_dir, workflow_config)
 from dpi.studies.scenes import SIZE

@@ -26,10 +26,10 @@ from dpi.capture import read_capture_json, read_ground_truth
 from dpi.evaluation.metrics import env_metrics
 from dpi.evaluation.realism import patches, sliced_wasserstein
 from dpi.io.exr import read_exr
+from dpi.io.layout import Layout
 from dpi.prior.data import read_panorama
 from dpi.prior.panoramas import panorama_files
 from dpi.solve.spread import calibration, mean_log_map
-from dpi.io.layout import Layout
 from dpi.studies.engine import read_rows, results_csv, sample_label, work_dir, write_rows
 from dpi.studies.scenes import REAL_LIGHT_SCENES
 

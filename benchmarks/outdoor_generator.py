@@ -17,10 +17,10 @@ import time
 
 import numpy as np
 
-from dpi.render import backend
 from dpi.evaluation.metrics import tonemap
 from dpi.io.images import luminance, write_srgb
 from dpi.light.envmap import texel_solid_angles
+from dpi.render import backend
 from dpi.worlds.outdoor import SCENE_KINDS, outdoor_envmap
 
 TOP_FRACTION = 0.005

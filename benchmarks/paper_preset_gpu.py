@@ -147,8 +147,8 @@ def main() -> None:
     parser.add_argument("--sampler", default=None, help="dps sampler of the samples (default: the config's)")
     args = parser.parse_args()
 
-    from dpi.render import backend
     from dpi.config.pipeline import resolve_config
+    from dpi.render import backend
 
     args.out.mkdir(parents=True, exist_ok=True)
     table = args.out / "paper_preset_gpu.csv"

@@ -31,9 +31,9 @@ from dpi.capture.consistency import mask_iou
 from dpi.io.images import read_mask
 from dpi.io.layout import SYNTH_MARKER, SceneLayout
 from dpi.preprocess.accuracy import align_mesh, chamfer, flag_counts, pose_errors
+from dpi.preprocess.derive import derive_geometry, derive_poses, derive_uv, derive_view_masks, normalise_capture
 from dpi.preprocess.geometry import read_mesh
 from dpi.preprocess.sfm import SfMError
-from dpi.preprocess.derive import derive_geometry, derive_poses, derive_uv, derive_view_masks, normalise_capture
 from dpi.studies.engine import append_row, settings_hash
 from dpi.synth.capture import SynthConfig, make_synthetic_capture
 from dpi.synth.shapes import SHAPES

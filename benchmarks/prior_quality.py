@@ -29,12 +29,12 @@ import torch
 from scipy import linalg
 from torch.nn import functional as F
 
-from dpi.render import backend
 from dpi.io.images import linear_to_srgb, luminance
 from dpi.light.envmap import top_energy_share
 from dpi.light.tonecurve import Encoding
 from dpi.prior.data import median_target, read_dataset, to_prior_space
 from dpi.prior.sample import DEFAULT_MODELS, MODELS_DIR, draw_samples, load_prior, write_grid
+from dpi.render import backend
 from dpi.worlds.families import checked_envmaps
 
 HELD_OUT_SEED = 1000

@@ -20,13 +20,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from dpi.render import backend
 from dpi.evaluation.naturalness import naturalness, prior_image
 from dpi.evaluation.niqe import env_niqe
 from dpi.evaluation.realism import realism_distance
 from dpi.prior.data import read_panorama
 from dpi.prior.panoramas import panorama_files
 from dpi.prior.sample import DEFAULT_MODELS, draw_samples, load_prior, write_grid
+from dpi.render import backend
 from dpi.studies.engine import append_row, settings_hash
 from dpi.worlds.families import checked_envmaps
 

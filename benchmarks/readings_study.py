@@ -84,8 +84,8 @@ def reading_init(root: Path, scene: str, synth: dict, config: dict, reading: str
     """The init of one reading alone (`init.reading`) in study folder `root`, made once; its closing loss."""
     import json
 
-    from dpi.io.layout import INIT, INIT_TRACE
     from dpi.config.pipeline import Pipeline
+    from dpi.io.layout import INIT, INIT_TRACE
     from dpi.solve.init import path_traced_init
     from dpi.solve.problem import SolveConfig
     from dpi.stages import load_problem
@@ -202,8 +202,8 @@ def init_costs(args: argparse.Namespace, config: dict, scenes: dict[str, dict]) 
     the readings), one after the other on the first repeat's captures, each alone on the machine."""
     import time
 
-    from dpi.io.layout import INIT
     from dpi.config.pipeline import Pipeline
+    from dpi.io.layout import INIT
     from dpi.solve.init import path_traced_init
     from dpi.solve.problem import SolveConfig
     from dpi.stages import load_problem

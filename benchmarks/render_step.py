@@ -17,8 +17,8 @@ import torch
 
 from dpi.capture.cameras import from_fov, orbit
 from dpi.io.exr import read_exr
-from dpi.solve.materials import MaterialTextures
 from dpi.render.renderer import RenderConfig, Renderer
+from dpi.solve.materials import MaterialTextures
 from dpi.synth.capture import SynthConfig, make_synthetic_capture
 
 DEMO = Path(__file__).resolve().parent.parent / "captures" / "demo"

@@ -74,10 +74,10 @@ def summary(rows: list[dict[str, Any]]) -> list[str]:
 def truth_at_size(capture_json: Path, gt_dir: Path, height: int, texture: int) -> float:
     """Held-out view PSNR of the true materials under the true map resampled to `height` rows."""
     from dpi.evaluation.sample_metrics import novel_view_metrics, render_held_out
-    from dpi.stages import load_problem
     from dpi.export.relight import prepare_envmap
     from dpi.solve.decomposition import Decomposition
     from dpi.solve.problem import SolveConfig
+    from dpi.stages import load_problem
 
     config = size_config(height, texture)
     problem = load_problem(capture_json, SolveConfig.from_config(config, 2))

@@ -34,11 +34,11 @@ from dpi.capture import load_capture
 from dpi.io.exr import read_exr
 from dpi.io.images import luminance
 from dpi.light.envmap import texel_directions, top_energy_share
-from dpi.worlds.skies import sun_direction
 from dpi.solve.dps import DPSConfig
 from dpi.studies.engine import (Job, dps_variants, job_settings, mean_std_cells, method_jobs, run_job, run_study,
                                 workflow_config)
 from dpi.studies.scenes import SIZE
+from dpi.worlds.skies import sun_direction
 
 ROOT = Path(__file__).resolve().parent.parent
 WORK = ROOT / "results" / "benchmarks" / "sun_study"
@@ -67,14 +67,14 @@ def true_light_sample(job: Job) -> None:
     """The `true_light` reference's sample folder (module notes), unless it is there."""
     import torch
 
-    from dpi.solve.problem import SolveConfig
-    from dpi.stages import load_problem
     from dpi.light.envmap import read_envmap
     from dpi.prior.data import resize_map
     from dpi.solve.decomposition import Decomposition
     from dpi.solve.init import starting_materials
     from dpi.solve.optimize import fit
+    from dpi.solve.problem import SolveConfig
     from dpi.solve.trace import Trace
+    from dpi.stages import load_problem
 
     files = job.layout.scene(job.scene)
     if files.sample_files(job.label, job.seed)["trace"].exists():

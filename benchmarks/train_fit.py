@@ -24,9 +24,9 @@ import numpy as np
 
 from dpi.evaluation.train_fit import ground_truth as truth
 from dpi.evaluation.train_fit import training_fit
+from dpi.io.layout import INIT, Layout
 from dpi.solve.problem import SolveConfig
 from dpi.stages import load_problem
-from dpi.io.layout import INIT, Layout
 
 TOLERANCE = 1.05
 """a sample counts as fitting worse than the init when its MSE exceeds the init's by more than this factor

@@ -40,8 +40,8 @@ from dpi.prior.commands import register as register_prior_commands
 def _pipeline(args: argparse.Namespace):
     """The resolved config of the command's --config files; a command on a scene (other than a dry run) holds its
     results folder's lock (dpi.io.lock) while it runs."""
-    from dpi.io.lock import lock_results
     from dpi.config.pipeline import load_pipeline
+    from dpi.io.lock import lock_results
 
     pipeline = load_pipeline(args.config)
     if getattr(args, "scene", None) is not None and not getattr(args, "dry_run", False):
@@ -62,8 +62,8 @@ def _job(args: argparse.Namespace, kind: str, method: str | None = None, k: int 
 def cmd_config(args: argparse.Namespace) -> None:
     """Print the resolved config, or with --schema the JSON schema it is checked against."""
     if args.schema:
-        from dpi.config.validation import config_schema
         from dpi.config.pipeline import CONFIG_SCHEMA
+        from dpi.config.validation import config_schema
 
         print(json.dumps(config_schema(CONFIG_SCHEMA), indent=1))
         return

@@ -10,8 +10,8 @@ import pytest
 import trimesh
 from capture_helpers import NAMES, SIZE, cameras, edit_transforms, garbage, image, make_capture, raw_exr
 
-from dpi.capture.cameras import look_at
 from dpi.capture import Capture, CaptureError, inspect_capture, load_capture, read_capture_json, write_capture_json
+from dpi.capture.cameras import look_at
 from dpi.io.exr import write_exr
 from dpi.io.images import write_mask, write_srgb
 

@@ -11,11 +11,11 @@ import pytest
 from capture_helpers import NAMES, cameras, make_capture
 from colmap_helpers import write_text_model
 
-from dpi.capture.cameras import read_cameras
 from dpi.capture import CaptureError, load_capture
+from dpi.capture.cameras import read_cameras
 from dpi.io.layout import poses_files
-from dpi.preprocess.sfm import read_points_ply
 from dpi.preprocess.derive import derive_poses, normalise_capture
+from dpi.preprocess.sfm import read_points_ply
 
 GIVEN = dict(zip(NAMES, cameras()))
 

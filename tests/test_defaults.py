@@ -9,8 +9,8 @@ from typing import Any
 
 import yaml
 
-from dpi.config.validation import SECTIONS
 from dpi.config.pipeline import DEFAULT_CONFIG, Pipeline, plain, read_yaml, resolve_config
+from dpi.config.validation import SECTIONS
 from dpi.io.settings import field_default
 
 ROOT = Path(__file__).resolve().parent.parent

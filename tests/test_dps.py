@@ -62,8 +62,8 @@ def test_a_glossy_init_changes_the_settings_in_one_place():
     """DPSConfig.for_init: a glossy init skips the map's solve, takes two updates a step and refines twice as long,
     one view a step, with a freer polish where its map has the prior's rows (a coarser map keeps the light polish);
     a rough init keeps the settings."""
-    from dpi.solve.materials import MaterialTextures
     from dpi.solve.decomposition import Decomposition
+    from dpi.solve.materials import MaterialTextures
 
     cfg = DPSConfig.from_dict({"refine": {"iterations": 50, "lr_texels": 0.005}})
     env = torch.ones(4, 8, 3)

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from dpi.capture import CaptureError, load_capture, write_capture_json
+from dpi.export.relight import RelightConfig, relight_sample
 from dpi.io.exr import read_exr, write_exr
 from dpi.light.envmap import EnvmapLayoutError, equirect, read_envmap
-from dpi.export.relight import RelightConfig, relight_sample
 from dpi.render.renderer import RenderConfig
 
 

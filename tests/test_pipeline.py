@@ -9,8 +9,8 @@ import pytest
 import yaml
 
 from dpi.cli import main
-from dpi.io.layout import INIT, Layout, package_data
 from dpi.config.pipeline import DEFAULT_CONFIG, Pipeline, merge, read_yaml, resolve_config
+from dpi.io.layout import INIT, Layout, package_data
 from dpi.prior.sample import DEFAULT_FAMILY, DEFAULT_MODELS
 from dpi.render.renderer import RenderConfig
 

@@ -10,8 +10,8 @@ import yaml
 from test_preprocess_masks import sphere_view
 
 from dpi.capture.cameras import from_fov, orbit, write_transforms
-from dpi.cli import main
 from dpi.capture.consistency import mask_iou
+from dpi.cli import main
 from dpi.io.images import read_mask, write_srgb
 from dpi.stages import needed_stages
 

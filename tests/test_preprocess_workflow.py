@@ -58,8 +58,8 @@ def photo_run(tmp_path_factory) -> Path:
 
 
 def test_photo_capture_is_derived_and_fitted(photo_run):
-    from dpi.capture.cameras import read_cameras
     from dpi.capture import read_capture_json
+    from dpi.capture.cameras import read_cameras
     from dpi.capture.consistency import mask_iou
     from dpi.io.images import read_mask
     from dpi.preprocess.accuracy import align_mesh, chamfer, pose_errors

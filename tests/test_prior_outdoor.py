@@ -9,12 +9,12 @@ import pytest
 
 from dpi.io.images import luminance
 from dpi.light.envmap import direction_to_texel, texel_solid_angles
-from dpi.worlds.skies import SkyParams, sun_direction, sunsky_envmap
 from dpi.light.sunlight import draw_sun_np
 from dpi.worlds.daylight import (Daylight, irradiance, overcast, physical_daylight, random_sun_elevation,
                                  upper_hemisphere)
 from dpi.worlds.families import check_envmap
 from dpi.worlds.outdoor import SCENE_KINDS, landscape_envmap, outdoor_envmap
+from dpi.worlds.skies import SkyParams, sun_direction, sunsky_envmap
 from dpi.worlds.street import FACADE, GROUND, Facades, Street, cast, occluded, street_envmap
 
 UP = np.array([[0.0, 1.0, 0.0]])

@@ -10,12 +10,12 @@ import pytest
 import torch
 
 from dpi.io.exr import write_exr
+from dpi.io.settings import SettingsError
 from dpi.light.tonecurve import LogEncoding, ToneCurve, family_encoding
 from dpi.prior.data import EnvmapDataset
 from dpi.prior.sample import draw_samples, load_prior, sample_to_files
 from dpi.prior.train import TrainConfig, export_model, learning_rate, train
 from dpi.prior.unet import SMALL_CONFIGS, CheckpointError, load_checkpoint
-from dpi.io.settings import SettingsError
 from dpi.worlds.outdoor import outdoor_envmap
 
 

@@ -9,12 +9,12 @@ import torch
 
 from dpi.capture import load_capture, write_capture_json
 from dpi.cli import main
+from dpi.export.relight import MaterialEdit, RelightConfig, relight_sample
 from dpi.io.exr import EXRError, read_exr, write_exr
 from dpi.io.images import linear_to_srgb, read_image
 from dpi.light.envmap import direction_to_texel, rotate_azimuth, texel_directions
-from dpi.solve.materials import MaterialTextures
-from dpi.export.relight import MaterialEdit, RelightConfig, relight_sample
 from dpi.render.renderer import RenderConfig
+from dpi.solve.materials import MaterialTextures
 
 RENDER = RenderConfig(spp=32, threads=2)
 

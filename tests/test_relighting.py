@@ -11,9 +11,9 @@ from dpi.evaluation.metrics import PSNR_CAP
 from dpi.evaluation.relighting import (RELIGHT_MAPS, RELIGHT_METRICS, channel_scaled, ground_truth_materials,
                                        relight_held_out, relight_map, relight_metrics, relight_scores)
 from dpi.light.envmap import top_energy_share
-from dpi.solve.materials import MaterialTextures
 from dpi.render.renderer import RenderConfig
 from dpi.solve.decomposition import Decomposition
+from dpi.solve.materials import MaterialTextures
 from dpi.solve.problem import InverseProblem, ProblemConfig
 
 

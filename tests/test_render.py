@@ -5,8 +5,8 @@ import pytest
 import torch
 
 from dpi.capture.cameras import Camera, from_fov, look_at
-from dpi.solve.materials import MaterialTextures
 from dpi.render.renderer import RenderConfig, Renderer
+from dpi.solve.materials import MaterialTextures
 from dpi.synth.shapes import blob, write_ply
 
 

@@ -17,11 +17,11 @@ from dpi.evaluation.metric_table import direction, metric_table
 from dpi.evaluation.relighting import RELIGHT_MAPS, relit_name
 from dpi.evaluation.report import Page, build_report, quality_section, roughness_section
 from dpi.evaluation.summary import write_csv
-from dpi.preprocess.derive import normalise_capture
-from dpi.stages import Pipeline, StageJob, uncertainty_stage
 from dpi.io.atomic import write_json
 from dpi.io.exr import read_exr, write_exr
 from dpi.io.layout import INIT, SUMMARY_FILE, Layout, view_file
+from dpi.preprocess.derive import normalise_capture
+from dpi.stages import Pipeline, StageJob, uncertainty_stage
 
 METHODS = {INIT: 1, "none": 2, "dps": 2}
 ROUGHNESS = {"glossy": 0.1, "rough": 0.6}

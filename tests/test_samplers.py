@@ -12,18 +12,18 @@ import pytest
 import torch
 
 from dpi.capture import load_capture
+from dpi.io.settings import SettingsError, settings_from_dict
 from dpi.light.tonecurve import LogEncoding
-from dpi.solve.materials import MaterialTextures
 from dpi.prior.diffusion import base_diffusion
 from dpi.prior.sample import Prior, draw_samples
 from dpi.prior.unet import SMALL_CONFIGS, UNetModel
 from dpi.render.renderer import RenderConfig
-from dpi.io.settings import SettingsError, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, start_run
 from dpi.solve.dps.map_solve import PRIOR_STD, Resampling, posterior_variance
 from dpi.solve.dps.proximal import ProximalConfig
 from dpi.solve.init import InitConfig, path_traced_init
+from dpi.solve.materials import MaterialTextures
 from dpi.solve.prior_space import prior_to_env
 from dpi.solve.problem import InverseProblem, ProblemConfig
 from dpi.solve.sun_model import map_energy, sun_direction_of, sun_env

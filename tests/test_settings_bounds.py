@@ -9,8 +9,8 @@ import torch
 from pydantic import TypeAdapter
 
 from dpi.capture import load_capture
-from dpi.render.renderer import RenderConfig
 from dpi.io.settings import SettingsError
+from dpi.render.renderer import RenderConfig
 from dpi.solve.dps import DPSConfig, dps_sample
 from dpi.solve.init import InitConfig, path_traced_init
 from dpi.solve.problem import InverseProblem, ProblemConfig

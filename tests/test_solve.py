@@ -8,15 +8,15 @@ import pytest
 import torch
 
 from dpi.capture import load_capture
-from dpi.solve.materials import MaterialTextures
-from dpi.render.renderer import RenderConfig
 from dpi.io.settings import SettingsError
+from dpi.render.renderer import RenderConfig
 from dpi.solve.classic import ClassicConfig, balanced_weight, classic_sample
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dip import DeepImagePrior, DIPConfig, dip_sample, network_levels
 from dpi.solve.init import (BOTH_BELOW, CLOSING_STEPS, GLOSSY_ALONE_BELOW, READINGS, START_ALBEDO, InitConfig,
                             closing_loss, glossy_share, is_glossy, path_traced_init, roughness_p25, sample_reading,
                             starting_materials)
+from dpi.solve.materials import MaterialTextures
 from dpi.solve.optimize import AdamFit, FreeEnvMap, OptimizeConfig, fit
 from dpi.solve.priors import chromaticity_penalty, global_norm_penalty, make_prior, smoothness_penalty
 from dpi.solve.problem import InverseProblem, ProblemConfig, to_loss_space

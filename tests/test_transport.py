@@ -9,8 +9,8 @@ import pytest
 import torch
 
 from dpi.capture import load_capture
-from dpi.solve.materials import MaterialTextures
 from dpi.render.renderer import RenderConfig, texture_plugin
+from dpi.solve.materials import MaterialTextures
 from dpi.solve.problem import InverseProblem, ProblemConfig
 from dpi.solve.transport import TransportConfig, guide_map, record_transport, record_view, roughness_levels
 from dpi.solve.transport.record import texel_weights, texture_weights, transport_pixels

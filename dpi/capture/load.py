@@ -11,6 +11,7 @@ import numpy as np
 
 from dpi.capture.cameras import Camera, read_cameras
 from dpi.capture.colmap_model import check_colmap_model, colmap_model_dir
+from dpi.capture.consistency import cameras_problem
 from dpi.capture.folder import alpha_masks, check_images, check_root, gt_files, image_files, mask_files
 from dpi.capture.meshes import check_mesh, mesh_file, mesh_has_uv
 from dpi.capture.mitsuba_scene import camera_xml, xml_cameras
@@ -19,7 +20,6 @@ from dpi.capture.nerf_synthetic import read_splits, split_files
 from dpi.capture.scene_yaml import read_scene_options
 from dpi.capture.transforms import frame_masks, names_masks, read_transforms_json, transforms_cameras
 from dpi.capture.undistort import with_cameras
-from dpi.capture.consistency import cameras_problem
 from dpi.io.images import read_mask
 from dpi.io.layout import SceneLayout
 

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from dpi.capture.folder import named_files
-from dpi.capture.model import CaptureError, inside_capture
 from dpi.capture.mitsuba_xml import MitsubaXMLError, read_mesh_shapes
+from dpi.capture.model import CaptureError, inside_capture
 
 MESH_NAMES = ("mesh.ply", "mesh.obj", "mesh.glb", "mesh.gltf")
 """matched case-insensitively (mesh.PLY), as image suffixes are"""

@@ -6,9 +6,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from dpi.capture.cameras import Camera
+from dpi.capture.mitsuba_xml import MitsubaXMLError, read_sensors
 from dpi.capture.model import CaptureError, inside_capture
 from dpi.capture.transforms import fit_camera
-from dpi.capture.mitsuba_xml import MitsubaXMLError, read_sensors
 
 
 def camera_xml(root: Path) -> Path | None:

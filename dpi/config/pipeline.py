@@ -27,14 +27,14 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-from dpi.solve.adaptive import AdaptiveConfig
 from dpi.capture import PRIORS, inspect_capture, read_scene_options
 from dpi.config.validation import check_config, preprocess_settings
-from dpi.io.structured import read_yaml as read_structured_yaml
 from dpi.io.layout import Layout, package_data
+from dpi.io.settings import apply_preset
+from dpi.io.structured import read_yaml as read_structured_yaml
 from dpi.prior.sample import DEFAULT_FAMILY, family_checkpoint
 from dpi.prior.train import PriorJobConfig
-from dpi.io.settings import apply_preset
+from dpi.solve.adaptive import AdaptiveConfig
 from dpi.solve.init import InitConfig
 from dpi.solve.methods import REGISTRY, method_config
 from dpi.solve.problem import SolveConfig

@@ -26,16 +26,16 @@ from jsonschema import Draft202012Validator, validators
 from jsonschema.exceptions import ValidationError, best_match
 from pydantic import TypeAdapter
 
-from dpi.solve.adaptive import AdaptiveConfig
 from dpi.capture import PRIORS
 from dpi.io.layout import Layout
+from dpi.io.settings import SettingsError, check_keys, settings_from_dict
 from dpi.preprocess.geometry import GeometryConfig
 from dpi.preprocess.masks import MaskConfig
 from dpi.preprocess.sfm import SfMConfig
 from dpi.preprocess.uv import UVConfig
 from dpi.prior.train import PriorJobConfig
 from dpi.render.renderer import RenderConfig
-from dpi.io.settings import SettingsError, check_keys, settings_from_dict
+from dpi.solve.adaptive import AdaptiveConfig
 from dpi.solve.init import InitConfig
 from dpi.solve.methods import METHODS, method_config
 from dpi.solve.problem import ProblemConfig

@@ -15,7 +15,6 @@ import numpy as np  # noqa: E402
 
 from dpi.capture import read_ground_truth  # noqa: E402
 from dpi.evaluation.metrics import aligned_env  # noqa: E402
-from dpi.solve.exposure import middle_grey_gain  # noqa: E402
 from dpi.io.atomic import atomic_path  # noqa: E402
 from dpi.io.images import (  # noqa: E402
     linear_to_srgb,
@@ -24,6 +23,7 @@ from dpi.io.images import (  # noqa: E402
 )
 from dpi.io.layout import TEXTURE_NAMES  # noqa: E402
 from dpi.light.envmap import read_envmap  # noqa: E402
+from dpi.solve.exposure import middle_grey_gain  # noqa: E402
 
 HELD_OUT_COLOR = "#d62728"
 SCENE_MARKERS = "osD^vPX*"

@@ -16,8 +16,8 @@ import numpy as np
 import torch
 from skimage.metrics import structural_similarity
 
-from dpi.solve.exposure import middle_grey_gain, robust_level
 from dpi.io.images import luminance, resize, tonemap
+from dpi.solve.exposure import middle_grey_gain, robust_level
 
 EPS = 1e-6
 """log-space guard, relative to a map's level"""

@@ -25,9 +25,9 @@ from dpi.capture import read_ground_truth
 from dpi.evaluation.metrics import missing, psnr, ssim
 from dpi.io.images import linear_to_srgb
 from dpi.io.layout import TEXTURE_NAMES
-from dpi.solve.materials import MaterialTextures, resize_texture
 from dpi.render.renderer import Renderer
 from dpi.solve.decomposition import Decomposition
+from dpi.solve.materials import MaterialTextures, resize_texture
 from dpi.solve.problem import InverseProblem
 
 RELIGHT_HEIGHT = 32

@@ -20,6 +20,7 @@ from urllib.parse import quote
 import numpy as np
 
 from dpi.capture import Capture, capture_warnings, complete_capture, read_capture_json, read_ground_truth
+from dpi.capture.working import working_capture
 from dpi.evaluation.figures import (MethodPoint, Rerender, mask_gallery, quality_diversity_plot, relit_grid,
                                     rerender_grid, roughness_diversity_plot, texture_grid, view_strip)
 from dpi.evaluation.metric_table import metric_table, missing_reason, number, read_summary
@@ -32,7 +33,6 @@ from dpi.io.images import read_image, read_mask
 from dpi.io.layout import INIT, SUMMARY_FILE, TEXTURE_NAMES, Layout, SceneLayout, texture_file, view_file
 from dpi.solve.init import readings_line
 from dpi.synth.capture import read_marker
-from dpi.capture.working import working_capture
 
 SCALE_ALIGNMENT = (
     "Illumination and albedo are recovered only up to a global scale, so they are compared after scale "

@@ -22,10 +22,10 @@ from dpi.evaluation.niqe import ENV_HEIGHT, env_niqe
 from dpi.evaluation.perceptual import ALEXNET_WEIGHTS, LPIPS_MIN_SIZE, lpips_distance, missing_weights, pretrained_lpips
 from dpi.evaluation.relighting import RELIGHT_HEIGHT, relight_held_out, relight_metrics
 from dpi.evaluation.train_fit import ground_truth, training_fit
-from dpi.solve.exposure import MIDDLE_GREY
 from dpi.io.images import linear_to_srgb
 from dpi.prior.sample import Prior, load_scene_prior
 from dpi.solve.decomposition import Decomposition
+from dpi.solve.exposure import MIDDLE_GREY
 from dpi.solve.problem import InverseProblem
 
 NOVEL_VIEW_NOTE = "held-out views, sRGB-encoded, foreground pixels (PSNR) / masked image (SSIM, LPIPS)"

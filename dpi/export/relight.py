@@ -18,17 +18,17 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from dpi.capture.cameras import Camera, from_fov, orbit
 from dpi.capture import complete_capture, read_capture_json
+from dpi.capture.cameras import Camera, from_fov, orbit
 from dpi.io.atomic import write_json
 from dpi.io.exr import write_exr
 from dpi.io.images import resize, write_srgb
 from dpi.io.layout import ENV_FILE, SceneLayout
-from dpi.light.envmap import read_envmap, rotate_azimuth
-from dpi.solve.materials import RANGES, MaterialTextures
-from dpi.render.renderer import RenderConfig, Renderer
 from dpi.io.settings import Elevation, MapHeight, Rate, Steps, settings
+from dpi.light.envmap import read_envmap, rotate_azimuth
+from dpi.render.renderer import RenderConfig, Renderer
 from dpi.solve.decomposition import Decomposition
+from dpi.solve.materials import RANGES, MaterialTextures
 
 
 @dataclass

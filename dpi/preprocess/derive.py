@@ -9,15 +9,15 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from dpi.render.backend import set_threads
-from dpi.capture.cameras import Camera, read_cameras, write_transforms
 from dpi.capture import (Capture, CaptureError, camera_fit_problem, load_capture, read_capture_json,
                          write_capture_json)
+from dpi.capture.cameras import Camera, read_cameras, write_transforms
 from dpi.io.atomic import write_json
 from dpi.io.images import read_mask
-from dpi.io.structured import read_json
 from dpi.io.layout import SUMMARY_FILE, SceneLayout, geometry_files, poses_files
 from dpi.io.settings import settings_from_dict
+from dpi.io.structured import read_json
+from dpi.render.backend import set_threads
 
 SFM_FRAME = ("the cameras are structure from motion's, in its own frame (the object at the origin with radius 1, "
              "+Y up): give the mesh with its cameras (transforms.json), or leave the mesh out")

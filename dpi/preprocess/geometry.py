@@ -19,8 +19,8 @@ import numpy as np
 from pydantic import Field
 
 from dpi.capture.cameras import Camera
-from dpi.preprocess.hull import cut_below, marching_cubes, seen_from_above, support_plane, visual_hull
 from dpi.io.settings import Count, Steps, settings
+from dpi.preprocess.hull import cut_below, marching_cubes, seen_from_above, support_plane, visual_hull
 
 if TYPE_CHECKING:
     from dpi.preprocess.stereo import StereoParams

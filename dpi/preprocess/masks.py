@@ -41,11 +41,11 @@ from pydantic import Field
 from dpi.capture.cameras import Camera
 from dpi.capture.consistency import mask_iou
 from dpi.io.images import read_image, resize, resize_mask, to_uint8, working_size, write_mask
+from dpi.io.settings import settings
 from dpi.preprocess.hull import marching_cubes, visible_sphere, visual_hull
 from dpi.preprocess.mask_confidence import (AGREEMENT_VOTE_SHARE, MASK_AGREEMENT, edge_support, point_coverage,
                                              verdict)
 from dpi.preprocess.morphology import grow, shrink
-from dpi.io.settings import settings
 
 log = logging.getLogger(__name__)
 

@@ -32,8 +32,8 @@ from pydantic import Field
 
 from dpi.capture.cameras import Camera, Lens
 from dpi.io.images import exif_orientation
-from dpi.preprocess.hull import axes_centre, visible_sphere
 from dpi.io.settings import Count, Fraction, settings
+from dpi.preprocess.hull import axes_centre, visible_sphere
 
 log = logging.getLogger(__name__)
 

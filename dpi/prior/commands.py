@@ -5,17 +5,17 @@ from __future__ import annotations
 import argparse
 import json
 
-from dpi.render.backend import set_threads
 from dpi.capture import PRIORS
+from dpi.io.settings import field_default
 from dpi.light.tonecurve import ENCODINGS
 from dpi.prior.train import DEFAULT_MODEL, LR_SCHEDULES, PriorJobConfig, TrainConfig
-from dpi.io.settings import field_default
+from dpi.render.backend import set_threads
 
 
 def cmd_make_envmaps(args: argparse.Namespace) -> None:
     """Generate a procedural env-map dataset."""
-    from dpi.render import backend
     from dpi.prior.procedural import make_envmap_dataset
+    from dpi.render import backend
 
     backend.mitsuba(threads=args.threads)
     if args.packed:
@@ -52,8 +52,8 @@ def cmd_panorama_set(args: argparse.Namespace) -> None:
 
 def cmd_train_prior(args: argparse.Namespace) -> None:
     """Train (or resume training) a prior on a folder of env maps."""
-    from dpi.prior.train import TrainConfig, export_model, train
     from dpi.io.settings import SettingsError
+    from dpi.prior.train import TrainConfig, export_model, train
 
     set_threads(args.threads)
     try:

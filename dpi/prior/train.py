@@ -21,12 +21,12 @@ import torch
 from tqdm import tqdm
 
 from dpi.io.atomic import atomic_path
+from dpi.io.settings import Count, Fraction, MapHeight, Rate, SettingsError, Steps, settings, settings_from_dict
 from dpi.light.tonecurve import family_encoding
 from dpi.prior.data import EnvmapDataset, clip_highlights, median_target, read_dataset
 from dpi.prior.diffusion import base_diffusion, evenly_spaced_timesteps, respaced, sample, training_losses
 from dpi.prior.sample import write_grid
 from dpi.prior.unet import SMALL_CONFIGS, CheckpointError, UNetModel, count_parameters, load_checkpoint
-from dpi.io.settings import Count, Fraction, MapHeight, Rate, SettingsError, Steps, settings, settings_from_dict
 
 CHECKPOINT_FORMAT = "dpi-prior-v1"
 LR_SCHEDULES = ("constant", "cosine")

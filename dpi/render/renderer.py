@@ -16,10 +16,10 @@ import numpy as np
 import torch
 from pydantic import Field
 
-from dpi.render import backend
 from dpi.capture.cameras import Camera, pixel_rays, to_mitsuba
-from dpi.light.envmap import pad_for_mitsuba
 from dpi.io.settings import Count, SamplesPerPixel, settings
+from dpi.light.envmap import pad_for_mitsuba
+from dpi.render import backend
 
 ENV_KEY = "emitter.data"
 TEXTURE_KEYS = {

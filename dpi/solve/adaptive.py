@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from dpi.solve.materials import MaterialTextures
 from dpi.io.settings import Weight, settings, settings_from_dict
+from dpi.solve.materials import MaterialTextures
 from dpi.solve.spread import normalized_env, sample_variance
 
 DIFFUSE_ROUGHNESS = 0.6

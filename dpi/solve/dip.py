@@ -26,8 +26,8 @@ import torch
 from pydantic import Field
 from torch import nn
 
-from dpi.light.envmap import pad_equirect
 from dpi.io.settings import Count, Steps, settings
+from dpi.light.envmap import pad_equirect
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.init import starting_materials
 from dpi.solve.optimize import (LOG_ENV_RANGE, EnvModel, OptimizeConfig, fit_env_model, flat_config,

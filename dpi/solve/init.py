@@ -20,9 +20,9 @@ from typing import Literal
 
 import torch
 
-from dpi.solve.materials import MaterialTextures
 from dpi.io.settings import Steps, settings
 from dpi.solve.decomposition import Decomposition
+from dpi.solve.materials import MaterialTextures
 from dpi.solve.optimize import CHECKPOINT_EVERY, AdamFit, FreeEnvMap, OptimizeConfig
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace

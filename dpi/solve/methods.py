@@ -11,8 +11,8 @@ from typing import Any, Callable
 
 import torch
 
-from dpi.solve.adaptive import AdaptiveConfig, plan_steps
 from dpi.prior.sample import Prior, write_grid
+from dpi.solve.adaptive import AdaptiveConfig, plan_steps
 from dpi.solve.classic import ClassicConfig, classic_sample
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dip import DIPConfig, dip_sample

@@ -19,9 +19,9 @@ from typing import Any, Callable, TypeVar
 import torch
 from tqdm import tqdm
 
-from dpi.solve.materials import MaterialRates, MaterialTextures
 from dpi.io.settings import Count, Rate, Steps, check_keys, settings, settings_from_dict
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
+from dpi.solve.materials import MaterialRates, MaterialTextures
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
 

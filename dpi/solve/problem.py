@@ -17,14 +17,14 @@ import numpy as np
 import torch
 
 from dpi.capture import Capture
-from dpi.solve.exposure import MIDDLE_GREY, capture_exposure
 from dpi.io.exr import EXRError
 from dpi.io.images import read_image, read_mask, resize
 from dpi.io.layout import SAMPLE_TRACE
-from dpi.solve.materials import MaterialTextures
-from dpi.render.renderer import RenderConfig, Renderer
 from dpi.io.settings import ImageSize, MapHeight, TextureSize, settings, settings_from_dict
+from dpi.render.renderer import RenderConfig, Renderer
 from dpi.solve.decomposition import Decomposition
+from dpi.solve.exposure import MIDDLE_GREY, capture_exposure
+from dpi.solve.materials import MaterialTextures
 
 
 

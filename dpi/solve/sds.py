@@ -15,12 +15,12 @@ from typing import Any
 import torch
 from tqdm import tqdm
 
-from dpi.solve.materials import MaterialRates
+from dpi.io.settings import Count, Rate, Steps, settings, settings_from_dict
 from dpi.prior.diffusion import model_output_with_random_roll, q_sample, split_model_output
 from dpi.prior.sample import Prior
-from dpi.io.settings import Count, Rate, Steps, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.init import starting_materials
+from dpi.solve.materials import MaterialRates
 from dpi.solve.optimize import all_finite
 from dpi.solve.prior_space import estimate_radiance_scale, prior_to_env
 from dpi.solve.problem import InverseProblem

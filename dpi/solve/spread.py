@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from dpi.solve.exposure import robust_level
 from dpi.io.images import luminance, resize, tonemap
 from dpi.light.envmap import texel_solid_angles
+from dpi.solve.exposure import robust_level
 
 
 def median_level(env: np.ndarray) -> float:

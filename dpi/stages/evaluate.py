@@ -17,10 +17,10 @@ from dpi.io.atomic import write_json
 from dpi.io.exr import read_exr, write_exr
 from dpi.io.layout import INIT_TRACE, SAMPLE_TRACE, decomposition_files, view_file
 from dpi.prior.sample import load_scene_prior
-from dpi.stages.seeding import seed_for
 from dpi.solve.spread import albedo_std_map, log_std_map, mean_log_map, roughness_std_map
 from dpi.stages.inverse import load_problem
 from dpi.stages.job import StageJob
+from dpi.stages.seeding import seed_for
 
 
 def evaluate_stage(job: StageJob) -> None:

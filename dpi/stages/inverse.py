@@ -8,21 +8,21 @@ import json
 import shutil
 from pathlib import Path
 
-from dpi.render import backend
-from dpi.solve.adaptive import MIN_SAMPLES, plan_samples
 from dpi.capture import complete_capture, read_capture_json
-from dpi.solve.exposure import MIDDLE_GREY
+from dpi.capture.working import working_capture
 from dpi.io.atomic import write_json
 from dpi.io.exr import read_exr
 from dpi.io.layout import INIT, INIT_TRACE, SceneLayout
 from dpi.prior.sample import load_scene_prior
-from dpi.stages.seeding import seed_for
+from dpi.render import backend
+from dpi.solve.adaptive import MIN_SAMPLES, plan_samples
 from dpi.solve.decomposition import Decomposition
+from dpi.solve.exposure import MIDDLE_GREY
 from dpi.solve.init import path_traced_init, readings_line, sample_reading
 from dpi.solve.methods import REGISTRY, SampleJob
 from dpi.solve.problem import InverseProblem, SolveConfig
 from dpi.stages.job import StageJob
-from dpi.capture.working import working_capture
+from dpi.stages.seeding import seed_for
 
 RESUME_FILE = ".resume.pt"
 """a long job's resume state in its output folder: no Snakemake output, so it outlives the deletion of a

@@ -9,8 +9,8 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-from dpi.io.layout import INIT, SceneLayout
 from dpi.config.pipeline import Pipeline
+from dpi.io.layout import INIT, SceneLayout
 from dpi.solve.problem import SolveConfig
 
 

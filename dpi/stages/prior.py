@@ -3,9 +3,9 @@ with the settings of config `prior:` (dpi.config.pipeline.Pipeline.prior_job).""
 
 from __future__ import annotations
 
-from dpi.render import backend
 from dpi.prior.procedural import make_envmap_dataset
 from dpi.prior.train import train_and_export
+from dpi.render import backend
 from dpi.stages.job import StageJob
 
 

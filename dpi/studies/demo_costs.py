@@ -7,8 +7,8 @@ from dataclasses import dataclass, replace
 from functools import cache
 from pathlib import Path
 
-from dpi.io.layout import SYNTH_MARKER
 from dpi.config.pipeline import Pipeline, resolve_config
+from dpi.io.layout import SYNTH_MARKER
 from dpi.synth.capture import make_synthetic_capture
 
 DEMO = "demo"

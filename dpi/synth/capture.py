@@ -26,15 +26,15 @@ from dpi.io.atomic import write_json, write_text
 from dpi.io.exr import write_exr
 from dpi.io.images import luminance, write_mask, write_srgb, write_srgb_alpha
 from dpi.io.layout import SYNTH_MARKER
-from dpi.worlds.skies import SkyParams, sunsky_envmap
-from dpi.prior.data import read_panorama, resize_map
-from dpi.render.renderer import RenderConfig, Renderer
 from dpi.io.settings import (Count, Elevation, Fraction, ImageSize, Loose, MapHeight, Rate, SamplesPerPixel, Steps,
                           TextureSize, Weight, settings, settings_from_dict)
+from dpi.prior.data import read_panorama, resize_map
+from dpi.render.renderer import RenderConfig, Renderer
 from dpi.synth.backdrop import BACKGROUNDS, add_detail, composite_backdrop
 from dpi.synth.shapes import make_shape, write_ply
 from dpi.synth.textures import procedural_materials
 from dpi.worlds.families import generator
+from dpi.worlds.skies import SkyParams, sunsky_envmap
 
 EVALUATION_SEED_STREAM = 7_919  # ground-truth maps draw from default_rng([this, seed]); datasets from [seed, chunk], seed 0
 

@@ -115,8 +115,8 @@ def make_shape(name: str, resolution: int = 48, seed: int = 0) -> TriangleMesh:
 
 def write_ply(path: str | Path, mesh: TriangleMesh) -> None:
     """Write a PLY with per-vertex UVs through Mitsuba's own writer, so Mitsuba reads it back exactly."""
-    from dpi.render import backend
     from dpi.io.atomic import atomic_path
+    from dpi.render import backend
 
     mi = backend.mitsuba()
     m = mi.Mesh("mesh", len(mesh.vertices), len(mesh.faces), has_vertex_normals=False, has_vertex_texcoords=True)

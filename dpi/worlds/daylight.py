@@ -16,8 +16,8 @@ import numpy as np
 
 from dpi.io.images import luminance
 from dpi.light.envmap import direction_to_texel, texel_angles, texel_directions, texel_solid_angles
-from dpi.worlds.skies import SkyParams, sun_direction, sunsky_envmap
 from dpi.light.sunlight import draw_sun_np
+from dpi.worlds.skies import SkyParams, sun_direction, sunsky_envmap
 
 LOW_SUN_PROBABILITY = 0.3  # share of suns drawn between 0.5 and 10 degrees of elevation
 CLOUD_WHITE = np.array([1.0, 0.98, 0.95])

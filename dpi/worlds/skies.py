@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dpi.render import backend
 from dpi.light.envmap import direction_to_texel, directions_from_angles, texel_angles, texel_solid_angles
+from dpi.render import backend
 
 # Proper rotation taking +Y (dpi up) to +Z (sunsky up): (x, y, z) -> (x, -z, y).
 Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])

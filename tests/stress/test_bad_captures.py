@@ -17,11 +17,11 @@ import pytest
 import trimesh
 from capture_helpers import NAMES, SIZE, edit_transforms, make_capture, raw_exr
 
-from dpi.capture.cameras import to_mitsuba
 from dpi.capture import CaptureError, CaptureWarning, inspect_capture, load_capture, read_scene_options
-from dpi.solve.exposure import capture_exposure
-from dpi.preprocess.derive import normalise_capture
+from dpi.capture.cameras import to_mitsuba
 from dpi.io.images import read_image, read_mask
+from dpi.preprocess.derive import normalise_capture
+from dpi.solve.exposure import capture_exposure
 
 RNG = np.random.default_rng(7)
 CODES = RNG.integers(0, 256, (SIZE, SIZE, 3), dtype=np.uint8)

@@ -13,8 +13,8 @@ import pytest
 from capture_helpers import make_capture
 from workflow_helpers import REPO, SNAKEMAKE, TINY_CONFIG, write_config
 
-from dpi.config.validation import ConfigError, check_config
 from dpi.config.pipeline import CONFIG_SCHEMA, DEFAULT_CONFIG, read_yaml
+from dpi.config.validation import ConfigError, check_config
 from dpi.io.settings import apply_preset
 
 SHIPPED = read_yaml(DEFAULT_CONFIG)

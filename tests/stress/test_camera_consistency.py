@@ -144,8 +144,8 @@ def test_derived_masks_are_checked_against_a_given_mesh(tmp_path):
     from test_preprocess_masks import sphere_view
 
     from dpi.capture.cameras import from_fov, orbit, write_transforms
-    from dpi.preprocess.derive import normalise_capture
     from dpi.io.images import write_srgb
+    from dpi.preprocess.derive import normalise_capture
     from dpi.preprocess.derive import derive_view_masks
 
     root = tmp_path / "capture"
@@ -168,8 +168,8 @@ def test_derived_masks_are_checked_against_a_given_mesh(tmp_path):
 def test_cameras_from_structure_from_motion_are_checked_against_a_given_mesh(tmp_path, monkeypatch, frame_scale):
     """A capture with masks and a mesh but no cameras: the poses stage checks what structure from motion returns
     (stubbed: the true cameras, or the same in a frame twice the size) before writing it."""
-    from dpi.preprocess.derive import normalise_capture
     from dpi.preprocess import sfm
+    from dpi.preprocess.derive import normalise_capture
     from dpi.preprocess.derive import derive_poses
 
     root = make_capture(tmp_path / "scene", transforms=False)

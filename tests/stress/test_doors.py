@@ -18,11 +18,11 @@ from capture_helpers import edit_transforms, make_capture
 
 from dpi.capture import CaptureError, load_capture, read_scene_options
 from dpi.capture.folder import MAX_VIEW_NAME_BYTES
+from dpi.config.pipeline import read_yaml as read_config
 from dpi.evaluation.relighting import RELIGHT_MAPS, relit_name
 from dpi.io.atomic import write_text
 from dpi.io.lock import ResultsLocked, lock_results
 from dpi.io.structured import MAX_ALIASES, MAX_DEPTH, StructuredFileError, read_json, read_yaml
-from dpi.config.pipeline import read_yaml as read_config
 
 SECRET = "root:x:0:0:root:/root:/bin/bash\ndaemon:x:1:1:daemon:/usr/sbin:/usr/sbin/nologin\n"
 

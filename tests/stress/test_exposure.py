@@ -18,11 +18,11 @@ from dpi.evaluation.figures import display_env
 from dpi.evaluation.metrics import PSNR_CAP, env_metrics
 from dpi.evaluation.niqe import env_niqe
 from dpi.evaluation.sample_metrics import evaluate_sample
-from dpi.solve.exposure import MIDDLE_GREY, capture_exposure
 from dpi.io.exr import read_exr, write_exr
-from dpi.solve.materials import MaterialTextures
 from dpi.render.renderer import RenderConfig
 from dpi.solve.decomposition import Decomposition
+from dpi.solve.exposure import MIDDLE_GREY, capture_exposure
+from dpi.solve.materials import MaterialTextures
 from dpi.solve.problem import InverseProblem, ProblemConfig, SolveConfig
 from dpi.solve.spread import normalized_env
 from dpi.stages import capture_stage, evaluate_stage, init_stage, sample_stage

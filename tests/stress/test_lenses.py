@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from capture_helpers import SIZE, cameras, edit_transforms, make_capture
 
-from dpi.capture.cameras import Camera, Lens, from_fov, look_at
 from dpi.capture import CaptureError, camera_from_json, camera_to_json, load_capture, read_capture_json
+from dpi.capture.cameras import Camera, Lens, from_fov, look_at
 from dpi.capture.undistort import distort_image, intrinsics, undistort_image
 from dpi.io.images import read_image, read_mask
 from dpi.preprocess.derive import normalise_capture
@@ -121,8 +121,8 @@ def test_a_fitted_lens_is_kept_only_where_it_moves_pixels():
 def test_derived_cameras_with_a_lens_give_the_later_stages_pinhole_views(tmp_path):
     """Structure from motion fitted a lens (poses/transforms.json): the masks, geometry and inverse stages see
     the views undistorted, with pinhole cameras."""
-    from dpi.capture.cameras import write_transforms
     from dpi.capture import complete_capture
+    from dpi.capture.cameras import write_transforms
     from dpi.capture.undistort import with_cameras
     from dpi.io.layout import SceneLayout
 

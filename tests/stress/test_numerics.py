@@ -3,11 +3,11 @@
 import pytest
 import torch
 
-from dpi.capture.cameras import from_fov, look_at
 from dpi.capture import load_capture
-from dpi.solve.materials import MaterialTextures
+from dpi.capture.cameras import from_fov, look_at
 from dpi.render.renderer import RenderConfig, Renderer
 from dpi.solve.decomposition import Decomposition
+from dpi.solve.materials import MaterialTextures
 from dpi.solve.optimize import OptimizeConfig, fit
 from dpi.solve.problem import InverseProblem, ProblemConfig
 from dpi.solve.trace import Trace

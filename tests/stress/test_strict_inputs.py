@@ -19,8 +19,8 @@ from PIL import Image
 from workflow_helpers import REPO, SNAKEMAKE, write_config
 
 from dpi.capture import CaptureError, CaptureWarning, inspect_capture, load_capture
-from dpi.preprocess.derive import normalise_capture
 from dpi.io.images import read_mask
+from dpi.preprocess.derive import normalise_capture
 
 
 def test_numeric_strings_are_numbers_where_nerfstudio_reads_them(tmp_path):

@@ -13,7 +13,6 @@ from typing import Annotated, Any, Callable
 
 from pydantic import Field
 
-from dpi.solve.materials import MaterialRates
 from dpi.io.settings import Count, Rate, SettingsError, Steps, check_keys, settings, settings_from_dict
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.paper import PaperSampler, paper_step
@@ -22,6 +21,7 @@ from dpi.solve.dps.refine import RefineConfig
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.dps.sun_choice import SunConfig
 from dpi.solve.init import is_glossy
+from dpi.solve.materials import MaterialRates
 
 StepFunction = Callable[[DPSRun, DPSState, int], dict[str, Any]]
 

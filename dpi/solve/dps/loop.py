@@ -20,7 +20,6 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from dpi.solve.materials import MaterialRates, MaterialTextures
 from dpi.prior.diffusion import q_sample
 from dpi.prior.sample import Prior
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
@@ -30,6 +29,7 @@ from dpi.solve.dps.refine import refine
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.dps.sun_choice import LR_SUN, LR_SUN_UV, wants_sun
 from dpi.solve.init import starting_materials
+from dpi.solve.materials import MaterialRates, MaterialTextures
 from dpi.solve.prior_space import env_to_prior, estimate_radiance_scale
 from dpi.solve.problem import InverseProblem
 from dpi.solve.sun_model import extract_sun, sun_summary

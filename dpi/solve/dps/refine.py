@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import torch
 
-from dpi.solve.materials import MaterialRates, MaterialTextures
 from dpi.io.settings import Count, Rate, Steps, settings
+from dpi.solve.materials import MaterialRates, MaterialTextures
 from dpi.solve.optimize import OptimizeConfig, fit_env_model
 from dpi.solve.problem import InverseProblem
 from dpi.solve.smooth_gain import SmoothGain

@@ -15,11 +15,11 @@ import torch
 
 from dpi.io.images import luminance
 from dpi.light.sunlight import merge_spots_into_sun
-from dpi.solve.materials import MaterialTextures
 from dpi.prior.diffusion import Diffusion, model_output_with_random_roll, model_timesteps, p_mean_variance
 from dpi.prior.sample import Prior
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.sun_choice import SunConfig
+from dpi.solve.materials import MaterialTextures
 from dpi.solve.prior_space import resample_env
 from dpi.solve.problem import InverseProblem
 from dpi.solve.sun_model import sun_env

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from dpi.solve.materials import MaterialTextures
 from dpi.io.settings import SettingsError, Share, Weight, settings, settings_from_dict
 from dpi.solve.init import GLOSSY_ROUGHNESS, is_glossy
+from dpi.solve.materials import MaterialTextures
 from dpi.solve.sun_model import SunExtraction
 
 SUN_MODES = ("auto", "on", "off")

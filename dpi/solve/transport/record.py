@@ -34,8 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from dpi.solve.materials import MaterialTextures
 from dpi.render.renderer import SEED_MODULUS, texture_plugin
+from dpi.solve.materials import MaterialTextures
 from dpi.solve.problem import InverseProblem
 from dpi.solve.transport.operator import AlbedoLookup, LightTransport, resize_map
 from dpi.solve.transport.settings import (HALVES, ROUGH_TRANSPORT_HEIGHT, TransportConfig, roughness_levels,
