@@ -56,3 +56,20 @@ def test_only_the_orchestration_imports_evaluation():
     below = sorted(a for a, b in graph.edges
                    if b.startswith("dpi.evaluation") and not a.startswith("dpi.evaluation") and a not in ABOVE_EVALUATION)
     assert below == []
+
+
+def layer(module: str) -> str:
+    """The package a module sits in (dpi.solve.dps.loop -> dpi.solve), or the module itself at the top."""
+    return ".".join(module.split(".")[:2])
+
+
+def test_the_layers_import_one_way():
+    """Grouped by the package they sit in, the modules import one way: no two layers import each other, directly
+    or round a loop, so each layer can be read with only the ones below it in mind."""
+    layers = nx.DiGraph((layer(a), layer(b)) for a, b in import_graph().edges if layer(a) != layer(b))
+    assert list(nx.simple_cycles(layers)) == []
+
+
+def test_only_the_command_sits_at_the_top_of_the_package():
+    """Every module belongs to the layer it serves; the `dpi` command is the one module of its own."""
+    assert sorted(p.stem for p in PACKAGE.glob("*.py") if p.stem != "__init__") == ["cli"]
