@@ -4,7 +4,7 @@
         [--study benchmarks/results/posterior_study.csv ...] [--out benchmarks/results/light_realism.csv]
 
 For every (scene, method, sampler) the posterior study drew on a real-light scene (dpi.studies.scenes.
-REAL_LIGHT_SCENES), over its seeds:
+REAL_LIGHT_SCENES) or a design scene (DEV_SCENES, `posterior_study.py --dev`), over its seeds:
 - realism: each sample's realism distance (dpi.evaluation.realism) to the manifest's held-out real panoramas of
   the scene's family less the scene's own (a map that copies the truth should not pass for realism; its accuracy
   is env PSNR's business), mean and std over the samples;
@@ -31,8 +31,9 @@ from dpi.prior.data import read_panorama
 from dpi.prior.panoramas import panorama_files
 from dpi.solve.spread import calibration, mean_log_map
 from dpi.studies.engine import read_rows, results_csv, sample_label, work_dir, write_rows
-from dpi.studies.scenes import REAL_LIGHT_SCENES
+from dpi.studies.scenes import DEV_SCENES, REAL_LIGHT_SCENES
 
+SCENES = {**REAL_LIGHT_SCENES, **DEV_SCENES}
 METRICS = ("realism", "realism_std", "calibration", "env_mean_psnr", "env_mean_ssim", "env_psnr")
 
 
@@ -51,15 +52,15 @@ def main() -> None:
               for family in ("outdoor", "indoor")}
     samples: dict[tuple, list[Path]] = defaultdict(list)
     for r in (row for study in args.study for row in read_rows(study)):
-        if r["scene"] in REAL_LIGHT_SCENES and r["method"] != "init":
+        if r["scene"] in SCENES and r["method"] != "init":
             env = layout.scene(r["scene"]).sample_files(sample_label(r["method"], r["sampler"]), int(r["seed"]))["env"]
             key = (r["scene"], r["group"], r["method"], r["sampler"])
             if env.exists() and env not in samples[key]:
                 samples[key].append(env)
     rows = []
     for (scene, group, method, sampler), files in sorted(samples.items()):
-        synth = REAL_LIGHT_SCENES[scene][1]
-        references = torch.cat([c for name, c in clouds[synth["prior"]].items() if name != synth["panorama"]])
+        synth = SCENES[scene][1]
+        references = torch.cat([c for name, c in clouds[synth["prior"]].items() if name != synth.get("panorama")])
         envs = [read_exr(f) for f in files]
         truth = read_ground_truth(read_capture_json(layout.scene(scene).capture_json).gt["envmap"], "envmap")
         distances = [sliced_wasserstein(patches(env), references) for env in envs]

@@ -30,7 +30,7 @@ from typing import Any
 
 from dpi.studies.engine import (SAMPLE_COLUMNS, dps_variants, mean_std_cells, method_jobs, prior_checkpoints,
                                 results_csv, run_job, run_study, work_dir, workflow_config, write_workflow)
-from dpi.studies.scenes import POSTERIOR_SCENES, REAL_LIGHT_SCENES, real_light_scenes
+from dpi.studies.scenes import DEV_SCENES, POSTERIOR_SCENES, REAL_LIGHT_SCENES, real_light_scenes
 
 WORK = work_dir("posterior_study")
 CSV = results_csv("posterior_study")
@@ -54,8 +54,11 @@ def summary(rows: list[dict[str, Any]]) -> list[str]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--scenes", nargs="*", default=None, choices=[*POSTERIOR_SCENES, *REAL_LIGHT_SCENES],
+    parser.add_argument("--scenes", nargs="*", default=None, choices=[*POSTERIOR_SCENES, *REAL_LIGHT_SCENES, *DEV_SCENES],
                         help="default: every scene (the real-light ones with --panoramas)")
+    parser.add_argument("--dev", action="store_true",
+                        help="the design scenes instead (dpi.studies.scenes.DEV_SCENES; needs --panoramas), in their own "
+                             "folder: for choosing a design apart from the study's scenes")
     parser.add_argument("--panoramas", type=Path, default=None,
                         help="folder holding the manifest's held-out panoramas: adds the real-light scenes")
     parser.add_argument("--methods", nargs="*", default=list(METHODS), choices=list(METHODS))
@@ -78,7 +81,12 @@ def main() -> None:
     config = workflow_config()
     priors = prior_checkpoints(args.prior)
     config["illumination_prior"]["checkpoints"].update(priors)
-    available = {**POSTERIOR_SCENES, **(real_light_scenes(args.panoramas) if args.panoramas else {})}
+    if args.dev and not args.panoramas:
+        parser.error("--dev: pass --panoramas DIR")
+    if args.dev and args.work == WORK:
+        args.work = work_dir("light_dev")
+    available = real_light_scenes(args.panoramas, DEV_SCENES) if args.dev else \
+        {**POSTERIOR_SCENES, **(real_light_scenes(args.panoramas) if args.panoramas else {})}
     wanted = args.scenes or list(available)
     missing = [name for name in wanted if name not in available]
     if missing:

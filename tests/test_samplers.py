@@ -167,14 +167,14 @@ def test_a_solved_map_fits_what_the_views_see_and_is_x0_hat_elsewhere():
     assert float(ratio.std()) < 1e-3
 
 
-def test_a_perturbed_solve_moves_the_silent_texels_by_the_priors_uncertainty(monkeypatch):
+def test_a_perturbed_solve_moves_the_silent_texels_by_the_priors_uncertainty():
     """With `perturb` the solve's target is x0_hat plus a random field of std perturb x r_t (prior space): the
     texels the views see still take the truth, the silent ones leave x0_hat by that std."""
-    monkeypatch.setattr("dpi.solve.dps.proximal.PERTURB_HEIGHT", 8)  # white per texel: its std is measurable
     truth, problem, seen = half_seen_problem(8, seed=1)
     perturb = 0.5
     run, state, _ = second_step_after_a_moved_map(problem, {
-        "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6, "perturb": perturb})
+        "inner_steps": 1, "lr_map": 1e-12, "map_solve": 10, "prox_weight": 1e-6, "perturb": perturb,
+        "perturb_rows": 8})  # white per texel: its std is measurable
     env = run.env(torch.exp(state.log_map), state).detach()
     np.testing.assert_allclose(env[seen].numpy(), truth[seen].numpy(), rtol=3e-2)
     z = run.prior.encoding.to_prior(torch.exp(state.log_map)).detach().reshape(3, *seen.shape).permute(1, 2, 0)

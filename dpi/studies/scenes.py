@@ -57,20 +57,40 @@ a market hall, a studio, a beach, a vestibule), which no prior trained on; the m
 (`real_light_scenes`)"""
 
 
-def real_light_scenes(folder: Path) -> dict[str, tuple[str, dict[str, Any]]]:
-    """REAL_LIGHT_SCENES lit by the panoramas in `folder`, each file checked against the manifest's checksum."""
+DEV_SCENES: dict[str, tuple[str, dict[str, Any]]] = {
+    "dev_blob_hills": ("dev_real", {**AMBIGUOUS, "shape": "blob", "seed": 21, "panorama": "hilly_terrain_01_1k.hdr",
+                                    "prior": "outdoor"}),
+    "dev_torus_piazza": ("dev_real", {**AMBIGUOUS, "shape": "bumpy_torus", "seed": 22,
+                                      "panorama": "piazza_bologni_1k.hdr", "prior": "outdoor"}),
+    "dev_blob_autoshop": ("dev_real", {**AMBIGUOUS, "shape": "blob", "seed": 23, "panorama": "autoshop_01_1k.hdr",
+                                       "prior": "indoor"}),
+    "dev_torus_studio": ("dev_real", {**AMBIGUOUS, "shape": "bumpy_torus", "seed": 24,
+                                      "panorama": "studio_small_08_1k.hdr", "prior": "indoor"}),
+    "dev_blob_sun": ("dev_ambiguous", {**AMBIGUOUS, "shape": "blob", "seed": 25, "environment": "outdoor",
+                                       "environment_seed": 61, "prior": "outdoor"}),
+    "dev_torus_room": ("dev_ambiguous", {**AMBIGUOUS, "shape": "bumpy_torus", "seed": 26, "environment": "indoor",
+                                         "environment_seed": 62, "prior": "indoor"}),
+}
+"""scenes for choosing a sampler's design, apart from every study's: other objects, the held-out panoramas the
+posterior study does not use, and procedural maps of other seeds (`posterior_study.py --dev`)"""
+
+
+def real_light_scenes(folder: Path, scenes: dict[str, tuple[str, dict[str, Any]]] = REAL_LIGHT_SCENES
+                      ) -> dict[str, tuple[str, dict[str, Any]]]:
+    """`scenes` (REAL_LIGHT_SCENES) with a panorama lit by the file of that name in `folder`, each checked against
+    the manifest's checksum; the others as they are."""
     from dpi.prior.panoramas import panorama_files
 
     held_out = {path.name: path for family in ("outdoor", "indoor")
                 for path in panorama_files(folder, family, "held_out")}
-    scenes = {}
-    for name, (group, synth) in REAL_LIGHT_SCENES.items():
-        panorama = synth["panorama"]
-        if panorama not in held_out:
+    lit = {}
+    for name, (group, synth) in scenes.items():
+        panorama = synth.get("panorama")
+        if panorama is not None and panorama not in held_out:
             raise FileNotFoundError(f"{folder}: no {panorama} (scene {name}); dpi/data/panoramas.csv says where it is")
-        scenes[name] = (group, {**{k: v for k, v in synth.items() if k != "panorama"},
-                                "environment": str(held_out[panorama].resolve())})
-    return scenes
+        lit[name] = (group, synth) if panorama is None else (group, {
+            **{k: v for k, v in synth.items() if k != "panorama"}, "environment": str(held_out[panorama].resolve())})
+    return lit
 
 
 CALIBRATION_OBJECTS = {"blob": {"shape": "blob", "seed": 0}, "torus": {"shape": "bumpy_torus", "seed": 3}}

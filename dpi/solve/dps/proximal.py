@@ -55,9 +55,6 @@ SOLVE_CG_ITERATIONS = 10
 """conjugate-gradient iterations of a step's solve on the transport's grid (more do not make it more accurate)"""
 
 
-PERTURB_HEIGHT = 2
-"""rows of the grid the push (`perturb`) is white on, upsampled onto the prior's: a field as broad as the light's
-balance between sky and ground, sides and colour, which the views of a rough object leave open (docs/studies.md)"""
 NOISE_MIX = 0.5
 """share zeta of fresh noise in the re-noising (0: deterministic DDIM, 1: all fresh)"""
 MATERIAL_START = 0.6
@@ -89,6 +86,10 @@ class ProximalConfig:
     DAPS, Zhang et al. 2024, for a prior of std PRIOR_STD): where the views are silent each sample's map moves as
     the prior allows instead of keeping x0_hat's guess, where they speak the solve pulls it back (0: samples near
     x0_hat's guess and alike; docs/studies.md, "the push's size" and "Light from real places")"""
+    perturb_rows: Count = 2
+    """rows of the grid the push is white on, upsampled onto the prior's (at most the transport's): 2, a field as
+    broad as the light's balance between sky and ground, sides and colour; finer, the push reaches detail the
+    views of a rough object do not see"""
 
     models_sun = True
     """sun mode auto gives this sampler's samples a parametric sun (dpi.solve.dps.sun_choice)"""
@@ -145,7 +146,7 @@ def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_h
     prior = MapPrior(x0_hat, variance)
     if settings.perturb:  # x0_hat's coarse part shifted by a draw of the prior's uncertainty about x0 at this step
         abar = float(run.diffusion.alphas_cumprod[run.index(n)])
-        height = min(PERTURB_HEIGHT, transport.height)
+        height = min(settings.perturb_rows, transport.height)
         field = cached_resampling(state, height, run.prior.height)
         eta = torch.randn(3, field.forward.shape[1], generator=state.generator, dtype=torch.float64)
         std = settings.perturb * math.sqrt(posterior_variance(abar, PRIOR_STD))
