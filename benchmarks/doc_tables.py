@@ -440,6 +440,7 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "light_design": partial(dev_table, ("light_grain_dev.csv", "light_mix_dev.csv", "light_prior_dev.csv"),
                             ("group", "method", "sampler")),
     "light_design_realism": partial(light_realism, "dev/light_design_realism.csv"),
+    "light_profile_realism": partial(light_realism, "dev/light_profile_realism.csv"),
 }
 """every generated table by the name its markers use"""
 
