@@ -171,14 +171,16 @@ LIGHT_METRICS = (Metric("realism distance (lower: more real)", "realism", ".3f",
                  Metric("mean map: env PSNR [dB]", "env_mean_psnr", ".2f", +1),
                  Metric("mean map: env SSIM", "env_mean_ssim", ".3f", +1, spread=False),
                  Metric("one sample: env PSNR [dB]", "env_psnr", ".2f", +1))
+DESIGN_METRICS = (*LIGHT_METRICS[:2], Metric("calibration at 2 rows", "calibration_coarse", ".2f"), *LIGHT_METRICS[2:])
+"""the design runs' light columns, with the calibration of the light's broad balance"""
 
 
-def light_realism(csv_name: str, root: Path) -> str:
+def light_realism(csv_name: str, root: Path, metrics: tuple[Metric, ...] = LIGHT_METRICS) -> str:
     """How real and how well spread the env maps are on the real-light scenes (benchmarks/light_realism.py), per
     group, method and sampler, over scenes: each sample's realism distance to held-out real panoramas (less the
     scene's own), the calibration of its samples and their mean map's accuracy."""
     rows = latest(read_rows(root / RESULTS / csv_name), ("scene", "method", "sampler"))
-    return grouped_table(rows, ("group", "method", "sampler"), LIGHT_METRICS, rank_by="group", order=method_order)
+    return grouped_table(rows, ("group", "method", "sampler"), metrics, rank_by="group", order=method_order)
 
 
 def calibration(root: Path) -> str:
@@ -439,8 +441,8 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "light_push_mean_map": partial(mean_map, "dev/light_push_mean_map.csv"),
     "light_design": partial(dev_table, ("light_grain_dev.csv", "light_mix_dev.csv", "light_prior_dev.csv"),
                             ("group", "method", "sampler")),
-    "light_design_realism": partial(light_realism, "dev/light_design_realism.csv"),
-    "light_profile_realism": partial(light_realism, "dev/light_profile_realism.csv"),
+    "light_design_realism": partial(light_realism, "dev/light_design_realism.csv", metrics=DESIGN_METRICS),
+    "light_profile_realism": partial(light_realism, "dev/light_profile_realism.csv", metrics=DESIGN_METRICS),
 }
 """every generated table by the name its markers use"""
 

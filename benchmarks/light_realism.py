@@ -8,7 +8,8 @@ REAL_LIGHT_SCENES) or a design scene (DEV_SCENES, `posterior_study.py --dev`), o
 - realism: each sample's realism distance (dpi.evaluation.realism) to the manifest's held-out real panoramas of
   the scene's family less the scene's own (a map that copies the truth should not pass for realism; its accuracy
   is env PSNR's business), mean and std over the samples;
-- calibration (dpi.solve.spread.calibration: ~1 when the truth looks like one more sample);
+- calibration (dpi.solve.spread.calibration: ~1 when the truth looks like one more sample), and the same of the
+  maps shrunk to COARSE_ROWS rows: the light's broad balance (sky against ground, one side against another);
 - env PSNR / SSIM of the samples' mean map (dpi.solve.spread.mean_log_map) against the truth.
 Rows go to the CSV, rewritten whole; it prints the means per group, method and sampler.
 """
@@ -23,7 +24,7 @@ import numpy as np
 import torch
 
 from dpi.capture import read_capture_json, read_ground_truth
-from dpi.evaluation.metrics import env_metrics
+from dpi.evaluation.metrics import env_metrics, resize_image
 from dpi.evaluation.realism import patches, sliced_wasserstein
 from dpi.io.exr import read_exr
 from dpi.io.layout import Layout
@@ -34,7 +35,15 @@ from dpi.studies.engine import read_rows, results_csv, sample_label, work_dir, w
 from dpi.studies.scenes import DEV_SCENES, REAL_LIGHT_SCENES
 
 SCENES = {**REAL_LIGHT_SCENES, **DEV_SCENES}
-METRICS = ("realism", "realism_std", "calibration", "env_mean_psnr", "env_mean_ssim", "env_psnr")
+COARSE_ROWS = 2
+"""rows of the maps whose calibration is the broad balance's"""
+METRICS = ("realism", "realism_std", "calibration", "calibration_coarse", "env_mean_psnr", "env_mean_ssim",
+           "env_psnr")
+
+
+def coarse(env: np.ndarray) -> np.ndarray:
+    """The map shrunk to COARSE_ROWS rows (area average)."""
+    return resize_image(env, COARSE_ROWS, 2 * COARSE_ROWS)
 
 
 def main() -> None:
@@ -67,7 +76,9 @@ def main() -> None:
         mean = env_metrics(mean_log_map(envs), truth)
         rows.append({"scene": scene, "group": group, "method": method, "sampler": sampler, "samples": len(envs),
                      "realism": round(float(np.mean(distances)), 4), "realism_std": round(float(np.std(distances)), 4),
-                     "calibration": round(calibration(envs, truth), 3), "env_mean_psnr": round(mean["env_psnr"], 3),
+                     "calibration": round(calibration(envs, truth), 3),
+                     "calibration_coarse": round(calibration([coarse(e) for e in envs], coarse(truth)), 3),
+                     "env_mean_psnr": round(mean["env_psnr"], 3),
                      "env_mean_ssim": round(mean["env_ssim"], 4),
                      "env_psnr": round(float(np.mean([env_metrics(e, truth)["env_psnr"] for e in envs])), 3)})
     write_rows(args.out, rows, settings="")
