@@ -439,8 +439,8 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "light_push": partial(dev_table, ("light_prior_perturb_dev.csv",), ("group", "method", "sampler")),
     "light_push_realism": partial(light_realism, "dev/light_push_realism.csv"),
     "light_push_mean_map": partial(mean_map, "dev/light_push_mean_map.csv"),
-    "light_design": partial(dev_table, ("light_grain_dev.csv", "light_mix_dev.csv", "light_prior_dev.csv"),
-                            ("group", "method", "sampler")),
+    "light_design": partial(dev_table, ("light_grain_dev.csv", "light_mix_dev.csv", "light_prior_dev.csv",
+                                         "light_sun_dev.csv"), ("group", "method", "sampler")),
     "light_design_realism": partial(light_realism, "dev/light_design_realism.csv", metrics=DESIGN_METRICS),
     "light_profile_realism": partial(light_realism, "dev/light_profile_realism.csv", metrics=DESIGN_METRICS),
 }
