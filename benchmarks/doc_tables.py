@@ -171,8 +171,10 @@ LIGHT_METRICS = (Metric("realism distance (lower: more real)", "realism", ".3f",
                  Metric("mean map: env PSNR [dB]", "env_mean_psnr", ".2f", +1),
                  Metric("mean map: env SSIM", "env_mean_ssim", ".3f", +1, spread=False),
                  Metric("one sample: env PSNR [dB]", "env_psnr", ".2f", +1))
-DESIGN_METRICS = (*LIGHT_METRICS[:2], Metric("calibration at 2 rows", "calibration_coarse", ".2f"), *LIGHT_METRICS[2:])
-"""the design runs' light columns, with the calibration of the light's broad balance"""
+DESIGN_METRICS = (*LIGHT_METRICS[:2], Metric("calibration at 2 rows", "calibration_coarse", ".2f"), *LIGHT_METRICS[2:],
+                  Metric("brightest 1 %: share of energy", "peak_share", ".2f"),
+                  Metric("the truth's", "peak_share_truth", ".2f", spread=False))
+"""the design runs' light columns, with the calibration of the light's broad balance and how concentrated it is"""
 
 
 def light_realism(csv_name: str, root: Path, metrics: tuple[Metric, ...] = LIGHT_METRICS) -> str:

@@ -10,7 +10,9 @@ REAL_LIGHT_SCENES) or a design scene (DEV_SCENES, `posterior_study.py --dev`), o
   is env PSNR's business), mean and std over the samples;
 - calibration (dpi.solve.spread.calibration: ~1 when the truth looks like one more sample), and the same of the
   maps shrunk to COARSE_ROWS rows: the light's broad balance (sky against ground, one side against another);
-- env PSNR / SSIM of the samples' mean map (dpi.solve.spread.mean_log_map) against the truth.
+- env PSNR / SSIM of the samples' mean map (dpi.solve.spread.mean_log_map) against the truth;
+- how concentrated the light is (dpi.evaluation.realism.peak_share: the brightest 1 % of texels' share of the
+  energy), the samples' mean beside the truth's.
 Rows go to the CSV, rewritten whole; it prints the means per group, method and sampler.
 """
 
@@ -25,7 +27,7 @@ import torch
 
 from dpi.capture import read_capture_json, read_ground_truth
 from dpi.evaluation.metrics import env_metrics, resize_image
-from dpi.evaluation.realism import patches, sliced_wasserstein
+from dpi.evaluation.realism import patches, peak_share, sliced_wasserstein
 from dpi.io.exr import read_exr
 from dpi.io.layout import Layout
 from dpi.prior.data import read_panorama
@@ -38,7 +40,7 @@ SCENES = {**REAL_LIGHT_SCENES, **DEV_SCENES}
 COARSE_ROWS = 2
 """rows of the maps whose calibration is the broad balance's"""
 METRICS = ("realism", "realism_std", "calibration", "calibration_coarse", "env_mean_psnr", "env_mean_ssim",
-           "env_psnr")
+           "env_psnr", "peak_share", "peak_share_truth")
 
 
 def coarse(env: np.ndarray) -> np.ndarray:
@@ -80,7 +82,9 @@ def main() -> None:
                      "calibration_coarse": round(calibration([coarse(e) for e in envs], coarse(truth)), 3),
                      "env_mean_psnr": round(mean["env_psnr"], 3),
                      "env_mean_ssim": round(mean["env_ssim"], 4),
-                     "env_psnr": round(float(np.mean([env_metrics(e, truth)["env_psnr"] for e in envs])), 3)})
+                     "env_psnr": round(float(np.mean([env_metrics(e, truth)["env_psnr"] for e in envs])), 3),
+                     "peak_share": round(float(np.mean([peak_share(e) for e in envs])), 4),
+                     "peak_share_truth": round(peak_share(truth), 4)})
     write_rows(args.out, rows, settings="")
     print(f"{'group':<12} {'method':<12} {'sampler':<24} {'n':>3} " + " ".join(f"{m:>14}" for m in METRICS))
     for key in sorted({(r["group"], r["method"], r["sampler"]) for r in rows}):
