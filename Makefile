@@ -14,13 +14,13 @@ demo: setup
 	$(VENV)/bin/snakemake --cores $(CORES)
 
 test: setup
-	$(VENV)/bin/python -m pytest -q $(PYTEST_ARGS)
+	$(VENV)/bin/python -m pytest -q -n $(CORES) $(PYTEST_ARGS)
 
 test-slurm: setup
 	$(VENV)/bin/python -m pytest -q -m slurm $(PYTEST_ARGS)
 
 test-fast: setup
-	$(VENV)/bin/python -m pytest -q -m "not slow" $(PYTEST_ARGS)
+	$(VENV)/bin/python -m pytest -q -n $(CORES) -m "not slow" $(PYTEST_ARGS)
 
 # the quick benchmarks (minutes): cost of a render step, of a dps step, of the procedural worlds
 benchmarks: setup
