@@ -33,6 +33,7 @@ from dpi.studies.engine import (SAMPLE_COLUMNS, dps_variants, mean_std_cells, me
 from dpi.studies.scenes import DEV_SCENES, POSTERIOR_SCENES, REAL_LIGHT_SCENES, real_light_scenes
 
 WORK = work_dir("posterior_study")
+DEV_WORK = work_dir("light_dev")
 CSV = results_csv("posterior_study")
 METHODS = ("init", "none", "smoothness", "sds", "dip", "dps")
 
@@ -72,8 +73,9 @@ def main() -> None:
                              "dps rows are labelled SAMPLER@SIZE after the checkpoints' names (outdoor_64x128.pt: "
                              "64x128)")
     parser.add_argument("--rerun", action="store_true", help="redo rows already in the CSV (their samples too)")
-    parser.add_argument("--work", type=Path, default=WORK,
-                        help="study folder: captures, inits and samples (another folder: other inits, dev studies)")
+    parser.add_argument("--work", type=Path, default=None,
+                        help="study folder: captures, inits and samples (default: results/benchmarks/posterior_study, with --dev "
+                             "results/benchmarks/light_dev; another folder: other inits, dev studies)")
     parser.add_argument("--workflow", type=Path, default=None, metavar="FILE.yaml",
                         help="write the study as a workflow config instead (snakemake --configfile FILE.yaml)")
     args = parser.parse_args()
@@ -83,8 +85,7 @@ def main() -> None:
     config["illumination_prior"]["checkpoints"].update(priors)
     if args.dev and not args.panoramas:
         parser.error("--dev: pass --panoramas DIR")
-    if args.dev and args.work == WORK:
-        args.work = work_dir("light_dev")
+    args.work = args.work or (DEV_WORK if args.dev else WORK)
     available = real_light_scenes(args.panoramas, DEV_SCENES) if args.dev else \
         {**POSTERIOR_SCENES, **(real_light_scenes(args.panoramas) if args.panoramas else {})}
     wanted = args.scenes or list(available)
