@@ -74,8 +74,8 @@ def main() -> None:
                              "64x128)")
     parser.add_argument("--rerun", action="store_true", help="redo rows already in the CSV (their samples too)")
     parser.add_argument("--work", type=Path, default=None,
-                        help="study folder: captures, inits and samples (default: results/benchmarks/posterior_study, with --dev "
-                             "results/benchmarks/light_dev; another folder: other inits, dev studies)")
+                        help="study folder: captures, inits and samples (default: results/benchmarks/posterior_study, "
+                             "with --dev results/benchmarks/light_dev; another folder: other inits, dev studies)")
     parser.add_argument("--workflow", type=Path, default=None, metavar="FILE.yaml",
                         help="write the study as a workflow config instead (snakemake --configfile FILE.yaml)")
     args = parser.parse_args()
