@@ -55,11 +55,12 @@ def summary(rows: list[dict[str, Any]]) -> list[str]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--scenes", nargs="*", default=None, choices=[*POSTERIOR_SCENES, *REAL_LIGHT_SCENES, *DEV_SCENES],
+    parser.add_argument("--scenes", nargs="*", default=None,
+                        choices=[*POSTERIOR_SCENES, *REAL_LIGHT_SCENES, *DEV_SCENES],
                         help="default: every scene (the real-light ones with --panoramas)")
     parser.add_argument("--dev", action="store_true",
-                        help="the design scenes instead (dpi.studies.scenes.DEV_SCENES; needs --panoramas), in their own "
-                             "folder: for choosing a design apart from the study's scenes")
+                        help="the design scenes instead (dpi.studies.scenes.DEV_SCENES; needs --panoramas), in their "
+                             "own folder: for choosing a design apart from the study's scenes")
     parser.add_argument("--panoramas", type=Path, default=None,
                         help="folder holding the manifest's held-out panoramas: adds the real-light scenes")
     parser.add_argument("--methods", nargs="*", default=list(METHODS), choices=list(METHODS))
