@@ -11,8 +11,8 @@ REAL_LIGHT_SCENES) or a design scene (DEV_SCENES, `posterior_study.py --dev`), o
 - calibration (dpi.solve.spread.calibration: ~1 when the truth looks like one more sample), and the same of the
   maps shrunk to COARSE_ROWS rows: the light's broad balance (sky against ground, one side against another);
 - env PSNR / SSIM of the samples' mean map (dpi.solve.spread.mean_log_map) against the truth;
-- how concentrated the light is (dpi.evaluation.realism.peak_share: the brightest 1 % of texels' share of the
-  energy), the samples' mean beside the truth's.
+- how concentrated the light is (`peak_share`: the brightest 1 % of texels' share of the energy, at the realism's
+  REALISM_HEIGHT rows), the samples' mean beside the truth's.
 Rows go to the CSV, rewritten whole; it prints the means per group, method and sampler.
 """
 
@@ -27,9 +27,10 @@ import torch
 
 from dpi.capture import read_capture_json, read_ground_truth
 from dpi.evaluation.metrics import env_metrics, resize_image
-from dpi.evaluation.realism import patches, peak_share, sliced_wasserstein
+from dpi.evaluation.realism import REALISM_HEIGHT, patches, sliced_wasserstein
 from dpi.io.exr import read_exr
 from dpi.io.layout import Layout
+from dpi.light.envmap import top_energy_share
 from dpi.prior.data import read_panorama
 from dpi.prior.panoramas import panorama_files
 from dpi.solve.spread import calibration, mean_log_map
@@ -39,6 +40,8 @@ from dpi.studies.scenes import DEV_SCENES, REAL_LIGHT_SCENES
 SCENES = {**REAL_LIGHT_SCENES, **DEV_SCENES}
 COARSE_ROWS = 2
 """rows of the maps whose calibration is the broad balance's"""
+PEAK_FRACTION = 0.01
+"""the brightest texels whose share of the energy says how concentrated a map's light is"""
 METRICS = ("realism", "realism_std", "calibration", "calibration_coarse", "env_mean_psnr", "env_mean_ssim",
            "env_psnr", "peak_share", "peak_share_truth")
 
@@ -46,6 +49,11 @@ METRICS = ("realism", "realism_std", "calibration", "calibration_coarse", "env_m
 def coarse(env: np.ndarray) -> np.ndarray:
     """The map shrunk to COARSE_ROWS rows (area average)."""
     return resize_image(env, COARSE_ROWS, 2 * COARSE_ROWS)
+
+
+def peak_share(env: np.ndarray) -> float:
+    """dpi.light.envmap.top_energy_share of the map's PEAK_FRACTION at REALISM_HEIGHT rows (area average)."""
+    return top_energy_share(resize_image(env, REALISM_HEIGHT, 2 * REALISM_HEIGHT), PEAK_FRACTION)
 
 
 def main() -> None:

@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from dpi.light.envmap import (direction_to_texel, pad_equirect, pad_for_mitsuba, texel_directions, texel_solid_angles,
-                              unpad_from_mitsuba)
+                              top_energy_share, unpad_from_mitsuba)
 
 
 def eval_emitter(mi, emitter, directions):
@@ -74,3 +74,19 @@ def test_equirect_padding_wraps_azimuth_and_crosses_the_poles():
     torch.testing.assert_close(padded[..., 1:-1, 0], env[..., -1])  # left of column 0: the last column
     torch.testing.assert_close(inner[..., 0, :], torch.roll(env[..., 0, :], 3, dims=-1))  # over the north pole
     torch.testing.assert_close(inner[..., -1, :], torch.roll(env[..., -1, :], 3, dims=-1))  # under the south pole
+
+
+def test_top_energy_share_is_one_for_a_point_light_and_near_the_fraction_for_a_uniform_map():
+    """A single bright texel holds all of a black map's energy; a uniform map's brightest 1 % (its largest texels,
+    at the equator) hold 1 % to pi / 2 % of it."""
+    def peak_share(env):
+        return top_energy_share(env, 0.01)
+
+    point = np.zeros((32, 64, 3), np.float32)
+    point[10, 20] = 50.0
+    assert peak_share(point) == pytest.approx(1.0)
+    uniform = np.ones_like(point)
+    assert 0.01 <= peak_share(uniform) <= 0.01 * np.pi / 2
+    sky = uniform.copy()
+    sky[:16] *= 10.0  # a bright upper half: its largest texels hold more than a uniform map's
+    assert peak_share(sky) > peak_share(uniform)

@@ -46,17 +46,3 @@ def test_a_samples_realism_is_its_distance_to_the_reference_folder(tmp_path):
     assert env_realism(sample, tmp_path) == pytest.approx(realism_distance([sample], refs), rel=1e-6)
     assert env_realism(sample, None).startswith("missing: no evaluate.reference_panoramas")
 
-
-def test_peak_share_is_one_for_a_point_light_and_near_the_fraction_for_a_uniform_map():
-    """A single bright texel holds all of a black map's energy; a uniform map's brightest 1 % (its largest texels,
-    at the equator) hold 1 % to pi / 2 % of it."""
-    from dpi.evaluation.realism import REALISM_HEIGHT, peak_share
-
-    point = np.zeros((REALISM_HEIGHT, 2 * REALISM_HEIGHT, 3), np.float32)
-    point[10, 20] = 50.0
-    assert peak_share(point) == pytest.approx(1.0)
-    uniform = np.ones_like(point)
-    assert 0.01 <= peak_share(uniform) <= 0.01 * np.pi / 2
-    sky = uniform.copy()
-    sky[: REALISM_HEIGHT // 2] *= 10.0  # a bright upper half: its largest texels hold more than a uniform map's
-    assert peak_share(sky) > peak_share(uniform)

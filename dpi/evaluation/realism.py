@@ -22,7 +22,6 @@ from torch.nn import functional as F
 
 from dpi.evaluation.metrics import missing
 from dpi.io.images import luminance
-from dpi.light.envmap import texel_solid_angles
 from dpi.prior.data import list_panoramas, read_panorama, resize_map
 
 REALISM_HEIGHT = 32
@@ -33,8 +32,6 @@ LOG_FLOOR = 1e-4
 """radiance floor (in medians) before the logarithm: black texels do not run to -inf"""
 LOG_CEILING = 5.0
 """log-radiance cap (e^5 ~ 150 medians)"""
-PEAK_FRACTION = 0.01
-"""share of a map's texels, its brightest, whose share of the energy says how concentrated its light is"""
 TEXTURE_WEIGHT = 3.0
 """weight of a patch's texture and elevation beside its mean colour: a procedural world's flat facades and even
 skies differ from real clutter in texture more than in colour"""
@@ -50,19 +47,6 @@ class RealismConfig:
     """points of each projected quantile function compared"""
     seed: int = 0
     """seed of the directions (the same for every comparison, so distances compare)"""
-
-
-def peak_share(env: np.ndarray, fraction: float = PEAK_FRACTION) -> float:
-    """Share of a map's energy (luminance x solid angle) in its brightest `fraction` of texels, at REALISM_HEIGHT
-    rows: most of it for a sun or a lamp, little for an overcast sky (the energy the patches' log cap leaves out)."""
-    x = resize_map(torch.from_numpy(np.ascontiguousarray(env, dtype=np.float32)).permute(2, 0, 1).clamp_min(0),
-                   REALISM_HEIGHT)
-    energy = (luminance(x.permute(1, 2, 0)).numpy() * texel_solid_angles(REALISM_HEIGHT)).ravel()
-    total = float(energy.sum())
-    if total <= 0:
-        return float("nan")
-    count = max(1, int(round(fraction * energy.size)))
-    return float(np.sort(energy)[-count:].sum() / total)
 
 
 def log_map(env: np.ndarray, height: int = REALISM_HEIGHT) -> torch.Tensor:
