@@ -17,6 +17,7 @@ import multiprocessing
 import os
 import shutil
 import subprocess
+from collections import Counter
 from collections.abc import Callable, Iterable
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import nullcontext
@@ -302,9 +303,7 @@ def study_workflow(jobs: list[Job], name: str) -> dict[str, Any]:
     config = jobs[0].config
     sampler = config["method_params"].get("dps", {}).get("sampler", field_default(DPSConfig, "sampler"))
     plain = [j for j in jobs if j.method != INIT and j.sampler.split("@")[0] in ("", sampler)]
-    counts: dict[tuple[str, str], int] = {}
-    for job in plain:
-        counts[job.scene, job.method] = counts.get((job.scene, job.method), 0) + 1
+    counts = Counter((j.scene, j.method) for j in plain)
     layout = Layout.of_study(work_dir(name))
     return {**config, "results_dir": str(layout.results), "captures_dir": str(layout.captures),
             "scenes": list(dict.fromkeys(j.scene for j in plain)),
