@@ -119,3 +119,16 @@ def test_summary_csv_columns_stay_numeric(tmp_path, monkeypatch):
     back = read_summary(path)
     assert back[0]["env_fid"] == rows[0]["env_fid"] and back[0]["albedo_sigma2_invar"].startswith("missing: one")
     assert "notes" not in back[0]
+
+
+def test_balance_error_known_answer():
+    """A map whose upper half is e^0.5 brighter than the truth's, relative to its lower half, is off by 0.25 in log
+    at 2 rows after the global scale (solid-angle weights equal per hemisphere); a scaled copy is off by 0."""
+    from dpi.evaluation.metrics import balance_error
+
+    truth = np.random.default_rng(0).uniform(0.5, 2.0, (16, 32, 3)).astype(np.float32)
+    assert balance_error(7.0 * truth, truth, 2) == pytest.approx(0.0, abs=1e-5)
+    tilted = truth.copy()
+    tilted[:8] *= np.exp(0.5)
+    assert balance_error(tilted, truth, 2) == pytest.approx(0.25, abs=1e-4)
+    assert balance_error(tilted, truth, 8) == pytest.approx(0.25, abs=1e-4)

@@ -17,6 +17,7 @@ import torch
 from skimage.metrics import structural_similarity
 
 from dpi.io.images import luminance, resize, tonemap
+from dpi.light.envmap import texel_solid_angles
 from dpi.solve.exposure import middle_grey_gain, robust_level
 
 EPS = 1e-6
@@ -69,10 +70,30 @@ def aligned_env(estimate: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray
     return tonemap(gain * s * estimate), tonemap(gain * reference), s
 
 
+BALANCE_ROWS = (2, 8)
+"""rows of the shrunk maps whose log error is the light's broad balance: sky against ground (2), and the sides and
+bands a rough object's shading measures (8)"""
+ENV_BALANCE = tuple(f"env_balance_{rows}" for rows in BALANCE_ROWS)
+"""env_metrics' balance columns"""
+
+
+def balance_error(estimate: np.ndarray, reference: np.ndarray, rows: int) -> float:
+    """RMS difference of log luminance of two maps shrunk to `rows` x 2 `rows` (area average) after one global
+    scale, texels weighted by solid angle: how far the light's broad balance is from the reference's."""
+    weights = np.broadcast_to(texel_solid_angles(rows), (rows, 2 * rows))
+    logs = [np.log(np.maximum(luminance(resize_image(m, rows, 2 * rows)), 0.0)
+                   + EPS * (robust_level(luminance(m)) or 1.0)) for m in (estimate, reference)]
+    diff = logs[0] - logs[1]
+    diff = diff - (weights * diff).sum() / weights.sum()
+    return float(np.sqrt((weights * diff ** 2).sum() / weights.sum()))
+
+
 def env_metrics(estimate: np.ndarray, reference: np.ndarray) -> dict[str, float]:
-    """PSNR/SSIM of a scale-aligned, tone-mapped env map against the reference (resized to it)."""
+    """PSNR/SSIM of a scale-aligned, tone-mapped env map against the reference (resized to it), and the log error
+    of its broad balance at BALANCE_ROWS rows (`env_balance_2`, ...)."""
     a, b, s = aligned_env(estimate, reference)
-    return {"env_psnr": psnr(a, b), "env_ssim": ssim(a, b), "env_scale": s}
+    return {"env_psnr": psnr(a, b), "env_ssim": ssim(a, b), "env_scale": s,
+            **{name: balance_error(estimate, reference, rows) for name, rows in zip(ENV_BALANCE, BALANCE_ROWS)}}
 
 
 def albedo_mse(estimate: np.ndarray, reference: np.ndarray) -> tuple[float, np.ndarray]:

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from dpi.capture import read_ground_truth
-from dpi.evaluation.metrics import PSNR_CAP, albedo_mse, aligned_env, env_metrics, missing, psnr, ssim
+from dpi.evaluation.metrics import ENV_BALANCE, PSNR_CAP, albedo_mse, aligned_env, env_metrics, missing, psnr, ssim
 from dpi.evaluation.naturalness import naturalness
 from dpi.evaluation.niqe import ENV_HEIGHT, env_niqe
 from dpi.evaluation.perceptual import ALEXNET_WEIGHTS, LPIPS_MIN_SIZE, lpips_distance, missing_weights, pretrained_lpips
@@ -96,7 +96,7 @@ def ground_truth_metrics(decomposition: Decomposition, gt: dict[str, Path]) -> d
         a, b, _ = aligned_env(env, reference)
         out["env_lpips"] = net if isinstance(net, str) else lpips_distance(linear_to_srgb(a), linear_to_srgb(b), net)
     else:
-        out.update({k: missing("no gt/envmap.exr") for k in ("env_psnr", "env_ssim", "env_lpips")})
+        out.update({k: missing("no gt/envmap.exr") for k in ("env_psnr", "env_ssim", *ENV_BALANCE, "env_lpips")})
     if "albedo" in gt:
         mse, scales = albedo_mse(decomposition.materials.albedo.numpy(), read_ground_truth(gt["albedo"], "albedo"))
         out.update({"albedo_mse": mse, "albedo_scale": [float(s) for s in scales]})

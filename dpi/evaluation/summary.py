@@ -17,7 +17,7 @@ import numpy as np
 
 from dpi.capture import read_ground_truth
 from dpi.evaluation.metric_table import split_missing
-from dpi.evaluation.metrics import aligned_env, env_metrics, missing, resize_image
+from dpi.evaluation.metrics import ENV_BALANCE, aligned_env, env_metrics, missing, resize_image
 from dpi.evaluation.perceptual import (INCEPTION_WEIGHTS, azimuth_rolls, frechet_distance, inception_features,
                                        missing_weights, pretrained_inception)
 from dpi.evaluation.relighting import RELIGHT_METRICS
@@ -28,11 +28,12 @@ from dpi.io.layout import ENV_FILE, INIT, texture_file
 from dpi.solve.spread import (albedo_std_map, calibration, log_std_map, mean_log_map, normalized_albedo, normalized_env,
                         roughness_std_map, sample_variance, sphere_mean)
 
-SUMMARY_METRICS = ("novel_psnr", "novel_ssim", "novel_lpips", "env_psnr", "env_ssim", "env_lpips", "env_niqe",
-                   "env_naturalness", "env_realism", "albedo_mse", *RELIGHT_METRICS, "train_fit", "train_fit_over_truth",
-                   "sample_seconds")
+SUMMARY_METRICS = ("novel_psnr", "novel_ssim", "novel_lpips", "env_psnr", "env_ssim", *ENV_BALANCE, "env_lpips",
+                   "env_niqe", "env_naturalness", "env_realism", "albedo_mse", *RELIGHT_METRICS, "train_fit",
+                   "train_fit_over_truth", "sample_seconds")
 SET_METRICS = ("env_fid", "albedo_sigma2_invar")
-SPREAD_METRICS = ("env_log_std", "albedo_std", "roughness_std", "env_calibration", "env_mean_psnr", "env_mean_ssim")
+SPREAD_METRICS = ("env_log_std", "albedo_std", "roughness_std", "env_calibration", "env_mean_psnr", "env_mean_ssim",
+                  *(f"env_mean_{name[4:]}" for name in ENV_BALANCE))
 
 
 def _mean_std(values: list[Any]) -> tuple[Any, Any]:
@@ -94,8 +95,8 @@ def spread_columns(envs: list[np.ndarray], albedos: list[np.ndarray], roughness:
         return {**spread, **{name: missing("no gt/envmap.exr") for name in SPREAD_METRICS if name not in spread}}
     reference = read_ground_truth(truth, "envmap")
     mean = env_metrics(mean_log_map(envs), reference)
-    return {**spread, "env_calibration": calibration(envs, reference), "env_mean_psnr": mean["env_psnr"],
-            "env_mean_ssim": mean["env_ssim"]}
+    return {**spread, "env_calibration": calibration(envs, reference),
+            **{f"env_mean_{name[4:]}": mean[name] for name in ("env_psnr", "env_ssim", *ENV_BALANCE)}}
 
 
 def samplers(records: list[dict[str, Any]]) -> str:

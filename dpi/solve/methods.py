@@ -17,6 +17,7 @@ from dpi.solve.classic import ClassicConfig, classic_sample
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dip import DIPConfig, dip_sample
 from dpi.solve.dps import DPSConfig, dps_sample
+from dpi.solve.dps.loop import Watch
 from dpi.solve.priors import PRIOR_NAMES
 from dpi.solve.problem import InverseProblem
 from dpi.solve.sds import SDSConfig, sds_sample
@@ -42,6 +43,8 @@ class SampleJob:
     """the problem's radiance per unit of the prior's (scene.yaml's, over the exposure; None: estimated)"""
     adaptive: AdaptiveConfig | None = None
     progress: bool = True
+    watch: Watch | None = None
+    """sees the map as it forms (methods that report it: dps)"""
 
 
 @dataclass(frozen=True)
@@ -81,7 +84,7 @@ def dps(job: SampleJob) -> Decomposition:
     cfg.steps, reason = plan_steps(job.init.materials, cfg.steps, job.adaptive or AdaptiveConfig())
     print(f"adaptive: {reason}", flush=True)
     result = dps_sample(job.problem, job.prior, job.init, cfg, job.seed, job.progress, job.resume,
-                        radiance_scale=job.radiance_scale)
+                        radiance_scale=job.radiance_scale, watch=job.watch)
     result.decomposition.trace.info["adaptive"] = {"steps": cfg.steps, "requested_steps": requested, "reason": reason}
     write_grid(job.out_dir / X0_STRIP, torch.stack(result.snapshots), columns=len(result.snapshots))
     return result.decomposition

@@ -17,6 +17,7 @@ from dpi.prior.sample import load_scene_prior
 from dpi.render import backend
 from dpi.solve.adaptive import MIN_SAMPLES, plan_samples
 from dpi.solve.decomposition import Decomposition
+from dpi.solve.dps.loop import Watch
 from dpi.solve.exposure import MIDDLE_GREY
 from dpi.solve.init import path_traced_init, readings_line, sample_reading
 from dpi.solve.methods import REGISTRY, SampleJob
@@ -66,8 +67,9 @@ def sample_init(job: StageJob, problem: InverseProblem) -> tuple[str, Decomposit
     return reading, problem.load_decomposition(job.paths.other_reading_dir() if other else job.paths.sample_dir(INIT))
 
 
-def sample_stage(job: StageJob) -> None:
-    """Posterior sample k of the job's method into its folder (envmap, textures, trace.json).
+def sample_stage(job: StageJob, watch: Watch | None = None) -> None:
+    """Posterior sample k of the job's method into its folder (envmap, textures, trace.json); `watch` sees its map
+    as it forms (dpi.solve.dps.loop.Watch).
 
     A method that uses the diffusion prior loads the one of the scene's family (dpi.config.pipeline); scene.yaml's
     `radiance_scale` is in the capture's radiance. `dps` runs fewer steps on a diffuse scene (config
@@ -79,7 +81,7 @@ def sample_stage(job: StageJob) -> None:
     reading, init = sample_init(job, problem)
     sample = SampleJob(problem, init, cfg,
                        seed_for(job.scene, job.method, job.k), out, out / RESUME_FILE,
-                       adaptive=job.pipeline.adaptive, progress=job.progress)
+                       adaptive=job.pipeline.adaptive, progress=job.progress, watch=watch)
     if entry.needs_prior:
         sample.prior = load_scene_prior(problem.capture.options, job.pipeline.method_prior(job.scene, job.method))
         scale = problem.capture.options.get("radiance_scale")  # in scene radiance

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Callable, Iterator
 
 import numpy as np
 import torch
@@ -110,6 +110,12 @@ def posterior_steps(run: DPSRun, state: DPSState, start: int = 0) -> Iterator[di
         yield step(run, state, n)
 
 
+Watch = Callable[[str, int, torch.Tensor], None]
+"""an observer of a sample's map as it forms: (stage, step, map (H, 2H, 3) at any scale); per step `x0_hat` (the
+network's guess) and `solved` (the step's map after its data updates), then once each `loop` (the loop's map),
+`kept` (after keep_what_the_views_see) and `refined` (the written map); for diagnosis (benchmarks/balance_trace.py)"""
+
+
 STRIP_FRAMES = 8
 """x0_hat snapshots kept for the progress strip"""
 
@@ -165,10 +171,12 @@ def keep_what_the_views_see(env: torch.Tensor, init_env: torch.Tensor, weight: t
 
 def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: DPSConfig, seed: int,
                progress: bool = True, checkpoint: Path | None = None,
-               checkpoint_every: int = CHECKPOINT_EVERY, radiance_scale: float | None = None) -> DPSResult:
+               checkpoint_every: int = CHECKPOINT_EVERY, radiance_scale: float | None = None,
+               watch: Watch | None = None) -> DPSResult:
     """One posterior sample: reverse diffusion guided by the renderer, joint material steps, refinement.
     With a `checkpoint` file the sample continues from the state a killed run of it left there. `radiance_scale`:
-    the problem's radiance per unit of the prior's (None: estimated from the init's map)."""
+    the problem's radiance per unit of the prior's (None: estimated from the init's map); `watch` sees the map as it
+    forms (Watch)."""
     run, state = start_run(problem, prior, init, cfg, seed, radiance_scale)
     settings = asdict(cfg)
     trace = Trace(info={"method": "dps", "sampler": cfg.sampler, "seed": seed, "radiance_scale": run.scale,
@@ -187,6 +195,11 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
         refreshes += int(record.get("refresh", False))
         trace.record(**record)
         bar.update(1)
+        if watch and "skipped" not in record:
+            with torch.no_grad():
+                guess = prior.encoding.to_radiance(state.snapshots[-1][None])
+                watch("x0_hat", record["step"], guess[0].permute(1, 2, 0))
+                watch("solved", record["step"], torch.exp(state.log_map[0]).permute(1, 2, 0))
         n = record["step"] + 1
         if store and n < run.num_steps and store.due(n, start):
             store.save(LoopState.capture(n, state.tensors(), state.optimizer, state.generator, trace,
@@ -200,6 +213,8 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
         trace.info["transport"] = {"recordings": refreshes, "seconds": round(transport.seconds, 3),
                                    "pixels": transport.pixels, "foreground": transport.foreground,
                                    "bytes": transport.nbytes}
+    if watch:
+        watch("loop", run.num_steps, env)
     if run.sun:
         trace.info["sun"] = {**sun_summary(state.sun_uv.detach(), sun_irradiance, env),
                              "merged_spots": merged}
@@ -207,8 +222,12 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
         pinned = seen_weight(transport_weights(transport), transport.height)
         env = keep_what_the_views_see(env, init.env, pinned)
         trace.info["pinned_by_views"] = round(float(pinned.mean()), 4)
+    if watch:
+        watch("kept", run.num_steps, env)
     env, materials, refine_trace = refine(problem, env, state.materials, run.cfg.refine, run.cfg,
                                           seed + 1, progress)
+    if watch:
+        watch("refined", run.num_steps, env)
     trace.info["refine"] = refine_trace.summary()
     trace.nan_skips += refine_trace.nan_skips
     if store:

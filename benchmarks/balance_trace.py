@@ -1,0 +1,130 @@
+"""Where a dps sample's broad balance of light (sky against ground, side against side) is lost (issue 77).
+
+    .venv/bin/python benchmarks/balance_trace.py --panoramas DIR [--scenes ...] [--seeds 0 1 2]
+        [--dps NAME:key=value,... ...] [--out benchmarks/results/balance_trace.csv]
+
+For each design scene (dpi.studies.scenes.DEV_SCENES: other objects and held-out panoramas than the studies') and
+seed, each dps variant (the configured sampler as `proximal`, plus `--dps` variants such as materials held at the
+init's: `held:lr_albedo=1e-9,refine.lr_texels=1e-9`) draws one sample through the workflow's sample stage while
+dpi.solve.dps.loop's `watch` records the map at every stage: the network's x0_hat and the solved map of each reverse
+step, the loop's map, after keep_what_the_views_see, and after the refinement. Each row is one (scene, variant, seed,
+stage, step) with the map's log error at 2 and 8 rows against the truth (dpi.evaluation.metrics.balance_error); the
+init's map is the `init` stage. The CSV is rewritten whole for the variants run; it prints the means per variant
+and stage, relative to the init's error of the same scene.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections import defaultdict
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from dpi.capture import read_capture_json, read_ground_truth
+from dpi.evaluation.metrics import BALANCE_ROWS, balance_error
+from dpi.io.exr import read_exr
+from dpi.io.layout import INIT
+from dpi.stages.inverse import sample_stage
+from dpi.studies.engine import (claim_sample_dir, dps_variants, method_jobs, prepare_job, read_rows, results_csv,
+                                work_dir, workflow_config, write_rows)
+from dpi.studies.scenes import DEV_SCENES, real_light_scenes
+
+STAGES = ("init", "x0_hat", "solved", "loop", "kept", "refined")
+SHOWN_STEPS = (0.0, 0.5, 1.0)
+"""x0_hat and solved are shown at these shares of the loop's steps"""
+
+
+def errors(env: np.ndarray, truth: np.ndarray) -> dict[str, float]:
+    """The map's log balance error at each of BALANCE_ROWS rows (`err_2`, `err_8`)."""
+    return {f"err_{rows}": round(balance_error(env, truth, rows), 4) for rows in BALANCE_ROWS}
+
+
+def trace_job(job, truth: np.ndarray) -> list[dict]:
+    """Draw the job's sample with a watch on its map; one row per watched stage and step."""
+    rows: list[dict] = []
+
+    def watch(stage: str, step: int, env: torch.Tensor) -> None:
+        rows.append({"stage": stage, "step": step, **errors(env.detach().double().numpy(), truth)})
+
+    claim_sample_dir(job)
+    sample_stage(job.stage_job(threads=1), watch)
+    return [{"scene": job.scene, "variant": job.sampler, "seed": job.seed, **r} for r in rows]
+
+
+def summary(rows: list[dict]) -> list[str]:
+    """Mean error per variant and stage (x0_hat / solved at SHOWN_STEPS of the loop), and over the init's."""
+    init = {r["scene"]: r for r in rows if r["stage"] == "init"}
+    last = defaultdict(int)
+    for r in rows:
+        last[(r["scene"], r["variant"], r["seed"])] = max(last[(r["scene"], r["variant"], r["seed"])], int(r["step"]))
+    table: dict[tuple, list[dict]] = defaultdict(list)
+    for r in rows:
+        if r["stage"] == "init":
+            continue
+        if r["stage"] in ("x0_hat", "solved"):
+            end = last[(r["scene"], r["variant"], r["seed"])] - 1
+            share = next((s for s in SHOWN_STEPS if int(r["step"]) == round(s * end)), None)
+            if share is None:
+                continue
+            label = f"{r['stage']}@{share:.1f}"
+        else:
+            label = r["stage"]
+        table[(r["variant"], label)].append(r)
+    head = f"{'variant':<14} {'stage':<12} {'n':>3} " + " ".join(
+        f"{f'err_{k}':>8} {f'/init_{k}':>8}" for k in BALANCE_ROWS)
+    lines = [head, f"{'init':<14} {'init':<12} {len(init):>3} " + " ".join(
+        f"{np.mean([r[f'err_{k}'] for r in init.values()]):>8.3f} {1.0:>8.2f}" for k in BALANCE_ROWS)]
+    order = {s: i for i, s in enumerate(STAGES)}
+    for (variant, label), sel in sorted(table.items(), key=lambda kv: (kv[0][0], order[kv[0][1].split("@")[0]],
+                                                                       kv[0][1])):
+        cells = []
+        for k in BALANCE_ROWS:
+            err = [r[f"err_{k}"] for r in sel]
+            ratio = [r[f"err_{k}"] / max(init[r["scene"]][f"err_{k}"], 1e-6) for r in sel]
+            cells.append(f"{np.mean(err):>8.3f} {np.mean(ratio):>8.2f}")
+        lines.append(f"{variant:<14} {label:<12} {len(sel):>3} " + " ".join(cells))
+    return lines
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--panoramas", type=Path, required=True, help="folder holding the manifest's panoramas")
+    parser.add_argument("--scenes", nargs="*", default=None, choices=list(DEV_SCENES), help="default: every one")
+    parser.add_argument("--seeds", nargs="*", type=int, default=[0, 1, 2])
+    parser.add_argument("--dps", nargs="*", default=[], metavar="NAME:key=value,...", help="dps variants")
+    parser.add_argument("--variants", nargs="*", default=None, help="variant labels to run (default: proximal and "
+                                                                    "the --dps ones)")
+    parser.add_argument("--work", type=Path, default=work_dir("balance_trace"), help="study folder")
+    parser.add_argument("--out", type=Path, default=results_csv("balance_trace"))
+    parser.add_argument("--summary", action="store_true", help="print the CSV's table without drawing")
+    args = parser.parse_args()
+    if args.summary:
+        print("\n".join(summary(read_rows(args.out, ("scene", "variant", "stage")))))
+        return
+    config = workflow_config()
+    variants = dps_variants(config, args.dps)
+    wanted = args.variants or ["proximal", *(spec.partition(":")[0] for spec in args.dps)]
+    scenes = {name: scene for name, scene in real_light_scenes(args.panoramas, DEV_SCENES).items()
+              if name in (args.scenes or DEV_SCENES)}
+    kept = [r for r in read_rows(args.out, ("scene", "variant", "stage")) if r["variant"] not in wanted] \
+        if args.out.exists() else []
+    rows = [r for r in kept if r["stage"] != "init"]
+    for job in method_jobs(args.work, scenes, ["dps"], args.seeds, config, variants, wanted):
+        prepare_job(job)
+        scene = job.layout.scene(job.scene)
+        truth = read_ground_truth(read_capture_json(scene.capture_json).gt["envmap"], "envmap")
+        if not any(r["scene"] == job.scene and r["stage"] == "init" for r in rows):
+            init_env = read_exr(scene.sample_files(INIT)["env"])
+            rows.append({"scene": job.scene, "variant": "init", "seed": 0, "stage": "init", "step": 0,
+                         **errors(init_env, truth)})
+        rows.extend(trace_job(replace(job, rerun=True), truth))
+        write_rows(args.out, rows, settings="")
+        print(f"{job.scene} {job.sampler} seed {job.seed}: done", flush=True)
+    print("\n".join(summary(rows)))
+
+
+if __name__ == "__main__":
+    main()
