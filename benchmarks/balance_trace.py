@@ -33,6 +33,8 @@ from dpi.studies.engine import (claim_sample_dir, dps_variants, method_jobs, pre
 from dpi.studies.scenes import DEV_SCENES, real_light_scenes
 
 STAGES = ("init", "x0_hat", "solved", "loop", "kept", "refined")
+TEXT = ("scene", "variant", "stage", "label")
+"""the CSV's text columns"""
 SHOWN_STEPS = (0.0, 0.5, 1.0)
 """x0_hat and solved are shown at these shares of the loop's steps"""
 
@@ -54,38 +56,34 @@ def trace_job(job, truth: np.ndarray) -> list[dict]:
     return [{"scene": job.scene, "variant": job.sampler, "seed": job.seed, **r} for r in rows]
 
 
+def labelled(rows: list[dict], init: dict[str, float]) -> list[dict]:
+    """One sample's rows with their table `label` (x0_hat and solved at SHOWN_STEPS of the loop, as `x0_hat@0.5`;
+    empty for the other steps; the later stages by name) and each error over the init's (`over_init_2`, ...)."""
+    end = max((int(r["step"]) for r in rows if r["stage"] in ("x0_hat", "solved")), default=0)
+    shown = {round(share * end): f"{share:.1f}" for share in SHOWN_STEPS}
+    out = []
+    for r in rows:
+        step = int(r["step"])
+        label = r["stage"] if r["stage"] not in ("x0_hat", "solved") else \
+            f"{r['stage']}@{shown[step]}" if step in shown else ""
+        out.append({**r, "label": label, **{f"over_init_{k}": round(r[f"err_{k}"] / max(init[f"err_{k}"], 1e-6), 4)
+                                            for k in BALANCE_ROWS}})
+    return out
+
+
 def summary(rows: list[dict]) -> list[str]:
-    """Mean error per variant and stage (x0_hat / solved at SHOWN_STEPS of the loop), and over the init's."""
-    init = {r["scene"]: r for r in rows if r["stage"] == "init"}
-    last = defaultdict(int)
+    """Mean error (and over the init's) per variant and labelled stage."""
+    groups: dict[tuple, list[dict]] = defaultdict(list)
     for r in rows:
-        last[(r["scene"], r["variant"], r["seed"])] = max(last[(r["scene"], r["variant"], r["seed"])], int(r["step"]))
-    table: dict[tuple, list[dict]] = defaultdict(list)
-    for r in rows:
-        if r["stage"] == "init":
-            continue
-        if r["stage"] in ("x0_hat", "solved"):
-            end = last[(r["scene"], r["variant"], r["seed"])] - 1
-            share = next((s for s in SHOWN_STEPS if int(r["step"]) == round(s * end)), None)
-            if share is None:
-                continue
-            label = f"{r['stage']}@{share:.1f}"
-        else:
-            label = r["stage"]
-        table[(r["variant"], label)].append(r)
-    head = f"{'variant':<14} {'stage':<12} {'n':>3} " + " ".join(
-        f"{f'err_{k}':>8} {f'/init_{k}':>8}" for k in BALANCE_ROWS)
-    lines = [head, f"{'init':<14} {'init':<12} {len(init):>3} " + " ".join(
-        f"{np.mean([r[f'err_{k}'] for r in init.values()]):>8.3f} {1.0:>8.2f}" for k in BALANCE_ROWS)]
-    order = {s: i for i, s in enumerate(STAGES)}
-    for (variant, label), sel in sorted(table.items(), key=lambda kv: (kv[0][0], order[kv[0][1].split("@")[0]],
-                                                                       kv[0][1])):
-        cells = []
-        for k in BALANCE_ROWS:
-            err = [r[f"err_{k}"] for r in sel]
-            ratio = [r[f"err_{k}"] / max(init[r["scene"]][f"err_{k}"], 1e-6) for r in sel]
-            cells.append(f"{np.mean(err):>8.3f} {np.mean(ratio):>8.2f}")
-        lines.append(f"{variant:<14} {label:<12} {len(sel):>3} " + " ".join(cells))
+        if r["label"]:
+            groups[(r["variant"], r["label"])].append(r)
+    columns = [f"{name}_{k}" for k in BALANCE_ROWS for name in ("err", "over_init")]
+    lines = [f"{'variant':<14} {'stage':<12} {'n':>3} " + " ".join(f"{c:>12}" for c in columns)]
+    for (variant, label), sel in sorted(groups.items(), key=lambda kv: (kv[0][0] != "init", kv[0][0],
+                                                                         STAGES.index(kv[0][1].split("@")[0]),
+                                                                         kv[0][1])):
+        lines.append(f"{variant:<14} {label:<12} {len(sel):>3} "
+                     + " ".join(f"{np.mean([r[c] for r in sel]):>12.3f}" for c in columns))
     return lines
 
 
@@ -102,25 +100,25 @@ def main() -> None:
     parser.add_argument("--summary", action="store_true", help="print the CSV's table without drawing")
     args = parser.parse_args()
     if args.summary:
-        print("\n".join(summary(read_rows(args.out, ("scene", "variant", "stage")))))
+        print("\n".join(summary(read_rows(args.out, TEXT))))
         return
     config = workflow_config()
     variants = dps_variants(config, args.dps)
     wanted = args.variants or ["proximal", *(spec.partition(":")[0] for spec in args.dps)]
     scenes = {name: scene for name, scene in real_light_scenes(args.panoramas, DEV_SCENES).items()
               if name in (args.scenes or DEV_SCENES)}
-    kept = [r for r in read_rows(args.out, ("scene", "variant", "stage")) if r["variant"] not in wanted] \
-        if args.out.exists() else []
-    rows = [r for r in kept if r["stage"] != "init"]
+    rows = [r for r in read_rows(args.out, TEXT) if r["variant"] not in wanted]
+    inits = {r["scene"]: r for r in rows if r["stage"] == "init"}
     for job in method_jobs(args.work, scenes, ["dps"], args.seeds, config, variants, wanted):
         prepare_job(job)
         scene = job.layout.scene(job.scene)
         truth = read_ground_truth(read_capture_json(scene.capture_json).gt["envmap"], "envmap")
-        if not any(r["scene"] == job.scene and r["stage"] == "init" for r in rows):
-            init_env = read_exr(scene.sample_files(INIT)["env"])
-            rows.append({"scene": job.scene, "variant": "init", "seed": 0, "stage": "init", "step": 0,
-                         **errors(init_env, truth)})
-        rows.extend(trace_job(replace(job, rerun=True), truth))
+        if job.scene not in inits:
+            init = {"scene": job.scene, "variant": "init", "seed": 0, "stage": "init", "step": 0,
+                    **errors(read_exr(scene.sample_files(INIT)["env"]), truth)}
+            inits[job.scene] = init
+            rows.extend(labelled([init], init))
+        rows.extend(labelled(trace_job(replace(job, rerun=True), truth), inits[job.scene]))
         write_rows(args.out, rows, settings="")
         print(f"{job.scene} {job.sampler} seed {job.seed}: done", flush=True)
     print("\n".join(summary(rows)))

@@ -335,7 +335,7 @@ def presets(root: Path) -> str:
         body.append([f"`{name}`", str(dps.steps), f"{refine} ({refine * dps.glossy.refine_factor} on a glossy object)",
                      str(pipeline.solve_settings().render.spp), str(pipeline.init_settings.iterations),
                      f"{problem.resolution} px" if problem.resolution else "the capture's own",
-                     f"{problem.env_height} x {2 * problem.env_height}", str(problem.texture_size)])
+                     f"{problem.env_height} x {2 * problem.env_height}", str(problem.texture_size or f"the capture's (at most {problem.max_texture_size})")])
     return markdown(["preset", "diffusion steps", "refinement iterations", "spp", "init iterations",
                      "views fitted at (longer side)", "env map", "textures"], body)
 
@@ -423,7 +423,26 @@ def mask_witnesses(root: Path) -> str:
                      "flagged, views over 0.9"], body)
 
 
+BALANCE_STAGES = ("init", "x0_hat", "solved", "loop", "kept", "refined")
+"""benchmarks/balance_trace.py's stages, in the order a sample passes them"""
+
+
+def balance_trace(root: Path) -> str:
+    """Where a dps sample's broad balance of light goes (benchmarks/balance_trace.py): the map's log error at 2 and 8
+    rows, and over the init's, per variant and stage, means over the design scenes and seeds."""
+    rows = [r for r in read_rows(root / RESULTS / "balance_trace.csv", ("scene", "variant", "stage", "label"))
+            if r["label"]]
+    metrics = tuple(Metric(header, f"{name}_{k}", ".2f", -1) for k in (2, 8)
+                    for name, header in (("err", f"log error at {k} rows"), ("over_init", "over the init's")))
+
+    def order(key: tuple) -> tuple:
+        return key[0] != "init", key[0], BALANCE_STAGES.index(key[1].split("@")[0]), key[1]
+
+    return grouped_table(rows, ("variant", "label"), metrics, rank_by="label", order=order)
+
+
 TABLES: dict[str, Callable[[Path], str]] = {
+    "balance_trace": balance_trace,
     "readings": readings, "readings_forced": readings_forced, "readings_fig9": readings_fig9,
     "readings_cost": readings_cost, "mask_witnesses": mask_witnesses,
     "presets": presets, "posterior": posterior, "posterior_full": posterior_full, "calibration": calibration,

@@ -101,6 +101,8 @@ rule uv:
         summary=SCENE.geometry["uv_summary"],
     params:
         settings=config["preprocess"]["uv"],
+        texture_size=config["problem"].get("texture_size"),
+        max_texture_size=config["problem"].get("max_texture_size"),
     threads: 1
     resources:
         **config["resources"]["uv"],

@@ -16,8 +16,8 @@ from dpi.io.images import read_mask, write_srgb
 from dpi.stages import needed_stages
 
 FAST = {"preprocess": {"geometry": {"resolution": 48, "target_faces": 3000,
-                                    "remesh_iterations": 1},
-                       "uv": {"texture_size": 128}}}
+                                    "remesh_iterations": 1}},
+        "problem": {"texture_size": 128}}
 
 
 @pytest.mark.parametrize("given, stages", [

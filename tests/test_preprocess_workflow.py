@@ -33,8 +33,7 @@ PHOTO_CONFIG = {
     "init": {"iterations": 25, "views_per_step": 2},
     "evaluate": {"spp": 8},
     "preprocess": {"sfm": {"max_features": 2048},
-                   "geometry": {"resolution": 96, "target_faces": 8000, "stereo": False},  # stereo: test_preprocess_cli
-                   "uv": {"texture_size": 256}},
+                   "geometry": {"resolution": 96, "target_faces": 8000, "stereo": False}},  # stereo: test_preprocess_cli
     "threads": {"synth": 2, "init": 2, "sample": 1, "evaluate": 2, "preprocess": 1},  # 1: COLMAP is deterministic only single-threaded
 }
 

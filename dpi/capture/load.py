@@ -62,11 +62,14 @@ def derived_inputs(given: dict[str, bool], scene: SceneLayout) -> dict[str, Path
     return inputs
 
 
-def complete_capture(capture: Capture, scene: SceneLayout) -> Capture:
+def complete_capture(capture: Capture, scene: SceneLayout, keys: tuple[str, ...] = ("cameras", "masks", "mesh")
+                     ) -> Capture:
     """The capture with the cameras, masks and UV mesh that preprocessing derived (in the scene's results
-    folder) filled in where the capture folder lacks them."""
+    folder) filled in where the capture folder lacks them (those of `keys`: a stage before the last needs fewer)."""
     derived: dict = {}
     for key, path in derived_inputs(capture.given, scene).items():
+        if key not in keys:
+            continue
         if not path.exists():
             raise FileNotFoundError(f"{path}: the capture has no {key}; run the preprocessing stages first "
                                     "(`dpi preprocess`, or the workflow)")

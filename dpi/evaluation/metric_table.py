@@ -13,7 +13,7 @@ from typing import Any
 
 MISSING = "missing"
 HIGHER_BETTER = {"psnr", "ssim", "naturalness"}
-LOWER_BETTER = {"mse", "lpips", "fid", "niqe", "sigma2", "balance"}
+LOWER_BETTER = {"mse", "lpips", "fid", "niqe", "sigma2", "balance", "seam"}
 UNRANKED = ("sigma2_sample",)
 """spread across posterior samples: a property of the posterior, neither more nor less is better"""
 STD_SUFFIX = "_std"

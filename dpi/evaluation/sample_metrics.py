@@ -18,6 +18,8 @@ import torch
 from dpi.capture import read_ground_truth
 from dpi.evaluation.metrics import ENV_BALANCE, PSNR_CAP, albedo_mse, aligned_env, env_metrics, missing, psnr, ssim
 from dpi.evaluation.naturalness import naturalness
+from dpi.evaluation.seams import seam_ratio
+from dpi.export.asset import renderer_mesh
 from dpi.evaluation.niqe import ENV_HEIGHT, env_niqe
 from dpi.evaluation.perceptual import ALEXNET_WEIGHTS, LPIPS_MIN_SIZE, lpips_distance, missing_weights, pretrained_lpips
 from dpi.evaluation.relighting import RELIGHT_HEIGHT, relight_held_out, relight_metrics
@@ -117,6 +119,13 @@ def train_fit_metrics(problem: InverseProblem, decomposition: Decomposition, spp
                                                                                                         "exactly")}
 
 
+def albedo_seam(problem: InverseProblem, decomposition: Decomposition) -> float | str:
+    """The albedo's seam ratio on the problem's mesh as the renderer reads it (dpi.evaluation.seams)."""
+    mesh = renderer_mesh(problem.capture.mesh)
+    ratio = seam_ratio(mesh.positions, mesh.faces.astype(np.int64), mesh.uvs, decomposition.materials.albedo.numpy())
+    return ratio if np.isfinite(ratio) else missing("the atlas has no seams")
+
+
 def evaluate_sample(problem: InverseProblem, decomposition: Decomposition, spp: int, seed: int,
                     seconds: float | None, prior: Prior | None = None,
                     renders: dict[str, np.ndarray] | None = None,
@@ -133,6 +142,7 @@ def evaluate_sample(problem: InverseProblem, decomposition: Decomposition, spp: 
                **ground_truth_metrics(problem.to_scene_units(decomposition), problem.capture.gt),
                **relight_metrics(problem, relit),
                **train_fit_metrics(problem, decomposition, spp, seed),
+               "albedo_seam": albedo_seam(problem, decomposition),
                "env_niqe": env_niqe(env),
                "env_naturalness": naturalness(env, prior or load_scene_prior(problem.capture.options)),
                "sample_seconds": seconds if seconds is not None else missing("no trace")}

@@ -29,8 +29,8 @@ from dpi.solve.spread import (albedo_std_map, calibration, log_std_map, mean_log
                         roughness_std_map, sample_variance, sphere_mean)
 
 SUMMARY_METRICS = ("novel_psnr", "novel_ssim", "novel_lpips", "env_psnr", "env_ssim", *ENV_BALANCE, "env_lpips",
-                   "env_niqe", "env_naturalness", "env_realism", "albedo_mse", *RELIGHT_METRICS, "train_fit",
-                   "train_fit_over_truth", "sample_seconds")
+                   "env_niqe", "env_naturalness", "env_realism", "albedo_mse", "albedo_seam", *RELIGHT_METRICS,
+                   "train_fit", "train_fit_over_truth", "sample_seconds")
 SET_METRICS = ("env_fid", "albedo_sigma2_invar")
 SPREAD_METRICS = ("env_log_std", "albedo_std", "roughness_std", "env_calibration", "env_mean_psnr", "env_mean_ssim",
                   *(f"env_mean_{name[4:]}" for name in ENV_BALANCE))

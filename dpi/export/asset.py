@@ -77,11 +77,32 @@ def unit_to_uint8(values: np.ndarray) -> np.ndarray:
     return np.round(np.clip(values, 0.0, 1.0) * 255).astype(np.uint8)
 
 
-def sample_textures(sample: AssetSample) -> dict[str, np.ndarray]:
-    """A sample's textures as 8-bit images: `base_color` (sRGB), `metallic_roughness` (glTF's packing: roughness
-    in green, metallic in blue, red unused at 255), and `roughness`, `metallic` alone (linear, for USD)."""
+def chart_coverage(mesh: AssetMesh, size: int) -> np.ndarray:
+    """(size, size) bool: the texels the mesh's charts read (dpi.preprocess.uv.chart_texels)."""
+    from dpi.preprocess.uv import chart_texels
+    from dpi.synth.shapes import TriangleMesh
+
+    return chart_texels(TriangleMesh(mesh.positions.astype(np.float64), mesh.faces.astype(np.int64),
+                                     mesh.uvs.astype(np.float64)), size)
+
+
+def sample_textures(sample: AssetSample, mesh: AssetMesh) -> dict[str, np.ndarray]:
+    """A sample's textures as 8-bit images, their gutters filled from the mesh's charts (other renderers' lookups
+    never read empty texels): `base_color` (sRGB), `metallic_roughness` (glTF's packing: roughness in green,
+    metallic in blue, red unused at 255), and `roughness`, `metallic` alone (linear, for USD). A texture with a
+    non-finite texel is refused, naming its file."""
+    from dpi.preprocess.uv import fill_gutters
+
     files = sample.files
-    albedo, roughness, metallic = (read_exr(files[name]) for name in ("albedo", "roughness", "metallic"))
+    textures = {}
+    for name in ("albedo", "roughness", "metallic"):
+        texture = read_exr(files[name])
+        bad = ~np.isfinite(texture)
+        if bad.any():
+            raise ValueError(f"{files[name]}: {int(bad.any(-1).sum())} texels are NaN or infinite; the sample cannot be "
+                             "exported (draw it again)")
+        textures[name] = fill_gutters(texture, chart_coverage(mesh, texture.shape[0]))
+    albedo, roughness, metallic = (textures[name] for name in ("albedo", "roughness", "metallic"))
     r8, m8 = unit_to_uint8(roughness[..., 0]), unit_to_uint8(metallic[..., 0])
     packed = np.stack([np.full_like(r8, 255), r8, m8], -1)
     return {"base_color": to_uint8(albedo[..., :3]), "metallic_roughness": packed, "roughness": r8, "metallic": m8}

@@ -61,7 +61,7 @@ def write_glb(path: str | Path, mesh: AssetMesh, samples: list[AssetSample], ext
     spread_textures = {method: {name: blob.texture(pixels, f"{method} {name}") for name, pixels in maps.items()}
                        for method, maps in spread.items()}
     for sample in samples:
-        textures = sample_textures(sample)
+        textures = sample_textures(sample, mesh)
         pbr = gl.PbrMetallicRoughness(
             baseColorTexture=gl.TextureInfo(index=blob.texture(textures["base_color"], f"{sample.name} base colour")),
             metallicRoughnessTexture=gl.TextureInfo(index=blob.texture(textures["metallic_roughness"],

@@ -170,10 +170,10 @@ def derive_geometry(capture_json: str | Path, out_dir: str | Path, settings: dic
     return summary
 
 
-def derive_uv(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None,
-             mesh: str | Path | None = None) -> dict:
-    """UV atlas of the reconstructed mesh (or of the capture's mesh without UVs) into out_dir: mesh_uv and
-    uv_summary (dpi.io.layout.geometry_files)."""
+def derive_uv(capture_json: str | Path, out_dir: str | Path, texture_size: int, settings: dict | None = None,
+              mesh: str | Path | None = None) -> dict:
+    """UV atlas of the reconstructed mesh (or of the capture's mesh without UVs), packed for textures of texture_size
+    texels a side, into out_dir: mesh_uv and uv_summary (dpi.io.layout.geometry_files)."""
     from dpi.preprocess.geometry import read_mesh
     from dpi.preprocess.uv import UVConfig, uv_atlas, write_uv_mesh
 
@@ -182,7 +182,7 @@ def derive_uv(capture_json: str | Path, out_dir: str | Path, settings: dict | No
     if source is None:
         raise ValueError(f"{capture_json}: no mesh to parametrise (the capture has none; run the geometry stage)")
     vertices, faces = read_mesh(source)
-    atlas, summary = uv_atlas(vertices, faces, settings_from_dict(UVConfig, settings))
+    atlas, summary = uv_atlas(vertices, faces, texture_size, settings_from_dict(UVConfig, settings))
     files = geometry_files(out_dir)
     write_uv_mesh(files["mesh_uv"], atlas)
     summary["source"] = str(source)

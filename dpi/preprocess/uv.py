@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dpi.io.settings import Steps, TextureSize, settings
+from dpi.io.settings import Steps, settings
 from dpi.synth.shapes import TriangleMesh
 
 
@@ -29,21 +29,21 @@ from dpi.synth.shapes import TriangleMesh
 class UVConfig:
     """Settings of the atlas."""
 
-    texture_size: TextureSize = 512
-    """texture resolution the charts are packed for (gutters are measured in its texels)"""
     padding: Steps = 2
-    """texels between charts"""
+    """texels between charts, at the size the textures are solved and exported at (ProblemConfig.texture_size)"""
 
 
-def parametrize(vertices: np.ndarray, faces: np.ndarray, cfg: UVConfig | None = None) -> TriangleMesh:
-    """Mesh with a UV atlas: vertices duplicated along chart seams, per-vertex UVs in [0, 1]."""
+def parametrize(vertices: np.ndarray, faces: np.ndarray, texture_size: int,
+                cfg: UVConfig | None = None) -> TriangleMesh:
+    """Mesh with a UV atlas packed for texture_size x texture_size texels: vertices duplicated along chart seams,
+    per-vertex UVs in [0, 1]."""
     import xatlas
 
     cfg = cfg or UVConfig()
     atlas = xatlas.Atlas()
     atlas.add_mesh(np.ascontiguousarray(vertices, np.float32), np.ascontiguousarray(faces, np.uint32))
     pack = xatlas.PackOptions()
-    pack.resolution = cfg.texture_size
+    pack.resolution = texture_size
     pack.padding = cfg.padding
     atlas.generate(xatlas.ChartOptions(), pack)
     vmapping, indices, uvs = atlas[0]
@@ -94,8 +94,6 @@ def rasterize_uv(mesh: TriangleMesh, size: int) -> tuple[np.ndarray, np.ndarray]
 def bake(mesh: TriangleMesh, function: Callable[[np.ndarray], np.ndarray], size: int) -> np.ndarray:
     """Texture (size, size, C) whose texels hold `function` (points (N, 3) -> values (N, C)) at the
     surface points they map to; gutter texels copy the nearest chart texel."""
-    from scipy.ndimage import distance_transform_edt
-
     index, bary = rasterize_uv(mesh, size)
     covered = index >= 0
     tri = mesh.vertices[mesh.faces[index[covered]]]  # (N, 3, 3)
@@ -104,10 +102,26 @@ def bake(mesh: TriangleMesh, function: Callable[[np.ndarray], np.ndarray], size:
     values = values.reshape(len(points), -1)
     texture = np.zeros((size, size, values.shape[1]))
     texture[covered] = values
-    if not covered.all():
-        _, (rows, cols) = distance_transform_edt(~covered, return_indices=True)
-        texture = texture[rows, cols]
-    return texture.astype(np.float32)
+    return fill_gutters(texture, covered).astype(np.float32)
+
+
+def chart_texels(mesh: TriangleMesh, size: int) -> np.ndarray:
+    """(size, size) bool: the texels a bilinear lookup inside the charts reads (those whose centre a triangle covers,
+    and their neighbours): what a solve fits; the rest is gutter."""
+    from scipy.ndimage import binary_dilation
+
+    return binary_dilation(rasterize_uv(mesh, size)[0] >= 0, np.ones((3, 3), bool))
+
+
+def fill_gutters(texture: np.ndarray, covered: np.ndarray) -> np.ndarray:
+    """The texture with every texel outside `covered` copied from the nearest covered one, so other renderers'
+    bilinear and mip-mapped lookups near chart borders never read empty texels."""
+    from scipy.ndimage import distance_transform_edt
+
+    if covered.all() or not covered.any():
+        return texture
+    _, (rows, cols) = distance_transform_edt(~covered, return_indices=True)
+    return texture[rows, cols]
 
 
 def write_uv_mesh(path: str | Path, mesh: TriangleMesh) -> None:
@@ -117,13 +131,15 @@ def write_uv_mesh(path: str | Path, mesh: TriangleMesh) -> None:
     write_ply(path, mesh)
 
 
-def atlas_stage_summary(mesh: TriangleMesh, seconds: float) -> dict:
-    """Counts and time of an atlas, for the stage's summary."""
-    return {"vertices": len(mesh.vertices), "faces": len(mesh.faces), "seconds": round(seconds, 3)}
+def atlas_stage_summary(mesh: TriangleMesh, texture_size: int, seconds: float) -> dict:
+    """Counts, texture size and time of an atlas, for the stage's summary."""
+    return {"vertices": len(mesh.vertices), "faces": len(mesh.faces), "texture_size": texture_size,
+            "seconds": round(seconds, 3)}
 
 
-def uv_atlas(vertices: np.ndarray, faces: np.ndarray, cfg: UVConfig | None = None) -> tuple[TriangleMesh, dict]:
-    """`parametrize` with a summary (vertex/face counts, seconds)."""
+def uv_atlas(vertices: np.ndarray, faces: np.ndarray, texture_size: int,
+             cfg: UVConfig | None = None) -> tuple[TriangleMesh, dict]:
+    """`parametrize` with a summary (vertex/face counts, texture size, seconds)."""
     start = time.perf_counter()
-    mesh = parametrize(vertices, faces, cfg)
-    return mesh, atlas_stage_summary(mesh, time.perf_counter() - start)
+    mesh = parametrize(vertices, faces, texture_size, cfg)
+    return mesh, atlas_stage_summary(mesh, texture_size, time.perf_counter() - start)

@@ -9,7 +9,7 @@ works on is too; decomposition files hold scene radiance, and `load_decompositio
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +18,7 @@ import torch
 
 from dpi.capture import Capture
 from dpi.io.exr import EXRError
-from dpi.io.images import read_image, read_mask, resize
+from dpi.io.images import read_image, read_mask, resize, working_size
 from dpi.io.layout import SAMPLE_TRACE
 from dpi.io.settings import ImageSize, MapHeight, TextureSize, settings, settings_from_dict
 from dpi.render.renderer import RenderConfig, Renderer
@@ -39,8 +39,11 @@ class ProblemConfig:
     env_height: MapHeight = 128
     """environment map height H (width 2H): finer than the prior's 32 rows, the prior's sample upsampled plus the
     detail the views fit"""
-    texture_size: TextureSize = 64
-    """material texture resolution R (R x R texels)"""
+    texture_size: TextureSize | None = None
+    """material texture resolution R (R x R texels), the one size the atlas is packed for and the textures are solved
+    and exported at; None: follows the capture (`texture_size_for`)"""
+    max_texture_size: TextureSize = 256
+    """the largest R the capture's own size may ask for"""
     resolution: ImageSize | None = 96
     """longer image side (px) the views are fitted and evaluated at: larger captures are area-downsampled
     once (dpi.capture.working); None: the capture's own size"""
@@ -61,6 +64,24 @@ class SolveConfig:
         return cls(render, settings_from_dict(ProblemConfig, config.get("problem", {})))
 
 
+MIN_TEXTURE_SIZE = 16
+"""the smallest R a capture's own size gives"""
+
+
+def texture_size_for(capture: Capture, settings: ProblemConfig) -> int:
+    """R of the capture's textures: `settings.texture_size` when set, else about as many texels as the training views
+    have object pixels at the working resolution (each view's mask share times its working pixel count), the power of
+    two nearest in log, between MIN_TEXTURE_SIZE and `max_texture_size`. The full-size capture and its working copy
+    give the same R (mask shares, not pixel counts)."""
+    if settings.texture_size:
+        return settings.texture_size
+    width, height = working_size(capture.image_size, settings.resolution)
+    shares = [float(read_mask(v.mask).mean()) if v.mask else 1.0 for v in capture.views if not v.held_out]
+    pixels = max(sum(shares) * width * height, 1.0)
+    size = 2 ** round(np.log2(pixels) / 2)
+    return int(min(max(size, MIN_TEXTURE_SIZE), settings.max_texture_size))
+
+
 def to_loss_space(image: torch.Tensor) -> torch.Tensor:
     """Linear radiance (normalised: foreground median 0.18) as log(1 + x), the space the views are compared in: in
     linear HDR a mirror's glints of the sun outweigh the rest of its views and the fit places little else
@@ -78,7 +99,7 @@ class InverseProblem:
         if missing:
             raise ValueError(f"{capture.root}: views without cameras: {', '.join(missing[:5])}")
         self.capture = capture
-        self.settings = settings
+        self.settings = settings = replace(settings, texture_size=texture_size_for(capture, settings))
         self.views = list(capture.views)
         self.images = [torch.from_numpy(read_image(v.image)) for v in self.views]
         self.masks = [torch.from_numpy(read_mask(v.mask) if v.mask else np.ones(img.shape[:2], bool))

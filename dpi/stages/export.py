@@ -65,7 +65,7 @@ def export_stage(job: StageJob, rows: list[tuple[str, list[str | Path]]]) -> Non
         with atomic_path(exr) as tmp:
             shutil.copyfile(sample.files["env"], tmp)
         write_hdr(hdr, env)
-        encoded = sample_textures(sample)
+        encoded = sample_textures(sample, mesh)
         textures[sample.name] = {
             texture: f"textures/{_write_png(paths.export_texture(sample.label, texture), encoded[key])}"
             for texture, key in (("albedo", "base_color"), ("roughness", "roughness"), ("metallic", "metallic"))}

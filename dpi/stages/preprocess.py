@@ -9,8 +9,10 @@ import logging
 from pathlib import Path
 from typing import Any
 
+from dpi.capture import complete_capture, read_capture_json
 from dpi.io.layout import SceneLayout
 from dpi.preprocess.derive import derive_geometry, derive_poses, derive_uv, derive_view_masks, normalise_capture
+from dpi.solve.problem import texture_size_for
 from dpi.stages.job import StageJob
 from dpi.synth.capture import make_synthetic_capture
 
@@ -36,8 +38,9 @@ def stage_inputs(stage: str, given: dict[str, bool], scene: SceneLayout) -> dict
         return {**cameras, **({} if given["cameras"] else {"points_ply": scene.poses["points"]})}
     if stage == "geometry":
         return {**cameras, **({} if given["masks"] else {"masks_dir": scene.masks})}
-    if stage == "uv":
-        return {} if given["mesh"] else {"mesh": scene.geometry["mesh"]}
+    if stage == "uv":  # the masks say how large the textures are (dpi.solve.problem.texture_size_for)
+        return {**({} if given["mesh"] else {"mesh": scene.geometry["mesh"]}),
+                **({} if given["masks"] else {"masks_dir": scene.masks})}
     return {}
 
 
@@ -78,8 +81,12 @@ def geometry_stage(job: StageJob) -> dict:
 
 
 def uv_stage(job: StageJob) -> dict:
-    """The UV atlas of the derived mesh (or of the capture's mesh without UVs), and a summary."""
-    return derive_uv(job.paths.capture_json, job.paths.geometry_dir, _settings(job, "uv"), **_inputs(job, "uv"))
+    """The UV atlas of the derived mesh (or of the capture's mesh without UVs), packed for the textures' size
+    (dpi.solve.problem.texture_size_for), and a summary."""
+    capture = complete_capture(read_capture_json(job.paths.capture_json), job.paths, ("masks",))
+    mesh = _inputs(job, "uv").get("mesh")
+    return derive_uv(job.paths.capture_json, job.paths.geometry_dir, texture_size_for(capture, job.solve.problem),
+                     _settings(job, "uv"), mesh)
 
 
 RUN = {"poses": poses_stage, "masks": masks_stage, "geometry": geometry_stage, "uv": uv_stage}

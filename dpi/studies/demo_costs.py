@@ -29,7 +29,7 @@ class Setting:
     resolution: int
     transport_pixels: int
     env_height: int
-    texture_size: int
+    texture_size: int | None
     refine_iterations: int
 
 

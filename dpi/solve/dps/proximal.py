@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import field
-from typing import Any, Literal
+from typing import Any
 
 import torch
 
@@ -45,7 +45,6 @@ from dpi.solve.dps.state import DPSRun, DPSState, Laps, finite, log_radiance, pr
 from dpi.solve.optimize import all_finite
 from dpi.solve.sun_model import share_penalty, sun_env, wrap_uv_
 from dpi.solve.transport import LightTransport, TransportConfig
-from dpi.solve.transport.operator import resize_map
 
 MAX_EXPOSURE_STEP = 3.0
 """largest change of the log-exposure in one data update"""
@@ -87,10 +86,6 @@ class ProximalConfig:
     DAPS, Zhang et al. 2024, for a prior of std PRIOR_STD): where the views are silent each sample's map moves as
     the prior allows instead of keeping x0_hat's guess, where they speak the solve pulls it back (0: samples near
     x0_hat's guess and alike; docs/studies.md, "the push's size" and "Light from real places")"""
-    likelihood: Literal["relative", "noise"] = "relative"
-    """how the views and x0_hat are weighed in a step's solve and data updates: relative (the data term as ~1 / SNR
-    against prox_weight abar_t / (1 - abar_t) times the mean prior-space distance), noise (the views' residual noise
-    as the init's own fit measures it under the transport, against the prior's std of x0 given x_t per texel)"""
     perturb_rows: Count = 2
     """rows of the grid the push is white on, upsampled onto the prior's (at most the transport's): 2, a field as
     broad as the light's balance between sky and ground, sides and colour; finer, the push reaches detail the
@@ -122,33 +117,15 @@ def data_unit(run: DPSRun, transport: LightTransport) -> float:
     return 3 * transport.pixels * run.data_norm
 
 
-def views_noise(run: DPSRun, state: DPSState, transport: LightTransport) -> float:
-    """Per residual (pixel and channel), the variance of the views about what the transport renders: the mean squared
-    residual of the init's own map and albedo (exposure fitted), what no map under these materials explains (the
-    recording's noise and the model's misfit). Measured once a sample (kept in state.extra)."""
-    if "noise" not in state.extra:
-        with torch.no_grad():
-            env = torch.from_numpy(resize_map(run.init.env.detach().numpy(), transport.height)).float()
-            albedo = run.init.materials.albedo
-            c = exposure_fit(transport, env, albedo)
-            mean = float(transport.fit_loss(c * env, albedo)) / (3 * transport.pixels)
-        state.extra["noise"] = max(mean, 1e-6 * run.data_norm)
-    return state.extra["noise"]
-
-
-def step_weights(run: DPSRun, state: DPSState, transport: LightTransport, abar: float) -> tuple[float, float]:
-    """(sigma2, r2): a step's data variance per residual and prior variance per prior-space texel, as the
-    `likelihood` setting weighs them (the step's objective is sse / (2 sigma2) + ||z - x0_hat||^2 / (2 r2))."""
-    settings: ProximalConfig = run.sampler
-    if settings.likelihood == "noise":
-        return views_noise(run, state, transport), posterior_variance(abar, PRIOR_STD)
-    prox_weight = settings.prox_weight * abar / (1.0 - abar)
-    numel = 3 * run.prior.height * 2 * run.prior.height
-    return data_unit(run, transport) / 2, numel / (2 * max(prox_weight, 1e-12))
+def relative_data_loss(run: DPSRun, transport: LightTransport, env: torch.Tensor,
+                       albedo: torch.Tensor) -> torch.Tensor:
+    """Mean squared residual per pixel and channel over the mean squared foreground radiance: ~1 / SNR
+    (differentiable in the map and the albedo)."""
+    return transport.fit_loss(env, albedo) / data_unit(run, transport)
 
 
 def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_hat: torch.Tensor,
-                   weights: tuple[float, float], n: int, iterations: int) -> None:
+                   prox_weight: float, n: int, iterations: int) -> None:
     """Step n's map and exposure by Gauss-Newton `iterations` on the step's loss (its data and
     proximal terms; the materials and the sun held): its data sum / data_unit is sum / (2 sigma2), prox_weight x
     the mean is sum / (2 r^2). The views' normal equations are formed every GRAM_EVERY steps (the albedo moves
@@ -159,7 +136,8 @@ def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_h
     if built is None or n - built[0] >= GRAM_EVERY:
         built = state.extra["gram"] = (n, transport.image_equations(state.materials.albedo))
     equations = built[1]
-    sigma2, variance = weights
+    sigma2 = data_unit(run, transport) / 2
+    variance = x0_hat.numel() / (2 * max(prox_weight, 1e-12))
     extra = None
     if run.sun:
         per_exposure = run.sun_irradiance(state).detach() / torch.exp(state.log_exposure)
@@ -196,32 +174,28 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     record, x0_hat = predicted_step(run, state, n, laps)
     if x0_hat is None:
         return record
-    transport, recorded = sample_transport(run, state)
-    laps.lap("transport")
     abar = float(run.diffusion.alphas_cumprod[i])
     abar_prev = float(run.diffusion.alphas_cumprod_prev[i])
-    weights = step_weights(run, state, transport, abar)
-    sigma2, r2 = weights
-    prox_weight = x0_hat.numel() * sigma2 / (r2 * data_unit(run, transport))  # the prior's weight per relative data
+    prox_weight = settings.prox_weight * abar / (1.0 - abar)
     materials_move = n >= MATERIAL_START * run.num_steps
+    transport, recorded = sample_transport(run, state)
+    laps.lap("transport")
     if n == 0:
         with torch.no_grad():
             state.log_map.copy_(log_radiance(run, x0_hat))
     if settings.map_solve:
-        solve_step_map(run, state, transport, x0_hat, weights, n, settings.map_solve)
+        solve_step_map(run, state, transport, x0_hat, prox_weight, n, settings.map_solve)
     laps.lap("solve")
     losses, skipped = [], 0
     for _ in range(settings.inner_steps):
         env = run.env(torch.exp(state.log_map), state, transport.height)
         c = exposure_fit(transport, env, state.materials.albedo)
         state.log_exposure += math.log(c)
-        sse = transport.fit_loss(c * env, state.materials.albedo)
-        data = sse / data_unit(run, transport)
+        data = relative_data_loss(run, transport, c * env, state.materials.albedo)
         prox = (encoding.to_prior(torch.exp(state.log_map)) - x0_hat).square().mean()
-        loss = sse / (2 * sigma2) + prox * x0_hat.numel() / (2 * r2)
+        loss = data + prox_weight * prox
         if run.sun:
-            share = share_penalty(run.sun_irradiance(state), env, run.sun.share)
-            loss = loss + data_unit(run, transport) / (2 * sigma2) * run.sun.prior_weight * share
+            loss = loss + run.sun.prior_weight * share_penalty(run.sun_irradiance(state), env, run.sun.share)
         state.optimizer.zero_grad()
         if not finite(loss):
             skipped += 1
