@@ -70,6 +70,45 @@ def test_an_incomplete_or_foreign_model_is_named_at_validation(tmp_path):
         load_capture(other)
 
 
+def edit_first_camera(root, edit):
+    """cameras.txt with its first camera's fields (id, model, width, height, params...) changed by `edit`."""
+    path = root / "sparse" / "0" / "cameras.txt"
+    lines = path.read_text().splitlines()
+    lines[0] = " ".join(edit(lines[0].split()))
+    path.write_text("\n".join(lines) + "\n")
+
+
+@pytest.mark.parametrize("edit, cause", [
+    (lambda f: [*f[:4], "0", *f[5:]], r"camera 1 \(of image 'r_0.png'\): focal length 0 px; it must be positive"),
+    (lambda f: [*f[:4], "-100", *f[5:]], "focal length -100 px; it must be positive"),
+    (lambda f: [*f[:4], "nan", *f[5:]], "its parameters are not finite|not a readable COLMAP model"),
+    (lambda f: [f[0], "FOV", *f[2:], "0.5"], "COLMAP camera model FOV is not read by dpi"),
+    (lambda f: [*f[:6], "1e6", f[7]], r"principal point \(1e\+06, .*\) px lies outside"),
+])
+def test_a_models_unusable_camera_is_named_at_validation(tmp_path, edit, cause):
+    """Intrinsics are checked before the poses stage runs: one line naming the model, the camera and the cause."""
+    root = colmap_capture(tmp_path / "s")
+    edit_first_camera(root, edit)
+    with pytest.raises(CaptureError, match=cause) as info:
+        load_capture(root)
+    assert "sparse/0" in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_truncated_binary_model_and_a_nan_pose_are_named(tmp_path):
+    root = colmap_capture(tmp_path / "s", binary=True)
+    images = root / "sparse" / "0" / "images.bin"
+    images.write_bytes(images.read_bytes()[:100])
+    with pytest.raises(CaptureError, match=r"sparse/0: not a readable COLMAP model .*pycolmap: \w+"):
+        load_capture(root)
+    other = colmap_capture(tmp_path / "t")
+    path = other / "sparse" / "0" / "images.txt"
+    lines = path.read_text().splitlines()
+    lines[0] = " ".join([lines[0].split()[0], "nan", *lines[0].split()[2:]])
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(CaptureError, match=r"sparse/0.*(not finite|not a readable COLMAP model)"):
+        load_capture(other)
+
+
 @pytest.mark.slow
 def test_the_workflow_runs_a_colmap_model_capture_with_its_cameras(tmp_path):
     """A synthetic capture whose transforms.json is replaced by a COLMAP text model of its cameras (and its

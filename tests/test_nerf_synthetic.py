@@ -54,6 +54,18 @@ def test_a_frame_without_its_image_is_named(pair, tmp_path):
         load_capture(root)
 
 
+def test_a_view_in_a_fitted_and_the_held_out_split_is_refused(pair, tmp_path):
+    """A test frame that names a train image would be fitted and scored as held out: refused, naming both splits."""
+    root = shutil.copytree(pair[1], tmp_path / "nerf")
+    train = json.loads((root / "transforms_train.json").read_text())
+    test = json.loads((root / "transforms_test.json").read_text())
+    test["frames"].append({**test["frames"][0], "file_path": train["frames"][0]["file_path"]})
+    (root / "transforms_test.json").write_text(json.dumps(test))
+    with pytest.raises(CaptureError, match=r"transforms_test.json: frame \d+: image .* is in the test split and in "
+                                           r"the train split \(transforms_train.json\)"):
+        load_capture(root)
+
+
 def test_a_ground_truth_envmap_in_radiance_hdr_is_read(pair, tmp_path):
     root = shutil.copytree(pair[0], tmp_path / "hdr")
     env = np.random.default_rng(0).random((8, 16, 3)).astype(np.float32) + 0.1

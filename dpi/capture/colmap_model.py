@@ -5,11 +5,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from dpi.capture.model import CaptureError, inside_capture
 
 MODEL_FOLDERS = ("sparse/0", "sparse")
 """where a capture's COLMAP model may lie, first found wins"""
 MODEL_FILES = ("cameras", "images", "points3D")
+READ_MODELS = ("SIMPLE_PINHOLE", "PINHOLE", "SIMPLE_RADIAL", "RADIAL", "OPENCV", "OPENCV_FISHEYE")
+"""the COLMAP camera models dpi reads (dpi.preprocess.sfm turns each into intrinsics and a lens)"""
 
 
 def colmap_model_dir(root: Path) -> Path | None:
@@ -22,8 +26,9 @@ def colmap_model_dir(root: Path) -> Path | None:
 
 
 def check_colmap_model(root: Path, folder: Path, names: list[str]) -> None:
-    """The model is complete (each of its files in one format), reads, and registers images of the capture: else
-    one CaptureError naming the folder and what is wrong."""
+    """The model is complete (each of its files in one format), reads, registers images of the capture, and the
+    cameras and poses of those are usable (a model dpi reads, finite intrinsics with a positive focal length and
+    principal point inside the image, finite poses): else one CaptureError naming the folder and what is wrong."""
     import pycolmap
 
     inside_capture(root, folder, "the COLMAP model")
@@ -36,11 +41,36 @@ def check_colmap_model(root: Path, folder: Path, names: list[str]) -> None:
             inside_capture(root, folder / f"{name}{suffix}", "a COLMAP model file")
     try:
         model = pycolmap.Reconstruction(str(folder))
-    except (RuntimeError, ValueError):
+    except Exception as exc:  # pycolmap's readers raise RuntimeError, ValueError, IndexError, ... on bad files
         raise CaptureError(f"{folder}: not a readable COLMAP model (cameras, images and points3D as .txt or "
-                           ".bin)") from None
-    registered = {Path(image.name).stem for image in model.images.values() if image.has_pose}
-    known = registered & set(names)
+                           f".bin; pycolmap: {type(exc).__name__})") from None
+    registered = {Path(image.name).stem: image for image in model.images.values() if image.has_pose}
+    known = [image for stem, image in registered.items() if stem in set(names)]
     if not known:
         raise CaptureError(f"{folder}: the COLMAP model registers none of the images in images/ "
                            f"({len(registered)} images of other names)")
+    for image in known:
+        check_colmap_camera(folder, model.cameras[image.camera_id], image.name)
+        pose = np.asarray(image.cam_from_world().matrix(), dtype=np.float64)
+        if not np.isfinite(pose).all():
+            raise CaptureError(f"{folder}: image {image.name!r}: its pose is not finite (NaN or infinite)")
+
+
+def check_colmap_camera(folder: Path, camera, image: str) -> None:
+    """One CaptureError naming the model folder, the image and the cause, unless the camera is usable."""
+    where = f"{folder}: camera {camera.camera_id} (of image {image!r})"
+    if camera.model_name not in READ_MODELS:
+        raise CaptureError(f"{where}: COLMAP camera model {camera.model_name} is not read by dpi (use "
+                           f"{', '.join(READ_MODELS)})")
+    params = np.asarray(camera.params, dtype=np.float64)
+    if not np.isfinite(params).all():
+        raise CaptureError(f"{where}: its parameters are not finite (NaN or infinite)")
+    focal = [params[i] for i in camera.focal_length_idxs()]
+    if min(focal) <= 0:
+        raise CaptureError(f"{where}: focal length {min(focal):g} px; it must be positive")
+    if camera.width <= 0 or camera.height <= 0:
+        raise CaptureError(f"{where}: image size {camera.width} x {camera.height}; it must be positive")
+    cx, cy = (params[i] for i in camera.principal_point_idxs())
+    if not (0 < cx < camera.width and 0 < cy < camera.height):
+        raise CaptureError(f"{where}: principal point ({cx:g}, {cy:g}) px lies outside its {camera.width} x "
+                           f"{camera.height} image")

@@ -13,7 +13,8 @@ import numpy as np
 
 from dpi.capture.model import CaptureError, CaptureWarning, inside_capture
 from dpi.io.exr import EXRError, read_exr
-from dpi.io.images import HDR_SUFFIXES, IMAGE_SUFFIXES, LDR_SUFFIXES, ImageError, decode_ldr, read_image, read_mask
+from dpi.io.images import (HDR_SUFFIXES, IMAGE_SUFFIXES, LDR_SUFFIXES, ImageError, decode_ldr, exif_orientation,
+                            ldr_header_size, read_image, read_mask)
 from dpi.light.envmap import EnvmapLayoutError, read_envmap
 
 CLIPPED_WARNING_FRACTION = 0.01
@@ -96,8 +97,36 @@ def named_files(folder: Path, names: tuple[str, ...]) -> list[Path]:
     return [p for name in names for p in files if p.name.lower() == name]
 
 
+def check_image_size(path: Path, width: int, height: int) -> None:
+    """One CaptureError naming the image unless it has MIN_IMAGE_SIZE px on each side."""
+    if min(width, height) < MIN_IMAGE_SIZE:
+        raise CaptureError(f"{path}: image is {width}x{height} px; dpi needs at least {MIN_IMAGE_SIZE} px on each "
+                           "side (a photo or a render of the object, not a thumbnail)")
+
+
+def check_header_sizes(images: dict[str, Path]) -> None:
+    """The PNG/JPG images' sizes as their headers declare them (turned by their EXIF orientation) all agree: else one
+    CaptureError naming the first that differs, before any image is decoded."""
+    size, first = None, None
+    for path in (p for p in images.values() if p.suffix.lower() in LDR_SUFFIXES):
+        try:
+            width, height = ldr_header_size(path)
+        except ImageError as exc:
+            raise CaptureError(str(exc)) from None
+        if exif_orientation(path) >= 5:
+            width, height = height, width
+        check_image_size(path, width, height)
+        if size is None:
+            size, first = (width, height), path
+        elif (width, height) != size:
+            raise CaptureError(f"{path}: image size {width}x{height} differs from {first.name} ({size[0]}x{size[1]}) "
+                               "(as the files' headers declare them)")
+
+
 def check_images(images: dict[str, Path]) -> tuple[int, int]:
-    """Decode every image (finite, non-negative, with signal, all the same size); returns (width, height)."""
+    """Decode every image (finite, non-negative, with signal, all the same size, the headers compared first);
+    returns (width, height)."""
+    check_header_sizes(images)
     size, first = None, None
     for path in images.values():
         try:
@@ -105,9 +134,7 @@ def check_images(images: dict[str, Path]) -> tuple[int, int]:
         except ImageError as exc:
             raise CaptureError(str(exc)) from exc
         height, width = image.shape[:2]
-        if min(width, height) < MIN_IMAGE_SIZE:
-            raise CaptureError(f"{path}: image is {width}x{height} px; dpi needs at least {MIN_IMAGE_SIZE} px on each "
-                               "side (a photo or a render of the object, not a thumbnail)")
+        check_image_size(path, width, height)
         check_signal(path, image)
         if size is None:
             size, first = (width, height), path

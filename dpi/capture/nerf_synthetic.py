@@ -40,6 +40,7 @@ def read_splits(root: Path) -> tuple[dict[str, Path], dict]:
     names as file paths, their file's intrinsics, and `held_out` for the test split."""
     images: dict[str, Path] = {}
     frames = []
+    splits_of: dict[Path, tuple[str, Path]] = {}
     for split, path in split_files(root).items():
         data = read_transforms_json(path)
         shared = {k: v for k, v in data.items() if k != "frames"}
@@ -48,6 +49,10 @@ def read_splits(root: Path) -> tuple[dict[str, Path], dict]:
             name = view_name(f"{split}_{image.stem}")
             if name in images:
                 raise CaptureError(f"{path}: frame {i}: a second frame for image {image.name!r} of the {split} split")
+            first = splits_of.setdefault(image.resolve(), (split, path))
+            if SPLITS[first[0]] != SPLITS[split]:
+                raise CaptureError(f"{path}: frame {i}: image {image.name!r} is in the {split} split and in the "
+                                   f"{first[0]} split ({first[1].name}): a view cannot be both fitted and held out")
             images[name] = image
             frames.append({**shared, **frame, "file_path": name, "held_out": SPLITS[split]})
     if not images:

@@ -4,6 +4,8 @@ EXR, masks, PNG output."""
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -79,10 +81,22 @@ def linear_to_srgb(c: np.ndarray) -> np.ndarray:
 
 EXIF_ORIENTATION = 0x0112
 """the EXIF tag saying how a camera's stored pixels are to be turned for display"""
+@contextmanager
+def headers_only() -> Iterator[None]:
+    """Pillow without its own decompression-bomb stop, for reading headers: dpi checks the size itself before
+    decoding (MAX_IMAGE_PIXELS)."""
+    limit = Image.MAX_IMAGE_PIXELS
+    Image.MAX_IMAGE_PIXELS = None
+    try:
+        yield
+    finally:
+        Image.MAX_IMAGE_PIXELS = limit
+
+
 def exif_orientation(path: Path) -> int:
     """A photo's EXIF orientation (1, upright, where it has none or the file has no EXIF)."""
     try:
-        with Image.open(path) as image:
+        with headers_only(), Image.open(path) as image:
             return int(image.getexif().get(EXIF_ORIENTATION, 1))
     except (OSError, ValueError):
         return 1
@@ -96,14 +110,34 @@ def upright(values: np.ndarray, orientation: int) -> np.ndarray:
     return np.ascontiguousarray(ops[orientation](values)) if orientation in ops else values
 
 
+MAX_IMAGE_PIXELS = 1 << 27
+"""most pixels a PNG/JPG may declare (134 megapixels, more than a 100-megapixel camera back's): its header is read
+and checked before anything is decoded, so a small file that declares a huge image stops at once"""
+
+
+def ldr_header_size(path: Path) -> tuple[int, int]:
+    """(width, height) a PNG/JPG's header declares (as stored, before its EXIF turn), nothing decoded; an unreadable
+    header is an ImageError naming the file."""
+    try:
+        with headers_only(), Image.open(path) as image:
+            return image.size
+    except (OSError, ValueError, SyntaxError):
+        raise ImageError(f"{path}: not a readable image (no {path.suffix.lstrip('.')} header)") from None
+
+
 def decode_ldr(path: Path) -> np.ndarray:
     """A PNG/JPG's code values in [0, 1] at its bit depth (8 or 16), (H, W, C): grey (C = 1), RGB or RGBA,
-    turned upright by its EXIF orientation (images and masks alike)."""
+    turned upright by its EXIF orientation (images and masks alike). Its header's size is checked first
+    (MAX_IMAGE_PIXELS)."""
     import cv2
 
     raw = np.fromfile(path, dtype=np.uint8)
     if raw.size == 0:
         raise ImageError(f"{path}: not a readable image (empty file)")
+    width, height = ldr_header_size(path)
+    if width * height > MAX_IMAGE_PIXELS:
+        raise ImageError(f"{path}: declares {width}x{height} px, more than the {MAX_IMAGE_PIXELS} pixels dpi decodes "
+                         "(a corrupt header, or an image far larger than a photo)")
     data = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED)
     if data is None:
         raise ImageError(f"{path}: not a readable image (truncated, or not a {path.suffix.lstrip('.')} file)")

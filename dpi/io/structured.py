@@ -1,5 +1,5 @@
-"""YAML and JSON files read with limits: size, nesting depth and YAML aliases are bounded before anything is
-built, so a hostile file (an alias bomb, a deep nest, a huge file) stops in well under a second with one line
+"""YAML and JSON files read with limits: size, nesting depth, YAML aliases and the size of a YAML document with its
+aliases expanded are bounded before anything is built, so a hostile file (an alias bomb, a deep nest, a huge file) stops in well under a second with one line
 naming the file, instead of a MemoryError or a RecursionError traceback. Parse errors are one line too, with the
 line and column. Messages never quote the file's contents."""
 
@@ -18,6 +18,9 @@ MAX_DEPTH = 32
 """deepest nesting of mappings and lists a file may have"""
 MAX_ALIASES = 64
 """most YAML aliases (`*name`) a file may use: an alias bomb needs many more"""
+MAX_NODES = MAX_BYTES // 4
+"""most values a YAML document may hold with its aliases expanded: as many as a file of MAX_BYTES could spell out
+without aliases (a few aliases that each repeat the one before double the size at every step)"""
 
 
 class StructuredFileError(ValueError):
@@ -62,6 +65,34 @@ class _LimitedLoader(yaml.SafeLoader):
             return super().compose_node(parent, index)
         finally:
             self.depth -= 1
+
+
+    def get_single_node(self) -> Any:
+        """The document's node graph, refused when its aliases would expand it past MAX_NODES values."""
+        node = super().get_single_node()
+        if node is not None and expanded_size(node) > MAX_NODES:
+            raise yaml.composer.ComposerError(None, None, f"its aliases expand it to more than {MAX_NODES} values",
+                                              node.start_mark)
+        return node
+
+
+def expanded_size(root: yaml.Node) -> int:
+    """Values in a composed YAML node graph with every alias expanded, counted without expanding (an aliased node is
+    one shared object: its size is counted once and reused)."""
+    sizes: dict[int, int] = {}
+    stack: list[tuple[yaml.Node, bool]] = [(root, False)]
+    while stack:
+        node, done = stack.pop()
+        if id(node) in sizes:
+            continue
+        children = [] if isinstance(node, yaml.ScalarNode) else \
+            [part for pair in node.value for part in pair] if isinstance(node, yaml.MappingNode) else list(node.value)
+        if done or not children:
+            sizes[id(node)] = 1 + sum(sizes[id(c)] for c in children)
+        else:
+            stack.append((node, True))
+            stack.extend((c, False) for c in children if id(c) not in sizes)
+    return sizes[id(root)]
 
 
 def yaml_problem(exc: yaml.YAMLError) -> str:

@@ -140,7 +140,8 @@ def equirect(env: np.ndarray, source: str = "envmap") -> tuple[np.ndarray, list[
 
 def read_envmap(path: str | Path, log: bool = True) -> np.ndarray:
     """An environment map (H, 2H, 3) from an EXR (or a Radiance .hdr) in any layout `equirect` reads (its changes
-    printed as log lines); an unreadable file or NaN/Inf/negative radiance is an error naming the file."""
+    printed as log lines); an unreadable file, NaN/Inf/negative radiance, or radiance so large that a sum over the
+    map overflows 32-bit floats is an error naming the file."""
     if Path(path).suffix.lower() == ".hdr":
         try:
             env = read_hdr(path)
@@ -152,6 +153,10 @@ def read_envmap(path: str | Path, log: bool = True) -> np.ndarray:
         env = np.repeat(env, 3, axis=-1)
     if not np.isfinite(env).all() or (env < 0).any():
         raise EXRError(f"{path}: environment map has NaN, Inf or negative values")
+    peak = float(env.max(initial=0.0))
+    if peak * env.size >= float(np.finfo(np.float32).max):
+        raise EXRError(f"{path}: environment map values up to {peak:.3g}: sums over its {env.size} values overflow "
+                       "32-bit floats (a radiance scale gone wrong?)")
     env, notes = equirect(env[..., :3], str(path))
     for note in notes if log else []:
         print(note, flush=True)

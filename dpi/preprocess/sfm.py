@@ -31,6 +31,7 @@ from PIL import Image, ImageOps
 from pydantic import Field
 
 from dpi.capture.cameras import Camera, Lens
+from dpi.capture.colmap_model import READ_MODELS
 from dpi.io.images import exif_orientation
 from dpi.io.settings import Count, Fraction, settings
 from dpi.preprocess.hull import axes_centre, visible_sphere
@@ -136,8 +137,7 @@ def _intrinsics(camera) -> tuple[float, float, float, float, Lens | None]:
                     k4=float(params[7])) if fisheye else \
             Lens(k1=float(params[4]), k2=float(params[5]), p1=float(params[6]), p2=float(params[7]))
         return params[0], params[1], params[2], params[3], lens
-    raise SfMError(f"COLMAP camera model {camera.model_name} is not read by dpi (use SIMPLE_PINHOLE, PINHOLE, "
-                   "SIMPLE_RADIAL, RADIAL, OPENCV or OPENCV_FISHEYE)")
+    raise SfMError(f"COLMAP camera model {camera.model_name} is not read by dpi (use {', '.join(READ_MODELS)})")
 
 
 def upright_copies(images: list[Path], folder: Path) -> list[Path]:

@@ -228,7 +228,21 @@ def gt_values(name: str, shape: tuple[int, ...], value: float) -> Callable[[Path
     return lambda root: raw_exr(root / "gt" / f"{name}.exr", np.full(shape, value))
 
 
+def png_bomb(path: Path, width: int = 20000, height: int = 20000) -> None:
+    """A PNG of a few hundred bytes whose header declares width x height (one row of data)."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    header = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(b"\0" * (1 + 3 * width)))
+                     + chunk(b"IEND", b""))
+
+
 BROKEN = {  # case: (break the capture, file the message starts with, words it contains)
+    "png declaring 20000x20000": (lambda r: png_bomb(r / "images" / "r_1.png"), "r_1.png", "20000x20000"),
     "truncated exr (half)": (lambda r: truncate(r / "images" / "r_2.exr", 0.5), "r_2.exr", "not a readable EXR"),
     "truncated exr (last byte)": (lambda r: truncate(r / "images" / "r_3.exr", 0.999), "r_3.exr", "not a readable EXR"),
     "truncated exr (header)": (lambda r: truncate(r / "images" / "r_2.exr", 0.05), "r_2.exr", "not a readable EXR"),
@@ -295,6 +309,8 @@ BROKEN = {  # case: (break the capture, file the message starts with, words it c
     # ground truth, checked up front as the evaluation reads it
     "negative gt envmap": (gt_values("envmap", (4, 8, 3), -1.0), "envmap.exr",
                            "environment map has NaN, Inf or negative values"),
+    "overflowing gt envmap": (gt_values("envmap", (4, 8, 3), 1e38), "envmap.exr",
+                              "sums over its 96 values overflow 32-bit floats"),
     "nan gt albedo": (gt_values("albedo", (16, 16, 3), np.nan), "albedo.exr",
                       "ground truth albedo has NaN, Inf or negative values"),
     "negative gt roughness": (gt_values("roughness", (16, 16, 3), -0.5), "roughness.exr",

@@ -22,7 +22,7 @@ from dpi.config.pipeline import read_yaml as read_config
 from dpi.evaluation.relighting import RELIGHT_MAPS, relit_name
 from dpi.io.atomic import write_text
 from dpi.io.lock import ResultsLocked, lock_results
-from dpi.io.structured import MAX_ALIASES, MAX_DEPTH, StructuredFileError, read_json, read_yaml
+from dpi.io.structured import MAX_ALIASES, MAX_DEPTH, MAX_NODES, StructuredFileError, read_json, read_yaml
 
 SECRET = "root:x:0:0:root:/root:/bin/bash\ndaemon:x:1:1:daemon:/usr/sbin:/usr/sbin/nologin\n"
 
@@ -99,8 +99,15 @@ def bomb(levels: int = 9) -> str:
     return "\n".join(lines) + "\n"
 
 
+def doubling_bomb(levels: int = 31) -> str:
+    """An alias chain under the alias count: each level lists the one below twice (2^levels values, 1 kB)."""
+    lines = ['a0: &a0 ["lol"]'] + [f"a{i}: &a{i} [*a{i - 1}, *a{i - 1}]" for i in range(1, levels)]
+    return "\n".join(lines) + "\n"
+
+
 @pytest.mark.parametrize("text, problem", [
     (bomb(), f"more than {MAX_ALIASES} aliases"),
+    (doubling_bomb(), f"expand it to more than {MAX_NODES} values"),
     ("a: " + "[" * (MAX_DEPTH + 50) + "]" * (MAX_DEPTH + 50) + "\n", f"nested deeper than {MAX_DEPTH} levels"),
     ("a: " + "[" * 100000 + "\n", f"nested deeper than {MAX_DEPTH} levels"),
 ])
