@@ -9,8 +9,8 @@ init's: `held:lr_albedo=1e-9,refine.lr_texels=1e-9`) draws one sample through th
 dpi.solve.dps.loop's `watch` records the map at every stage: the network's x0_hat and the solved map of each reverse
 step, the loop's map, after keep_what_the_views_see, and after the refinement. Each row is one (scene, variant, seed,
 stage, step) with the map's log error at 2 and 8 rows against the truth (dpi.evaluation.metrics.balance_error); the
-init's map is the `init` stage. The CSV is rewritten whole for the variants run; it prints the means per variant
-and stage, relative to the init's error of the same scene.
+init's map is the `init` stage. The CSV's rows of the scenes and variants run are replaced, the others kept; it
+prints the means per variant and stage, relative to the init's error of the same scene.
 """
 
 from __future__ import annotations
@@ -107,7 +107,7 @@ def main() -> None:
     wanted = args.variants or ["proximal", *(spec.partition(":")[0] for spec in args.dps)]
     scenes = {name: scene for name, scene in real_light_scenes(args.panoramas, DEV_SCENES).items()
               if name in (args.scenes or DEV_SCENES)}
-    rows = [r for r in read_rows(args.out, TEXT) if r["variant"] not in wanted]
+    rows = [r for r in read_rows(args.out, TEXT) if r["scene"] not in scenes or r["variant"] not in wanted]
     inits = {r["scene"]: r for r in rows if r["stage"] == "init"}
     for job in method_jobs(args.work, scenes, ["dps"], args.seeds, config, variants, wanted):
         prepare_job(job)

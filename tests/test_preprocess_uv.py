@@ -88,3 +88,39 @@ def test_fill_gutters_copies_the_nearest_chart_texel(atlas):
     texture[covered] = 1.0
     filled = fill_gutters(texture, covered)
     assert (filled == 1.0).all() and 0.3 < covered.mean() < 1.0
+
+
+def test_seam_ties_join_both_sides_of_each_seam(atlas):
+    """Tying a texture blurred inside its charts (unrelated across them) makes its seams nearly as continuous as a
+    texture baked from the surface, and the tied texels of a group equal their former mean."""
+    import torch
+    from scipy.ndimage import gaussian_filter
+
+    from dpi.evaluation.seams import seam_ratio
+    from dpi.solve.seams import SeamTies
+
+    mesh, _ = atlas
+    ties = SeamTies.of_mesh(mesh.vertices, mesh.faces, mesh.uvs, 128)
+    assert ties.count > 10 and len(ties.texels) > ties.count
+    texture = gaussian_filter(np.random.default_rng(0).uniform(0, 1, (128, 128, 3)), (3, 3, 0))
+    tied = ties.tie_(torch.from_numpy(texture.copy())).numpy()
+    group = ties.texels[ties.groups == 0].numpy()
+    mean = texture.reshape(-1, 3)[group].mean(0)
+    np.testing.assert_allclose(tied.reshape(-1, 3)[group], np.broadcast_to(mean, (len(group), 3)))
+    before = seam_ratio(mesh.vertices, mesh.faces, mesh.uvs, texture)
+    after = seam_ratio(mesh.vertices, mesh.faces, mesh.uvs, tied)
+    assert after < 0.6 * before
+
+
+def test_seam_ties_of_a_sphere_grid_join_the_wrap_columns():
+    """The blob's parametric UVs meet at u = 0 and u = 1: texels of the first and last column of a row are tied."""
+    import torch
+
+    from dpi.solve.seams import SeamTies
+
+    shape = blob(resolution=8, seed=1)
+    ties = SeamTies.of_mesh(shape.vertices, shape.faces, shape.uvs, 16)
+    texture = torch.zeros(16, 16, 1)
+    texture[:, 0] = 1.0
+    ties.tie_(texture)
+    assert torch.allclose(texture[4:12, 0], texture[4:12, -1]) and float(texture[8, 0]) == 0.5

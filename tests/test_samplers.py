@@ -62,6 +62,10 @@ class LinearProblem:
     def sample_views(self, count, generator):
         return list(self.train_ids)
 
+    def constrain_(self, materials):
+        """No mesh, no seams: the materials clamped."""
+        return materials.clamp_()
+
     def transport(self) -> LightTransport:
         """The measurement as an exact light transport: its offset is A (both halves, every channel), its slope 0."""
         operator = torch.cat(self.operators)  # (P, N)

@@ -1,22 +1,19 @@
 """How visible a texture's chart seams are: the lookups on both sides of a seam against those along mesh edges.
 
 An atlas cuts the surface into charts, so one surface point on a seam has two UVs (two vertex copies at one
-position). A texture that is a function of the surface gives both the same value; one solved texel by texel can
-disagree, and any renderer then shows the chart outlines. `seam_ratio` is the mean absolute difference of the
-bilinear lookups (Mitsuba's, dpi.solve.transport.record.texture_weights) at the two UVs of each seam vertex pair,
-over the mean difference between the two ends of each mesh edge: about 1 or below for a seamless texture, far
-above where the charts disagree.
+position; dpi.solve.seams finds them and ties them while solving). A texture that is a function of the surface gives
+both the same value; one solved texel by texel can disagree, and any renderer then shows the chart outlines.
+`seam_ratio` is the mean absolute difference of the bilinear lookups (Mitsuba's,
+dpi.solve.transport.record.texture_weights) at the two UVs of each seam vertex pair, over the mean difference
+between the two ends of each mesh edge: about 1 or below for a seamless texture, far above where the charts disagree.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from dpi.solve.seams import mesh_edges, seam_pairs
 from dpi.solve.transport.record import texture_weights
-
-POSITION_DECIMALS = 6
-"""vertex copies whose positions agree to this many decimals (of the mesh's extent) are one surface point"""
-
 
 def texture_lookup(texture: np.ndarray, uvs: np.ndarray) -> np.ndarray:
     """(n, C) bilinear lookups of an (R, R, C) texture at uvs (n, 2), as the renderer reads it."""
@@ -24,28 +21,6 @@ def texture_lookup(texture: np.ndarray, uvs: np.ndarray) -> np.ndarray:
     index, weight = texture_weights(uvs, size)
     flat = texture.reshape(size * size, -1).astype(np.float64)
     return (flat[index] * weight[..., None]).sum(1)
-
-
-def seam_pairs(vertices: np.ndarray, uvs: np.ndarray) -> np.ndarray:
-    """(n, 2) vertex index pairs at one position with different UVs (the seams' two sides)."""
-    extent = max(float(np.ptp(vertices, axis=0).max()), 1e-12)
-    keys = np.round((vertices - vertices.min(0)) / extent, POSITION_DECIMALS)
-    _, group = np.unique(keys, axis=0, return_inverse=True)
-    order = np.argsort(group.ravel(), kind="stable")
-    group = group.ravel()[order]
-    starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
-    pairs = [(order[a], order[b]) for start, end in zip(starts, np.r_[starts[1:], len(group)])
-             for a in range(start, end) for b in range(a + 1, end)]
-    if not pairs:
-        return np.zeros((0, 2), np.int64)
-    pairs = np.asarray(pairs, np.int64)
-    return pairs[np.abs(uvs[pairs[:, 0]] - uvs[pairs[:, 1]]).max(1) > 1e-9]
-
-
-def mesh_edges(faces: np.ndarray) -> np.ndarray:
-    """(n, 2) the mesh's unique edges (vertex index pairs)."""
-    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    return np.unique(np.sort(edges, axis=1), axis=0)
 
 
 def seam_ratio(vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray, texture: np.ndarray) -> float:

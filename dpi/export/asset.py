@@ -52,17 +52,12 @@ class AssetSample:
 
 def renderer_mesh(path: str | Path) -> AssetMesh:
     """The mesh file as Mitsuba loads it for rendering (its UVs as the textures index them, smooth normals)."""
-    from dpi.render import backend
-    from dpi.render.renderer import mesh_plugin
+    from dpi.render.renderer import mesh_arrays
 
-    mi = backend.mitsuba()
-    params = mi.traverse(mi.load_dict(mesh_plugin(path)))
-    uvs = np.asarray(params["vertex_texcoords"], np.float32) if "vertex_texcoords" in params else np.zeros(0)
-    if not uvs.size:
+    mesh = mesh_arrays(path)
+    if not mesh["uvs"].size:
         raise ValueError(f"{path}: the mesh has no UVs; a decomposition's textures need them")
-    return AssetMesh(np.asarray(params["vertex_positions"], np.float32).reshape(-1, 3),
-                     np.asarray(params["vertex_normals"], np.float32).reshape(-1, 3), uvs.reshape(-1, 2),
-                     np.asarray(params["faces"], np.uint32).reshape(-1, 3))
+    return AssetMesh(mesh["positions"], mesh["normals"], mesh["uvs"], mesh["faces"].astype(np.uint32))
 
 
 def png_bytes(pixels: np.ndarray) -> bytes:
@@ -99,8 +94,8 @@ def sample_textures(sample: AssetSample, mesh: AssetMesh) -> dict[str, np.ndarra
         texture = read_exr(files[name])
         bad = ~np.isfinite(texture)
         if bad.any():
-            raise ValueError(f"{files[name]}: {int(bad.any(-1).sum())} texels are NaN or infinite; the sample cannot be "
-                             "exported (draw it again)")
+            raise ValueError(f"{files[name]}: {int(bad.any(-1).sum())} texels are NaN or infinite; the sample cannot "
+                             "be exported (draw it again)")
         textures[name] = fill_gutters(texture, chart_coverage(mesh, texture.shape[0]))
     albedo, roughness, metallic = (textures[name] for name in ("albedo", "roughness", "metallic"))
     r8, m8 = unit_to_uint8(roughness[..., 0]), unit_to_uint8(metallic[..., 0])

@@ -52,6 +52,19 @@ def mesh_plugin(mesh_path: str | Path) -> dict:
     return {"type": suffix[1:], "filename": str(mesh_path), "face_normals": False}
 
 
+def mesh_arrays(mesh_path: str | Path) -> dict[str, np.ndarray]:
+    """The mesh as Mitsuba loads it for rendering: positions (V, 3), smooth normals (V, 3), UVs (V, 2; empty without
+    them) as float32 and faces (F, 3) as int64, one UV per vertex as the textures index them."""
+    from dpi.render import backend
+
+    mi = backend.mitsuba()
+    params = mi.traverse(mi.load_dict(mesh_plugin(mesh_path)))
+    uvs = np.asarray(params["vertex_texcoords"], np.float32) if "vertex_texcoords" in params else np.zeros(0)
+    return {"positions": np.asarray(params["vertex_positions"], np.float32).reshape(-1, 3),
+            "normals": np.asarray(params["vertex_normals"], np.float32).reshape(-1, 3),
+            "uvs": uvs.reshape(-1, 2), "faces": np.asarray(params["faces"], np.int64).reshape(-1, 3)}
+
+
 def texture_plugin(data: np.ndarray) -> dict:
     """A linear (raw) bitmap texture of (size, size, channels) values, looked up bilinearly, clamped at the edges."""
     import mitsuba as mi

@@ -183,7 +183,7 @@ class AdamFit:
                 continue
             self.optimizer.step()
             self.env_model.constrain_()
-            self.materials.clamp_()
+            self.problem.constrain_(self.materials)
             trace.record(step=step, loss=loss.item(), data=data.item(), prior=reg.item(), views=views,
                          seconds=round(trace.seconds - t0, 4))
         self.step = max(start, until)

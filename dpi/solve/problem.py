@@ -10,6 +10,7 @@ works on is too; decomposition files hold scene radiance, and `load_decompositio
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -21,10 +22,11 @@ from dpi.io.exr import EXRError
 from dpi.io.images import read_image, read_mask, resize, working_size
 from dpi.io.layout import SAMPLE_TRACE
 from dpi.io.settings import ImageSize, MapHeight, TextureSize, settings, settings_from_dict
-from dpi.render.renderer import RenderConfig, Renderer
+from dpi.render.renderer import RenderConfig, Renderer, mesh_arrays
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.exposure import MIDDLE_GREY, capture_exposure
 from dpi.solve.materials import MaterialTextures
+from dpi.solve.seams import SeamTies
 
 
 
@@ -114,6 +116,21 @@ class InverseProblem:
                                          [self.masks[i] for i in self.train_ids], str(capture.root))
         """scene radiance per normalised unit: the images are divided by it"""
         self.images = [image / self.exposure for image in self.images]
+
+    @cached_property
+    def seams(self) -> SeamTies:
+        """The texels the mesh's seams join at the problem's texture size (dpi.solve.seams)."""
+        mesh = mesh_arrays(self.capture.mesh)
+        return SeamTies.of_mesh(mesh["positions"].astype(np.float64), mesh["faces"], mesh["uvs"].astype(np.float64),
+                                self.settings.texture_size)
+
+    def constrain_(self, materials: MaterialTextures) -> MaterialTextures:
+        """Materials after an update, in place: clamped to their valid ranges and tied across the atlas's seams (the
+        projection every solver applies after each step)."""
+        materials.clamp_()
+        for _, texture in materials.items():
+            self.seams.tie_(texture.data)
+        return materials
 
     def to_solver_units(self, decomposition: Decomposition) -> Decomposition:
         """A decomposition in scene radiance in the problem's normalised units."""

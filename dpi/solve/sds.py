@@ -95,7 +95,7 @@ def sds_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
         optimizer.step()
         with torch.no_grad():
             x.clamp_(-1, 1)
-        materials.clamp_()
+        problem.constrain_(materials)
         trace.record(step=step, loss=loss.item(), seconds=round(trace.seconds - t0, 4))
     env = prior_to_env(x.detach(), prior, scale, height)
     return Decomposition(env, materials.detached(), trace)

@@ -14,6 +14,11 @@ SIZE = {"views": 8, "held_out_every": 4, "width": 32, "height": 32, "spp": 128, 
 AMBIGUOUS = {**SIZE, "roughness": 0.7, "roughness_variation": 0.1, "metallic": 0.0, "arc_deg": 150.0,
              "elevations_deg": (15.0, 40.0)}
 """a rough dielectric seen on a limited arc: where the views leave the light open"""
+MIXED = {**SIZE, "shape": "blob_on_plate", "views": 24, "width": 48, "height": 48, "camera_distance": 6.0,
+         "roughness": 0.7, "roughness_variation": 0.1, "metallic": 0.0, "arc_deg": 360.0,
+         "elevations_deg": (25.0, 50.0)}
+"""a rough body on a glossy metal plate seen all around from above: the plate's reflections tell the light's broad
+balance (sky against ground) that the body alone leaves to the albedo"""
 GLOSSY = {**SIZE, "roughness": 0.08, "roughness_variation": 0.0, "metallic": 1.0, "arc_deg": 360.0}
 """a shiny metal seen from all around: where a free fit already recovers the light"""
 
@@ -46,12 +51,16 @@ REAL_LIGHT_SCENES: dict[str, tuple[str, dict[str, Any]]] = {
                               "prior": "indoor"}),
     "blob_studio": ("real", {**AMBIGUOUS, "shape": "blob", "seed": 2, "panorama": "brown_photostudio_02_1k.hdr",
                              "prior": "indoor"}),
+    "plate_overpass": ("real_mixed", {**MIXED, "seed": 7, "panorama": "pedestrian_overpass_1k.hdr",
+                                      "prior": "outdoor"}),
+    "plate_spree": ("real_mixed", {**MIXED, "seed": 8, "panorama": "spree_bank_1k.hdr", "prior": "outdoor"}),
     "blob_beach_glossy": ("real_glossy", {**GLOSSY, "shape": "blob", "seed": 5,
                                           "panorama": "spiaggia_di_mondello_1k.hdr", "prior": "outdoor"}),
     "torus_vestibule_glossy": ("real_glossy", {**GLOSSY, "shape": "bumpy_torus", "seed": 6,
                                                "panorama": "vestibule_1k.hdr", "prior": "indoor"}),
 }
-"""the posterior study's real-light scenes: rough objects seen on an arc (group `real`) and metals seen all around
+"""the posterior study's real-light scenes: rough objects seen on an arc (group `real`), a rough body on a glossy
+plate seen all around from above under two city panoramas (`real_mixed`) and metals seen all around
 (`real_glossy`) under the manifest's held-out real panoramas (dpi/data/panoramas.csv: a city, a low sun, a forest,
 a market hall, a studio, a beach, a vestibule), which no prior trained on; the maps do not ship
 (`real_light_scenes`)"""
@@ -66,6 +75,10 @@ DEV_SCENES: dict[str, tuple[str, dict[str, Any]]] = {
                                        "prior": "indoor"}),
     "dev_torus_studio": ("dev_real", {**AMBIGUOUS, "shape": "bumpy_torus", "seed": 24,
                                       "panorama": "studio_small_08_1k.hdr", "prior": "indoor"}),
+    "dev_plate_piazza": ("dev_mixed", {**MIXED, "seed": 27, "panorama": "piazza_bologni_1k.hdr",
+                                       "prior": "outdoor"}),
+    "dev_plate_hills": ("dev_mixed", {**MIXED, "seed": 28, "panorama": "hilly_terrain_01_1k.hdr",
+                                      "prior": "outdoor"}),
     "dev_blob_sun": ("dev_ambiguous", {**AMBIGUOUS, "shape": "blob", "seed": 25, "environment": "outdoor",
                                        "environment_seed": 61, "prior": "outdoor"}),
     "dev_torus_room": ("dev_ambiguous", {**AMBIGUOUS, "shape": "bumpy_torus", "seed": 26, "environment": "indoor",

@@ -31,7 +31,7 @@ from dpi.io.settings import (Count, Elevation, Fraction, ImageSize, Loose, MapHe
 from dpi.prior.data import read_panorama, resize_map
 from dpi.render.renderer import RenderConfig, Renderer
 from dpi.synth.backdrop import BACKGROUNDS, add_detail, composite_backdrop
-from dpi.synth.shapes import make_shape, write_ply
+from dpi.synth.shapes import BASE_V, BODY_V, make_shape, write_ply
 from dpi.synth.textures import procedural_materials
 from dpi.worlds.families import generator
 from dpi.worlds.skies import SkyParams, sunsky_envmap
@@ -40,6 +40,10 @@ EVALUATION_SEED_STREAM = 7_919  # ground-truth maps draw from default_rng([this,
 
 
 FOV_DEG = 35.0
+BASED_SHAPES = ("blob_on_plate",)
+"""shapes with a base that carries the second material (SynthConfig.base_roughness, base_metallic)"""
+BASE_ALBEDO = 0.8
+"""the base's albedo (a metal's specular colour): a light grey"""
 PROCEDURAL = ("sunsky", "outdoor", "indoor")
 """the ground-truth lights SynthConfig.environment names; anything else is a panorama file"""
 PANORAMA_SUFFIXES = (".exr", ".hdr")
@@ -81,6 +85,10 @@ class SynthConfig:
     roughness: Fraction = 0.3
     roughness_variation: Fraction = 0.1
     metallic: Fraction = 0.0
+    base_roughness: Fraction = 0.05
+    base_metallic: Fraction = 1.0
+    """the material of a shape's base (the plate of blob_on_plate, its UVs from dpi.synth.shapes.BASE_V up: a
+    glossy metal by default, a light grey); shapes without a base ignore both"""
     image_format: str = "exr"
     """format of images/: exr (linear HDR), or png or jpg (sRGB LDR, like photos)"""
     background: str = "env"
@@ -181,6 +189,11 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
                                      seed=cfg.seed + 1)
     if cfg.albedo_detail:
         materials.albedo = add_detail(materials.albedo, cfg.albedo_detail, seed=cfg.seed + 2)
+    if cfg.shape in BASED_SHAPES:
+        base = slice(int(np.floor((BODY_V + BASE_V) / 2 * cfg.texture_size)), None)  # texel rows by v (row 0 at v = 0)
+        materials.albedo[base] = BASE_ALBEDO
+        materials.roughness[base] = cfg.base_roughness
+        materials.metallic[base] = cfg.base_metallic
     env = ground_truth_envmap(cfg)
     for name, data in (("envmap", env), ("albedo", materials.albedo), ("roughness", materials.roughness),
                        ("metallic", materials.metallic)):

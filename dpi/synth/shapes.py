@@ -4,7 +4,9 @@ The shapes are parametric surfaces sampled on a (rows+1) x (cols+1) grid whose s
 duplicated, so their UVs are the surface parameters themselves:
 - `blob`: a sphere with smooth radial bumps (convex-ish, no self-occlusion to speak of);
 - `bumpy_torus`: a torus with bumps (concave, self-occluding, a hole);
-- `bowl`: a thick-walled bowl on a flat foot (a cavity silhouettes cannot see into, a flat base).
+- `bowl`: a thick-walled bowl on a flat foot (a cavity silhouettes cannot see into, a flat base);
+- `blob_on_plate`: the blob standing on a flat round plate, the plate's UVs in their own band of the atlas
+  (BASE_V and up) so that it can carry a second material (dpi.synth.capture: a rough body on a glossy base).
 """
 
 from __future__ import annotations
@@ -14,7 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-SHAPES = ("blob", "bumpy_torus", "bowl")
+SHAPES = ("blob", "bumpy_torus", "bowl", "blob_on_plate")
+BASE_V = 0.65
+"""v from which a shape's base (the plate of blob_on_plate) lies in its UVs; the body keeps v below BODY_V"""
+BODY_V = 0.6
 
 
 @dataclass
@@ -102,6 +107,33 @@ def bowl(resolution: int = 48) -> TriangleMesh:
     return _drop_degenerate(TriangleMesh(pos.reshape(-1, 3), _grid_faces(rows, cols)[:, ::-1].copy(), uvs.reshape(-1, 2)))
 
 
+PLATE_RADIUS = 2.0
+"""radius of blob_on_plate's plate, twice the blob's"""
+
+
+def plate(resolution: int = 48, radius: float = PLATE_RADIUS, height: float = -0.95) -> TriangleMesh:
+    """A flat disc facing +Y at `height`; u = azimuth, v from BASE_V at the centre to 1 at the rim."""
+    rows, cols = resolution // 2, 2 * resolution
+    t, u = np.meshgrid(np.linspace(0, 1, rows + 1), np.linspace(0, 1, cols + 1), indexing="ij")
+    phi = 2 * np.pi * u
+    pos = np.stack([radius * t * np.sin(phi), np.full_like(t, height), radius * t * np.cos(phi)], -1)
+    uvs = np.stack([u, BASE_V + (1.0 - BASE_V) * t], -1)
+    mesh = _drop_degenerate(TriangleMesh(pos.reshape(-1, 3), _grid_faces(rows, cols), uvs.reshape(-1, 2)))
+    v = mesh.vertices[mesh.faces]
+    if np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])[:, 1].mean() < 0:  # face up
+        mesh.faces = mesh.faces[:, ::-1].copy()
+    return mesh
+
+
+def blob_on_plate(resolution: int = 48, seed: int = 0) -> TriangleMesh:
+    """The blob (its UVs squeezed below BODY_V) standing on `plate` (UVs from BASE_V up)."""
+    body, base = blob(resolution, seed=seed), plate(resolution)
+    body_uvs = body.uvs * [1.0, BODY_V]
+    return TriangleMesh(np.concatenate([body.vertices, base.vertices]),
+                        np.concatenate([body.faces, base.faces + len(body.vertices)]),
+                        np.concatenate([body_uvs, base.uvs]))
+
+
 def make_shape(name: str, resolution: int = 48, seed: int = 0) -> TriangleMesh:
     """Build one of SHAPES by name."""
     if name == "blob":
@@ -110,6 +142,8 @@ def make_shape(name: str, resolution: int = 48, seed: int = 0) -> TriangleMesh:
         return bumpy_torus(resolution, seed=seed)
     if name == "bowl":
         return bowl(resolution)
+    if name == "blob_on_plate":
+        return blob_on_plate(resolution, seed=seed)
     raise ValueError(f"unknown shape {name!r}; choose from {', '.join(SHAPES)}")
 
 

@@ -77,7 +77,7 @@ def paper_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
             record["guidance_max"] = float(x.grad.abs().max())
             x_next = x_next - rho * scale_to_bound(x.grad, GUIDANCE_BOUND)
             state.optimizer.step()
-            state.materials.clamp_()
+            run.problem.constrain_(state.materials)
     state.x = x_next
     if not guided:
         record["skipped"] = "non-finite loss or gradient"

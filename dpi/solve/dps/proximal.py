@@ -208,7 +208,7 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
             for _, t in state.materials.items():
                 t.grad = None
         state.optimizer.step()
-        state.materials.clamp_()
+        run.problem.constrain_(state.materials)
         wrap_uv_(state.sun_uv)
         shift = recentre_(state.log_map, run.prior.median_target)
         state.log_exposure += shift
