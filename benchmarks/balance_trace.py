@@ -33,7 +33,7 @@ from dpi.studies.engine import (claim_sample_dir, dps_variants, method_jobs, pre
 from dpi.studies.scenes import DEV_SCENES, real_light_scenes
 
 STAGES = ("init", "x0_hat", "solved", "loop", "kept", "refined")
-TEXT = ("scene", "variant", "stage", "label")
+TEXT = ("scene", "group", "variant", "stage", "label")
 """the CSV's text columns"""
 SHOWN_STEPS = (0.0, 0.5, 1.0)
 """x0_hat and solved are shown at these shares of the loop's steps"""
@@ -53,7 +53,7 @@ def trace_job(job, truth: np.ndarray) -> list[dict]:
 
     claim_sample_dir(job)
     sample_stage(job.stage_job(threads=1), watch)
-    return [{"scene": job.scene, "variant": job.sampler, "seed": job.seed, **r} for r in rows]
+    return [{"scene": job.scene, "group": job.group, "variant": job.sampler, "seed": job.seed, **r} for r in rows]
 
 
 def labelled(rows: list[dict], init: dict[str, float]) -> list[dict]:
@@ -72,17 +72,16 @@ def labelled(rows: list[dict], init: dict[str, float]) -> list[dict]:
 
 
 def summary(rows: list[dict]) -> list[str]:
-    """Mean error (and over the init's) per variant and labelled stage."""
+    """Mean error (and over the init's) per scene group, variant and labelled stage."""
     groups: dict[tuple, list[dict]] = defaultdict(list)
     for r in rows:
         if r["label"]:
-            groups[(r["variant"], r["label"])].append(r)
+            groups[(r["group"], r["variant"], r["label"])].append(r)
     columns = [f"{name}_{k}" for k in BALANCE_ROWS for name in ("err", "over_init")]
-    lines = [f"{'variant':<14} {'stage':<12} {'n':>3} " + " ".join(f"{c:>12}" for c in columns)]
-    for (variant, label), sel in sorted(groups.items(), key=lambda kv: (kv[0][0] != "init", kv[0][0],
-                                                                         STAGES.index(kv[0][1].split("@")[0]),
-                                                                         kv[0][1])):
-        lines.append(f"{variant:<14} {label:<12} {len(sel):>3} "
+    lines = [f"{'group':<12} {'variant':<14} {'stage':<12} {'n':>3} " + " ".join(f"{c:>12}" for c in columns)]
+    for (group, variant, label), sel in sorted(groups.items(), key=lambda kv: (
+            kv[0][0], kv[0][1] != "init", kv[0][1], STAGES.index(kv[0][2].split("@")[0]), kv[0][2])):
+        lines.append(f"{group:<12} {variant:<14} {label:<12} {len(sel):>3} "
                      + " ".join(f"{np.mean([r[c] for r in sel]):>12.3f}" for c in columns))
     return lines
 
@@ -114,7 +113,7 @@ def main() -> None:
         scene = job.layout.scene(job.scene)
         truth = read_ground_truth(read_capture_json(scene.capture_json).gt["envmap"], "envmap")
         if job.scene not in inits:
-            init = {"scene": job.scene, "variant": "init", "seed": 0, "stage": "init", "step": 0,
+            init = {"scene": job.scene, "group": job.group, "variant": "init", "seed": 0, "stage": "init", "step": 0,
                     **errors(read_exr(scene.sample_files(INIT)["env"]), truth)}
             inits[job.scene] = init
             rows.extend(labelled([init], init))

@@ -429,16 +429,16 @@ BALANCE_STAGES = ("init", "x0_hat", "solved", "loop", "kept", "refined")
 
 def balance_trace(root: Path) -> str:
     """Where a dps sample's broad balance of light goes (benchmarks/balance_trace.py): the map's log error at 2 and 8
-    rows, and over the init's, per variant and stage, means over the design scenes and seeds."""
-    rows = [r for r in read_rows(root / RESULTS / "balance_trace.csv", ("scene", "variant", "stage", "label"))
+    rows, and over the init's, per group of design scenes, variant and stage, means over the scenes and seeds."""
+    rows = [r for r in read_rows(root / RESULTS / "balance_trace.csv", ("scene", "group", "variant", "stage", "label"))
             if r["label"]]
     metrics = tuple(Metric(header, f"{name}_{k}", ".2f", -1) for k in (2, 8)
                     for name, header in (("err", f"log error at {k} rows"), ("over_init", "over the init's")))
 
     def order(key: tuple) -> tuple:
-        return key[0] != "init", key[0], BALANCE_STAGES.index(key[1].split("@")[0]), key[1]
+        return key[0], key[1] != "init", key[1], BALANCE_STAGES.index(key[2].split("@")[0]), key[2]
 
-    return grouped_table(rows, ("variant", "label"), metrics, rank_by="label", order=order)
+    return grouped_table(rows, ("group", "variant", "label"), metrics, order=order)
 
 
 TABLES: dict[str, Callable[[Path], str]] = {

@@ -124,3 +124,17 @@ def test_seam_ties_of_a_sphere_grid_join_the_wrap_columns():
     texture[:, 0] = 1.0
     ties.tie_(texture)
     assert torch.allclose(texture[4:12, 0], texture[4:12, -1]) and float(texture[8, 0]) == 0.5
+
+
+def test_a_mesh_far_denser_than_its_texture_is_simplified_before_the_atlas():
+    """14,000 faces for 32 x 32 texels: quadric edge collapse to one face per texel, the shape kept."""
+    import trimesh
+
+    shape = blob(resolution=60, seed=2)
+    merged = trimesh.Trimesh(shape.vertices, shape.faces, process=False)
+    merged.merge_vertices()
+    mesh, summary = uv_atlas(np.asarray(merged.vertices), np.asarray(merged.faces), 32)
+    assert summary["given_faces"] > 10000 and 900 <= summary["faces"] <= 1024 + 8
+    np.testing.assert_allclose(np.ptp(mesh.vertices, 0), np.ptp(np.asarray(merged.vertices), 0), rtol=0.03)
+    _, small = uv_atlas(np.asarray(merged.vertices), np.asarray(merged.faces), 128)
+    assert small["faces"] == small["given_faces"]  # dense enough for 128 x 128: kept as it is

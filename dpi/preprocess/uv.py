@@ -1,5 +1,8 @@
 """UV atlas of a mesh (xatlas) and baking of functions of surface position into textures.
 
+A mesh far denser than its textures can resolve is simplified first (`simplified_for_texture`), so that its charts
+hold several texels each.
+
 `parametrize` cuts the mesh into charts and packs them into the unit square; vertices on chart
 seams are duplicated, so the result is a mesh with one UV per vertex, which Mitsuba reads from a
 PLY (`write_uv_mesh` uses Mitsuba's own writer). Texel (row, col) of an R x R bitmap texture
@@ -31,6 +34,28 @@ class UVConfig:
 
     padding: Steps = 2
     """texels between charts, at the size the textures are solved and exported at (ProblemConfig.texture_size)"""
+
+
+FACES_PER_TEXEL = 2
+"""most faces per texel of the texture a mesh is parametrised for: a denser mesh is simplified to one face per texel
+first (quadric edge collapse), since its charts would be smaller than a texel"""
+
+
+def simplified_for_texture(vertices: np.ndarray, faces: np.ndarray, texture_size: int
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh as it is, or, with more than FACES_PER_TEXEL faces per texel, simplified by pymeshlab's quadric
+    edge collapse to one face per texel (normals, topology and open boundaries kept, so the silhouette stays)."""
+    target = texture_size * texture_size
+    if len(faces) <= FACES_PER_TEXEL * target:
+        return vertices, faces
+    import pymeshlab
+
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(vertices, np.float64), face_matrix=np.asarray(faces, np.int32)))
+    ms.meshing_decimation_quadric_edge_collapse(targetfacenum=target, preservenormal=True, preservetopology=True,
+                                                preserveboundary=True, optimalplacement=True)
+    mesh = ms.current_mesh()
+    return mesh.vertex_matrix(), mesh.face_matrix().astype(np.int64)
 
 
 def parametrize(vertices: np.ndarray, faces: np.ndarray, texture_size: int,
@@ -139,7 +164,10 @@ def atlas_stage_summary(mesh: TriangleMesh, texture_size: int, seconds: float) -
 
 def uv_atlas(vertices: np.ndarray, faces: np.ndarray, texture_size: int,
              cfg: UVConfig | None = None) -> tuple[TriangleMesh, dict]:
-    """`parametrize` with a summary (vertex/face counts, texture size, seconds)."""
+    """`parametrize` (after `simplified_for_texture`) with a summary (vertex/face counts, the given mesh's faces,
+    texture size, seconds)."""
     start = time.perf_counter()
+    given = len(faces)
+    vertices, faces = simplified_for_texture(vertices, faces, texture_size)
     mesh = parametrize(vertices, faces, texture_size, cfg)
-    return mesh, atlas_stage_summary(mesh, texture_size, time.perf_counter() - start)
+    return mesh, {**atlas_stage_summary(mesh, texture_size, time.perf_counter() - start), "given_faces": given}
