@@ -88,6 +88,20 @@ def test_dpi_config_prints_the_resolved_settings(tmp_path, capsys):
     assert "start_noise" in printed["method_params"]["dps"]["proximal"]
 
 
+@pytest.mark.parametrize("given", [{}, {"preset": "draft"},
+                                   {"method_params": {m: {} for m in ("none", "smoothness", "dip", "sds", "dps")}},
+                                   {"method_params": {"none": {"iterations": 50}, "dip": {"lr_env": 0.01}}}])
+def test_dpi_configs_output_reads_back_to_itself(tmp_path, capsys, monkeypatch, given):
+    """`dpi config --config <(dpi config --config X)` prints what `dpi config --config X` does, for every section."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "x.yaml").write_text(yaml.safe_dump(given))
+    assert main(["config", "--config", "x.yaml"]) == 0
+    first = capsys.readouterr().out
+    (tmp_path / "printed.yaml").write_text(first)
+    assert main(["config", "--config", "printed.yaml"]) == 0
+    assert capsys.readouterr().out == first
+
+
 def test_a_bad_config_file_is_one_message(tmp_path, capsys):
     (tmp_path / "bad.yaml").write_text(yaml.safe_dump({"method_params": {"dps": {"stepz": 3}}}))
     assert main(["init", "demo", "--config", "bad.yaml"]) == 2

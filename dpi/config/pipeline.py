@@ -37,6 +37,7 @@ from dpi.prior.train import PriorJobConfig
 from dpi.solve.adaptive import AdaptiveConfig
 from dpi.solve.init import InitConfig
 from dpi.solve.methods import REGISTRY, method_config
+from dpi.solve.optimize import OptimizeConfig, flat_config
 from dpi.solve.problem import SolveConfig
 from dpi.synth.capture import SynthConfig
 
@@ -185,11 +186,18 @@ class Pipeline:
             "family", DEFAULT_FAMILY)}
         out["synthetic"] = {scene: plain(self.synth_settings(scene)) for scene in self.config["synthetic"]}
         out["method_params"] = {m: {**({"samples": self.samples(m)} if m in self.methods else {}),
-                                    **plain(self.method_settings(m))} for m in self.config["method_params"]}
+                                    **method_entry(self.method_settings(m))} for m in self.config["method_params"]}
         out["preprocess"] = {stage: plain(make(self.config["preprocess"][stage]))
                              for stage, make in preprocess_settings().items()}
         out["prior"] = {family: self.prior_section(family) for family in PRIORS}
         return out
+
+
+def method_entry(settings: Any) -> dict[str, Any]:
+    """A method's settings as its `method_params` entry takes them back: flat for the settings whose `optimize`
+    section is read from the entry's own level (dpi.solve.optimize.method_config_from_dict), else `plain`."""
+    return plain(flat_config(settings)) if isinstance(getattr(settings, "optimize", None), OptimizeConfig) \
+        else plain(settings)
 
 
 def plain(settings: Any) -> Any:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import fcntl
 import os
 import re
+import stat
 from pathlib import Path
 
 LOCK_NAME = ".dpi.lock"
@@ -26,13 +27,18 @@ def lock_results(results: str | os.PathLike) -> Path:
     folder = Path(results).resolve()
     if folder in _held:
         return folder / LOCK_NAME
+    if folder.exists() and not folder.is_dir():
+        raise ResultsLocked(f"{folder}: results_dir is a file, not a folder; choose another results_dir")
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / LOCK_NAME
-    try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o666)
+    try:  # O_NONBLOCK: a FIFO in its place opens at once (and is refused below) instead of waiting for a writer
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK, 0o666)
     except OSError as exc:
         raise ResultsLocked(f"{path}: cannot open the results lock ({exc.strerror}); remove it if it is not a "
                             "plain file") from None
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise ResultsLocked(f"{path}: the results lock is not a plain file; remove it")
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:

@@ -64,7 +64,8 @@ def method_config_from_dict(cls: type[MethodConfig], values: dict[str, Any] | No
 
 
 def flat_config(cfg: Any) -> dict[str, Any]:
-    """The flat dict of a method config (inverse of `method_config_from_dict`), for its trace."""
+    """The flat dict of a method config (inverse of `method_config_from_dict`): its trace's, and its `method_params`
+    entry as `dpi config` prints it."""
     return {**vars(cfg.optimize), **{k: v for k, v in vars(cfg).items() if k != "optimize"}}
 
 

@@ -188,6 +188,18 @@ def test_a_lock_file_that_is_a_link_is_not_followed(tmp_path, host_file):
     assert host_file.read_text() == SECRET
 
 
+def test_a_lock_that_is_a_fifo_and_a_results_dir_that_is_a_file_are_one_line(tmp_path):
+    (tmp_path / "results").mkdir()
+    os.mkfifo(tmp_path / "results" / ".dpi.lock")
+    start = time.perf_counter()
+    with pytest.raises(ResultsLocked, match="the results lock is not a plain file; remove it"):
+        lock_results(tmp_path / "results")
+    assert time.perf_counter() - start < 1.0
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(ResultsLocked, match="results_dir is a file, not a folder"):
+        lock_results(tmp_path / "file")
+
+
 def test_every_file_named_after_the_longest_view_fits_the_file_system(tmp_path):
     """The longest name a job writes around a view (a relit view's truth, as an atomic write's temporary
     name: a dot, 8 random characters and a dot more) stays within 255 bytes."""
