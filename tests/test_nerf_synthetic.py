@@ -54,6 +54,15 @@ def test_a_frame_without_its_image_is_named(pair, tmp_path):
         load_capture(root)
 
 
+def test_masks_named_after_the_images_match_the_split_views(pair, tmp_path):
+    """masks/r_000.png beside train/r_000.png is the mask of view train_r_000."""
+    root = shutil.copytree(pair[1], tmp_path / "nerf")
+    shutil.copytree(pair[0] / "masks", root / "masks")
+    capture = load_capture(root)
+    assert all(view.mask is not None and view.mask.parent.name == "masks" for view in capture.views)
+    assert {view.mask.stem for view in capture.views} == {view.name.split("_", 1)[1] for view in capture.views}
+
+
 def test_a_view_in_a_fitted_and_the_held_out_split_is_refused(pair, tmp_path):
     """A test frame that names a train image would be fitted and scored as held out: refused, naming both splits."""
     root = shutil.copytree(pair[1], tmp_path / "nerf")

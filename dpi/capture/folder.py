@@ -180,6 +180,16 @@ def alpha_masks(images: dict[str, Path]) -> dict[str, Path] | None:
     return dict(images) if alpha.min() < alpha.max() else None
 
 
+def by_view(masks: dict[str, Path], images: dict[str, Path]) -> dict[str, Path]:
+    """masks/ keyed by view: a mask named like a view is that view's, one named like a view's image file (r_000 for
+    the view train_r_000 of a NeRF-synthetic split) is that view's when no other image has the name."""
+    owners: dict[str, list[str]] = {}
+    for name, image in images.items():
+        owners.setdefault(image.stem, []).append(name)
+    return {name if name in images or len(owners.get(name, ())) != 1 else owners[name][0]: path
+            for name, path in masks.items()}
+
+
 def mask_files(root: Path, images: dict[str, Path], size: tuple[int, int],
                 given: dict[str, Path] | None = None) -> dict[str, Path] | None:
     """view name -> mask file: `given` (transforms.json's mask_path) or masks/ (None without either), checking one
@@ -187,7 +197,7 @@ def mask_files(root: Path, images: dict[str, Path], size: tuple[int, int],
     folder = root / "masks"
     if given is None and not folder.is_dir():
         return None
-    masks = given if given is not None else stems(folder, "mask")
+    masks = given if given is not None else by_view(stems(folder, "mask"), images)
     for name in masks:
         if name not in images:
             raise CaptureError(f"{masks[name]}: mask has no matching image in images/")

@@ -107,7 +107,7 @@ def bowl(resolution: int = 48) -> TriangleMesh:
     return _drop_degenerate(TriangleMesh(pos.reshape(-1, 3), _grid_faces(rows, cols)[:, ::-1].copy(), uvs.reshape(-1, 2)))
 
 
-PLATE_RADIUS = 2.0
+PLATE_RADIUS = 1.3
 """radius of blob_on_plate's plate, twice the blob's"""
 
 

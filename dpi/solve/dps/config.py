@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
 from functools import partial
-from typing import Annotated, Any, Callable
+from typing import Annotated, Any, Callable, Literal
 
 from pydantic import Field
 
@@ -20,8 +20,8 @@ from dpi.solve.dps.proximal import ProximalConfig, proximal_step
 from dpi.solve.dps.refine import RefineConfig
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.dps.sun_choice import SunConfig
-from dpi.solve.init import is_glossy
-from dpi.solve.materials import MaterialRates
+from dpi.solve.init import is_glossy, starting_materials
+from dpi.solve.materials import MaterialRates, MaterialTextures
 
 StepFunction = Callable[[DPSRun, DPSState, int], dict[str, Any]]
 
@@ -82,6 +82,10 @@ class DPSConfig(MaterialRates):
     (the reference's gradient guidance through the path tracer)"""
     steps: Annotated[int, Field(ge=2, le=1000)] = 100
     """reverse-diffusion steps (respaced from the prior's 1000; the paper uses 1000)"""
+    materials_start: Literal["reset", "init"] = "reset"
+    """the materials a sample starts from, and its light transport is recorded under: reset (a grey albedo and, on a
+    rough init, its median metallic everywhere: dpi.solve.init.starting_materials) or init (the init's textures as
+    they are)"""
     proximal: ProximalConfig = field(default_factory=ProximalConfig)
     sun: SunConfig = field(default_factory=SunConfig)
     refine: RefineConfig = field(default_factory=RefineConfig)
@@ -91,6 +95,10 @@ class DPSConfig(MaterialRates):
     def sampler_settings(self) -> Any:
         """The chosen sampler's own settings (the paper's: its fixed ones)."""
         return self.proximal if self.sampler == "proximal" else PaperSampler()
+
+    def start_materials(self, init: Decomposition) -> MaterialTextures:
+        """The materials a sample from `init` starts from (`materials_start`), a copy."""
+        return starting_materials(init) if self.materials_start == "reset" else init.materials.detached()
 
     def for_init(self, init: Decomposition, prior_rows: int) -> DPSConfig:
         """The settings a sample from `init` runs with, under a prior of `prior_rows` rows: the one place a glossy

@@ -1,7 +1,7 @@
 """The recorded light transport as a sampler's data term (dpi.solve.transport): no path tracing per step.
 
-A sample records it once, at its first step, under its starting materials (grey albedo, the init's
-roughness and metallic), guided by the init's map; the albedo is a variable of the transport, so nothing needs
+A sample records it once, at its first step, under its starting materials (DPSConfig.start_materials),
+guided by the init's map; the albedo is a variable of the transport, so nothing needs
 recording again as it moves, and the roughness stays the init's until the refinement path-traces it (a choice
 among recorded roughness levels, tried before, kept the init's on every study scene). Its cost is counted in the
 step that records it (`seconds_transport`) and in the trace's info. A resumed sample records it again with the
@@ -11,7 +11,7 @@ same seed.
 from __future__ import annotations
 
 from dpi.solve.dps.state import DPSRun, DPSState
-from dpi.solve.init import is_glossy, starting_materials
+from dpi.solve.init import is_glossy
 from dpi.solve.transport import MAX_TRANSPORT_HEIGHT, ROUGH_TRANSPORT_HEIGHT, LightTransport, record_transport
 
 
@@ -23,7 +23,7 @@ def sample_transport(run: DPSRun, state: DPSState) -> tuple[LightTransport, bool
     recorded = "transport" not in state.extra
     if recorded:
         glossy = is_glossy(run.init.materials)
-        state.extra["transport"] = record_transport(run.problem, starting_materials(run.init), run.init.env,
+        state.extra["transport"] = record_transport(run.problem, run.cfg.start_materials(run.init), run.init.env,
                                                     run.sampler.transport, run.render_seed(0, 97),
                                                     MAX_TRANSPORT_HEIGHT if glossy else ROUGH_TRANSPORT_HEIGHT,
                                                     every_texel=not glossy)

@@ -28,7 +28,6 @@ from dpi.solve.dps.config import SAMPLERS, DPSConfig
 from dpi.solve.dps.refine import refine
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.dps.sun_choice import LR_SUN, LR_SUN_UV, wants_sun
-from dpi.solve.init import starting_materials
 from dpi.solve.materials import MaterialRates, MaterialTextures
 from dpi.solve.prior_space import env_to_prior, estimate_radiance_scale
 from dpi.solve.problem import InverseProblem
@@ -69,7 +68,7 @@ def data_norm(problem: InverseProblem) -> float:
 
 def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: DPSConfig,
               seed: int, radiance_scale: float | None = None) -> tuple[DPSRun, DPSState]:
-    """The fixed part of one sample and its loop state at its first step (the init's materials, grey albedo):
+    """The fixed part of one sample and its loop state at its first step (its materials: DPSConfig.start_materials):
     x_T ~ N(0, I), or the init map noised to the sampler's start_noise."""
     adapted = cfg.for_init(init, prior.height)
     if adapted is not cfg:
@@ -86,7 +85,7 @@ def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: D
     has_sun = wants_sun(cfg.sun, sampler.models_sun, prior.family, init.materials, sun)
     run = DPSRun(problem, prior, sampler, cfg, diffusion, seed, scale, data_norm(problem), first,
                  cfg.sun if has_sun else None, init)
-    materials = starting_materials(init)
+    materials = cfg.start_materials(init)
     for _, t in materials.items():
         t.requires_grad_(True)
     shape = (1, 3, prior.height, 2 * prior.height)
