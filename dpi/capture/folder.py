@@ -55,12 +55,16 @@ def stems(folder: Path, what: str) -> dict[str, Path]:
     """view name (the stem, NFC) -> file of the images in a folder; EXR wins over an LDR copy, other duplicates
     are errors; dot files and OS_CLUTTER are skipped."""
     found: dict[str, Path] = {}
+    inside_capture(folder.parent, folder, f"the {what} folder")  # before listing it: a link to / lists nothing
     for path in sorted(folder.iterdir()):
         if path.name.startswith(".") or path.name.lower() in OS_CLUTTER or path.is_dir():
             continue
         if path.suffix.lower() not in IMAGE_SUFFIXES:
             raise CaptureError(f"{path}: unsupported {what} suffix {path.suffix!r} (use {', '.join(IMAGE_SUFFIXES)})")
         inside_capture(folder.parent, path, f"the {what}")
+        if not path.is_file():
+            raise CaptureError(f"{path}: the {what} is not a regular file (a pipe, a socket, a device or a broken "
+                               "link)")
         if "{" in path.name or "}" in path.name:
             raise CaptureError(f"{folder}: an {what} name holds a brace ({{ or }}), which workflow paths read as a "
                                "wildcard: rename it")

@@ -20,7 +20,10 @@ class CaptureError(ValueError):
 def inside_capture(root: str | os.PathLike, path: str | os.PathLike, what: str) -> Path:
     """`path` resolved (links followed), when it lies inside the capture folder `root`; else one CaptureError
     naming it: a capture reads nothing from elsewhere on the host."""
-    resolved = Path(path).resolve()
+    try:
+        resolved = Path(path).resolve()
+    except (RuntimeError, OSError):  # Python raises RuntimeError on a loop of links
+        raise CaptureError(f"{path}: {what} is a link that loops or cannot be followed") from None
     if not resolved.is_relative_to(Path(root).resolve()):
         raise CaptureError(f"{path}: {what} lies outside the capture folder {root} (a link or a path out of it); "
                            "dpi reads only files inside a capture: copy the file in")

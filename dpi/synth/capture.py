@@ -31,6 +31,7 @@ from dpi.io.settings import (Count, Elevation, Fraction, ImageSize, Loose, MapHe
 from dpi.prior.data import read_panorama, resize_map
 from dpi.render.renderer import RenderConfig, Renderer
 from dpi.synth.backdrop import BACKGROUNDS, add_detail, composite_backdrop
+from dpi.solve.seams import SeamTies
 from dpi.synth.shapes import BASE_V, BODY_V, make_shape, write_ply
 from dpi.synth.textures import procedural_materials
 from dpi.worlds.families import generator
@@ -194,6 +195,9 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
         materials.albedo[base] = BASE_ALBEDO
         materials.roughness[base] = cfg.base_roughness
         materials.metallic[base] = cfg.base_metallic
+    ties = SeamTies.of_mesh(mesh.vertices, mesh.faces, mesh.uvs, cfg.texture_size)
+    for texture in (materials.albedo, materials.roughness, materials.metallic):  # one value per surface point
+        ties.tie_(torch.from_numpy(texture))
     env = ground_truth_envmap(cfg)
     for name, data in (("envmap", env), ("albedo", materials.albedo), ("roughness", materials.roughness),
                        ("metallic", materials.metallic)):

@@ -69,6 +69,28 @@ def test_a_capture_file_linked_from_elsewhere_is_refused(tmp_path, link):
         load_capture(root)
 
 
+def test_an_images_folder_linked_to_the_host_is_refused_before_it_is_listed(tmp_path):
+    root = make_capture(tmp_path / "s")
+    shutil.rmtree(root / "images")
+    (root / "images").symlink_to("/")
+    with pytest.raises(CaptureError, match=r"images: the image folder lies outside the capture folder") as info:
+        load_capture(root)
+    assert "etc" not in str(info.value) and "bin" not in str(info.value)
+
+
+@pytest.mark.parametrize("make, cause", [
+    (lambda p: (p.unlink(), p.symlink_to(p.name)), "is a link that loops or cannot be followed"),
+    (lambda p: (p.unlink(), os.mkfifo(p)), "is not a regular file"),
+])
+def test_a_looping_link_or_a_pipe_among_the_images_is_one_line(tmp_path, make, cause):
+    root = make_capture(tmp_path / "s")
+    make(root / "images" / "r_1.png")
+    start = time.perf_counter()
+    with pytest.raises(CaptureError, match=cause) as info:
+        load_capture(root)
+    assert "r_1.png" in str(info.value) and time.perf_counter() - start < 1.0
+
+
 def test_a_mask_path_out_of_the_capture_is_refused(tmp_path, host_file):
     root = make_capture(tmp_path / "s", masks=False)
 
