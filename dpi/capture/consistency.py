@@ -178,6 +178,19 @@ def projected_extent(vertices: np.ndarray, camera: Camera) -> float | None:
     return extent(pixels[seen]) if seen.any() else None
 
 
+def offset_from_mask(vertices: np.ndarray, camera: Camera, mask: np.ndarray) -> float | None:
+    """How far the centre of the vertices a camera sees in front of it lies from the mask's centre, in units of the
+    mask's size (diagonal); None when the camera sees no vertex in front of it (or the mask is empty). Meshes in
+    other units project around the mask's centre (near 0); a mesh in another place projects elsewhere."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pixels, depth = camera.project(vertices)
+    ahead = pixels[depth > 0]
+    points = np.argwhere(mask)[:, ::-1] * np.array([camera.width / mask.shape[1], camera.height / mask.shape[0]])
+    if not len(ahead) or not len(points):
+        return None
+    return float(np.linalg.norm(ahead.mean(0) - points.mean(0)) / max(extent(points), 1.0))
+
+
 def mask_cause(scene, vertices: np.ndarray, cameras: list[Camera], masks: np.ndarray, table: np.ndarray,
                names: list[str], bad: np.ndarray) -> str:
     """The likely cause of views whose silhouettes contradict their masks: the intrinsics, inverted masks, the
@@ -198,13 +211,18 @@ def mask_cause(scene, vertices: np.ndarray, cameras: list[Camera], masks: np.nda
         i = swapped[0]
         return (f"order: cameras and images are matched in another order ({names[i]}'s mask fits the camera given "
                 f"for {names[best[i]]}, IoU {table[i, best[i]]:.2f})")
+    vertices = np.asarray(vertices)[::math.ceil(len(vertices) / MAX_VERTICES)]
+    off = [offset_from_mask(vertices, cameras[i], masks[i]) for i in bad]
+    if sum(o is None or o > 1.0 for o in off) > len(bad) / 2:
+        return ("placement: the mesh lies behind the cameras or away from the object they show (it projects outside "
+                "the masks in most of those views): the mesh and the cameras are in different frames (mismatched "
+                "files, or a mesh moved after the capture)")
     area = np.array([silhouette(scene, padded(cameras[i])).sum() for i in bad])  # the part outside the image too
     if area.any():
         ratio = float(np.median(np.sqrt(area / np.maximum(masks[bad].sum((1, 2)), 1))))
     else:  # smaller than a pixel, or out of sight: the projected vertices tell which
-        vertices = np.asarray(vertices)[::math.ceil(len(vertices) / MAX_VERTICES)]
         seen = [(projected_extent(vertices, cameras[i]), extent(np.argwhere(masks[i])[:, ::-1])) for i in bad]
-        seen = [(size, mask) for size, mask in seen if size is not None]
+        seen = [(size, mask) for size, mask in seen if size]
         if not seen:
             return ("placement: no camera sees the mesh, not even just outside its image: the mesh and the cameras "
                     "are in different frames (mismatched files, or a mesh moved after the capture)")

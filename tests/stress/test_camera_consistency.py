@@ -61,6 +61,15 @@ def mesh_scaled(factor: float) -> Callable[[Path], None]:
     return edit
 
 
+def mesh_moved(offset: tuple[float, float, float]) -> Callable[[Path], None]:
+    """The mesh translated by `offset`."""
+    def edit(root: Path) -> None:
+        mesh = trimesh.load(root / "mesh.ply", process=False)
+        mesh.vertices += np.asarray(offset)
+        mesh.export(root / "mesh.ply")
+    return edit
+
+
 def intrinsics(**values: float) -> Callable[[Path], None]:
     """Every frame's intrinsics set to `values` (fl_x, cx, ...)."""
     def edit(root: Path) -> None:
@@ -95,6 +104,8 @@ REJECTED = {  # case: (edit of the capture, words of the message after the file)
         "IoU < 0.7 in 5 of 5 views (r_000 0.2", "likely cause: scale: the mesh's silhouette is 0.49x the mask's size"]),
     "mesh twice as large": (mesh_scaled(2.0), ["IoU < 0.7 in 5 of 5 views",
                                                "likely cause: scale: the mesh's silhouette is 2.2x the mask's size"]),
+    "mesh far off to the side": (mesh_moved((1000.0, 0.0, 0.0)), ["likely cause: placement: "]),
+    "mesh far above": (mesh_moved((0.0, 1000.0, 0.0)), ["likely cause: placement: "]),
     "focal length 1e12": (intrinsics(fl_x=1e12, fl_y=1e12), [
         "likely cause: focal length: r_000's fl_x 1e+12 px gives a 1.38e-09 deg field of view"]),
     "principal point outside": (intrinsics(cx=500.0), [
