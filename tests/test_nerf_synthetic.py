@@ -63,6 +63,16 @@ def test_masks_named_after_the_images_match_the_split_views(pair, tmp_path):
     assert {view.mask.stem for view in capture.views} == {view.name.split("_", 1)[1] for view in capture.views}
 
 
+def test_an_alpha_stored_as_0_1_gets_the_scaling_hint(pair, tmp_path):
+    root = shutil.copytree(pair[1], tmp_path / "nerf")
+    for path in (root / "train").glob("*.png"):
+        rgba = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        rgba[..., 3] = (rgba[..., 3] > 127).astype(np.uint8)
+        cv2.imwrite(str(path), rgba)
+    with pytest.raises(CaptureError, match=r"empty mask .*largest value is 1 of 255: masks stored as 0/1"):
+        load_capture(root)
+
+
 def test_a_view_in_a_fitted_and_the_held_out_split_is_refused(pair, tmp_path):
     """A test frame that names a train image would be fitted and scored as held out: refused, naming both splits."""
     root = shutil.copytree(pair[1], tmp_path / "nerf")

@@ -14,7 +14,7 @@ import numpy as np
 from dpi.capture.model import CaptureError, CaptureWarning, inside_capture
 from dpi.io.exr import EXRError, read_exr
 from dpi.io.images import (HDR_SUFFIXES, IMAGE_SUFFIXES, LDR_SUFFIXES, ImageError, decode_ldr, exif_orientation,
-                            ldr_header_size, read_image, read_mask)
+                            ldr_header_size, mask_values, read_image, read_mask)
 from dpi.light.envmap import EnvmapLayoutError, read_envmap
 
 CLIPPED_WARNING_FRACTION = 0.01
@@ -149,18 +149,29 @@ def check_images(images: dict[str, Path]) -> tuple[int, int]:
 
 def check_signal(path: Path, image: np.ndarray) -> None:
     """Fail on an image without signal (all black, or every pixel clipped: at white for PNG/JPG, at one value
-    for EXR); warn with the fraction when at least CLIPPED_WARNING_FRACTION of an LDR image's pixels are white."""
+    for EXR); warn with the fraction when at least CLIPPED_WARNING_FRACTION of an LDR image's pixels are white. A
+    cut-out (a PNG whose alpha varies) counts only its opaque pixels: its transparent background is no photo."""
     peak = float(image.max())
     if peak == 0:
         raise CaptureError(f"{path}: image is all black (every pixel 0): nothing to fit")
     ldr = path.suffix.lower() in LDR_SUFFIXES
     white = 1.0 if ldr else peak
-    clipped = float((image >= white).any(axis=-1).mean())
+    shown = cut_out(path)
+    at_white = (image >= white).any(axis=-1)
+    clipped = float(at_white[shown].mean()) if shown is not None and shown.any() else float(at_white.mean())
     if clipped == 1.0:
         raise CaptureError(f"{path}: every pixel is clipped at {white:g} (saturated): no shading to fit")
     if ldr and clipped >= CLIPPED_WARNING_FRACTION:
         warnings.warn(f"{path}: {100 * clipped:.1f}% of the pixels are clipped at white; the fit takes them as "
                       "exact, so shading there is underestimated", CaptureWarning, stacklevel=2)
+
+
+def cut_out(path: Path) -> np.ndarray | None:
+    """The opaque pixels (H, W) of a PNG whose alpha varies (a cut-out); None for other images."""
+    if path.suffix.lower() != ".png" or not png_has_alpha(path):
+        return None
+    alpha = decode_ldr(path)[..., -1]
+    return alpha > 0.5 if alpha.min() < alpha.max() else None
 
 
 PNG_ALPHA_TYPES = (4, 6)
@@ -216,7 +227,7 @@ def mask_files(root: Path, images: dict[str, Path], size: tuple[int, int],
             raise CaptureError(f"{masks[name]}: mask size {mask.shape[1]}x{mask.shape[0]} != "
                                f"image size {size[0]}x{size[1]}")
         if not mask.any():
-            top = float(decode_ldr(masks[name]).max()) if masks[name].suffix.lower() in LDR_SUFFIXES else 0.0
+            top = float(mask_values(masks[name]).max()) if masks[name].suffix.lower() in LDR_SUFFIXES else 0.0
             hint = (f"; its largest value is {round(top * 255)} of 255: masks stored as 0/1 must be scaled to 0/255"
                     if 0 < top <= 1 / 255 + 1e-6 else "")
             raise CaptureError(f"{masks[name]}: empty mask (no foreground pixel){hint}")

@@ -207,23 +207,28 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     return image
 
 
-def read_mask(path: str | os.PathLike) -> np.ndarray:
-    """Boolean foreground mask (H, W) from a PNG/JPG (8 or 16 bits) or EXR, above 0.5: the alpha channel where
-    it varies (a cut-out), else the grey value (Rec. 601 luma of RGB): an opaque alpha, as many editors save a
-    black-and-white mask, says nothing."""
+def mask_values(path: str | os.PathLike) -> np.ndarray:
+    """A mask file's values (H, W) in [0, 1] before the threshold: from a PNG/JPG (8 or 16 bits) the alpha channel
+    where it varies (a cut-out), else the grey value (Rec. 601 luma of RGB): an opaque alpha, as many editors save a
+    black-and-white mask, says nothing; from an EXR its first channel."""
     path = Path(path)
     if not path.is_file():
         raise ImageError(f"{path}: mask file does not exist")
     if path.suffix.lower() in HDR_SUFFIXES:
         try:
-            return read_exr(path)[..., 0] > 0.5
+            return read_exr(path)[..., 0]
         except EXRError as exc:
             raise ImageError(str(exc)) from exc
     values = decode_ldr(path)
     colour, alpha = (values[..., :3], values[..., 3]) if values.shape[-1] == 4 else (values, None)  # grey + alpha: RGBA
     if alpha is not None and alpha.min() < alpha.max():
-        return alpha > 0.5
-    return (colour @ np.array(REC601_LUMA, np.float32) if colour.shape[-1] == 3 else colour[..., 0]) > 0.5
+        return alpha
+    return colour @ np.array(REC601_LUMA, np.float32) if colour.shape[-1] == 3 else colour[..., 0]
+
+
+def read_mask(path: str | os.PathLike) -> np.ndarray:
+    """Boolean foreground mask (H, W): `mask_values` above 0.5."""
+    return mask_values(path) > 0.5
 
 
 def to_uint8(linear: np.ndarray, exposure: float = 1.0) -> np.ndarray:

@@ -19,6 +19,7 @@ from capture_helpers import NAMES, SIZE, edit_transforms, make_capture, raw_exr
 
 from dpi.capture import CaptureError, CaptureWarning, inspect_capture, load_capture, read_scene_options
 from dpi.capture.cameras import to_mitsuba
+from dpi.capture.folder import check_signal
 from dpi.io.images import read_image, read_mask
 from dpi.preprocess.derive import normalise_capture
 from dpi.solve.exposure import capture_exposure
@@ -355,6 +356,17 @@ def test_partly_clipped_png_warns_with_the_clipped_fraction(tmp_path):
     write_cv2(root / "images" / "r_0.png", codes)
     with pytest.warns(CaptureWarning, match=r"r_0\.png: 25\.0% of the pixels are clipped at white"):
         load_capture(root)
+
+
+def test_a_cut_outs_white_transparent_background_does_not_count_as_clipped(tmp_path):
+    """An RGBA cut-out whose transparent half is white: the clipped share counts the opaque pixels only (none)."""
+    root = make_capture(tmp_path / "scene")
+    rgba = np.full((SIZE, SIZE, 4), 100, np.uint8)
+    rgba[: SIZE // 2, :, :3], rgba[: SIZE // 2, :, 3], rgba[SIZE // 2:, :, 3] = 255, 0, 255
+    write_cv2(root / "images" / "r_0.png", rgba)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("error", message=".*clipped at white", category=CaptureWarning)
+        check_signal(root / "images" / "r_0.png", read_image(root / "images" / "r_0.png"))
 
 
 def test_a_few_white_pixels_do_not_warn(tmp_path):
