@@ -63,6 +63,20 @@ def test_masks_named_after_the_images_match_the_split_views(pair, tmp_path):
     assert {view.mask.stem for view in capture.views} == {view.name.split("_", 1)[1] for view in capture.views}
 
 
+def test_a_test_split_alone_and_a_split_with_its_own_field_of_view_are_named(pair, tmp_path):
+    only_test = shutil.copytree(pair[1], tmp_path / "only_test")
+    (only_test / "transforms_train.json").unlink()
+    with pytest.raises(CaptureError, match=r"transforms_test.json: every view is held out"):
+        load_capture(only_test)
+    wider = shutil.copytree(pair[1], tmp_path / "wider")
+    data = json.loads((wider / "transforms_test.json").read_text())
+    data["camera_angle_x"] *= 1.3
+    (wider / "transforms_test.json").write_text(json.dumps(data))
+    with pytest.raises(CaptureError, match=r"likely cause: focal length: the views that contradict their masks "
+                                           r"\(test_r_\d+, \.\.\.\) have a [\d.]+ deg field of view"):
+        load_capture(wider)
+
+
 def test_an_alpha_stored_as_0_1_gets_the_scaling_hint(pair, tmp_path):
     root = shutil.copytree(pair[1], tmp_path / "nerf")
     for path in (root / "train").glob("*.png"):

@@ -163,6 +163,20 @@ def intrinsics_cause(cameras: list[Camera], names: list[str]) -> str | None:
     return None
 
 
+def focal_cause(cameras: list[Camera], names: list[str], bad: np.ndarray) -> str | None:
+    """Where the views that contradict their masks share a field of view that none of the views that fit has (a
+    split or a file of frames with its own, wrong intrinsics), that cause named with both fields of view; else None."""
+    good = np.setdiff1d(np.arange(len(cameras)), bad)
+    if not len(good):
+        return None
+    fov = np.array([math.degrees(2 * math.atan(c.width / (2 * c.fx))) for c in cameras])
+    if np.ptp(fov[bad]) > 1e-3 * fov[bad].mean() or np.abs(fov[good] - fov[bad][0]).min() <= 1e-3 * fov[bad][0]:
+        return None
+    return (f"focal length: the views that contradict their masks ({names[bad[0]]}, ...) have a {fov[bad][0]:.3g} "
+            f"deg field of view, the views that fit {fov[good][0]:.3g} deg: their intrinsics are wrong (a split or "
+            "file of frames with its own camera_angle_x or fl_x?)")
+
+
 def extent(points: np.ndarray) -> float:
     """Diagonal of the bounding box of pixel positions (n, 2); 0 for none."""
     return float(np.linalg.norm(points.max(0) - points.min(0))) if len(points) else 0.0
@@ -205,6 +219,9 @@ def mask_cause(scene, vertices: np.ndarray, cameras: list[Camera], masks: np.nda
     shift = preferred_shift(table)
     if shift is not None:
         return shift_cause(table, names, shift)
+    focal = focal_cause(cameras, names, bad)
+    if focal:
+        return focal
     best = table.argmax(1)
     swapped = [i for i in bad if best[i] != i and table[i, best[i]] >= MIN_IOU]
     if swapped:

@@ -82,8 +82,10 @@ def complete_capture(capture: Capture, scene: SceneLayout, keys: tuple[str, ...]
     return capture.with_derived(**derived) if derived else capture
 
 
-def held_out_names(root: Path, names: list[str], options: dict, cameras: dict[str, Camera]) -> set[str]:
-    """Held-out view names: scene.yaml's list when given, else the frames flagged `held_out`."""
+def held_out_names(root: Path, names: list[str], options: dict, cameras: dict[str, Camera],
+                   camera_file: Path | None) -> set[str]:
+    """Held-out view names: scene.yaml's list when given, else the frames flagged `held_out` in `camera_file` (a
+    NeRF-synthetic capture's: its test split)."""
     if "held_out" in options:
         unknown = [n for n in options["held_out"] if n not in names]
         if unknown:
@@ -92,7 +94,7 @@ def held_out_names(root: Path, names: list[str], options: dict, cameras: dict[st
         source = root / "scene.yaml"
     else:
         held = {n for n, c in cameras.items() if bool(c.extras.get("held_out", False))}
-        source = root / "transforms.json"
+        source = camera_file or root / "transforms.json"
     if held and len(held) == len(names):
         raise CaptureError(f"{source}: every view is held out, none is left for training")
     return held
@@ -159,7 +161,7 @@ def load_capture(root: str | os.PathLike) -> Capture:
             raise CaptureError(f"{camera_file}: {problem}")
     has_uv = mesh is not None and mesh_has_uv(mesh)
     gt = gt_files(root)
-    held = held_out_names(root, names, options, cameras)
+    held = held_out_names(root, names, options, cameras, camera_file)
     views = [View(n, images[n], None if masks is None else masks[n], cameras.get(n), n in held) for n in names]
     provenance = {
         "cameras": "given" if cameras else "derived",
