@@ -11,6 +11,7 @@ from dataclasses import dataclass, field, fields, replace
 from functools import partial
 from typing import Annotated, Any, Callable, Literal
 
+import torch
 from pydantic import Field
 
 from dpi.io.settings import Count, Rate, SettingsError, Steps, check_keys, settings, settings_from_dict
@@ -20,7 +21,7 @@ from dpi.solve.dps.proximal import ProximalConfig, proximal_step
 from dpi.solve.dps.refine import RefineConfig
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.dps.sun_choice import SunConfig
-from dpi.solve.init import is_glossy, starting_materials
+from dpi.solve.init import START_ALBEDO, is_glossy, starting_materials
 from dpi.solve.materials import MaterialRates, MaterialTextures
 
 StepFunction = Callable[[DPSRun, DPSState, int], dict[str, Any]]
@@ -82,10 +83,12 @@ class DPSConfig(MaterialRates):
     (the reference's gradient guidance through the path tracer)"""
     steps: Annotated[int, Field(ge=2, le=1000)] = 100
     """reverse-diffusion steps (respaced from the prior's 1000; the paper uses 1000)"""
-    materials_start: Literal["reset", "init"] = "reset"
-    """the materials a sample starts from, and its light transport is recorded under: reset (a grey albedo and, on a
+    materials_start: Literal["reset", "metallic", "init"] = "metallic"
+    """the materials a sample starts from, and its light transport is recorded under: metallic (a grey albedo, the
+    init's roughness and metallic textures as they are: a metal part keeps its metal), reset (a grey albedo and, on a
     rough init, its median metallic everywhere: dpi.solve.init.starting_materials) or init (the init's textures as
-    they are)"""
+    they are: the views and the light fit best, the albedo keeps the init's trade with the light; docs/studies.md,
+    "Where a sample's broad balance goes")"""
     proximal: ProximalConfig = field(default_factory=ProximalConfig)
     sun: SunConfig = field(default_factory=SunConfig)
     refine: RefineConfig = field(default_factory=RefineConfig)
@@ -98,7 +101,13 @@ class DPSConfig(MaterialRates):
 
     def start_materials(self, init: Decomposition) -> MaterialTextures:
         """The materials a sample from `init` starts from (`materials_start`), a copy."""
-        return starting_materials(init) if self.materials_start == "reset" else init.materials.detached()
+        if self.materials_start == "reset":
+            return starting_materials(init)
+        materials = init.materials.detached()
+        if self.materials_start == "metallic":
+            with torch.no_grad():
+                materials.albedo.fill_(START_ALBEDO)
+        return materials
 
     def for_init(self, init: Decomposition, prior_rows: int) -> DPSConfig:
         """The settings a sample from `init` runs with, under a prior of `prior_rows` rows: the one place a glossy
