@@ -464,6 +464,7 @@ TABLES: dict[str, Callable[[Path], str]] = {
                                          "light_sun_dev.csv"), ("group", "method", "sampler")),
     "light_design_realism": partial(light_realism, "dev/light_design_realism.csv", metrics=DESIGN_METRICS),
     "light_profile_realism": partial(light_realism, "dev/light_profile_realism.csv", metrics=DESIGN_METRICS),
+    "light_balance": partial(dev_table, ("light_balance_dev.csv",), ("group", "method", "sampler")),
 }
 """every generated table by the name its markers use"""
 
