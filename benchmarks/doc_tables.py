@@ -465,6 +465,7 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "light_design_realism": partial(light_realism, "dev/light_design_realism.csv", metrics=DESIGN_METRICS),
     "light_profile_realism": partial(light_realism, "dev/light_profile_realism.csv", metrics=DESIGN_METRICS),
     "light_balance": partial(dev_table, ("light_balance_dev.csv",), ("group", "method", "sampler")),
+    "light_balance_realism": partial(light_realism, "dev/light_balance_realism.csv", metrics=DESIGN_METRICS),
 }
 """every generated table by the name its markers use"""
 
