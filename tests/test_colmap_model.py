@@ -84,6 +84,8 @@ def edit_first_camera(root, edit):
     (lambda f: [*f[:4], "nan", *f[5:]], "its parameters are not finite|not a readable COLMAP model"),
     (lambda f: [f[0], "FOV", *f[2:], "0.5"], "COLMAP camera model FOV is not read by dpi"),
     (lambda f: [*f[:6], "1e6", f[7]], r"principal point \(1e\+06, .*\) px lies outside"),
+    (lambda f: [f[0], f[1], str(2 * int(f[2])), str(2 * int(f[3])), *f[4:]],
+     r"camera 1 \(of image 'r_0.png'\) is \d+ x \d+ px but the images are"),
 ])
 def test_a_models_unusable_camera_is_named_at_validation(tmp_path, edit, cause):
     """Intrinsics are checked before the poses stage runs: one line naming the model, the camera and the cause."""

@@ -267,3 +267,11 @@ def test_closing_loss_is_the_mean_data_loss_of_the_last_steps():
 def test_init_starts_must_be_a_roughness_metallic_pair_in_the_unit_range(start):
     with pytest.raises(SettingsError, match="start"):
         InitConfig.from_dict({"glossy_start": start})
+
+
+def test_textures_with_a_nan_texel_are_refused_before_anything_is_written(tmp_path):
+    materials = MaterialTextures.constant(4)
+    materials.roughness[1, 2, 0] = float("nan")
+    with pytest.raises(ValueError, match="refusing to save a non-finite roughness texture"):
+        materials.save(tmp_path)
+    assert not list(tmp_path.iterdir())

@@ -25,10 +25,11 @@ def colmap_model_dir(root: Path) -> Path | None:
     return None
 
 
-def check_colmap_model(root: Path, folder: Path, names: list[str]) -> None:
+def check_colmap_model(root: Path, folder: Path, names: list[str], size: tuple[int, int]) -> None:
     """The model is complete (each of its files in one format), reads, registers images of the capture, and the
     cameras and poses of those are usable (a model dpi reads, finite intrinsics with a positive focal length and
-    principal point inside the image, finite poses): else one CaptureError naming the folder and what is wrong."""
+    principal point inside the image, the images' `size` (width, height), finite poses): else one CaptureError naming
+    the folder and what is wrong."""
     import pycolmap
 
     inside_capture(root, folder, "the COLMAP model")
@@ -50,7 +51,12 @@ def check_colmap_model(root: Path, folder: Path, names: list[str]) -> None:
         raise CaptureError(f"{folder}: the COLMAP model registers none of the images in images/ "
                            f"({len(registered)} images of other names)")
     for image in known:
-        check_colmap_camera(folder, model.cameras[image.camera_id], image.name)
+        camera = model.cameras[image.camera_id]
+        check_colmap_camera(folder, camera, image.name)
+        if (camera.width, camera.height) != tuple(size):
+            raise CaptureError(f"{folder}: camera {camera.camera_id} (of image {image.name!r}) is {camera.width} x "
+                               f"{camera.height} px but the images are {size[0]} x {size[1]}: the model was made from "
+                               "other copies of the photos (resized or rotated)")
         pose = np.asarray(image.cam_from_world().matrix(), dtype=np.float64)
         if not np.isfinite(pose).all():
             raise CaptureError(f"{folder}: image {image.name!r}: its pose is not finite (NaN or infinite)")

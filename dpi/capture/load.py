@@ -142,7 +142,7 @@ def load_capture(root: str | os.PathLike) -> Capture:
     size = check_images(images)
     model_dir = colmap_model_dir(root) if camera_file is None else None
     if model_dir is not None:
-        check_colmap_model(root, model_dir, names)
+        check_colmap_model(root, model_dir, names, size)
     if camera_file is None:
         cameras = {}
     elif transforms is not None:

@@ -66,7 +66,11 @@ class MaterialTextures:
         return self
 
     def save(self, folder: str | Path) -> None:
-        """Write albedo.exr, roughness.exr and metallic.exr into `folder`."""
+        """Write albedo.exr, roughness.exr and metallic.exr into `folder`; a texture with a NaN or infinite texel is
+        refused, naming it, before anything is written."""
+        for name, t in self.items():
+            if not torch.isfinite(t).all():
+                raise ValueError(f"{folder}: refusing to save a non-finite {name} texture")
         for name, t in self.items():
             write_exr(Path(folder) / texture_file(name), t.detach().cpu().numpy())
 
