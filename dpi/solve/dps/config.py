@@ -83,12 +83,12 @@ class DPSConfig(MaterialRates):
     (the reference's gradient guidance through the path tracer)"""
     steps: Annotated[int, Field(ge=2, le=1000)] = 100
     """reverse-diffusion steps (respaced from the prior's 1000; the paper uses 1000)"""
-    materials_start: Literal["reset", "metallic", "init"] = "metallic"
-    """the materials a sample starts from, and its light transport is recorded under: metallic (a grey albedo, the
-    init's roughness and metallic textures as they are: a metal part keeps its metal), reset (a grey albedo and, on a
-    rough init, its median metallic everywhere: dpi.solve.init.starting_materials) or init (the init's textures as
-    they are: the views and the light fit best, the albedo keeps the init's trade with the light; docs/studies.md,
-    "Where a sample's broad balance goes")"""
+    materials_start: Literal["reset", "metallic", "init"] = "reset"
+    """the materials a sample starts from, and its light transport is recorded under: reset (a grey albedo and, on a
+    rough init, its median metallic everywhere: dpi.solve.init.starting_materials), metallic (a grey albedo, the
+    init's roughness and metallic textures as they are: a metal part the init reads rough keeps its metal) or init
+    (the init's textures as they are: views and light fit best, the albedo keeps the init's trade with the light).
+    Chosen in docs/studies.md, the section on where a sample's broad balance goes"""
     proximal: ProximalConfig = field(default_factory=ProximalConfig)
     sun: SunConfig = field(default_factory=SunConfig)
     refine: RefineConfig = field(default_factory=RefineConfig)
