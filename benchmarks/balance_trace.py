@@ -27,12 +27,13 @@ from dpi.capture import read_capture_json, read_ground_truth
 from dpi.evaluation.metrics import BALANCE_ROWS, balance_error
 from dpi.io.exr import read_exr
 from dpi.io.layout import INIT
+from dpi.solve.dps.loop import WATCH_STAGES
 from dpi.stages.inverse import sample_stage
 from dpi.studies.engine import (claim_sample_dir, dps_variants, method_jobs, prepare_job, read_rows, results_csv,
                                 work_dir, workflow_config, write_rows)
 from dpi.studies.scenes import DEV_SCENES, real_light_scenes
 
-STAGES = ("init", "x0_hat", "solved", "loop", "kept", "refined")
+STAGES = ("init", *WATCH_STAGES)
 TEXT = ("scene", "group", "variant", "stage", "label")
 """the CSV's text columns"""
 SHOWN_STEPS = (0.0, 0.5, 1.0)

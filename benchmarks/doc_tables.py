@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from dpi.io.layout import INIT
+from dpi.solve.dps.loop import WATCH_STAGES
 from dpi.solve.init import glossy_share
 from dpi.solve.methods import METHODS
 from dpi.studies.engine import latest, read_rows
@@ -423,8 +424,8 @@ def mask_witnesses(root: Path) -> str:
                      "flagged, views over 0.9"], body)
 
 
-BALANCE_STAGES = ("init", "x0_hat", "solved", "loop", "kept", "refined")
-"""benchmarks/balance_trace.py's stages, in the order a sample passes them"""
+BALANCE_STAGES = ("init", *WATCH_STAGES)
+"""benchmarks/balance_trace.py's stages: the init's map, then a sample's as it forms"""
 
 
 def balance_trace(root: Path) -> str:

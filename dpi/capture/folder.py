@@ -13,8 +13,8 @@ import numpy as np
 
 from dpi.capture.model import CaptureError, CaptureWarning, inside_capture
 from dpi.io.exr import EXRError, read_exr
-from dpi.io.images import (HDR_SUFFIXES, IMAGE_SUFFIXES, LDR_SUFFIXES, ImageError, decode_ldr, exif_orientation,
-                            ldr_header_size, mask_values, read_image, read_mask)
+from dpi.io.images import (HDR_SUFFIXES, IMAGE_SUFFIXES, LDR_SUFFIXES, ImageError, decode_ldr, ldr_header_size,
+                            mask_values, read_image, read_mask)
 from dpi.light.envmap import EnvmapLayoutError, read_envmap
 
 CLIPPED_WARNING_FRACTION = 0.01
@@ -117,8 +117,6 @@ def check_header_sizes(images: dict[str, Path]) -> None:
             width, height = ldr_header_size(path)
         except ImageError as exc:
             raise CaptureError(str(exc)) from None
-        if exif_orientation(path) >= 5:
-            width, height = height, width
         check_image_size(path, width, height)
         if size is None:
             size, first = (width, height), path
@@ -191,8 +189,7 @@ def alpha_masks(images: dict[str, Path]) -> dict[str, Path] | None:
     paths = list(images.values())
     if not paths or any(p.suffix.lower() != ".png" or not png_has_alpha(p) for p in paths):
         return None
-    alpha = decode_ldr(paths[0])[..., -1]
-    return dict(images) if alpha.min() < alpha.max() else None
+    return dict(images) if cut_out(paths[0]) is not None else None
 
 
 def by_view(masks: dict[str, Path], images: dict[str, Path]) -> dict[str, Path]:

@@ -18,11 +18,10 @@ import torch
 from dpi.capture import read_ground_truth
 from dpi.evaluation.metrics import ENV_BALANCE, PSNR_CAP, albedo_mse, aligned_env, env_metrics, missing, psnr, ssim
 from dpi.evaluation.naturalness import naturalness
-from dpi.evaluation.seams import seam_ratio
-from dpi.export.asset import renderer_mesh
 from dpi.evaluation.niqe import ENV_HEIGHT, env_niqe
 from dpi.evaluation.perceptual import ALEXNET_WEIGHTS, LPIPS_MIN_SIZE, lpips_distance, missing_weights, pretrained_lpips
 from dpi.evaluation.relighting import RELIGHT_HEIGHT, relight_held_out, relight_metrics
+from dpi.evaluation.seams import seam_ratio
 from dpi.evaluation.train_fit import ground_truth, training_fit
 from dpi.io.images import linear_to_srgb
 from dpi.prior.sample import Prior, load_scene_prior
@@ -121,8 +120,8 @@ def train_fit_metrics(problem: InverseProblem, decomposition: Decomposition, spp
 
 def albedo_seam(problem: InverseProblem, decomposition: Decomposition) -> float | str:
     """The albedo's seam ratio on the problem's mesh as the renderer reads it (dpi.evaluation.seams)."""
-    mesh = renderer_mesh(problem.capture.mesh)
-    ratio = seam_ratio(mesh.positions, mesh.faces.astype(np.int64), mesh.uvs, decomposition.materials.albedo.numpy())
+    mesh = problem.mesh
+    ratio = seam_ratio(mesh["positions"], mesh["faces"], mesh["uvs"], decomposition.materials.albedo.numpy())
     return ratio if np.isfinite(ratio) else missing("the atlas has no seams")
 
 

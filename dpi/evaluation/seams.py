@@ -15,6 +15,7 @@ import numpy as np
 from dpi.solve.seams import mesh_edges, seam_pairs
 from dpi.solve.transport.record import texture_weights
 
+
 def texture_lookup(texture: np.ndarray, uvs: np.ndarray) -> np.ndarray:
     """(n, C) bilinear lookups of an (R, R, C) texture at uvs (n, 2), as the renderer reads it."""
     size = texture.shape[0]

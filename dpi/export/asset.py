@@ -89,14 +89,17 @@ def sample_textures(sample: AssetSample, mesh: AssetMesh) -> dict[str, np.ndarra
     from dpi.preprocess.uv import fill_gutters
 
     files = sample.files
-    textures = {}
+    textures, coverage = {}, {}
     for name in ("albedo", "roughness", "metallic"):
         texture = read_exr(files[name])
         bad = ~np.isfinite(texture)
         if bad.any():
             raise ValueError(f"{files[name]}: {int(bad.any(-1).sum())} texels are NaN or infinite; the sample cannot "
                              "be exported (draw it again)")
-        textures[name] = fill_gutters(texture, chart_coverage(mesh, texture.shape[0]))
+        size = texture.shape[0]
+        if size not in coverage:  # the three textures share one size: rasterise the charts once
+            coverage[size] = chart_coverage(mesh, size)
+        textures[name] = fill_gutters(texture, coverage[size])
     albedo, roughness, metallic = (textures[name] for name in ("albedo", "roughness", "metallic"))
     r8, m8 = unit_to_uint8(roughness[..., 0]), unit_to_uint8(metallic[..., 0])
     packed = np.stack([np.full_like(r8, 255), r8, m8], -1)

@@ -116,13 +116,15 @@ and checked before anything is decoded, so a small file that declares a huge ima
 
 
 def ldr_header_size(path: Path) -> tuple[int, int]:
-    """(width, height) a PNG/JPG's header declares (as stored, before its EXIF turn), nothing decoded; an unreadable
-    header is an ImageError naming the file."""
+    """(width, height) a PNG/JPG's header declares, turned by its EXIF orientation (as `decode_ldr` returns it),
+    nothing decoded; an unreadable header is an ImageError naming the file."""
     try:
         with headers_only(), Image.open(path) as image:
-            return image.size
+            width, height = image.size
+            orientation = int(image.getexif().get(EXIF_ORIENTATION, 1))
     except (OSError, ValueError, SyntaxError):
         raise ImageError(f"{path}: not a readable image (no {path.suffix.lstrip('.')} header)") from None
+    return (height, width) if orientation >= 5 else (width, height)
 
 
 def decode_ldr(path: Path) -> np.ndarray:

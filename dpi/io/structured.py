@@ -1,5 +1,6 @@
 """YAML and JSON files read with limits: size, nesting depth, YAML aliases and the size of a YAML document with its
-aliases expanded are bounded before anything is built, so a hostile file (an alias bomb, a deep nest, a huge file) stops in well under a second with one line
+aliases expanded are bounded before anything is built, so a hostile file (an alias bomb, a deep nest, a huge file)
+stops in well under a second with one line
 naming the file, instead of a MemoryError or a RecursionError traceback. Parse errors are one line too, with the
 line and column. Messages never quote the file's contents."""
 

@@ -70,15 +70,17 @@ MIN_TEXTURE_SIZE = 16
 """the smallest R a capture's own size gives"""
 
 
-def texture_size_for(capture: Capture, settings: ProblemConfig) -> int:
+def texture_size_for(capture: Capture, settings: ProblemConfig, shares: list[float] | None = None) -> int:
     """R of the capture's textures: `settings.texture_size` when set, else about as many texels as the training views
     have object pixels at the working resolution (each view's mask share times its working pixel count), the power of
-    two nearest in log, between MIN_TEXTURE_SIZE and `max_texture_size`. The full-size capture and its working copy
-    give the same R (mask shares, not pixel counts)."""
+    two nearest in log, between MIN_TEXTURE_SIZE and `max_texture_size`. `shares`: the training views' mask shares
+    when already read (default: read from the masks). The full-size capture and its working copy give the same R
+    (mask shares, not pixel counts)."""
     if settings.texture_size:
         return settings.texture_size
+    if shares is None:
+        shares = [float(read_mask(v.mask).mean()) if v.mask else 1.0 for v in capture.views if not v.held_out]
     width, height = working_size(capture.image_size, settings.resolution)
-    shares = [float(read_mask(v.mask).mean()) if v.mask else 1.0 for v in capture.views if not v.held_out]
     pixels = max(sum(shares) * width * height, 1.0)
     size = 2 ** round(np.log2(pixels) / 2)
     return int(min(max(size, MIN_TEXTURE_SIZE), settings.max_texture_size))
@@ -101,11 +103,12 @@ class InverseProblem:
         if missing:
             raise ValueError(f"{capture.root}: views without cameras: {', '.join(missing[:5])}")
         self.capture = capture
-        self.settings = settings = replace(settings, texture_size=texture_size_for(capture, settings))
         self.views = list(capture.views)
         self.images = [torch.from_numpy(read_image(v.image)) for v in self.views]
         self.masks = [torch.from_numpy(read_mask(v.mask) if v.mask else np.ones(img.shape[:2], bool))
                       for v, img in zip(self.views, self.images)]
+        shares = [float(m.float().mean()) for v, m in zip(self.views, self.masks) if not v.held_out]
+        self.settings = settings = replace(settings, texture_size=texture_size_for(capture, settings, shares))
         self.renderer = Renderer(capture.mesh, [v.camera for v in self.views], settings.env_height,
                                  settings.texture_size, render)
         self.train_ids = [i for i, v in enumerate(self.views) if not v.held_out]
@@ -118,9 +121,14 @@ class InverseProblem:
         self.images = [image / self.exposure for image in self.images]
 
     @cached_property
+    def mesh(self) -> dict[str, np.ndarray]:
+        """The mesh as the renderer reads it (dpi.render.renderer.mesh_arrays), read once."""
+        return mesh_arrays(self.capture.mesh)
+
+    @cached_property
     def seams(self) -> SeamTies:
         """The texels the mesh's seams join at the problem's texture size (dpi.solve.seams)."""
-        mesh = mesh_arrays(self.capture.mesh)
+        mesh = self.mesh
         return SeamTies.of_mesh(mesh["positions"].astype(np.float64), mesh["faces"], mesh["uvs"].astype(np.float64),
                                 self.settings.texture_size)
 

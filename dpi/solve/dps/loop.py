@@ -109,6 +109,8 @@ def posterior_steps(run: DPSRun, state: DPSState, start: int = 0) -> Iterator[di
         yield step(run, state, n)
 
 
+WATCH_STAGES = ("x0_hat", "solved", "loop", "kept", "refined")
+"""the stages a Watch sees, in the order a sample passes them"""
 Watch = Callable[[str, int, torch.Tensor], None]
 """an observer of a sample's map as it forms: (stage, step, map (H, 2H, 3) at any scale); per step `x0_hat` (the
 network's guess) and `solved` (the step's map after its data updates), then once each `loop` (the loop's map),
