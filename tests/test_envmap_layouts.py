@@ -72,13 +72,13 @@ def wrapped_capture(tiny_capture, tmp_path):
 
 
 def test_authors_layout_validates_evaluates_and_relights(wrapped_capture, tiny_capture, tmp_path):
-    from dpi.evaluation.sample_metrics import ground_truth_metrics
+    from dpi.evaluation.sample_metrics import env_truth_metrics
     from dpi.solve.decomposition import Decomposition
 
     capture = load_capture(wrapped_capture)  # validates: no error
     assert read_envmap(capture.gt["envmap"]).shape == read_exr(tiny_capture / "gt" / "envmap.exr").shape
     truth = Decomposition.load(tiny_capture / "gt")  # the original 2:1 map scored against the square copy
-    metrics = ground_truth_metrics(truth, capture.gt)
+    metrics = env_truth_metrics(truth, capture.gt)
     assert metrics["env_psnr"] > 20  # the round trip loses only the azimuthal detail of the pair average
     write_capture_json(capture, tmp_path / "capture.json")
     names = relight_sample(tmp_path / "capture.json", wrapped_capture / "gt", tmp_path / "relit",

@@ -8,7 +8,8 @@ import torch
 
 from dpi.capture import load_capture
 from dpi.evaluation.metrics import PSNR_CAP
-from dpi.evaluation.relighting import (RELIGHT_MAPS, RELIGHT_METRICS, channel_scaled, ground_truth_materials,
+from dpi.evaluation.truth import true_materials
+from dpi.evaluation.relighting import (RELIGHT_MAPS, RELIGHT_METRICS, channel_scaled,
                                        relight_held_out, relight_map, relight_metrics, relight_scores)
 from dpi.light.envmap import top_energy_share
 from dpi.render.renderer import RenderConfig
@@ -58,7 +59,7 @@ def scores(problem, materials, spp=8, seed=3):
 def test_the_true_materials_relight_exactly_and_grey_ones_do_not(problem):
     relit = relight_held_out(problem, Decomposition(torch.ones(4, 8, 3), MaterialTextures.constant(8)), 8, 3)
     assert len(relit) == 2 * len(RELIGHT_MAPS) * len(problem.held_out_ids)
-    exact = scores(problem, ground_truth_materials(problem.capture.gt, 8))
+    exact = scores(problem, true_materials(problem, 8))
     assert exact["relight_psnr_h"] == exact["relight_psnr_l"] == PSNR_CAP
     grey = scores(problem, MaterialTextures.constant(8, 0.5, 0.9, 0.0))
     assert all(np.isfinite(grey[name]) for name in RELIGHT_METRICS) and grey["relight_psnr_l"] < 40

@@ -5,7 +5,8 @@ import numpy as np
 import torch
 
 from dpi.capture import load_capture
-from dpi.evaluation.train_fit import ground_truth, training_fit
+from dpi.evaluation.train_fit import training_fit
+from dpi.evaluation.truth import true_decomposition
 from dpi.render.renderer import RenderConfig
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.problem import InverseProblem, ProblemConfig
@@ -14,7 +15,7 @@ from dpi.solve.problem import InverseProblem, ProblemConfig
 def test_the_truth_fits_better_than_a_wrong_light_and_without_the_render_noise(tiny_capture):
     problem = InverseProblem(load_capture(tiny_capture), ProblemConfig(env_height=8, texture_size=16),
                              RenderConfig(spp=4, threads=2))
-    truth = ground_truth(problem)
+    truth = true_decomposition(problem)
     assert truth is not None
     fit = training_fit(problem, truth, spp=4, seed=0)
     wrong = Decomposition(truth.env.roll(8, dims=1) * 1.5, truth.materials)

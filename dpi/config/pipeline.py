@@ -142,8 +142,9 @@ class Pipeline:
         """What a scene's capture gives (cameras, masks, mesh, mesh_has_uv), known before it is rendered for a
         synthetic scene."""
         if self.is_synthetic(scene):
-            have = not self.synth_settings(scene).photos_only
-            return dict.fromkeys(("cameras", "masks", "mesh", "mesh_has_uv"), have)
+            synth = self.synth_settings(scene)
+            have = not synth.photos_only
+            return {**dict.fromkeys(("cameras", "masks", "mesh"), have), "mesh_has_uv": have and not synth.scan_faces}
         return inspect_capture(self.layout.capture_dir(scene))
 
     def scene_family(self, scene: str) -> str:

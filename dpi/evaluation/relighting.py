@@ -21,13 +21,11 @@ from typing import Any
 import numpy as np
 import torch
 
-from dpi.capture import read_ground_truth
 from dpi.evaluation.metrics import missing, psnr, ssim
+from dpi.evaluation.truth import true_materials
 from dpi.io.images import linear_to_srgb
-from dpi.io.layout import TEXTURE_NAMES
 from dpi.render.renderer import Renderer
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.materials import MaterialTextures, resize_texture
 from dpi.solve.problem import InverseProblem
 
 RELIGHT_HEIGHT = 32
@@ -66,15 +64,6 @@ def relight_scores(estimate: np.ndarray, reference: np.ndarray, mask: np.ndarray
             "relight_psnr_l": psnr(low_a, low_b, mask), "relight_ssim": ssim(low_a, low_b)}
 
 
-def ground_truth_materials(gt: dict[str, Any], size: int) -> MaterialTextures | str:
-    """The capture's true textures at size x size, or the missing-value naming what the capture lacks."""
-    absent = [name for name in TEXTURE_NAMES if name not in gt]
-    if absent:
-        return missing(f"no gt/{', gt/'.join(f'{n}.exr' for n in absent)}")
-    return MaterialTextures(*(resize_texture(torch.from_numpy(np.ascontiguousarray(read_ground_truth(gt[n], n))),
-                                             size) for n in TEXTURE_NAMES))
-
-
 def relit_name(light: str, view: str, truth: bool = False) -> str:
     """File stem of a relit held-out view in an evaluation's views folder (the truth's, or the sample's)."""
     return f"relit_{light}_{view}" + ("_truth" if truth else "")
@@ -88,7 +77,7 @@ def relight_held_out(problem: InverseProblem, decomposition: Decomposition, spp:
     if not problem.held_out_ids:
         return missing("no held-out views")
     size = decomposition.materials.albedo.shape[0]
-    truth = ground_truth_materials(problem.capture.gt, size)
+    truth = true_materials(problem, size)
     if isinstance(truth, str):
         return truth
     renderer = Renderer(problem.capture.mesh, [problem.views[v].camera for v in problem.held_out_ids],

@@ -22,7 +22,8 @@ from dpi.evaluation.niqe import ENV_HEIGHT, env_niqe
 from dpi.evaluation.perceptual import ALEXNET_WEIGHTS, LPIPS_MIN_SIZE, lpips_distance, missing_weights, pretrained_lpips
 from dpi.evaluation.relighting import RELIGHT_HEIGHT, relight_held_out, relight_metrics
 from dpi.evaluation.seams import seam_ratio
-from dpi.evaluation.train_fit import ground_truth, training_fit
+from dpi.evaluation.train_fit import training_fit
+from dpi.evaluation.truth import true_decomposition, true_materials
 from dpi.io.images import linear_to_srgb
 from dpi.prior.sample import Prior, load_scene_prior
 from dpi.solve.decomposition import Decomposition
@@ -87,32 +88,35 @@ def novel_view_metrics(problem: InverseProblem, renders: dict[str, np.ndarray]) 
             "novel_lpips": net if isinstance(net, str) else float(np.mean(lpipss)), "novel_psnr_views": psnrs}
 
 
-def ground_truth_metrics(decomposition: Decomposition, gt: dict[str, Path]) -> dict[str, Any]:
-    """Env-map PSNR/SSIM/LPIPS and albedo MSE against ground-truth files, when present."""
-    out: dict[str, Any] = {}
-    if "envmap" in gt:
-        env, reference = decomposition.env.numpy(), read_ground_truth(gt["envmap"], "envmap", log=True)
-        out.update(env_metrics(env, reference))
-        net = lpips_network()
-        a, b, _ = aligned_env(env, reference)
-        out["env_lpips"] = net if isinstance(net, str) else lpips_distance(linear_to_srgb(a), linear_to_srgb(b), net)
-    else:
-        out.update({k: missing("no gt/envmap.exr") for k in ("env_psnr", "env_ssim", *ENV_BALANCE, "env_lpips")})
-    if "albedo" in gt:
-        mse, scales = albedo_mse(decomposition.materials.albedo.numpy(), read_ground_truth(gt["albedo"], "albedo"))
-        out.update({"albedo_mse": mse, "albedo_scale": [float(s) for s in scales]})
-    else:
-        out["albedo_mse"] = missing("no gt/albedo.exr")
+def env_truth_metrics(decomposition: Decomposition, gt: dict[str, Path]) -> dict[str, Any]:
+    """Env-map PSNR/SSIM/LPIPS and broad balance against gt/envmap, when present (scene radiance)."""
+    if "envmap" not in gt:
+        return {k: missing("no gt/envmap.exr") for k in ("env_psnr", "env_ssim", *ENV_BALANCE, "env_lpips")}
+    env, reference = decomposition.env.numpy(), read_ground_truth(gt["envmap"], "envmap", log=True)
+    out: dict[str, Any] = env_metrics(env, reference)
+    net = lpips_network()
+    a, b, _ = aligned_env(env, reference)
+    out["env_lpips"] = net if isinstance(net, str) else lpips_distance(linear_to_srgb(a), linear_to_srgb(b), net)
     return out
+
+
+def albedo_truth_metrics(problem: InverseProblem, decomposition: Decomposition) -> dict[str, Any]:
+    """Albedo MSE against the true albedo on the problem's atlas (dpi.evaluation.truth), when there is one."""
+    albedo = decomposition.materials.albedo.numpy()
+    truth = true_materials(problem, albedo.shape[0])
+    if isinstance(truth, str):
+        return {"albedo_mse": truth}
+    mse, scales = albedo_mse(albedo, truth.albedo.numpy())
+    return {"albedo_mse": mse, "albedo_scale": [float(s) for s in scales]}
 
 
 def train_fit_metrics(problem: InverseProblem, decomposition: Decomposition, spp: int, seed: int) -> dict[str, Any]:
     """The decomposition's training-view fit (dpi.evaluation.train_fit) and its ratio to the truth's, where the
     capture has a complete gt/."""
     fit = training_fit(problem, decomposition, spp, seed)
-    truth = ground_truth(problem)
+    truth = true_decomposition(problem)
     if truth is None:
-        return {"train_fit": fit, "train_fit_over_truth": missing("no complete gt/ (envmap and textures)")}
+        return {"train_fit": fit, "train_fit_over_truth": missing("no complete gt/ (envmap and textures on the problem's atlas)")}
     reference = training_fit(problem, truth, spp, seed)
     return {"train_fit": fit, "train_fit_over_truth": fit / reference if reference > 0 else missing("the truth fits "
                                                                                                         "exactly")}
@@ -138,7 +142,8 @@ def evaluate_sample(problem: InverseProblem, decomposition: Decomposition, spp: 
     renders = render_held_out(problem, decomposition, spp, seed) if renders is None else renders
     relit = relight_held_out(problem, decomposition, spp, seed) if relit is None else relit
     metrics = {**novel_view_metrics(problem, renders),
-               **ground_truth_metrics(problem.to_scene_units(decomposition), problem.capture.gt),
+               **env_truth_metrics(problem.to_scene_units(decomposition), problem.capture.gt),
+               **albedo_truth_metrics(problem, decomposition),
                **relight_metrics(problem, relit),
                **train_fit_metrics(problem, decomposition, spp, seed),
                "albedo_seam": albedo_seam(problem, decomposition),

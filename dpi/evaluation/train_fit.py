@@ -9,12 +9,9 @@ trick)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import torch
 
-from dpi.io.layout import TEXTURE_NAMES
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.problem import InverseProblem, to_loss_space
 
@@ -34,11 +31,3 @@ def training_fit(problem: InverseProblem, decomposition: Decomposition, spp: int
                              for s in (seed + v, seed + v + SECOND_RENDER_SEED))
         errors.append(float((mask * (first - target) * (second - target)).sum() / (3 * mask.sum().clamp_min(1))))
     return float(np.mean(errors))
-
-
-def ground_truth(problem: InverseProblem) -> Decomposition | None:
-    """The capture's true decomposition (gt/: envmap and every texture) at the problem's sizes and units, or None
-    without a complete gt/."""
-    if not {"envmap", *TEXTURE_NAMES} <= set(problem.capture.gt):
-        return None
-    return problem.load_decomposition(Path(problem.capture.gt["envmap"]).parent)

@@ -203,15 +203,18 @@ def workflow_config(env_height: int | None = None, texture_size: int = STUDY_TEX
 
 
 def prepare_capture(root: Path, scene: str, synth: dict, threads: int) -> Path:
-    """The scene's capture and validated capture.json (made once, then reused), by the workflow's stages; the
-    latter's path."""
-    from dpi.stages import capture_stage, synth_capture_stage
+    """The scene's capture, validated capture.json and the atlas of a mesh given without UVs (made once, then
+    reused), by the workflow's stages; capture.json's path."""
+    from dpi.stages import capture_stage, preprocess_scene, synth_capture_stage
 
     job = Job(root, scene, "", synth, "init", "", 0, {}, workflow_config()).stage_job(threads)
     if not job.pipeline.layout.synth_marker(scene).exists():
         synth_capture_stage(job)
-    if not job.paths.capture_json.exists():
-        capture_stage(job)
+    if job.given["mesh_has_uv"]:
+        if not job.paths.capture_json.exists():
+            capture_stage(job)
+    elif not job.paths.geometry["mesh_uv"].exists():
+        preprocess_scene(job)
     return job.paths.capture_json
 
 

@@ -22,6 +22,9 @@ balance (sky against ground) that the body alone leaves to the albedo"""
 GLOSSY = {**SIZE, "roughness": 0.08, "roughness_variation": 0.0, "metallic": 1.0, "arc_deg": 360.0}
 """a shiny metal seen from all around: where a free fit already recovers the light"""
 
+SCAN_FACES = 60_000
+"""faces of a scanned scene's given mesh (SynthConfig.scan_faces): far more than its textures resolve"""
+
 POSTERIOR_SCENES: dict[str, tuple[str, dict[str, Any]]] = {
     "blob_sun": ("ambiguous", {**AMBIGUOUS, "shape": "blob", "seed": 0, "environment": "outdoor",
                                "environment_seed": 11, "prior": "outdoor"}),
@@ -37,8 +40,11 @@ POSTERIOR_SCENES: dict[str, tuple[str, dict[str, Any]]] = {
                                 "environment_seed": 15, "environment_clip": 5.3, "prior": "outdoor"}),
     "blob_glossy": ("glossy", {**GLOSSY, "shape": "blob", "seed": 5, "environment": "outdoor",
                                "environment_seed": 16, "prior": "outdoor"}),
+    "torus_scan": ("scan", {**AMBIGUOUS, "shape": "bumpy_torus", "seed": 9, "scan_faces": SCAN_FACES,
+                            "environment": "outdoor", "environment_seed": 17, "prior": "outdoor"}),
 }
-"""the posterior study's scenes: six ambiguous (two objects under a sun, a room, a clipped map) and one glossy"""
+"""the posterior study's scenes: six ambiguous (two objects under a sun, a room, a clipped map), one glossy, and one
+ambiguous object given as a scanner gives it (`scan`: a dense mesh without UVs, unwrapped by the uv stage)"""
 
 REAL_LIGHT_SCENES: dict[str, tuple[str, dict[str, Any]]] = {
     "blob_overpass": ("real", {**AMBIGUOUS, "shape": "blob", "seed": 0, "panorama": "pedestrian_overpass_1k.hdr",

@@ -1,7 +1,8 @@
 """Synthetic captures with ground truth: procedural mesh, textures and sky, rendered by Mitsuba.
 
 Writes a capture folder in dpi's input layout: images/ (linear EXR or sRGB PNG, the other format
-in preview/), masks/, transforms.json (held-out views flagged), mesh.ply with UVs, gt/ and
+in preview/), masks/, transforms.json (held-out views flagged), mesh.ply with UVs (or a scanner-like one without, and
+the true one in gt/: SynthConfig.scan_faces), gt/ and
 scene.yaml. The folder is built next to its destination and renamed into place, and a
 `.synth.json` marker (the parameters) is written last, so a killed run leaves no capture behind.
 """
@@ -28,6 +29,7 @@ from dpi.io.images import luminance, write_mask, write_srgb, write_srgb_alpha
 from dpi.io.layout import SYNTH_MARKER
 from dpi.io.settings import (Count, Elevation, Fraction, ImageSize, Loose, MapHeight, Rate, SamplesPerPixel, Steps,
                           TextureSize, Weight, settings, settings_from_dict)
+from dpi.preprocess.geometry import write_mesh_ply
 from dpi.prior.data import read_panorama, resize_map
 from dpi.render.renderer import RenderConfig, Renderer
 from dpi.synth.backdrop import BACKGROUNDS, add_detail, composite_backdrop
@@ -98,6 +100,10 @@ class SynthConfig:
     albedo_detail: Weight = 0.0
     """strength (0-1) of a fine random pattern multiplied into the albedo, like print on a real object:
     features for structure from motion (0: the plain procedural albedo)"""
+    scan_faces: Annotated[int, Field(ge=0, le=4_000_000)] = 0
+    """0: the given mesh.ply is the truth's own, with its UVs; N: the shape as a scanner gives it instead (at least N
+    faces, welded, no UVs: the uv stage simplifies and unwraps it), the truth's mesh in gt/mesh.ply
+    (dpi.evaluation.truth carries its textures across)"""
     photos_only: bool = False
     """write only images/ and scene.yaml (with the held-out names), like a folder of photos; the
     cameras, masks and mesh go to gt/ (transforms.json, masks/, mesh.ply) to measure derived ones"""
@@ -166,6 +172,8 @@ def make_synthetic_capture(out_dir: str | Path, cfg: SynthConfig, threads: int |
         raise ValueError(f"layout must be one of {', '.join(LAYOUTS)}, got {cfg.layout!r}")
     if cfg.layout == "nerf_synthetic" and (cfg.image_format != "png" or cfg.photos_only):
         raise ValueError("layout nerf_synthetic writes RGBA PNGs with their cameras: image_format png, not photos_only")
+    if cfg.scan_faces and cfg.photos_only:
+        raise ValueError("scan_faces gives a mesh; photos_only gives none: choose one")
     if cfg.background not in BACKGROUNDS:
         raise ValueError(f"background must be one of {', '.join(BACKGROUNDS)}, got {cfg.background!r}")
     out_dir.parent.mkdir(parents=True, exist_ok=True)
@@ -185,7 +193,10 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
     """Write every file of the capture into `root` (a fresh folder)."""
     given = root / "gt" if cfg.photos_only else root
     mesh = make_shape(cfg.shape, seed=cfg.seed)
-    write_ply(given / "mesh.ply", mesh)
+    true_mesh = root / "gt" / "mesh.ply" if cfg.scan_faces else given / "mesh.ply"
+    write_ply(true_mesh, mesh)
+    if cfg.scan_faces:
+        write_mesh_ply(given / "mesh.ply", *scanned(cfg.shape, cfg.seed, cfg.scan_faces))
     materials = procedural_materials(cfg.texture_size, cfg.roughness, cfg.metallic, cfg.roughness_variation,
                                      seed=cfg.seed + 1)
     if cfg.albedo_detail:
@@ -209,7 +220,7 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
     for i, cam in enumerate(cameras):
         cam.extras["held_out"] = bool(cfg.held_out_every) and i % cfg.held_out_every == cfg.held_out_every - 1
 
-    renderer = Renderer(given / "mesh.ply", cameras, env.shape[0], cfg.texture_size,
+    renderer = Renderer(true_mesh, cameras, env.shape[0], cfg.texture_size,
                         RenderConfig(spp=cfg.spp, threads=threads))
     tensors = [torch.from_numpy(a) for a in (env, materials.albedo, materials.roughness, materials.metallic)]
     other = "png" if cfg.image_format == "exr" else "exr"
@@ -240,6 +251,20 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
         scene["focal_length_px"] = float(cameras[0].fx)  # what a photo's EXIF would tell
     write_text(root / "scene.yaml", yaml.safe_dump(scene, sort_keys=False))
     write_json(root / SYNTH_MARKER, asdict(cfg))
+
+
+def scanned(shape: str, seed: int, faces: int) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, faces) of `shape` as a scanner gives it: the same surface at the first resolution with at least
+    `faces` faces, its seam copies welded, without UVs."""
+    import trimesh
+
+    resolution = 8
+    while len((mesh := make_shape(shape, resolution, seed)).faces) < faces:
+        resolution = int(np.ceil(resolution * max(1.1, np.sqrt(faces / len(mesh.faces)))))
+    welded = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+    welded.merge_vertices(merge_tex=True, merge_norm=True)
+    welded.remove_unreferenced_vertices()
+    return np.asarray(welded.vertices), np.asarray(welded.faces)
 
 
 def write_nerf_synthetic_splits(root: Path, cameras: list) -> None:
