@@ -442,7 +442,23 @@ def balance_trace(root: Path) -> str:
     return grouped_table(rows, ("group", "variant", "label"), metrics, order=order)
 
 
+def seams(root: Path) -> str:
+    """The albedo's seam ratio (benchmarks/seams.py) per capture, scene and method: mean and worst over seeds, with
+    the given mesh's faces, the atlas's and its texture size."""
+    rows = read_rows(root / RESULTS / "seams.csv", ("capture", "scene", "method"))
+    worst: dict[tuple, float] = {}
+    for row in rows:
+        key = (row["capture"], row["scene"], row["method"])
+        worst[key] = max(worst.get(key, -math.inf), row["albedo_seam"])
+    rows = [{**row, "worst": worst[(row["capture"], row["scene"], row["method"])]} for row in rows]
+    shown = (Metric("albedo seam ratio", "albedo_seam", ".2f", -1), Metric("worst", "worst", ".2f", 0, spread=False),
+             *(Metric(header, column, ".0f", 0, spread=False) for header, column in
+               (("given faces", "given_faces"), ("atlas faces", "faces"), ("texture size", "texture_size"))))
+    return grouped_table(rows, ("capture", "scene", "method"), shown, rank_by="scene", order=method_order)
+
+
 TABLES: dict[str, Callable[[Path], str]] = {
+    "seams": seams,
     "balance_trace": balance_trace,
     "readings": readings, "readings_forced": readings_forced, "readings_fig9": readings_fig9,
     "readings_cost": readings_cost, "mask_witnesses": mask_witnesses,

@@ -24,6 +24,9 @@ from dpi.solve.dps.sun_choice import SunConfig
 from dpi.solve.init import START_ALBEDO, is_glossy, starting_materials
 from dpi.solve.materials import MaterialRates, MaterialTextures
 
+METAL_TEXEL = 0.5
+"""a texel whose metallic is above this is read as metal (`materials_start: parts`)"""
+
 StepFunction = Callable[[DPSRun, DPSState, int], dict[str, Any]]
 
 
@@ -83,9 +86,10 @@ class DPSConfig(MaterialRates):
     (the reference's gradient guidance through the path tracer)"""
     steps: Annotated[int, Field(ge=2, le=1000)] = 100
     """reverse-diffusion steps (respaced from the prior's 1000; the paper uses 1000)"""
-    materials_start: Literal["reset", "metallic", "init"] = "reset"
+    materials_start: Literal["reset", "parts", "metallic", "init"] = "reset"
     """the materials a sample starts from, and its light transport is recorded under: reset (a grey albedo and, on a
-    rough init, its median metallic everywhere: dpi.solve.init.starting_materials), metallic (a grey albedo, the
+    rough init, its median metallic everywhere: dpi.solve.init.starting_materials), parts (reset, but the texels the
+    init reads as metal, metallic above one half, keep its metallic: a metal part stays metal), metallic (a grey albedo, the
     init's roughness and metallic textures as they are: a metal part the init reads rough keeps its metal) or init
     (the init's textures as they are: views and light fit best, the albedo keeps the init's trade with the light).
     Chosen in docs/studies.md, the section on where a sample's broad balance goes"""
@@ -101,8 +105,13 @@ class DPSConfig(MaterialRates):
 
     def start_materials(self, init: Decomposition) -> MaterialTextures:
         """The materials a sample from `init` starts from (`materials_start`), a copy."""
-        if self.materials_start == "reset":
-            return starting_materials(init)
+        if self.materials_start in ("reset", "parts"):
+            materials = starting_materials(init)
+            if self.materials_start == "parts":
+                with torch.no_grad():
+                    metal = init.materials.metallic > METAL_TEXEL
+                    materials.metallic[metal] = init.materials.metallic[metal]
+            return materials
         materials = init.materials.detached()
         if self.materials_start == "metallic":
             with torch.no_grad():
