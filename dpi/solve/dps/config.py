@@ -86,7 +86,7 @@ class DPSConfig(MaterialRates):
     (the reference's gradient guidance through the path tracer)"""
     steps: Annotated[int, Field(ge=2, le=1000)] = 100
     """reverse-diffusion steps (respaced from the prior's 1000; the paper uses 1000)"""
-    materials_start: Literal["reset", "parts", "metallic", "init"] = "reset"
+    materials_start: Literal["reset", "parts", "metallic", "init"] = "parts"
     """the materials a sample starts from, and its light transport is recorded under: reset (a grey albedo and, on a
     rough init, its median metallic everywhere: dpi.solve.init.starting_materials), parts (reset, but the texels the
     init reads as metal, metallic above one half, keep its metallic: a metal part stays metal), metallic (a grey albedo, the

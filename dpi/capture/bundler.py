@@ -1,0 +1,90 @@
+"""Cameras of a Bundler file (`bundle.out`, v0.3), as Bundler, VisualSFM and many course datasets write them.
+
+Per camera: a line `f k1 k2`, three lines of the world-to-camera rotation R and one of the translation t; the camera
+looks down its -z axis with y up (OpenGL's axes, so the camera-to-world matrix is [R^T | -R^T t]), the principal
+point at the image centre. The file names no images: its cameras follow the image list it was solved from (here
+the photos' sorted names). A camera Bundler could not place has f = 0 and is left out. The keypoints stored with
+the points are relative to the image centre: their extent says whether the cameras were solved on the stored
+(`stored`) or the upright (`upright`) orientation of photos that carry an EXIF rotation (`solved_size`).
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from dpi.capture.cameras import Camera
+
+
+class BundlerError(ValueError):
+    """A Bundler file that does not read, naming the file and the line."""
+
+
+def read_bundler(path: str | os.PathLike) -> tuple[list[tuple[float, np.ndarray, np.ndarray]], np.ndarray]:
+    """([(f, R (3, 3), t (3,)) per camera], keypoints (K, 2) relative to the image centre) of a Bundler v0.3 file."""
+    with open(path) as f:
+        lines = [line.split() for line in f if line.strip() and not line.startswith("#")]
+    try:
+        cameras_count, points_count = (int(v) for v in lines[0])
+        cameras = []
+        for c in range(cameras_count):
+            block = np.array(lines[1 + 5 * c: 6 + 5 * c], dtype=np.float64)
+            cameras.append((float(block[0, 0]), block[1:4], block[4]))
+        keypoints = []
+        row = 1 + 5 * cameras_count
+        for _ in range(points_count):
+            views = lines[row + 2]
+            keypoints.extend((float(views[4 * k + 3]), float(views[4 * k + 4])) for k in range(int(views[0])))
+            row += 3
+    except (IndexError, ValueError) as exc:
+        raise BundlerError(f"{path}: not a Bundler v0.3 file ({exc})") from None
+    return cameras, np.array(keypoints).reshape(-1, 2)
+
+
+def solved_size(keypoints: np.ndarray, size: tuple[int, int]) -> tuple[int, int]:
+    """(width, height) the cameras were solved at: the stored photo size `size` or its transpose, whichever holds
+    the keypoints (relative to the centre)."""
+    width, height = size
+    extent = np.abs(keypoints).max(axis=0)
+    fits = extent[0] <= width / 2 + 1 and extent[1] <= height / 2 + 1
+    return (width, height) if fits else (height, width)
+
+
+ROLLS = {1: (0, 1), 3: (0, -1), 6: (1, -1), 8: (1, 1)}
+"""EXIF orientation -> (axes swapped, sign) of the camera roll that turns a stored photo's camera into the upright
+photo's (dpi.io.images.upright): 8 turns the image a quarter counter-clockwise (new right = old down, new up = old
+right), 6 clockwise, 3 half a turn; the mirrored orientations are no camera's roll"""
+
+
+def upright_camera(camera: Camera, orientation: int) -> Camera:
+    """The camera of the photo turned upright by its EXIF `orientation` (the same centre, rolled about its axis)."""
+    if orientation not in ROLLS:
+        raise BundlerError(f"EXIF orientation {orientation} mirrors the photo: no camera takes it")
+    swapped, sign = ROLLS[orientation]
+    x, y, z = camera.c2w[:3, 0], camera.c2w[:3, 1], camera.c2w[:3, 2]
+    c2w = camera.c2w.copy()
+    c2w[:3, 0], c2w[:3, 1] = ((sign * -y, sign * x) if swapped else (sign * x, sign * y))
+    width, height = (camera.height, camera.width) if swapped else (camera.width, camera.height)
+    return Camera(c2w, width, height, camera.fy if swapped else camera.fx, camera.fx if swapped else camera.fy,
+                  width / 2, height / 2, camera.name)
+
+
+def bundler_cameras(path: str | os.PathLike, names: list[str], size: tuple[int, int],
+                    orientation: int = 1) -> dict[str, Camera]:
+    """name -> Camera of a Bundler file whose cameras follow `names`, for photos stored at `size` (width, height)
+    with EXIF `orientation`, as dpi reads them (upright); cameras with f = 0 (not placed) are left out."""
+    cameras, keypoints = read_bundler(path)
+    if len(cameras) != len(names):
+        raise BundlerError(f"{path}: {len(cameras)} cameras for {len(names)} images")
+    width, height = solved_size(keypoints, size)
+    turn = orientation if (width, height) == tuple(size) else 1  # solved on the photos already upright
+    out = {}
+    for name, (focal, rotation, translation) in zip(names, cameras):
+        if focal <= 0:
+            continue
+        c2w = np.eye(4)
+        c2w[:3, :3] = rotation.T
+        c2w[:3, 3] = -rotation.T @ translation
+        out[name] = upright_camera(Camera(c2w, width, height, focal, focal, width / 2, height / 2, name), turn)
+    return out
