@@ -288,18 +288,30 @@ def glossy_cost(root: Path) -> str:
 
 
 def real_photos(root: Path) -> str:
-    """Real photo captures end to end (benchmarks/real_photos.py): poses, derived masks against the checked ones,
-    held-out views per method; the newest row per capture."""
-    rows = latest(read_rows(root / RESULTS / "real_photos.csv", ("capture", "size")), ("capture",))
+    """Real photo captures end to end (benchmarks/real_photos.py): poses (against a published solution where there
+    is one), derived masks against the checked ones and the witnesses' flags, the photo stages' seconds, held-out
+    views per method and where a run stopped; the newest row per capture."""
+    rows = latest(read_rows(root / RESULTS / "real_photos.csv", ("capture", "size", "stopped")), ("capture",))
+
+    def cell(value: Any, spec: str) -> str:
+        return "-" if not isinstance(value, float) or math.isnan(value) else f"{value:{spec}}"
+
+    def percent(value: Any) -> Any:
+        return 100 * value if isinstance(value, float) else value
+
     body = [[r["capture"], f"{r['views']:.0f} of {r['size']}", f"{r['registered']:.0%}", f"{r['reprojection_px']:.2f}",
+             f"{cell(r['rotation_error_deg'], '.2f')} / {cell(percent(r['centre_error']), '.1f')}",
              f"{r['mask_iou']:.3f} (min {r['mask_iou_min']:.2f})",
              f"{r['masks_flagged']:.0f} ({r['flagged_below_08']:.0f} of {r['masks_below_08']:.0f} / "
-             f"{r['flagged_above_09']:.0f})",
-             " / ".join(f"{r[f'{m}_view_psnr']:.2f}" for m in ("init", "dps", "none")), f"{r['seconds'] / 60:.1f}"]
+             f"{cell(r['flagged_below_09'], '.0f')} of {cell(r['masks_below_09'], '.0f')} / {r['flagged_above_09']:.0f})",
+             " / ".join(cell(r[f"{s}_seconds"], ".0f") for s in ("poses", "masks", "geometry", "uv")),
+             " / ".join(cell(r[f"{m}_view_psnr"], ".2f") for m in ("init", "dps", "none")), f"{r['seconds'] / 60:.1f}",
+             r["stopped"] or "-"]
             for r in rows]
-    return markdown(["capture", "photos", "registered", "reproj. [px]", "mask IoU vs checked",
-                     "flagged (checked: <0.8 / >0.9 IoU)",
-                     "held-out PSNR init / dps / none [dB]", "min"], body)
+    return markdown(["capture", "photos", "registered", "reproj. [px]", "vs published: rotation [deg] / centre [%]",
+                     "mask IoU vs checked", "flagged (checked: <0.8 / <0.9 / >0.9 IoU)",
+                     "poses / masks / geometry / uv [s]", "held-out PSNR init / dps / none [dB]", "min", "stopped at"],
+                    body)
 
 
 def realism(root: Path) -> str:

@@ -45,7 +45,9 @@ from dpi.io.settings import settings
 from dpi.preprocess.hull import marching_cubes, visible_sphere, visual_hull
 from dpi.preprocess.mask_confidence import (AGREEMENT_VOTE_SHARE, MASK_AGREEMENT, edge_support, point_coverage,
                                              verdict)
+from dpi.preprocess.depth_seeds import BACKGROUND, OBJECT, PARAMS, depth_seeds
 from dpi.preprocess.morphology import grow, shrink
+from dpi.preprocess.stereo import grey
 
 log = logging.getLogger(__name__)
 
@@ -92,6 +94,9 @@ class MaskConfig:
     """a segmenter the user brings (dpi.preprocess.segmenter, a torch.export .pt2 file): a path, or a name in
     $DPI_WEIGHTS;
     None: the classical methods alone"""
+    parallax: bool = True
+    """seed GrabCut with what the views' parallax puts on the object and behind it (dpi.preprocess.depth_seeds): a
+    busy background colour cannot tell from the object; off for a plain one, a few seconds less"""
     max_size: Annotated[int, Field(ge=16)] | None = 480
     """longer image side (px) the masks are computed at: larger photos are area-downsampled (with their
     cameras) and the masks upsampled to the photos' size (GrabCut's fixed smoothness is tuned to small
@@ -149,10 +154,25 @@ def drop_outliers(points: np.ndarray, std_ratio: float, neighbours: int = 8) -> 
     return np.asarray(points)[np.asarray(keep, dtype=np.int64)]
 
 
-def first_prior(camera: Camera, sphere: tuple[np.ndarray, float], points: np.ndarray | None = None) -> np.ndarray:
+def with_seeds(labels: np.ndarray, seeds: np.ndarray | None) -> np.ndarray:
+    """GrabCut labels with the parallax seeds (`parallax_seeds`) set: object seeds foreground, background seeds
+    background."""
+    import cv2
+
+    if seeds is None:
+        return labels
+    labels = labels.copy()
+    labels[seeds == BACKGROUND] = cv2.GC_BGD
+    labels[seeds == OBJECT] = cv2.GC_FGD
+    return labels
+
+
+def first_prior(camera: Camera, sphere: tuple[np.ndarray, float], points: np.ndarray | None = None,
+                seeds: np.ndarray | None = None) -> np.ndarray:
     """GrabCut labels (h, w) of the first pass: the projected disc of `sphere` (centre, radius) and
     the grown hull of the object's projected points (N, 3) probably foreground, the hull's core
-    foreground, the rest probably background and a strip along the image border background."""
+    foreground, the rest probably background and a strip along the image border background; then the parallax
+    `seeds` (`with_seeds`)."""
     import cv2
 
     xy, depth = camera.project(np.asarray(sphere[0], dtype=np.float64)[None])
@@ -169,7 +189,7 @@ def first_prior(camera: Camera, sphere: tuple[np.ndarray, float], points: np.nda
     labels = np.where(region, cv2.GC_PR_FGD, cv2.GC_PR_BGD).astype(np.uint8)
     labels[core] = cv2.GC_FGD
     _border_background(labels)
-    return labels
+    return with_seeds(labels, seeds)
 
 
 def band_prior(outline: np.ndarray, band: int) -> np.ndarray:
@@ -215,11 +235,13 @@ def clean_mask(mask: np.ndarray, fill_holes_below: float) -> np.ndarray:
 
 
 def object_mask(image: np.ndarray, camera: Camera, cfg: MaskConfig, sphere: tuple[np.ndarray, float],
-                points: np.ndarray | None = None, segmenter=None) -> tuple[np.ndarray, str]:
+                points: np.ndarray | None = None, segmenter=None,
+                seeds: np.ndarray | None = None) -> tuple[np.ndarray, str]:
     """First-pass foreground mask (h, w) of one linear RGB image, and the method used ("key", "grabcut" or
     "learned": `segmenter`, a loaded network, prompted like GrabCut).
 
-    GrabCut and the segmenter start from `first_prior` of the sphere (centre, radius) and the object's points (N, 3)."""
+    GrabCut and the segmenter start from `first_prior` of the sphere (centre, radius), the object's points (N, 3) and
+    the view's parallax seeds."""
     from dpi.preprocess.segmenter import learned_mask
 
     image8 = to_uint8(image)
@@ -230,9 +252,9 @@ def object_mask(image: np.ndarray, camera: Camera, cfg: MaskConfig, sphere: tupl
     if method == "key":
         mask = key_mask(image8, colour, max(KEY_THRESHOLD, 2 * spread))
     elif method == "learned":
-        mask = learned_mask(segmenter, image8, first_prior(camera, sphere, points))
+        mask = learned_mask(segmenter, image8, first_prior(camera, sphere, points, seeds))
     else:
-        mask = grabcut(image8, first_prior(camera, sphere, points), GRABCUT_ITERATIONS)
+        mask = grabcut(image8, first_prior(camera, sphere, points, seeds), GRABCUT_ITERATIONS)
     return clean_mask(mask, FILL_HOLES_BELOW), method
 
 
@@ -262,10 +284,12 @@ def consensus_outlines(cameras: list[Camera], masks: list[np.ndarray], votes: in
 
 def refine_masks(images8: list[np.ndarray | None], cameras: list[Camera], masks: list[np.ndarray],
                  rounds: tuple[tuple[float, float], ...] = CONSENSUS_ROUNDS,
-                 resolution: int = CONSENSUS_RESOLUTION) -> tuple[list[np.ndarray], list[str]]:
+                 resolution: int = CONSENSUS_RESOLUTION,
+                 seeds: list[np.ndarray | None] | None = None) -> tuple[list[np.ndarray], list[str]]:
     """The consensus rounds (module notes): the hull comes from every view's mask, and the views with an
-    8-bit sRGB image (None: keep the mask, e.g. a keyed one) are cut again. Returns the masks and each
-    view's method ("grabcut", "consensus hull" where GrabCut lost the object, "kept")."""
+    8-bit sRGB image (None: keep the mask, e.g. a keyed one) are cut again, their parallax `seeds` set. Returns the
+    masks and each view's method ("grabcut", "consensus hull" where GrabCut lost the object, "kept")."""
+    seeds = seeds or [None] * len(cameras)
     methods = ["grabcut" if image8 is not None else "kept" for image8 in images8]
     for fraction, band in rounds:
         votes = max(2, int(round(fraction * len(cameras))))
@@ -279,14 +303,43 @@ def refine_masks(images8: list[np.ndarray | None], cameras: list[Camera], masks:
             if image8 is None:
                 continue
             width = max(2, int(round(band * np.sqrt(outline.sum()))))
-            masks[i] = clean_mask(grabcut(image8, band_prior(outline, width), GRABCUT_ITERATIONS),
-                                  FILL_HOLES_BELOW)
+            masks[i] = clean_mask(grabcut(image8, with_seeds(band_prior(outline, width), seeds[i]),
+                                          GRABCUT_ITERATIONS), FILL_HOLES_BELOW)
             methods[i] = "grabcut"
             if mask_iou(masks[i], outline) < 0.5:  # GrabCut lost the object: keep the views' consensus
                 log.warning("%s: GrabCut disagrees with the consensus hull; using the hull's projection",
                             cameras[i].name)
                 masks[i], methods[i] = clean_mask(outline, FILL_HOLES_BELOW), "consensus hull"
     return masks, methods
+
+
+SEED_EXTENT = 1.25
+"""the parallax seeds' sphere: this times the object points' 95th-percentile distance from the centre (at most the
+sphere every camera sees whole)"""
+SEED_SIZE = 240
+"""longer image side (px) the parallax seeds are matched at (upsampled to the masks' size)"""
+
+
+def parallax_seeds(pictures: list[np.ndarray], cameras: list[Camera], centre: np.ndarray, radius: float,
+                   points: np.ndarray | None) -> list[np.ndarray]:
+    """Each view's parallax seeds (dpi.preprocess.depth_seeds) in the sphere that holds the object (around the
+    centre the cameras look at, as far as the object's points reach; the whole visible sphere without them),
+    matched at SEED_SIZE, each kind shrunk by half the matcher's window there (a window that straddles the outline
+    matches both sides), at the pictures' size (nearest)."""
+    if points is not None and len(points) >= MIN_POINTS:
+        radius = min(radius, SEED_EXTENT * float(np.quantile(np.linalg.norm(points - centre, axis=1), 0.95)))
+    height, width = pictures[0].shape[:2]
+    small_w, small_h = working_size((width, height), SEED_SIZE)
+    small = [camera.resized(small_w, small_h) for camera in cameras]
+    greys = [grey(resize(torch.from_numpy(p), small_h, small_w).numpy(), PARAMS.blur_px) for p in pictures]
+    out = []
+    for seeds in depth_seeds(greys, small, centre, radius):
+        kept = np.zeros_like(seeds)
+        for kind in (OBJECT, BACKGROUND):
+            kept[shrink(seeds == kind, PARAMS.window // 2)] = kind
+        rows, cols = np.arange(height) * small_h // height, np.arange(width) * small_w // width
+        out.append(kept[rows][:, cols])
+    return out
 
 
 def mask_agreement(cameras: list[Camera], masks: list[np.ndarray], resolution: int) -> list[float] | None:
@@ -327,7 +380,9 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
     sphere = (centre, SPHERE_FRACTION * radius)
     if points is not None:
         points = drop_outliers(points, OUTLIER_STD_RATIO)
-    first = [object_mask(picture, camera, cfg, sphere, points, segmenter) for picture, camera in zip(pictures, views)]
+    seeds = parallax_seeds(pictures, views, centre, radius, points) if cfg.parallax else [None] * len(views)
+    first = [object_mask(picture, camera, cfg, sphere, points, segmenter, seed)
+             for picture, camera, seed in zip(pictures, views, seeds)]
     images8 = [to_uint8(picture) for picture in pictures]
     masks, methods = [m for m, _ in first], [method for _, method in first]
     use_points = points is not None and len(points) >= MIN_POINTS
@@ -335,7 +390,7 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
                **({"segmenter": str(weights)} if weights else {})}
     if "grabcut" in methods:
         to_cut = [image8 if method == "grabcut" else None for image8, method in zip(images8, methods)]
-        refined, new_methods = refine_masks(to_cut, views, masks)
+        refined, new_methods = refine_masks(to_cut, views, masks, seeds=seeds)
         masks = refined
         methods = [old if new == "kept" else new for old, new in zip(methods, new_methods)]
         summary["consensus_rounds"] = len(CONSENSUS_ROUNDS)
