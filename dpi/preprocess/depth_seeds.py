@@ -1,12 +1,16 @@
 """Which pixels the views' parallax puts on the object and which behind it: seeds for the masks on a busy background.
 
-Colour cannot tell a bronze statue from the facade behind it; parallax can. The object lies inside a sphere around
-the point the cameras look at (its sparse points' extent), the background metres behind it. For each view the
-nearest views (dpi.preprocess.stereo.neighbour_views) are warped onto depths inside that sphere along each pixel's
-ray and onto depths behind it (uniform in inverse depth, out to infinity), and the zero-mean NCC of the best
-neighbours scores each (dpi.preprocess.stereo.Matcher). A pixel whose best match inside the sphere beats its best
-match behind it by `MARGIN`, at a score of at least `MIN_SCORE`, is an object seed; the reverse, or a pixel whose
-ray misses the sphere, a background seed; the rest (no texture, or no clear winner) is left to the segmentation.
+Colour cannot tell a bronze statue from the facade behind it; parallax can. The object is whole in every frame, so it
+lies in the space every camera sees (the intersection of their fields of view, a convex region around the point
+they look at), the background metres behind it. For each view the nearest views (dpi.preprocess.stereo.
+neighbour_views) are warped onto depths inside that region along each pixel's ray and onto depths behind it (both
+uniform in inverse depth, `STEP_PX` apart; behind it out to infinity), and the zero-mean NCC of the best neighbour
+scores each (dpi.preprocess.stereo.Matcher; the background beside a frame's edge leaves some neighbours' frames as
+they turn round the object). A pixel whose best match inside beats its best match behind by `MARGIN`, at a score of
+at least `MIN_SCORE`, is an object seed; the reverse, or a pixel whose ray misses the region, a background seed; the
+rest (no texture, or no clear winner) is left to the segmentation. The table, plinth or ground the object stands on
+lies in that region too: a level plane just above the lowest sparse points every camera sees (`support_height`)
+cuts it off, and what matches at or below it is background.
 """
 
 from __future__ import annotations
@@ -15,68 +19,130 @@ import numpy as np
 import torch
 
 from dpi.capture.cameras import Camera
+from dpi.preprocess.sfm import up_direction
 from dpi.preprocess.stereo import Matcher, StereoParams, camera_rays, neighbour_views
 
-OBJECT_DEPTHS = 24
-"""depths per pixel inside the object's sphere"""
-BACKGROUND_DEPTHS = 24
-"""depths per pixel behind the sphere, uniform in inverse depth from its far side to 100 times as far"""
+STEP_PX = 1.5
+"""depths per pixel are spaced so that a step moves a point by at most this many pixels in the farthest
+neighbour (uniform in inverse depth: inside the space every camera sees, and behind it out to infinity)"""
 MIN_SCORE = 0.5
 """NCC a seed's winning depth must reach (a textured match, not noise)"""
 MARGIN = 0.1
 """NCC by which the winning range must beat the other"""
-NEIGHBOURS = 4
+NEIGHBOURS = 3
 """views each view is matched against"""
 PARAMS = StereoParams(window=9, blur_px=1.0)
 """the matcher's window and blur (the geometry stage's stereo, with a smaller window: seeds, not depths)"""
 OBJECT, UNKNOWN, BACKGROUND = 1, 0, -1
 
 
-def sphere_depths(camera: Camera, centre: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """Camera-space depths (h, w) where each pixel's ray enters and leaves the sphere; NaN where it misses."""
-    rays = camera_rays(camera)  # camera space, z = -1
-    world = rays @ camera.c2w[:3, :3].T
-    offset = camera.center - centre
-    a = (world * world).sum(-1)
-    b = 2 * (world @ offset)
-    c = float(offset @ offset - radius * radius)
-    disc = b * b - 4 * a * c
-    root = np.sqrt(np.where(disc >= 0, disc, np.nan))
-    near, far = (-b - root) / (2 * a), (-b + root) / (2 * a)
-    return np.where(far > 0, np.maximum(near, 1e-3), np.nan), np.where(far > 0, far, np.nan)
+def frustum_planes(camera: Camera, margin: float) -> tuple[np.ndarray, np.ndarray]:
+    """(normals (4, 3), offsets (4,)) of the half-spaces n . x <= c whose intersection is the camera's field of view,
+    widened by `margin` of the image's size on each side."""
+    w, h = camera.width * (1 + 2 * margin), camera.height * (1 + 2 * margin)
+    x0, x1 = (camera.width - w) / 2, (camera.width + w) / 2
+    y0, y1 = (camera.height - h) / 2, (camera.height + h) / 2
+    corners = np.array([[(x - camera.cx) / camera.fx, -(y - camera.cy) / camera.fy, -1.0]
+                        for x, y in ((x0, y0), (x1, y0), (x1, y1), (x0, y1))]) @ camera.c2w[:3, :3].T
+    normals = np.array([np.cross(corners[k], corners[(k + 1) % 4]) for k in range(4)])
+    axis = -camera.c2w[:3, 2]
+    normals *= -np.sign(normals @ axis)[:, None]  # pointing out of the field of view
+    return normals, normals @ camera.center
 
 
-def view_seeds(grey: np.ndarray, camera: Camera, others: list[tuple[np.ndarray, Camera]], centre: np.ndarray,
-               radius: float, batch: int = 8) -> np.ndarray:
-    """(h, w) int8 seeds of one view (OBJECT, BACKGROUND or UNKNOWN; module notes), from its grey image and its
-    neighbours' (grey image, camera)."""
-    near, far = sphere_depths(camera, centre, radius)
+def common_view_depths(camera: Camera, cameras: list[Camera], margin: float) -> tuple[np.ndarray, np.ndarray]:
+    """Camera-space depths (h, w) where each pixel's ray enters and leaves the space every camera of `cameras` sees
+    (the intersection of their fields of view, a convex region; each widened by `margin`), NaN where it misses."""
+    rays = camera_rays(camera).reshape(-1, 3) @ camera.c2w[:3, :3].T  # world directions at camera depth 1
+    near, far = np.full(len(rays), 1e-3), np.full(len(rays), np.inf)
+    for other in cameras:
+        normals, offsets = frustum_planes(other, margin)
+        rate = rays @ normals.T  # (P, 4): d(n . x)/dz along each ray
+        start = (normals @ camera.center - offsets)[None]  # n . origin - c, <= 0 inside
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cross = -start / rate
+        near = np.maximum(near, np.where(rate < 0, cross, -np.inf).max(1))
+        far = np.minimum(far, np.where(rate > 0, cross, np.inf).min(1))
+        blocked = ((rate == 0) & (start > 0)).any(1)
+        far[blocked] = -np.inf
+    hit = far > near
+    shape = (camera.height, camera.width)
+    return np.where(hit, near, np.nan).reshape(shape), np.where(hit, far, np.nan).reshape(shape)
+
+
+SUPPORT_TOLERANCE = 0.01
+"""the support plane lies this fraction of the cameras' distance to the object above the lowest shared points"""
+SUPPORT_QUANTILE = 0.01
+"""the lowest shared points: this quantile of their heights (a few stray points below do not sink the plane)"""
+SUPPORT_MIN_POINTS = 50
+"""with fewer sparse points in the space every camera sees, no support is found"""
+
+
+def support_height(points: np.ndarray, cameras: list[Camera], up: np.ndarray, centre: np.ndarray) -> float | None:
+    """Height (along `up`) of the level plane the object stands on: just above the lowest of the sparse points
+    (N, 3) every camera has in view. The object and the top of what it stands on (a table, a plinth) are in every
+    frame; what lies below that top is hidden by it or leaves the frames. None with fewer than SUPPORT_MIN_POINTS."""
+    shared = np.ones(len(points), bool)
+    for camera in cameras:
+        xy, depth = camera.project(points)
+        shared &= (depth > 0) & (xy[:, 0] >= 0) & (xy[:, 0] < camera.width) & (xy[:, 1] >= 0) & (xy[:, 1] < camera.height)
+    if shared.sum() < SUPPORT_MIN_POINTS:
+        return None
+    distance = float(np.mean([np.linalg.norm(c.center - centre) for c in cameras]))
+    return float(np.quantile(points[shared] @ up, SUPPORT_QUANTILE)) + SUPPORT_TOLERANCE * distance
+
+
+def view_seeds(grey: np.ndarray, camera: Camera, others: list[tuple[np.ndarray, Camera]], near: np.ndarray,
+               far: np.ndarray, support: tuple[np.ndarray, float] | None = None, batch: int = 8) -> np.ndarray:
+    """(h, w) int8 seeds of one view (OBJECT, BACKGROUND or UNKNOWN; module notes), from its grey image, its
+    neighbours' (grey image, camera) and the depths (h, w) between which each pixel's ray may meet the object (NaN:
+    it cannot). With a `support` plane (up, height), a pixel whose best match inside lies at or below it is
+    background: the table, plinth or ground the object stands on."""
     hit = np.isfinite(near)
     seeds = np.full(grey.shape, BACKGROUND, np.int8)
     if not hit.any() or not others:
         return seeds
-    matcher = Matcher(grey, camera, others, slice(None), slice(None), PARAMS)
+    matcher = Matcher(grey, camera, others, slice(None), slice(None), PARAMS, best_of=None)
     back = float(np.nanmax(far))
     near_t = torch.from_numpy(np.where(hit, near, back).astype(np.float32))
     far_t = torch.from_numpy(np.where(hit, far, back).astype(np.float32))
-    steps = torch.linspace(0, 1, OBJECT_DEPTHS)[:, None, None]
-    inside = near_t + steps * (far_t - near_t)
-    inverse = torch.linspace(1.0, 0.01, BACKGROUND_DEPTHS)[:, None, None] / far_t
-    behind = 1.0 / inverse
+    pixels_per_inverse_depth = camera.fx * max(float(np.linalg.norm(cam.center - camera.center)) for _, cam in others)
+    span = float(np.nanmax(1 / near[hit] - 1 / far[hit]))
+    fraction = torch.linspace(0, 1, max(2, int(np.ceil(pixels_per_inverse_depth * span / STEP_PX))))[:, None, None]
+    inside = 1 / (1 / near_t + fraction * (1 / far_t - 1 / near_t))
+    count = max(2, int(np.ceil(pixels_per_inverse_depth / float(np.nanmin(far[hit])) / STEP_PX)))
+    behind = 1 / (torch.linspace(1.0, 0.0, count + 1)[:-1, None, None] / far_t)
 
     def best(z: torch.Tensor) -> torch.Tensor:
         return torch.cat([matcher.scores(z[i:i + batch]) for i in range(0, len(z), batch)]).amax(0)
 
     with torch.no_grad():
-        s_in, s_behind = best(inside).numpy(), best(behind).numpy()
+        scores_in = torch.cat([matcher.scores(inside[i:i + batch]) for i in range(0, len(inside), batch)])
+        s_in, s_behind = scores_in.amax(0).numpy(), best(behind).numpy()
+        depth = inside.gather(0, scores_in.argmax(0)[None])[0].numpy()
+    matched_in = hit & (s_in >= MIN_SCORE) & (s_in >= s_behind + MARGIN)
     seeds[hit] = UNKNOWN
-    seeds[hit & (s_in >= MIN_SCORE) & (s_in >= s_behind + MARGIN)] = OBJECT
+    seeds[matched_in] = OBJECT
     seeds[hit & (s_behind >= MIN_SCORE) & (s_behind >= s_in + MARGIN)] = BACKGROUND
+    if support is not None:
+        up, height = support
+        points = camera.center + depth[..., None] * (camera_rays(camera) @ camera.c2w[:3, :3].T)
+        seeds[matched_in & (points @ up <= height)] = BACKGROUND
     return seeds
 
 
-def depth_seeds(greys: list[np.ndarray], cameras: list[Camera], centre: np.ndarray, radius: float) -> list[np.ndarray]:
-    """Each view's seeds (view_seeds) against its NEIGHBOURS nearest views."""
+FRAME_MARGIN = 0.05
+"""the object may reach this fraction of the image's size past a frame's edges"""
+
+
+def depth_seeds(greys: list[np.ndarray], cameras: list[Camera], centre: np.ndarray,
+                points: np.ndarray | None = None) -> list[np.ndarray]:
+    """Each view's seeds (view_seeds) against its NEIGHBOURS nearest views (by their direction to `centre`), the
+    object inside the space every camera sees (`common_view_depths`: the object is whole in every frame), above the
+    support plane the scene's sparse `points` (N, 3) show (`support_height`), if any."""
     neighbours = neighbour_views(cameras, centre, NEIGHBOURS, PARAMS.max_baseline_deg)
-    return [view_seeds(greys[i], cameras[i], [(greys[j], cameras[j]) for j in neighbours[i]], centre, radius)
-            for i in range(len(cameras))]
+    up = up_direction(cameras)
+    height = support_height(points, cameras, up, centre) if points is not None and len(points) else None
+    support = None if height is None else (up, height)
+    return [view_seeds(greys[i], cameras[i], [(greys[j], cameras[j]) for j in neighbours[i]],
+                       *common_view_depths(cameras[i], cameras, FRAME_MARGIN), support) for i in range(len(cameras))]

@@ -120,13 +120,13 @@ def derive_view_masks(capture_json: str | Path, out_dir: str | Path, settings: d
     set_threads(threads)
     capture = pinhole_capture(capture_json, cameras_json)
     cameras = {v.name: v.camera for v in capture.views if v.camera}
-    points = None
+    points = scene_points = None
     if points_ply:
-        xyz, _, on_object = read_points_ply(points_ply)
-        points = xyz[on_object]
+        scene_points, _, on_object = read_points_ply(points_ply)
+        points = scene_points[on_object]
     start = time.perf_counter()
     summary = derive_masks({v.name: v.image for v in capture.views}, cameras, out_dir, settings_from_dict(MaskConfig, settings),
-                           points)
+                           points, scene_points)
     summary["seconds"] = round(time.perf_counter() - start, 3)
     write_json(Path(out_dir) / SUMMARY_FILE, summary)
     check_given_mesh(capture, {n: cameras[n] for n in summary["views"]},

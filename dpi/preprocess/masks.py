@@ -259,18 +259,13 @@ def object_mask(image: np.ndarray, camera: Camera, cfg: MaskConfig, sphere: tupl
 
 
 def mesh_silhouette(camera: Camera, vertices: np.ndarray, faces: np.ndarray, supersample: int = 4) -> np.ndarray:
-    """Pixels (h, w) at least half covered by a triangle mesh in the view (faces behind the camera dropped).
+    """Pixels (h, w) at least half covered by a triangle mesh in the view: rays through a `supersample` times finer
+    grid of pixel centres cast against the mesh (open3d), averaged per pixel. (A polygon fill of all triangles at
+    once would cancel where an even number of them overlap, as a closed mesh's front and back do.)"""
+    from dpi.capture.consistency import raycasting_scene, silhouette
 
-    Triangles are filled on a `supersample` times finer grid (OpenCV also fills the pixels its edges
-    touch, which widens an outline by about half a pixel of the grid) and averaged per pixel."""
-    import cv2
-
-    xy, depth = camera.project(vertices)
-    faces = faces[(depth[faces] > 0).all(1)]
     s = supersample
-    triangles = np.round((xy[faces] * s - 0.5) * 8).astype(np.int32)  # 3 fractional bits; centres at +0.5
-    fine = np.zeros((camera.height * s, camera.width * s), np.uint8)
-    cv2.fillPoly(fine, list(triangles), 1, shift=3)
+    fine = silhouette(raycasting_scene(vertices, faces), camera.resized(camera.width * s, camera.height * s))
     return fine.reshape(camera.height, s, camera.width, s).mean(axis=(1, 3)) >= 0.5
 
 
@@ -313,27 +308,22 @@ def refine_masks(images8: list[np.ndarray | None], cameras: list[Camera], masks:
     return masks, methods
 
 
-SEED_EXTENT = 1.25
-"""the parallax seeds' sphere: this times the object points' 95th-percentile distance from the centre (at most the
-sphere every camera sees whole)"""
 SEED_SIZE = 240
 """longer image side (px) the parallax seeds are matched at (upsampled to the masks' size)"""
 
 
-def parallax_seeds(pictures: list[np.ndarray], cameras: list[Camera], centre: np.ndarray, radius: float,
-                   points: np.ndarray | None) -> list[np.ndarray]:
-    """Each view's parallax seeds (dpi.preprocess.depth_seeds) in the sphere that holds the object (around the
-    centre the cameras look at, as far as the object's points reach; the whole visible sphere without them),
-    matched at SEED_SIZE, each kind shrunk by half the matcher's window there (a window that straddles the outline
-    matches both sides), at the pictures' size (nearest)."""
-    if points is not None and len(points) >= MIN_POINTS:
-        radius = min(radius, SEED_EXTENT * float(np.quantile(np.linalg.norm(points - centre, axis=1), 0.95)))
+def parallax_seeds(pictures: list[np.ndarray], cameras: list[Camera], centre: np.ndarray,
+                   scene_points: np.ndarray | None = None) -> list[np.ndarray]:
+    """Each view's parallax seeds (dpi.preprocess.depth_seeds; `centre`: the point the cameras look at; the scene's
+    sparse points show what the object stands on), matched at
+    SEED_SIZE, each kind shrunk by half the matcher's window there (a window that straddles the outline matches both
+    sides), at the pictures' size (nearest)."""
     height, width = pictures[0].shape[:2]
     small_w, small_h = working_size((width, height), SEED_SIZE)
     small = [camera.resized(small_w, small_h) for camera in cameras]
     greys = [grey(resize(torch.from_numpy(p), small_h, small_w).numpy(), PARAMS.blur_px) for p in pictures]
     out = []
-    for seeds in depth_seeds(greys, small, centre, radius):
+    for seeds in depth_seeds(greys, small, centre, scene_points):
         kept = np.zeros_like(seeds)
         for kind in (OBJECT, BACKGROUND):
             kept[shrink(seeds == kind, PARAMS.window // 2)] = kind
@@ -355,10 +345,12 @@ def mask_agreement(cameras: list[Camera], masks: list[np.ndarray], resolution: i
 
 
 def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: str | Path,
-                 cfg: MaskConfig | None = None, points: np.ndarray | None = None) -> dict:
+                 cfg: MaskConfig | None = None, points: np.ndarray | None = None,
+                 scene_points: np.ndarray | None = None) -> dict:
     """Write one mask PNG per view (out_dir/{view}.png) and return a summary (prior, method per view, areas).
 
-    Views without a camera get no mask. `points`: the object's sparse points (N, 3), if any."""
+    Views without a camera get no mask. `points`: the object's sparse points (N, 3), if any; `scene_points`: all of
+    them (the parallax seeds find the support there)."""
     cfg = cfg or MaskConfig()
     from dpi.preprocess.segmenter import load_segmenter, weights_file
 
@@ -380,7 +372,7 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
     sphere = (centre, SPHERE_FRACTION * radius)
     if points is not None:
         points = drop_outliers(points, OUTLIER_STD_RATIO)
-    seeds = parallax_seeds(pictures, views, centre, radius, points) if cfg.parallax else [None] * len(views)
+    seeds = parallax_seeds(pictures, views, centre, scene_points) if cfg.parallax else [None] * len(views)
     first = [object_mask(picture, camera, cfg, sphere, points, segmenter, seed)
              for picture, camera, seed in zip(pictures, views, seeds)]
     images8 = [to_uint8(picture) for picture in pictures]

@@ -162,8 +162,9 @@ class Matcher:
     """NCC of a reference view against its neighbours for per-pixel depth hypotheses, on a crop."""
 
     def __init__(self, ref: np.ndarray, camera: Camera, others: list[tuple[np.ndarray, Camera]],
-                 rows: slice, cols: slice, cfg: StereoParams):
+                 rows: slice, cols: slice, cfg: StereoParams, best_of: int | None = BEST_OF):
         self.cfg = cfg
+        self.best_of = best_of
         rays = torch.from_numpy(camera_rays(camera)[rows, cols].astype(np.float32))
         a = torch.from_numpy(np.ascontiguousarray(ref[rows, cols]))[None, None]
         self.a = a
@@ -177,7 +178,8 @@ class Matcher:
             self.views.append((torch.from_numpy(image)[None, None], rays @ rot.T, offset, cam))
 
     def scores(self, z: torch.Tensor) -> torch.Tensor:
-        """Mean NCC of the best `best_of` neighbours (P, h, w) for depths z (P, h, w) (-1: no match)."""
+        """Mean NCC of the best `best_of` neighbours (P, h, w) for depths z (P, h, w) (-1: no match; `best_of`: BEST_OF
+        unless the matcher was given another; None: the mean over the neighbours whose frame holds the point)."""
         window, per_view = self.cfg.window, []
         for image, direction, offset, cam in self.views:
             p = direction[None] * z[..., None] + offset
@@ -191,7 +193,11 @@ class Matcher:
             ncc = ((_box(self.a * b, window) - self.mean_a * mean_b) / torch.sqrt(self.var_a * var_b))[:, 0]
             valid = (depth > 1e-3) & (x >= 0) & (x < cam.width) & (y >= 0) & (y < cam.height)
             per_view.append(torch.where(valid, ncc, torch.tensor(-1.0)))
-        best_of = min(BEST_OF, len(per_view))
+        if self.best_of is None:
+            seen = torch.stack([v > -1 for v in per_view]).float()
+            total = (torch.stack(per_view) * seen).sum(0)
+            return torch.where(seen.sum(0) > 0, total / seen.sum(0).clamp_min(1), torch.tensor(-1.0))
+        best_of = min(self.best_of, len(per_view))
         return torch.stack(per_view).topk(best_of, dim=0).values.mean(0)
 
     def best(self, z: torch.Tensor, allowed: torch.Tensor, batch: int = 16) -> tuple[torch.Tensor, torch.Tensor]:
