@@ -11,6 +11,10 @@ Two classical methods, chosen per image (a learned segmenter, dpi.preprocess.seg
   as probably foreground, and that hull shrunk by a margin as *foreground*: a region, never single
   points, so a few stray points cannot force a wrong region into the mask.
 
+**Parallax seeds** (dpi.preprocess.depth_seeds, `parallax`): where the views' parallax puts a pixel on the object
+(inside the space every camera sees, above what it stands on) GrabCut's first pass takes it as foreground, where it
+puts it behind, as background in every pass: a busy background that colour cannot tell from the object.
+
 **Consensus rounds** then refine the GrabCut masks with what the views agree on: the visual hull
 of the current masks, carved where at least a fraction of the views see a voxel outside them (so
 a part that some views miss, or a patch of background that one view takes for the object, does
@@ -282,8 +286,9 @@ def refine_masks(images8: list[np.ndarray | None], cameras: list[Camera], masks:
                  resolution: int = CONSENSUS_RESOLUTION,
                  seeds: list[np.ndarray | None] | None = None) -> tuple[list[np.ndarray], list[str]]:
     """The consensus rounds (module notes): the hull comes from every view's mask, and the views with an
-    8-bit sRGB image (None: keep the mask, e.g. a keyed one) are cut again, their parallax `seeds` set. Returns the
-    masks and each view's method ("grabcut", "consensus hull" where GrabCut lost the object, "kept")."""
+    8-bit sRGB image (None: keep the mask, e.g. a keyed one) are cut again, their parallax `seeds`' background set
+    (the object's seeds reach half a matching window past the outline, which the band decides). Returns the masks and
+    each view's method ("grabcut", "consensus hull" where GrabCut lost the object, "kept")."""
     seeds = seeds or [None] * len(cameras)
     methods = ["grabcut" if image8 is not None else "kept" for image8 in images8]
     for fraction, band in rounds:
@@ -298,7 +303,8 @@ def refine_masks(images8: list[np.ndarray | None], cameras: list[Camera], masks:
             if image8 is None:
                 continue
             width = max(2, int(round(band * np.sqrt(outline.sum()))))
-            masks[i] = clean_mask(grabcut(image8, with_seeds(band_prior(outline, width), seeds[i]),
+            background = None if seeds[i] is None else np.where(seeds[i] == BACKGROUND, BACKGROUND, 0)
+            masks[i] = clean_mask(grabcut(image8, with_seeds(band_prior(outline, width), background),
                                           GRABCUT_ITERATIONS), FILL_HOLES_BELOW)
             methods[i] = "grabcut"
             if mask_iou(masks[i], outline) < 0.5:  # GrabCut lost the object: keep the views' consensus
