@@ -270,12 +270,14 @@ def _matrix(frame: dict, i: int) -> np.ndarray:
 
 
 def _extras(frame: dict, i: int) -> dict:
-    """A frame's keys besides file_path and transform_matrix, the booleans (held_out) checked."""
+    """A frame's keys besides its path, pose, intrinsics and lens (a resized camera would carry stale ones), the
+    booleans (held_out) checked."""
     for key in BOOLEAN_FRAME_KEYS:
         if key in frame and not isinstance(frame[key], bool):
             raise TransformsError(f"frame {i} ({frame.get('file_path')}): {key} must be a boolean (true or false), "
                                   f"got {json_value(frame[key])}")
-    return {k: frame[k] for k in frame if k not in ("file_path", "transform_matrix", "camera_model", *DISTORTION_KEYS)}
+    known = ("file_path", "transform_matrix", "camera_model", "w", "h", "fl_x", "fl_y", "cx", "cy", *DISTORTION_KEYS)
+    return {k: frame[k] for k in frame if k not in known}
 
 
 def _lens(data: dict, frame: dict, i: int) -> Lens | None:
