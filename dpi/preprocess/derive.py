@@ -139,7 +139,8 @@ def derive_geometry(capture_json: str | Path, out_dir: str | Path, settings: dic
                    threads: int = 1) -> dict:
     """Carved and cleaned surface of the object into out_dir: mesh and summary (dpi.io.layout.geometry_files); stops
     first when the derived masks are mostly unreliable (dpi.preprocess.mask_confidence.check_usable)."""
-    from dpi.preprocess.geometry import GeometryConfig, reconstruct_surface, write_mesh_ply
+    from dpi.io.meshes import write_mesh_ply
+    from dpi.preprocess.geometry import GeometryConfig, reconstruct_surface
 
     set_threads(threads)
     if masks_dir and (Path(masks_dir) / SUMMARY_FILE).is_file():

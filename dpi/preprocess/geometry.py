@@ -208,16 +208,6 @@ def stereo_carve(field: np.ndarray, origin: np.ndarray, size: float, cameras: li
                     "seconds": time.perf_counter() - start}
 
 
-def write_mesh_ply(path: str | Path, vertices: np.ndarray, faces: np.ndarray) -> None:
-    """A mesh without UVs as a binary PLY (written by trimesh, atomically)."""
-    import trimesh
-
-    from dpi.io.atomic import atomic_path
-
-    with atomic_path(path) as tmp:
-        trimesh.Trimesh(vertices, faces, process=False).export(tmp, file_type="ply")
-
-
 def read_mesh(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """(vertices, faces) of a PLY/OBJ mesh (trimesh, vertices not merged)."""
     import trimesh

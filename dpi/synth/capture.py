@@ -27,9 +27,9 @@ from dpi.io.atomic import write_json, write_text
 from dpi.io.exr import write_exr
 from dpi.io.images import luminance, write_mask, write_srgb, write_srgb_alpha
 from dpi.io.layout import SYNTH_MARKER
+from dpi.io.meshes import write_mesh_ply
 from dpi.io.settings import (Count, Elevation, Fraction, ImageSize, Loose, MapHeight, Rate, SamplesPerPixel, Steps,
                           TextureSize, Weight, settings, settings_from_dict)
-from dpi.preprocess.geometry import write_mesh_ply
 from dpi.prior.data import read_panorama, resize_map
 from dpi.render.renderer import RenderConfig, Renderer
 from dpi.synth.backdrop import BACKGROUNDS, add_detail, composite_backdrop
