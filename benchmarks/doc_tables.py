@@ -125,13 +125,13 @@ def posterior_rows(root: Path) -> list[Row]:
 
 def posterior(root: Path) -> str:
     """Posterior study, the README's headline: every method (dps with its default sampler) per scene group,
-    over scenes and seeds."""
+    over scenes and seeds (the training fit: `posterior_full`)."""
     from dpi.io.settings import field_default
     from dpi.solve.dps.config import DPSConfig
 
     default = field_default(DPSConfig, "sampler")
     rows = [r for r in posterior_rows(root) if r["method"] != "dps" or r["sampler"] == default]
-    metrics = (VIEW, ENV, ALBEDO, Metric("relight PSNR-H [dB]", "relight_psnr_h", ".2f", +1), FIT, SECONDS)
+    metrics = (VIEW, ENV, ALBEDO, Metric("relight PSNR-H [dB]", "relight_psnr_h", ".2f", +1), SECONDS)
     return grouped_table(rows, ("group", "method"), metrics, rank_by="group", order=method_order)
 
 
@@ -293,17 +293,15 @@ def real_photos(root: Path) -> str:
     views per method and where a run stopped; the newest row per capture."""
     rows = latest(read_rows(root / RESULTS / "real_photos.csv", ("capture", "size", "stopped")), ("capture",))
 
-    def cell(value: Any, spec: str) -> str:
-        return "-" if not isinstance(value, float) or math.isnan(value) else f"{value:{spec}}"
-
-    def percent(value: Any) -> Any:
-        return 100 * value if isinstance(value, float) else value
+    def cell(value: Any, spec: str, scale: float = 1.0) -> str:
+        return "-" if not isinstance(value, float) or math.isnan(value) else f"{scale * value:{spec}}"
 
     body = [[r["capture"], f"{r['views']:.0f} of {r['size']}", f"{r['registered']:.0%}", f"{r['reprojection_px']:.2f}",
-             f"{cell(r['rotation_error_deg'], '.2f')} / {cell(percent(r['centre_error']), '.1f')}",
+             f"{cell(r['rotation_error_deg'], '.2f')} / {cell(r['centre_error'], '.1f', 100)}",
              f"{r['mask_iou']:.3f} (min {r['mask_iou_min']:.2f})",
              f"{r['masks_flagged']:.0f} ({r['flagged_below_08']:.0f} of {r['masks_below_08']:.0f} / "
-             f"{cell(r['flagged_below_09'], '.0f')} of {cell(r['masks_below_09'], '.0f')} / {r['flagged_above_09']:.0f})",
+             f"{cell(r['flagged_below_09'], '.0f')} of {cell(r['masks_below_09'], '.0f')} / "
+             f"{r['flagged_above_09']:.0f})",
              " / ".join(cell(r[f"{s}_seconds"], ".0f") for s in ("poses", "masks", "geometry", "uv")),
              " / ".join(cell(r[f"{m}_view_psnr"], ".2f") for m in ("init", "dps", "none")), f"{r['seconds'] / 60:.1f}",
              r["stopped"] or "-"]

@@ -85,11 +85,8 @@ def reference_errors(capture: RealCapture, cameras_json: Path) -> dict[str, floa
     if not capture.reference_cameras or not cameras_json.is_file():
         return {"rotation_error_deg": float("nan"), "centre_error": float("nan")}
     photos = sorted(p for p in (capture.folder / "images").iterdir() if p.is_file())
-    stored = ldr_header_size(photos[0])
-    orientation = exif_orientation(photos[0])
-    stored = stored[::-1] if orientation >= 5 else stored  # the size as stored, before the EXIF turn
-    reference = bundler_cameras(capture.folder / capture.reference_cameras, [p.stem for p in photos], stored,
-                                orientation)
+    reference = bundler_cameras(capture.folder / capture.reference_cameras, [p.stem for p in photos],
+                                ldr_header_size(photos[0]), exif_orientation(photos[0]))
     errors = pose_errors(read_cameras(cameras_json), reference)
     return {"rotation_error_deg": errors["rotation_error_deg_max"], "centre_error": errors["centre_error_max"]}
 
@@ -98,12 +95,8 @@ def stage_seconds(scene: SceneLayout) -> dict[str, float]:
     """Seconds of each photo stage the run ran (its summary's), NaN for those it did not."""
     files = {"poses": scene.poses["summary"], "masks": scene.masks / "summary.json",
              "geometry": scene.geometry["summary"], "uv": scene.geometry["uv_summary"]}
-    out = {}
-    for stage, path in files.items():
-        summary = json.loads(path.read_text()) if path.is_file() else {}
-        seconds = summary.get("seconds", sum(summary.get(k, 0.0) for k in ("extract_s", "match_s", "map_s")))
-        out[f"{stage}_seconds"] = float(seconds) if path.is_file() else float("nan")
-    return out
+    return {f"{stage}_seconds": float(json.loads(path.read_text())["seconds"]) if path.is_file() else float("nan")
+            for stage, path in files.items()}
 
 
 def prepare(name: str, capture: RealCapture) -> Path:

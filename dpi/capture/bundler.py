@@ -72,13 +72,14 @@ def upright_camera(camera: Camera, orientation: int) -> Camera:
 
 def bundler_cameras(path: str | os.PathLike, names: list[str], size: tuple[int, int],
                     orientation: int = 1) -> dict[str, Camera]:
-    """name -> Camera of a Bundler file whose cameras follow `names`, for photos stored at `size` (width, height)
-    with EXIF `orientation`, as dpi reads them (upright); cameras with f = 0 (not placed) are left out."""
+    """name -> Camera of a Bundler file whose cameras follow `names`, for photos of upright `size` (width, height, as
+    dpi reads them) with EXIF `orientation`, turned upright; cameras with f = 0 (not placed) are left out."""
     cameras, keypoints = read_bundler(path)
     if len(cameras) != len(names):
         raise BundlerError(f"{path}: {len(cameras)} cameras for {len(names)} images")
-    width, height = solved_size(keypoints, size)
-    turn = orientation if (width, height) == tuple(size) else 1  # solved on the photos already upright
+    stored = tuple(size[::-1]) if orientation >= 5 else tuple(size)
+    width, height = solved_size(keypoints, stored)
+    turn = orientation if (width, height) == stored else 1  # solved on the photos already upright
     out = {}
     for name, (focal, rotation, translation) in zip(names, cameras):
         if focal <= 0:

@@ -116,7 +116,8 @@ def train_fit_metrics(problem: InverseProblem, decomposition: Decomposition, spp
     fit = training_fit(problem, decomposition, spp, seed)
     truth = true_decomposition(problem)
     if truth is None:
-        return {"train_fit": fit, "train_fit_over_truth": missing("no complete gt/ (envmap and textures on the problem's atlas)")}
+        why = missing("no complete gt/ (envmap and textures on the problem's atlas)")
+        return {"train_fit": fit, "train_fit_over_truth": why}
     reference = training_fit(problem, truth, spp, seed)
     return {"train_fit": fit, "train_fit_over_truth": fit / reference if reference > 0 else missing("the truth fits "
                                                                                                         "exactly")}

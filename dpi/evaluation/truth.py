@@ -16,6 +16,7 @@ import numpy as np
 import torch
 
 from dpi.capture import read_ground_truth
+from dpi.capture.consistency import raycasting_scene
 from dpi.evaluation.metrics import missing
 from dpi.evaluation.seams import texture_lookup
 from dpi.io.images import resize
@@ -36,9 +37,7 @@ def surface_lookup(surface: dict[str, np.ndarray], textures: list[np.ndarray], p
     nearest to `points` (N, 3)."""
     import open3d as o3d
 
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.core.Tensor(surface["positions"].astype(np.float32)),
-                        o3d.core.Tensor(surface["faces"].astype(np.uint32)))
+    scene = raycasting_scene(surface["positions"], surface["faces"])
     nearest = scene.compute_closest_points(o3d.core.Tensor(points.astype(np.float32)))
     triangle = nearest["primitive_ids"].numpy().astype(np.int64)
     b1, b2 = nearest["primitive_uvs"].numpy().astype(np.float64).T

@@ -19,7 +19,7 @@ import numpy as np
 import torch
 
 from dpi.capture.cameras import Camera
-from dpi.preprocess.sfm import up_direction
+from dpi.preprocess.sfm import in_view_fraction, up_direction
 from dpi.preprocess.stereo import Matcher, StereoParams, camera_rays, neighbour_views
 
 STEP_PX = 1.5
@@ -82,10 +82,7 @@ def support_height(points: np.ndarray, cameras: list[Camera], up: np.ndarray, ce
     """Height (along `up`) of the level plane the object stands on: just above the lowest of the sparse points
     (N, 3) every camera has in view. The object and the top of what it stands on (a table, a plinth) are in every
     frame; what lies below that top is hidden by it or leaves the frames. None with fewer than SUPPORT_MIN_POINTS."""
-    shared = np.ones(len(points), bool)
-    for camera in cameras:
-        xy, depth = camera.project(points)
-        shared &= (depth > 0) & (xy[:, 0] >= 0) & (xy[:, 0] < camera.width) & (xy[:, 1] >= 0) & (xy[:, 1] < camera.height)
+    shared = in_view_fraction(points, cameras) >= 1.0
     if shared.sum() < SUPPORT_MIN_POINTS:
         return None
     distance = float(np.mean([np.linalg.norm(c.center - centre) for c in cameras]))
@@ -93,7 +90,7 @@ def support_height(points: np.ndarray, cameras: list[Camera], up: np.ndarray, ce
 
 
 def view_seeds(grey: np.ndarray, camera: Camera, others: list[tuple[np.ndarray, Camera]], near: np.ndarray,
-               far: np.ndarray, support: tuple[np.ndarray, float] | None = None, batch: int = 8) -> np.ndarray:
+               far: np.ndarray, support: tuple[np.ndarray, float] | None = None) -> np.ndarray:
     """(h, w) int8 seeds of one view (OBJECT, BACKGROUND or UNKNOWN; module notes), from its grey image, its
     neighbours' (grey image, camera) and the depths (h, w) between which each pixel's ray may meet the object (NaN:
     it cannot). With a `support` plane (up, height), a pixel whose best match inside lies at or below it is
@@ -113,13 +110,12 @@ def view_seeds(grey: np.ndarray, camera: Camera, others: list[tuple[np.ndarray, 
     count = max(2, int(np.ceil(pixels_per_inverse_depth / float(np.nanmin(far[hit])) / STEP_PX)))
     behind = 1 / (torch.linspace(1.0, 0.0, count + 1)[:-1, None, None] / far_t)
 
-    def best(z: torch.Tensor) -> torch.Tensor:
-        return torch.cat([matcher.scores(z[i:i + batch]) for i in range(0, len(z), batch)]).amax(0)
-
+    everywhere = torch.ones(grey.shape, dtype=torch.bool)
     with torch.no_grad():
-        scores_in = torch.cat([matcher.scores(inside[i:i + batch]) for i in range(0, len(inside), batch)])
-        s_in, s_behind = scores_in.amax(0).numpy(), best(behind).numpy()
-        depth = inside.gather(0, scores_in.argmax(0)[None])[0].numpy()
+        best_in, scores_in = matcher.best(inside, everywhere)
+        _, scores_behind = matcher.best(behind, everywhere)
+    s_in, s_behind = scores_in.amax(0).numpy(), scores_behind.amax(0).numpy()
+    depth = inside.gather(0, best_in[None])[0].numpy()
     matched_in = hit & (s_in >= MIN_SCORE) & (s_in >= s_behind + MARGIN)
     seeds[hit] = UNKNOWN
     seeds[matched_in] = OBJECT

@@ -47,9 +47,9 @@ from dpi.capture.consistency import mask_iou
 from dpi.io.images import read_image, resize, resize_mask, to_uint8, working_size, write_mask
 from dpi.io.settings import settings
 from dpi.preprocess.hull import marching_cubes, visible_sphere, visual_hull
+from dpi.preprocess.depth_seeds import BACKGROUND, OBJECT, PARAMS, depth_seeds
 from dpi.preprocess.mask_confidence import (AGREEMENT_VOTE_SHARE, MASK_AGREEMENT, edge_support, point_coverage,
                                              verdict)
-from dpi.preprocess.depth_seeds import BACKGROUND, OBJECT, PARAMS, depth_seeds
 from dpi.preprocess.morphology import grow, shrink
 from dpi.preprocess.stereo import grey
 
@@ -238,6 +238,16 @@ def clean_mask(mask: np.ndarray, fill_holes_below: float) -> np.ndarray:
     return out
 
 
+def choose_method(image8: np.ndarray, cfg: MaskConfig, segmenter=None) -> tuple[str, np.ndarray, float]:
+    """(method, border colour, its spread) for one 8-bit image: the configured method, or for auto the learned
+    segmenter when loaded, else keying on a uniform border, else GrabCut."""
+    colour, spread = border_colour(image8)
+    method = cfg.method
+    if method == "auto":
+        method = "learned" if segmenter is not None else "key" if spread < KEY_MAX_SPREAD else "grabcut"
+    return method, colour, spread
+
+
 def object_mask(image: np.ndarray, camera: Camera, cfg: MaskConfig, sphere: tuple[np.ndarray, float],
                 points: np.ndarray | None = None, segmenter=None,
                 seeds: np.ndarray | None = None) -> tuple[np.ndarray, str]:
@@ -249,10 +259,7 @@ def object_mask(image: np.ndarray, camera: Camera, cfg: MaskConfig, sphere: tupl
     from dpi.preprocess.segmenter import learned_mask
 
     image8 = to_uint8(image)
-    colour, spread = border_colour(image8)
-    method = cfg.method
-    if method == "auto":
-        method = "learned" if segmenter is not None else "key" if spread < KEY_MAX_SPREAD else "grabcut"
+    method, colour, spread = choose_method(image8, cfg, segmenter)
     if method == "key":
         mask = key_mask(image8, colour, max(KEY_THRESHOLD, 2 * spread))
     elif method == "learned":
@@ -321,9 +328,8 @@ SEED_SIZE = 240
 def parallax_seeds(pictures: list[np.ndarray], cameras: list[Camera], centre: np.ndarray,
                    scene_points: np.ndarray | None = None) -> list[np.ndarray]:
     """Each view's parallax seeds (dpi.preprocess.depth_seeds; `centre`: the point the cameras look at; the scene's
-    sparse points show what the object stands on), matched at
-    SEED_SIZE, each kind shrunk by half the matcher's window there (a window that straddles the outline matches both
-    sides), at the pictures' size (nearest)."""
+    sparse points show what the object stands on), matched at SEED_SIZE, each kind shrunk by half the matcher's
+    window there (a window that straddles the outline matches both sides), at the pictures' size (nearest)."""
     height, width = pictures[0].shape[:2]
     small_w, small_h = working_size((width, height), SEED_SIZE)
     small = [camera.resized(small_w, small_h) for camera in cameras]
@@ -378,10 +384,11 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
     sphere = (centre, SPHERE_FRACTION * radius)
     if points is not None:
         points = drop_outliers(points, OUTLIER_STD_RATIO)
-    seeds = parallax_seeds(pictures, views, centre, scene_points) if cfg.parallax else [None] * len(views)
+    images8 = [to_uint8(picture) for picture in pictures]
+    prompted = any(choose_method(image8, cfg, segmenter)[0] != "key" for image8 in images8)  # keying takes no seeds
+    seeds = parallax_seeds(pictures, views, centre, scene_points) if cfg.parallax and prompted else [None] * len(views)
     first = [object_mask(picture, camera, cfg, sphere, points, segmenter, seed)
              for picture, camera, seed in zip(pictures, views, seeds)]
-    images8 = [to_uint8(picture) for picture in pictures]
     masks, methods = [m for m, _ in first], [method for _, method in first]
     use_points = points is not None and len(points) >= MIN_POINTS
     summary = {"views": {}, "prior": "sphere and sparse points" if use_points else "sphere", "consensus_rounds": 0,

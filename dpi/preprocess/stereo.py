@@ -180,7 +180,7 @@ class Matcher:
     def scores(self, z: torch.Tensor) -> torch.Tensor:
         """Mean NCC of the best `best_of` neighbours (P, h, w) for depths z (P, h, w) (-1: no match; `best_of`: BEST_OF
         unless the matcher was given another; None: the mean over the neighbours whose frame holds the point)."""
-        window, per_view = self.cfg.window, []
+        window, per_view, seen = self.cfg.window, [], []
         for image, direction, offset, cam in self.views:
             p = direction[None] * z[..., None] + offset
             depth = -p[..., 2]
@@ -193,10 +193,11 @@ class Matcher:
             ncc = ((_box(self.a * b, window) - self.mean_a * mean_b) / torch.sqrt(self.var_a * var_b))[:, 0]
             valid = (depth > 1e-3) & (x >= 0) & (x < cam.width) & (y >= 0) & (y < cam.height)
             per_view.append(torch.where(valid, ncc, torch.tensor(-1.0)))
+            seen.append(valid)
         if self.best_of is None:
-            seen = torch.stack([v > -1 for v in per_view]).float()
-            total = (torch.stack(per_view) * seen).sum(0)
-            return torch.where(seen.sum(0) > 0, total / seen.sum(0).clamp_min(1), torch.tensor(-1.0))
+            count = torch.stack(seen).sum(0)
+            total = torch.where(torch.stack(seen), torch.stack(per_view), torch.tensor(0.0)).sum(0)
+            return torch.where(count > 0, total / count.clamp_min(1), torch.tensor(-1.0))
         best_of = min(self.best_of, len(per_view))
         return torch.stack(per_view).topk(best_of, dim=0).values.mean(0)
 
