@@ -37,7 +37,8 @@ from dpi.studies.scenes import (POSTERIOR_SCENES, RESOLUTION_SCENES, calibration
 
 CSV = results_csv("init_start_study")
 COLUMNS = ("study", "scene", "roughness", "metallic", "start_roughness", "start_metallic", "pilot_loss",
-           "half_way_loss", "closing_loss", "half_way_misfit", "misfit", "p_glossy_half_way", "p_glossy", "init_roughness_p25", "init_metallic_median", "novel_psnr", "chosen", "best", "seconds")
+           "half_way_loss", "closing_loss", "half_way_misfit", "misfit", "p_glossy_half_way", "p_glossy",
+           "init_roughness_p25", "init_metallic_median", "novel_psnr", "chosen", "best", "seconds")
 PILOT = (20, 40)
 """steps whose mean data loss is `pilot_loss`: the second half of a 40-step pilot"""
 TEXT = ("study", "scene")

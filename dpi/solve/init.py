@@ -7,9 +7,9 @@ changes nothing, so a fit from a rough start on a mirror stops half-way, its ref
 and a fit from a glossy start on a rough object paints the object's shading into the map: each start keeps its
 reading. So the init fits two readings, a rough dielectric and a glossy metal, and records how well each explains
 the training views relative to their noise (dpi.solve.evidence). Half-way, a glossy reading far behind by that
-measure stops (half_way_stop); the samples come from both in proportion to the probability that each explains the views better: all from
-one where the views decide, from both where they do not (few, small views can show a mirror under a sharp light
-like a rough object under a soft one; sample_reading; docs/studies.md, "Two readings").
+measure stops (half_way_stop); the samples come from both in proportion to the probability that each explains the
+views better: all from one where the views decide, from both where they do not (few, small views can show a mirror
+under a sharp light like a rough object under a soft one; sample_reading; docs/studies.md, "Two readings").
 """
 
 from __future__ import annotations
@@ -176,9 +176,9 @@ def fit_evidence(problem: InverseProblem, fits: dict[str, AdamFit], seed: int, s
 def path_traced_init(problem: InverseProblem, cfg: InitConfig, seed: int, progress: bool = True,
                      checkpoint: Path | None = None, checkpoint_every: int = CHECKPOINT_EVERY) -> InitReadings:
     """Fit env map + materials from each reading of `cfg.reading` (both for auto: a glossy one far behind half-way
-    stops there, half_way_stop); the samples' shares from the evidence at the end (dpi.solve.evidence); keep the one most
-    samples come from. `checkpoint`: the rough fit's resume file; the glossy fit's and the half-way evidence are its
-    siblings."""
+    stops there, half_way_stop); the samples' shares from the evidence at the end (dpi.solve.evidence); keep the one
+    most samples come from. `checkpoint`: the rough fit's resume file; the glossy fit's and the half-way evidence are
+    its siblings."""
     names = list(READINGS) if cfg.reading == "auto" else [cfg.reading]
     fits = {name: start_fit(problem, cfg, name, seed) for name in names}
     sibling = (lambda suffix: checkpoint.with_name(f"{checkpoint.stem}.{suffix}")) if checkpoint else None
