@@ -3,9 +3,8 @@ on every study scene?
 
 For each scene of the posterior, calibration and resolution studies and the roughness study's 0.2 dielectric
 (their captures, their workflow configs), the init's fit runs from each reading's start (dpi.solve.init.READINGS,
-start_fit) to the end, recording its closing loss and its misfit (dpi.solve.evidence) half-way and at the end,
-the probability that the glossy reading explains the views better at both (`p_glossy_half_way`: which fit stops
-there; `p_glossy`: the samples' shares where both finish), its mean data loss over steps 20-39 (`pilot_loss`: a
+start_fit) to the end, recording its closing loss half-way (`half_way_loss`: which fit stops there) and at the
+end (what the readings are compared by when both finish), its mean data loss over steps 20-39 (`pilot_loss`: a
 40-step pilot of each start, a rule tried first), the roughness 25th percentile and median metallic, and the
 held-out view PSNR of that start's init. A row per scene and start; `chosen` marks the reading the init keeps (the
 one not stopped half-way; where both finish, the one most samples start from), `best` the one whose held-out views
@@ -37,8 +36,7 @@ from dpi.studies.scenes import (POSTERIOR_SCENES, RESOLUTION_SCENES, calibration
 
 CSV = results_csv("init_start_study")
 COLUMNS = ("study", "scene", "roughness", "metallic", "start_roughness", "start_metallic", "pilot_loss",
-           "half_way_loss", "closing_loss", "half_way_misfit", "misfit", "p_glossy_half_way", "p_glossy",
-           "init_roughness_p25", "init_metallic_median", "novel_psnr", "chosen", "best", "seconds")
+           "half_way_loss", "closing_loss", "init_roughness_p25", "init_metallic_median", "novel_psnr", "chosen", "best", "seconds")
 PILOT = (20, 40)
 """steps whose mean data loss is `pilot_loss`: the second half of a 40-step pilot"""
 TEXT = ("study", "scene")
@@ -72,39 +70,30 @@ def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth
     from dpi.evaluation.sample_metrics import novel_view_metrics, render_held_out
     from dpi.io.layout import INIT
     from dpi.solve.decomposition import Decomposition
-    from dpi.solve.init import EVIDENCE_SEED, READINGS, closing_loss, fit_evidence, roughness_p25, start_fit
+    from dpi.solve.init import READINGS, closing_loss, roughness_p25, start_fit
     from dpi.solve.problem import SolveConfig
     from dpi.stages import load_problem
     from dpi.stages.seeding import seed_for
 
     problem = load_problem(prepare_capture(root, scene, synth, threads=2), SolveConfig.from_config(config, 2))
     cfg = Pipeline(config).init_settings
-    seed = seed_for(scene, INIT)
-    begin = time.perf_counter()
-    runs = {reading: start_fit(problem, cfg, reading, seed) for reading in READINGS}
-    for run in runs.values():
-        run.run(cfg.iterations // 2, progress=False)
-    evidence = {"half_way": fit_evidence(problem, runs, seed * 31 + EVIDENCE_SEED, None)}
-    half_way = {reading: closing_loss(run.trace) for reading, run in runs.items()}
-    for run in runs.values():
-        run.run(cfg.iterations, progress=False)
-    evidence["end"] = fit_evidence(problem, runs, seed * 31 + EVIDENCE_SEED + 1, None)
-    seconds = round((time.perf_counter() - begin) / len(runs), 1)
     rows = []
     for reading, start in READINGS.items():
-        run = runs[reading]
+        begin = time.perf_counter()
+        run = start_fit(problem, cfg, reading, seed_for(scene, INIT))
+        run.run(cfg.iterations // 2, progress=False)
+        half_way = closing_loss(run.trace)
+        run.run(cfg.iterations, progress=False)
         log_env, materials = run.finish()
         pilot = [s["data"] for s in run.trace.steps[slice(*PILOT)] if s.get("data") is not None]
         renders = render_held_out(problem, Decomposition(log_env.exp(), materials), config["evaluate"]["spp"], 0)
         rows.append({"study": study, "scene": scene, "roughness": synth["roughness"], "metallic": synth["metallic"],
                      "start_roughness": start[0], "start_metallic": start[1], "pilot_loss": float(np.mean(pilot)),
-                     "half_way_loss": half_way[reading], "closing_loss": closing_loss(run.trace),
-                     "half_way_misfit": evidence["half_way"][reading]["misfit"],
-                     "misfit": evidence["end"][reading]["misfit"],
-                     "p_glossy_half_way": evidence["half_way"]["p_glossy"], "p_glossy": evidence["end"]["p_glossy"],
+                     "half_way_loss": half_way, "closing_loss": closing_loss(run.trace),
                      "init_roughness_p25": roughness_p25(materials),
                      "init_metallic_median": float(materials.metallic.median()),
-                     "novel_psnr": novel_view_metrics(problem, renders)["novel_psnr"], "seconds": seconds})
+                     "novel_psnr": novel_view_metrics(problem, renders)["novel_psnr"],
+                     "seconds": round(time.perf_counter() - begin, 1)})
     return mark(rows)
 
 
@@ -117,10 +106,12 @@ def row_settings(config: dict[str, Any], synth: dict[str, Any]) -> str:
 def mark(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Set `chosen` (the reading the init keeps, dpi.solve.init's rule: the one not stopped half-way, else the one
     most samples come from) and `best` on one scene's two rows (rough start, glossy start)."""
-    from dpi.solve.init import glossy_share
+    from dpi.solve.init import glossy_share, half_way_stop
 
     first, glossy = rows
-    keep = glossy_share(glossy["p_glossy_half_way"], glossy["p_glossy"]) > 0.5
+    stopped = half_way_stop(glossy["half_way_loss"] / first["half_way_loss"])
+    closing = glossy["closing_loss"] / first["closing_loss"]
+    keep = stopped == "rough" or (stopped is None and glossy_share(closing) > 0.5)
     best = max(rows, key=lambda r: r["novel_psnr"])
     for row in rows:
         row.update(chosen=int(row is (glossy if keep else first)), best=int(row is best))
@@ -152,7 +143,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=CSV)
     args = parser.parse_args()
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-    done = {(r["study"], r["scene"]) for r in read_rows(args.out, TEXT) if r.get("p_glossy") is not None}
+    done = {(r["study"], r["scene"]) for r in read_rows(args.out, TEXT)}
     for study in args.studies:
         root, config, scenes = study_scenes(study, args.repeats)
         for scene, synth in scenes.items():
@@ -161,7 +152,7 @@ def main() -> None:
             for row in scene_rows(study, root, config, scene, synth):
                 append_row(args.out, row, COLUMNS, row_settings(config, synth))
             print(f"{study} {scene}: done", flush=True)
-    rows = [r for r in read_rows(args.out, TEXT) if r.get("p_glossy") is not None]  # rows of the rule before: gone
+    rows = read_rows(args.out, TEXT)
     rows = [row for i in range(0, len(rows), 2) for row in mark(rows[i:i + 2])]
     args.out.unlink()
     for row in rows:

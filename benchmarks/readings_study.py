@@ -4,9 +4,8 @@ Scenes: a bumpy torus of roughness 0.05 (metal), 0.2, 0.5 and 0.8 (dielectrics) 
 a procedural room and a held-out real panorama that no study scene uses (with --panoramas), seen in 8 views of
 32 px on a 150 deg arc or in 16 views of 48 px all around. Per scene and repeat (its own capture noise and init)
 the workflow's init fits both readings (dpi.solve.init) and `dps` draws `--samples` samples through the stage
-functions; one row of benchmarks/results/readings_study.csv per scene and repeat: the init's misfit ratio (glossy
-over rough, dpi.solve.evidence; half-way, and `stopped` 1, where one of the two fits stopped there), the
-probability that the glossy reading explains the views better (`p_glossy`) and the kept reading, the share of
+functions; one row of benchmarks/results/readings_study.csv per scene and repeat: the init's closing-loss ratio
+(glossy over rough; half-way, and `stopped` 1, where one of the two fits stopped there) and kept reading, the share of
 samples that started from the glossy reading, the init's and the samples' held-out views and env PSNR (mean and
 worst sample), the samples' mean map, spread and calibration, and the init's seconds. Then a table per scene and
 the metal / rough spread ratios (Fig. 9).
@@ -39,8 +38,7 @@ COLUMNS = ("scene", "light", "views", "roughness", "metallic", "repeat", "readin
            "closing_loss", "novel_psnr", "env_psnr", "env_ssim", "albedo_mse", "train_fit", "train_fit_over_truth",
            "seconds")
 TEXT = ("scene", "light", "views", "reading", "method")
-GROUP_COLUMNS = ("scene", "light", "views", "roughness", "metallic", "repeat", "samples", "misfit_ratio", "p_glossy",
-                 "stopped", "kept",
+GROUP_COLUMNS = ("scene", "light", "views", "roughness", "metallic", "repeat", "samples", "ratio", "stopped", "kept",
                  "glossy_samples", "init_novel_psnr", "init_env_psnr", "init_seconds", "novel_psnr", "env_psnr",
                  "albedo_mse", "seconds", "min_novel_psnr", "min_env_psnr", "env_mean_psnr", "env_sigma2_sample",
                  "calibration")
@@ -48,14 +46,8 @@ GROUP_TEXT = ("scene", "light", "views", "kept")
 ROUGHNESSES = (0.05, 0.2, 0.5, 0.8)
 LIGHTS = {"sun": {"environment": "sunsky", "sun_elevation_deg": 10.0, "sun_azimuth_deg": 200.0, "prior": "outdoor"},
           "room": {"environment": "indoor", "environment_seed": 41, "prior": "indoor"},
-          "real": {"panorama": "hilly_terrain_01_1k.hdr", "prior": "outdoor"},
-          "sun12": {"environment": "sunsky", "sun_elevation_deg": 12.0, "sun_azimuth_deg": 140.0, "prior": "outdoor"},
-          "sun45": {"environment": "sunsky", "sun_elevation_deg": 45.0, "sun_azimuth_deg": 140.0, "prior": "outdoor"},
-          "beach": {"panorama": "spiaggia_di_mondello_1k.hdr", "prior": "outdoor"}}
-"""a clear sky with a low sun, a procedural room, a held-out real panorama with a sun that no study scene uses; then
-the held-out scenes of the readings' evidence (issue 75), seen on the arc only: a low and a high sun, another held-out
-panorama"""
-ARC_ONLY = ("sun12", "sun45", "beach")
+          "real": {"panorama": "hilly_terrain_01_1k.hdr", "prior": "outdoor"}}
+"""a clear sky with a low sun, a procedural room, a held-out real panorama with a sun that no study scene uses"""
 VIEWS = {"arc": {"views": 8, "held_out_every": 4, "width": 32, "height": 32, "arc_deg": 150.0,
                  "elevations_deg": (15.0, 40.0)},
          "around": {"views": 16, "held_out_every": 4, "width": 48, "height": 48, "arc_deg": 360.0,
@@ -82,8 +74,6 @@ def study_scenes(panoramas: Path | None) -> dict[str, dict[str, Any]]:
                 continue
             lit = {"prior": lit["prior"], "environment": str(held_out[lit["panorama"]].resolve())}
         for views, seen in VIEWS.items():
-            if light in ARC_ONLY and views != "arc":
-                continue
             for r in ROUGHNESSES:
                 scenes[scene_name(light, views, r)] = {**BASE, **seen, **lit, "roughness": r,
                                                        "metallic": 1.0 if r <= 0.1 else 0.0}
@@ -122,10 +112,9 @@ def sample_row(job: Job) -> dict[str, Any]:
     scene = job.layout.scene(job.scene)
     info = json.loads(scene.sample_files(job.label, job.seed)["trace"].read_text())["info"]
     readings = json.loads(scene.sample_files(INIT)["trace"].read_text())["info"]["readings"]
-    evidence = readings["evidence"]
-    return {**row, "reading": info["reading"], "stopped": int(readings.get("stopped") is not None),
-            "misfit_ratio": evidence["glossy"]["misfit"] / evidence["rough"]["misfit"],
-            "p_glossy": evidence["p_glossy"], "other_share": readings["other_share"]}
+    stopped = readings.get("stopped") is not None
+    return {**row, "reading": info["reading"], "stopped": int(stopped),
+            "ratio": readings["half_way_ratio"] if stopped else readings["ratio"], "other_share": readings["other_share"]}
 
 
 def group_row(scene: str, synth: dict, repeat: int, rows: list[dict[str, Any]], jobs: list[Job]) -> dict[str, Any]:
@@ -142,8 +131,7 @@ def group_row(scene: str, synth: dict, repeat: int, rows: list[dict[str, Any]], 
     light, views = scene.split("_")[1:3]
     return {"scene": scene, "light": light, "views": views, "roughness": synth["roughness"],
             "metallic": synth["metallic"], "repeat": repeat, "samples": len(samples),
-            "misfit_ratio": init["misfit_ratio"], "p_glossy": init["p_glossy"], "stopped": init["stopped"],
-            "kept": init["reading"],
+            "ratio": init["ratio"], "stopped": init["stopped"], "kept": init["reading"],
             "glossy_samples": sum(r["reading"] == "glossy" for r in samples) / len(samples),
             "init_novel_psnr": init["novel_psnr"], "init_env_psnr": init["env_psnr"], "init_seconds": init["seconds"],
             **{k: float(np.mean([r[k] for r in samples])) for k in ("novel_psnr", "env_psnr", "albedo_mse",
@@ -156,15 +144,15 @@ def group_row(scene: str, synth: dict, repeat: int, rows: list[dict[str, Any]], 
 
 def summary(rows: list[dict[str, Any]]) -> list[str]:
     """Per scene: means over repeats; then the metal / rough spread ratio per light and views."""
-    lines = [f"{'scene':<24} {'n':>2} {'misfit':>6} {'glossy':>6} {'init views':>10} {'views':>6} {'min':>6} "
+    lines = [f"{'scene':<24} {'n':>2} {'ratio':>6} {'glossy':>6} {'init views':>10} {'views':>6} {'min':>6} "
              f"{'init env':>8} {'env':>6} {'min':>6} {'mean map':>8} {'calib':>6} {'init s':>6}"]
     for scene in sorted({r["scene"] for r in rows}):
         sel = [r for r in rows if r["scene"] == scene]
-        m = {k: float(np.mean([r[k] for r in sel])) for k in ("misfit_ratio", "glossy_samples", "init_novel_psnr",
+        m = {k: float(np.mean([r[k] for r in sel])) for k in ("ratio", "glossy_samples", "init_novel_psnr",
                                                              "novel_psnr", "min_novel_psnr", "init_env_psnr",
                                                              "env_psnr", "min_env_psnr", "env_mean_psnr",
                                                              "calibration", "init_seconds")}
-        lines.append(f"{scene:<24} {len(sel):>2} {m['misfit_ratio']:>6.2f} {m['glossy_samples']:>6.2f} "
+        lines.append(f"{scene:<24} {len(sel):>2} {m['ratio']:>6.2f} {m['glossy_samples']:>6.2f} "
                      f"{m['init_novel_psnr']:>10.2f} {m['novel_psnr']:>6.2f} {m['min_novel_psnr']:>6.2f} "
                      f"{m['init_env_psnr']:>8.2f} {m['env_psnr']:>6.2f} {m['min_env_psnr']:>6.2f} "
                      f"{m['env_mean_psnr']:>8.2f} {m['calibration']:>6.2f} {m['init_seconds']:>6.1f}")

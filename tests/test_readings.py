@@ -41,10 +41,6 @@ def test_the_init_log_line_says_what_was_fitted_and_kept():
     stopped = readings_line({"closing_loss": {"rough": 0.02, "glossy": 0.05}, "stopped": "glossy", "kept": "rough",
                             "other": None, "other_share": 0.0})
     assert "glossy stopped half-way" in stopped and "samples from" not in stopped
-    evidence = {"rough": {"misfit": 0.004, "noise": 0.001}, "glossy": {"misfit": 0.0021, "noise": 0.001},
-                "z": -1.2, "p_glossy": 0.885, "blocks": 300}
-    weighed = readings_line({**record, "evidence": evidence, "other_share": 0.115})
-    assert "misfit rough 0.004, glossy 0.0021 (p glossy 0.89)" in weighed and "12% of the samples" in weighed
 
 
 def test_the_report_notes_two_readings_only_where_the_samples_come_from_both(tmp_path):

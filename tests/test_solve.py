@@ -1,6 +1,7 @@
 """Solvers: init lowers the loss, priors' known answers, NaN guards, seeded reproducibility, dip."""
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -12,8 +13,9 @@ from dpi.render.renderer import RenderConfig
 from dpi.solve.classic import ClassicConfig, balanced_weight, classic_sample
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dip import DeepImagePrior, DIPConfig, dip_sample, network_levels
-from dpi.solve.init import (CLOSING_STEPS, READINGS, START_ALBEDO, InitConfig, closing_loss, is_glossy,
-                            path_traced_init, roughness_p25, sample_reading, starting_materials)
+from dpi.solve.init import (BOTH_BELOW, CLOSING_STEPS, GLOSSY_ALONE_BELOW, READINGS, START_ALBEDO, InitConfig,
+                            closing_loss, glossy_share, is_glossy, path_traced_init, roughness_p25, sample_reading,
+                            starting_materials)
 from dpi.solve.materials import MaterialTextures
 from dpi.solve.optimize import AdamFit, FreeEnvMap, OptimizeConfig, fit
 from dpi.solve.priors import chromaticity_penalty, global_norm_penalty, make_prior, smoothness_penalty
@@ -194,13 +196,6 @@ def test_a_fit_run_in_stretches_equals_one_uninterrupted_fit(problem):
     assert [s["step"] for s in stretched.trace.steps] == list(range(6))
 
 
-def evidence_of(p_glossy: float):
-    """Stands in for dpi.solve.evidence.reading_evidence: the glossy reading explains the views better with
-    probability `p_glossy`."""
-    return lambda problem, fits, seed: {"rough": {"misfit": 0.02, "noise": 0.01}, "glossy": {"misfit": 0.01,
-                                        "noise": 0.01}, "z": 0.0, "p_glossy": p_glossy, "blocks": 64}
-
-
 def test_the_init_fits_both_readings_and_keeps_the_one_most_samples_come_from(problem, monkeypatch):
     def init(reading: str):
         return path_traced_init(problem, InitConfig(iterations=6, reading=reading), seed=2, progress=False)
@@ -208,14 +203,17 @@ def test_the_init_fits_both_readings_and_keeps_the_one_most_samples_come_from(pr
     alone = {name: init(name).kept for name in READINGS}  # each reading fitted alone: the same fit, bit for bit
     assert alone["rough"].trace.info["start"] == [0.5, 0.0] and alone["glossy"].trace.info["start"] == [0.1, 1.0]
     losses = {name: closing_loss(fit.trace) for name, fit in alone.items()}
-    monkeypatch.setattr("dpi.solve.init.FAR_BEHIND", 0.0)  # both always finish
-    for p_glossy, kept, other, share in ((0.995, "glossy", "rough", 0.005), (0.3, "rough", "glossy", 0.3),
-                                         (0.5, "rough", "glossy", 0.5), (1.0, "glossy", None, 0.0)):
-        monkeypatch.setattr("dpi.solve.init.reading_evidence", evidence_of(p_glossy))
+    monkeypatch.setattr("dpi.solve.init.BOTH_FINISH", (0.0, math.inf))  # both always finish
+    ratio = losses["glossy"] / losses["rough"]
+    for both, glossy_alone, kept, other in ((4 * ratio, 2 * ratio, "glossy", None),  # glossy clearly better
+                                            (ratio / 2, ratio / 4, "rough", None),  # rough clearly better
+                                            (ratio * 1.1, ratio * 0.95, "glossy", "rough")):  # about equal
+        monkeypatch.setattr("dpi.solve.init.BOTH_BELOW", both)
+        monkeypatch.setattr("dpi.solve.init.GLOSSY_ALONE_BELOW", glossy_alone)
         result = init("auto")
         assert result.record["kept"] == kept and result.record["other"] == other
-        assert result.record["other_share"] == pytest.approx(share)
         assert result.record["closing_loss"] == pytest.approx(losses, rel=1e-4)
+        assert result.record["ratio"] == pytest.approx(ratio, rel=1e-4)
         torch.testing.assert_close(result.kept.env, alone[kept].env, rtol=1e-4, atol=1e-5)
         torch.testing.assert_close(result.kept.materials.roughness, alone[kept].materials.roughness, rtol=1e-4,
                                    atol=1e-5)
@@ -223,23 +221,27 @@ def test_the_init_fits_both_readings_and_keeps_the_one_most_samples_come_from(pr
         assert (result.other is None) == (other is None)
         if other:
             torch.testing.assert_close(result.other.env, alone[other].env, rtol=1e-4, atol=1e-5)
+            assert 0 < result.record["other_share"] < 0.5
 
 
-@pytest.mark.parametrize("p_glossy, kept, other_share", [(0.001, "rough", 0.0), (0.999, "glossy", 0.0),
-                                                        (0.02, "rough", 0.02)])
-def test_a_glossy_reading_far_behind_half_way_stops_there_and_a_rough_one_finishes(problem, monkeypatch, p_glossy,
-                                                                                    kept, other_share):
-    monkeypatch.setattr("dpi.solve.init.reading_evidence", evidence_of(p_glossy))
+@pytest.mark.parametrize("behind", ["glossy", "rough"])
+def test_the_reading_behind_half_way_stops_there(problem, monkeypatch, behind):
+    band = (0.0, 0.0) if behind == "glossy" else (math.inf, math.inf)  # every half-way ratio above / below the band
+    monkeypatch.setattr("dpi.solve.init.BOTH_FINISH", band)
     result = path_traced_init(problem, InitConfig(iterations=6), seed=2, progress=False)
-    record = result.record
-    assert record.get("stopped") == ("glossy" if p_glossy < 0.01 else None)
-    assert record["kept"] == kept and record["other_share"] == pytest.approx(other_share)
-    assert (result.other is None) == (other_share == 0.0)
-    if record.get("stopped"):
-        assert record["evidence"] == record["half_way"]
-    assert result.kept.trace.info["reading"] == kept
-    assert json.loads(json.dumps(record, allow_nan=False)) == record
+    kept = "rough" if behind == "glossy" else "glossy"
+    assert result.record["stopped"] == behind and result.record["kept"] == kept and result.other is None
+    assert result.record["ratio"] is None and result.record["other_share"] == 0.0
+    assert json.loads(json.dumps(result.record, allow_nan=False)) == result.record
     assert [s["step"] for s in result.kept.trace.steps] == list(range(6))
+    assert result.kept.trace.info["reading"] == kept
+
+
+def test_glossy_share_falls_from_one_to_zero_across_the_band():
+    assert glossy_share(0.2) == 1.0 and glossy_share(GLOSSY_ALONE_BELOW) == 1.0
+    assert glossy_share(BOTH_BELOW) == 0.0 and glossy_share(1.3) == 0.0 and glossy_share(math.inf) == 0.0
+    middle = math.sqrt(GLOSSY_ALONE_BELOW * BOTH_BELOW)
+    assert glossy_share(middle) == pytest.approx(0.5)
 
 
 @pytest.mark.parametrize("share", [0.0, 0.1, 0.25, 0.4, 0.5])

@@ -6,15 +6,13 @@ the mean observed foreground radiance; the textures start constant. Under that u
 changes nothing, so a fit from a rough start on a mirror stops half-way, its reflections smeared into the map,
 and a fit from a glossy start on a rough object paints the object's shading into the map: each start keeps its
 reading. So the init fits two readings, a rough dielectric and a glossy metal, and records how well each explains
-the training views relative to their noise (dpi.solve.evidence). Half-way, a glossy reading far behind by that
-measure stops (half_way_stop); the samples come from both in proportion to the probability that each explains the
-views better: all from one where the views decide, from both where they do not (few, small views can show a mirror
-under a sharp light like a rough object under a soft one; sample_reading; docs/studies.md, "Two readings").
+the training views (its closing loss). Where one clearly does better, every sample starts from it; where both do
+about equally (few, small views can show a mirror under a sharp light like a rough object under a soft one), the
+samples come from both, in proportion (glossy_share, sample_reading; docs/studies.md, "Two readings").
 """
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,10 +20,8 @@ from typing import Literal
 
 import torch
 
-from dpi.io.atomic import write_json
 from dpi.io.settings import Steps, settings
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.evidence import reading_evidence
 from dpi.solve.materials import MaterialTextures
 from dpi.solve.optimize import CHECKPOINT_EVERY, AdamFit, FreeEnvMap, OptimizeConfig
 from dpi.solve.problem import InverseProblem
@@ -35,11 +31,17 @@ START_ALBEDO = 0.5
 READINGS = {"rough": (0.5, 0.0), "glossy": (0.1, 1.0)}
 """the two readings the init fits, by their constant (roughness, metallic) start: a rough dielectric and a glossy
 metal"""
-FAR_BEHIND = 0.01
-"""a reading whose probability of explaining the views better (dpi.solve.evidence) is below this is far behind: it
-stops half-way, and no samples come from it"""
-EVIDENCE_SEED = 7_717
-"""the evidence's renders' seed stream (the fits' own seeds are theirs)"""
+BOTH_BELOW, GLOSSY_ALONE_BELOW = 0.6, 0.5
+"""closing-loss ratios (glossy over rough): at or above BOTH_BELOW the rough reading alone explains the views, below
+GLOSSY_ALONE_BELOW the glossy one; in between both do about equally and the samples come from both (a metal under a
+free map explains a rough object's views a little better too: the dielectrics measured close at 0.58-1.46, the
+metals at 0.17-0.54; docs/studies.md, "Two readings")"""
+BOTH_FINISH = (0.45, 0.55)
+"""half-way closing-loss ratios (glossy over rough) between which both fits finish; below, the rough fit stops
+half-way and the glossy reading is kept alone, at or above the upper bound the glossy fit stops and the rough one is
+kept (half-way, the readings study's metals stood at 0.20-0.46 and its dielectrics at 0.53-2.08; the ratio still
+moves in the second half, by up to +0.43 on a dielectric, so only those near the line finish both; docs/studies.md,
+"Two readings")"""
 
 
 CLOSING_STEPS = 20
@@ -102,6 +104,17 @@ def closing_loss(trace: Trace) -> float:
     return sum(losses) / len(losses) if losses else math.inf
 
 
+def glossy_share(ratio: float) -> float:
+    """The share of samples drawn from the glossy reading, given the closing-loss ratio glossy / rough: 1 below
+    GLOSSY_ALONE_BELOW, 0 at BOTH_BELOW and above, linear in the log ratio in between (how much better the glossy
+    reading explains the views than a metal explains a rough object's)."""
+    if not ratio < BOTH_BELOW:
+        return 0.0
+    if ratio <= GLOSSY_ALONE_BELOW:
+        return 1.0
+    return math.log(BOTH_BELOW / ratio) / math.log(BOTH_BELOW / GLOSSY_ALONE_BELOW)
+
+
 def sample_reading(k: int, readings: dict) -> str:
     """The reading sample k starts from (`readings`: an init trace's record): sample 0 the kept one, and among the
     first n samples the nearest whole number to n x its share (ties down) from the other."""
@@ -112,33 +125,21 @@ def sample_reading(k: int, readings: dict) -> str:
     return other if through > before else readings["kept"]
 
 
-def half_way_stop(p_glossy: float) -> str | None:
-    """The reading that stops half-way given the probability that the glossy one explains the views better there:
-    the glossy one when far behind (FAR_BEHIND), else None. A metal under a free map fits first, so a glossy fit
-    behind half-way stays behind, while a rough fit behind half-way can still draw level by the end."""
-    return "glossy" if p_glossy < FAR_BEHIND else None
-
-
-def glossy_share(half_way: float, end: float) -> float:
-    """The share of samples from the glossy reading, given the probabilities that it explains the views better
-    half-way and at the end (dpi.solve.evidence): 0 where it stopped half-way (half_way_stop), else the end's, a
-    reading far behind there (FAR_BEHIND) drawing none."""
-    if half_way_stop(half_way):
-        return 0.0
-    return 0.0 if end < FAR_BEHIND else 1.0 if end > 1 - FAR_BEHIND else end
+def half_way_stop(ratio: float) -> str | None:
+    """The reading whose fit stops half-way, given the closing-loss ratio glossy / rough there (BOTH_FINISH): None
+    when both finish."""
+    low, high = BOTH_FINISH
+    return None if low <= ratio < high else "rough" if ratio < low else "glossy"
 
 
 def readings_line(record: dict) -> str:
-    """One line of what the init's readings found: each misfit, what stopped half-way, what was kept and the
+    """One line of what the init's readings found: each closing loss, what stopped half-way, what was kept and the
     other reading's share of the samples."""
-    evidence = record.get("evidence", {})
-    losses = ", ".join(f"{name} {evidence[name]['misfit']:.4g}" for name in READINGS if name in evidence)
-    losses = f"misfit {losses} (p glossy {evidence['p_glossy']:.2f})" if losses else \
-        "closing loss " + ", ".join(f"{name} {loss:.4g}" for name, loss in record["closing_loss"].items())
+    losses = ", ".join(f"{name} {loss:.4g}" for name, loss in record["closing_loss"].items())
     stopped = f"; {record['stopped']} stopped half-way" if record.get("stopped") else ""
     other = f"; {record['other_share']:.0%} of the samples from the {record['other']} reading" if record["other"] \
         else ""
-    return f"{losses}{stopped}; kept {record['kept']}{other}"
+    return f"closing loss {losses}{stopped}; kept {record['kept']}{other}"
 
 
 def start_fit(problem: InverseProblem, cfg: InitConfig, reading: str, seed: int) -> AdamFit:
@@ -161,29 +162,16 @@ class InitReadings:
     record: dict
 
 
-def fit_evidence(problem: InverseProblem, fits: dict[str, AdamFit], seed: int, stored: Path | None) -> dict:
-    """dpi.solve.evidence's comparison of the two fits as they stand, kept in `stored` (JSON) when given, so that a
-    rerun after a kill uses the same half-way decision (the fits have moved on since)."""
-    if stored and stored.is_file():
-        return json.loads(stored.read_text())
-    current = {name: (fit.env_model().detach().exp(), fit.materials) for name, fit in fits.items()}
-    evidence = reading_evidence(problem, current, seed)
-    if stored:
-        write_json(stored, evidence)
-    return evidence
-
-
 def path_traced_init(problem: InverseProblem, cfg: InitConfig, seed: int, progress: bool = True,
                      checkpoint: Path | None = None, checkpoint_every: int = CHECKPOINT_EVERY) -> InitReadings:
-    """Fit env map + materials from each reading of `cfg.reading` (both for auto: a glossy one far behind half-way
-    stops there, half_way_stop); the samples' shares from the evidence at the end (dpi.solve.evidence); keep the one
-    most samples come from. `checkpoint`: the rough fit's resume file; the glossy fit's and the half-way evidence are
-    its siblings."""
+    """Fit env map + materials from each reading of `cfg.reading` (both for auto: the one clearly behind half-way
+    stops there, BOTH_FINISH); keep the one most samples come from (glossy_share).
+    `checkpoint`: the rough fit's resume file; the glossy fit's is its sibling."""
     names = list(READINGS) if cfg.reading == "auto" else [cfg.reading]
     fits = {name: start_fit(problem, cfg, name, seed) for name in names}
-    sibling = (lambda suffix: checkpoint.with_name(f"{checkpoint.stem}.{suffix}")) if checkpoint else None
     for name, fit in fits.items():
-        fit.resume(checkpoint and (checkpoint if name == "rough" else sibling(f"{name}{checkpoint.suffix}")),
+        fit.resume(checkpoint and (checkpoint if name == "rough" else
+                                   checkpoint.with_name(f"{checkpoint.stem}.{name}{checkpoint.suffix}")),
                    checkpoint_every)
     half = cfg.iterations // 2 if len(fits) > 1 else cfg.iterations
     for fit in fits.values():
@@ -191,25 +179,24 @@ def path_traced_init(problem: InverseProblem, cfg: InitConfig, seed: int, progre
         fit.save()  # a kill later does not redo this half
     record: dict = {"fitted": names}
     if len(fits) > 1:
-        half_way = sibling("evidence.json") if sibling else None
-        record["half_way"] = fit_evidence(problem, fits, seed * 31 + EVIDENCE_SEED, half_way)
-        if stopped := half_way_stop(record["half_way"]["p_glossy"]):
+        record["half_way_ratio"] = closing_loss(fits["glossy"].trace) / closing_loss(fits["rough"].trace)
+        if stopped := half_way_stop(record["half_way_ratio"]):
             record["stopped"] = stopped
     for name, fit in fits.items():
         if record.get("stopped") != name:
             fit.run(cfg.iterations, progress)
             fit.save()
-    record["closing_loss"] = {name: closing_loss(fit.trace) for name, fit in fits.items()}
+    losses = {name: closing_loss(fit.trace) for name, fit in fits.items()}
+    record["closing_loss"] = losses
     if len(fits) == 1:
         record.update(kept=names[0], other=None, other_share=0.0)
     else:
-        record["evidence"] = record["half_way"] if "stopped" in record else \
-            fit_evidence(problem, fits, seed * 31 + EVIDENCE_SEED + 1, None)
-        share = glossy_share(record["half_way"]["p_glossy"], record["evidence"]["p_glossy"])
+        ratio = record["ratio"] = None if "stopped" in record else losses["glossy"] / losses["rough"]
+        share = float(record.get("stopped") == "rough") if ratio is None else glossy_share(ratio)
         kept = "glossy" if share > 0.5 else "rough"
-        other_share = min(share, 1 - share)
-        record.update(kept=kept, other=("rough" if kept == "glossy" else "glossy") if other_share else None,
-                      other_share=other_share, glossy_roughness_p25=roughness_p25(fits["glossy"].materials),
+        other = "rough" if kept == "glossy" else "glossy"
+        record.update(kept=kept, other=other if 0 < share < 1 else None,
+                      other_share=min(share, 1 - share), glossy_roughness_p25=roughness_p25(fits["glossy"].materials),
                       rough_roughness_p25=roughness_p25(fits["rough"].materials))
     results = {}
     for name in (record["kept"], record["other"]):
@@ -220,6 +207,4 @@ def path_traced_init(problem: InverseProblem, cfg: InitConfig, seed: int, progre
     for name, fit in fits.items():
         if name not in results:
             fit.finish()  # its resume file goes
-    if sibling:
-        sibling("evidence.json").unlink(missing_ok=True)
     return InitReadings(results[record["kept"]], results.get(record["other"]), record)
