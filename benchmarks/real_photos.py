@@ -59,13 +59,16 @@ class RealCapture:
     poses_summary: str | None = None
     reference_cameras: str | None = None
     prior: str = "outdoor"
+    held_out_every: int = 0
+    """a photos-only capture's scene.yaml holds every n-th photo out (from the middle of the first n; 0: none), for
+    the methods' held-out views"""
 
 
 def captures(shared: Path) -> dict[str, RealCapture]:
     return {"skull_photos": RealCapture(ROOT / "tests" / "data" / "skull_photos", "checked_masks", False,
                                         poses_summary="poses_summary.json"),
             "saharov32": RealCapture(shared / "saharov32", "reference_masks", True,
-                                     reference_cameras="reference_cameras.out")}
+                                     reference_cameras="reference_cameras.out", held_out_every=8)}
 
 
 def mask_scores(masks: Path, checked: Path) -> dict[str, float]:
@@ -107,7 +110,11 @@ def prepare(name: str, capture: RealCapture) -> Path:
     folder = WORK / "captures" / name
     if not (folder / "images").is_dir():
         shutil.copytree(capture.folder / "images", folder / "images")
-    (folder / "scene.yaml").write_text(yaml.safe_dump({"prior": capture.prior, "object": name}))
+    options = {"prior": capture.prior, "object": name}
+    if capture.held_out_every:
+        stems = sorted(p.stem for p in (folder / "images").iterdir() if p.is_file())
+        options["held_out"] = stems[capture.held_out_every // 2::capture.held_out_every]
+    (folder / "scene.yaml").write_text(yaml.safe_dump(options))
     return folder.parent
 
 
