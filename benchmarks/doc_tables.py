@@ -427,11 +427,12 @@ def mask_witnesses(root: Path) -> str:
     rows = latest(read_rows(root / RESULTS / "mask_witnesses.csv", ("shape", "background", "elevations_deg")),
                   ("shape", "background", "views", "size", "arc_deg", "stereo"))
     body = [[r["shape"], r["background"], f"{r['views']:g} of {r['size']:g} px", f"{r['arc_deg']:g}",
-             f"{r['mask_iou']:.3f}", f"{r['mask_iou_min']:.3f}",
-             f"{r['flagged_below_08']:g} of {r['masks_below_08']:g}", f"{r['flagged_above_09']:g}"]
+             *([f"{r['mask_iou']:.3f}", f"{r['mask_iou_min']:.3f}",
+                f"{r['flagged_below_08']:g} of {r['masks_below_08']:g}", f"{r['flagged_above_09']:g}", "-"]
+               if not r["error"] else ["-", "-", "-", "-", r["error"]])]
             for r in sorted(rows, key=lambda r: (r["arc_deg"], r["shape"]))]
     return markdown(["shape", "backdrop", "views", "sweep [deg]", "mask IoU", "min", "flagged, views under 0.8",
-                     "flagged, views over 0.9"], body)
+                     "flagged, views over 0.9", "stopped"], body)
 
 
 BALANCE_STAGES = ("init", *WATCH_STAGES)

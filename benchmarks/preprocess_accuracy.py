@@ -26,7 +26,10 @@ from pathlib import Path
 import numpy as np
 from tabulate import tabulate
 
+from dpi.capture import read_capture_json
 from dpi.capture.cameras import read_cameras
+from dpi.capture.load import complete_capture
+from dpi.config.pipeline import resolve_config
 from dpi.capture.consistency import mask_iou
 from dpi.io.images import read_mask
 from dpi.io.layout import SYNTH_MARKER, SceneLayout
@@ -34,6 +37,7 @@ from dpi.preprocess.accuracy import align_mesh, chamfer, flag_counts, pose_error
 from dpi.preprocess.derive import derive_geometry, derive_poses, derive_uv, derive_view_masks, normalise_capture
 from dpi.preprocess.geometry import read_mesh
 from dpi.preprocess.sfm import SfMError
+from dpi.solve.problem import SolveConfig, texture_size_for
 from dpi.studies.engine import append_row, settings_hash
 from dpi.synth.capture import SynthConfig, make_synthetic_capture
 from dpi.synth.shapes import SHAPES
@@ -41,7 +45,7 @@ from dpi.synth.shapes import SHAPES
 CSV = Path(__file__).resolve().parent / "results" / "preprocess_accuracy.csv"
 
 
-def run_capture(root: Path, work: Path, threads: int, sfm: dict, geometry: dict) -> dict:
+def run_capture(root: Path, work: Path, threads: int, sfm: dict, geometry: dict, masks: dict) -> dict:
     """Run the four stages on one photo capture; accuracy and seconds per stage."""
     scene = SceneLayout(work)
     normalise_capture(root, scene.capture_json)
@@ -60,7 +64,7 @@ def run_capture(root: Path, work: Path, threads: int, sfm: dict, geometry: dict)
         cameras_json, points, cameras = root / "gt" / "transforms.json", None, truth
     row["poses_s"] = time.perf_counter() - start
     start = time.perf_counter()
-    summary = derive_view_masks(capture_json, scene.masks, {}, cameras_json, points)
+    summary = derive_view_masks(capture_json, scene.masks, masks, cameras_json, points)
     row["masks_s"] = time.perf_counter() - start
     ious = [mask_iou(read_mask(scene.masks / f"{n}.png"), read_mask(root / "gt" / "masks" / f"{n}.png"))
             for n in truth if n in cameras]
@@ -75,7 +79,9 @@ def run_capture(root: Path, work: Path, threads: int, sfm: dict, geometry: dict)
     error = chamfer(align_mesh(vertices, cameras, truth), faces, *read_mesh(root / "gt" / "mesh.ply"))
     row["chamfer_pct"] = 100 * error["chamfer_rel"]
     start = time.perf_counter()
-    derive_uv(capture_json, scene.geometry_dir, {}, scene.geometry["mesh"])
+    capture = complete_capture(read_capture_json(capture_json), scene, ("masks",))
+    size = texture_size_for(capture, SolveConfig.from_config(resolve_config({})).problem)  # the workflow's rule
+    derive_uv(capture_json, scene.geometry_dir, size, {}, scene.geometry["mesh"])
     row["uv_s"] = time.perf_counter() - start
     return row
 
@@ -108,6 +114,8 @@ def main() -> None:
                         help="cut the hull at the plane under the object (GeometryConfig.support_plane)")
     parser.add_argument("--stereo", action=argparse.BooleanOptionalAction, default=True,
                         help="carve what multi-view stereo sees as empty inside the hull (GeometryConfig.stereo)")
+    parser.add_argument("--parallax", action=argparse.BooleanOptionalAction, default=None,
+                        help="seed the masks from the views' parallax (MaskConfig.parallax; default: the workflow's)")
     parser.add_argument("--backgrounds", nargs="+", default=["textured", "plain"])
     parser.add_argument("--arc", type=float, default=360.0, help="the cameras' sweep around the object, degrees")
     parser.add_argument("--max-features", type=int, default=2048, help="SIFT features per image (SfMConfig)")
@@ -136,9 +144,11 @@ def main() -> None:
                 try:
                     row = run_capture(root, Path(tmp) / f"work_{name}", args.threads,
                                       {"max_features": args.max_features, "matcher": args.matcher},
-                                      {"support_plane": args.support_plane, "stereo": args.stereo})
-                except Exception as exc:  # a failing stage is a result too
-                    row = {"error": f"{type(exc).__name__}: {str(exc)[:80]}"}
+                                      {"support_plane": args.support_plane, "stereo": args.stereo},
+                                      {} if args.parallax is None else {"parallax": args.parallax})
+                except Exception as exc:  # a failing stage is a result too: its message, without the temporary folder
+                    message = str(exc).replace(f"{tmp}/", "").replace(f"work_{name}/", "")
+                    row = {"error": f"{type(exc).__name__}: {message[:160]}"}
                 rows.append({"shape": shape, "background": background, "render_s": render_s, **row})
                 append_csv(args.out, {**rows[-1], "support_plane": args.support_plane, "stereo": args.stereo,
                                       "matcher": args.matcher, "max_features": args.max_features},
