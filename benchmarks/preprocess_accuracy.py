@@ -28,9 +28,9 @@ from tabulate import tabulate
 
 from dpi.capture import read_capture_json
 from dpi.capture.cameras import read_cameras
+from dpi.capture.consistency import mask_iou
 from dpi.capture.load import complete_capture
 from dpi.config.pipeline import resolve_config
-from dpi.capture.consistency import mask_iou
 from dpi.io.images import read_mask
 from dpi.io.layout import SYNTH_MARKER, SceneLayout
 from dpi.preprocess.accuracy import align_mesh, chamfer, flag_counts, pose_errors
