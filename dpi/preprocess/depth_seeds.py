@@ -9,7 +9,8 @@ scores each (dpi.preprocess.stereo.Matcher; the background beside a frame's edge
 they turn round the object). A pixel whose best match inside beats its best match behind by `MARGIN`, at a score of
 at least `MIN_SCORE`, is an object seed; the reverse, or a pixel whose ray misses the region, a background seed; the
 rest (no texture, or no clear winner) is left to the segmentation. The table, plinth or ground the object stands on
-lies in that region too: a level plane just above the lowest sparse points every camera sees (`support_height`)
+lies in that region too, but reaches out of some frames where the object does not: the level plane that best parts
+the sparse points every camera sees (above) from the others (below) under and around the object (`support_height`)
 cuts it off, and what matches at or below it is background.
 """
 
@@ -19,6 +20,7 @@ import numpy as np
 import torch
 
 from dpi.capture.cameras import Camera
+from dpi.preprocess.hull import visible_sphere
 from dpi.preprocess.sfm import in_view_fraction, up_direction
 from dpi.preprocess.stereo import Matcher, StereoParams, camera_rays, neighbour_views
 
@@ -71,22 +73,29 @@ def common_view_depths(camera: Camera, cameras: list[Camera], margin: float) -> 
 
 
 SUPPORT_TOLERANCE = 0.01
-"""the support plane lies this fraction of the cameras' distance to the object above the lowest shared points"""
-SUPPORT_QUANTILE = 0.01
-"""the lowest shared points: this quantile of their heights (a few stray points below do not sink the plane)"""
-SUPPORT_MIN_POINTS = 50
-"""with fewer sparse points in the space every camera sees, no support is found"""
+"""the support plane lies this fraction of the cameras' distance to the object above the support's highest points"""
+SUPPORT_REACH = 2.0
+"""the support is looked for under the object and around it: within this many radii of the sphere every camera sees
+whole, around the vertical axis through its centre"""
 
 
-def support_height(points: np.ndarray, cameras: list[Camera], up: np.ndarray, centre: np.ndarray) -> float | None:
-    """Height (along `up`) of the level plane the object stands on: just above the lowest of the sparse points
-    (N, 3) every camera has in view. The object and the top of what it stands on (a table, a plinth) are in every
-    frame; what lies below that top is hidden by it or leaves the frames. None with fewer than SUPPORT_MIN_POINTS."""
-    shared = in_view_fraction(points, cameras) >= 1.0
-    if shared.sum() < SUPPORT_MIN_POINTS:
+def support_height(points: np.ndarray, cameras: list[Camera], up: np.ndarray, centre: np.ndarray,
+                   radius: float) -> float | None:
+    """Height (along `up`) of the level plane the object stands on, from the sparse points (N, 3) under and around it
+    (SUPPORT_REACH): the object is whole in every frame, what it stands on reaches out of some. The plane splits the
+    points' heights so that the fewest points every camera sees lie below it and the fewest others above (the lowest
+    such split: an object floating over a floor keeps its underside); None when no split beats none."""
+    offset = points - centre
+    height = offset @ up
+    around = np.linalg.norm(offset - np.outer(height, up), axis=1) <= SUPPORT_REACH * radius
+    order = np.argsort(height[around])
+    heights, shared = height[around][order], (in_view_fraction(points[around], cameras) >= 1.0)[order]
+    errors = np.concatenate([[0], np.cumsum(shared)]) + (~shared).sum() - np.concatenate([[0], np.cumsum(~shared)])
+    below = int(np.argmin(errors))  # the points below the best split
+    if below == 0:
         return None
     distance = float(np.mean([np.linalg.norm(c.center - centre) for c in cameras]))
-    return float(np.quantile(points[shared] @ up, SUPPORT_QUANTILE)) + SUPPORT_TOLERANCE * distance
+    return float(centre @ up + heights[below - 1]) + SUPPORT_TOLERANCE * distance
 
 
 def view_seeds(grey: np.ndarray, camera: Camera, others: list[tuple[np.ndarray, Camera]], near: np.ndarray,
@@ -138,7 +147,8 @@ def depth_seeds(greys: list[np.ndarray], cameras: list[Camera], centre: np.ndarr
     support plane the scene's sparse `points` (N, 3) show (`support_height`), if any."""
     neighbours = neighbour_views(cameras, centre, NEIGHBOURS, PARAMS.max_baseline_deg)
     up = up_direction(cameras)
-    height = support_height(points, cameras, up, centre) if points is not None and len(points) else None
+    height = (support_height(points, cameras, up, centre, visible_sphere(cameras)[1])
+              if points is not None and len(points) else None)
     support = None if height is None else (up, height)
     return [view_seeds(greys[i], cameras[i], [(greys[j], cameras[j]) for j in neighbours[i]],
                        *common_view_depths(cameras[i], cameras, FRAME_MARGIN), support) for i in range(len(cameras))]
