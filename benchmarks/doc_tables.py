@@ -296,7 +296,9 @@ def real_photos(root: Path) -> str:
     def cell(value: Any, spec: str, scale: float = 1.0) -> str:
         return "-" if not isinstance(value, float) or math.isnan(value) else f"{scale * value:{spec}}"
 
-    body = [[r["capture"], f"{r['views']:.0f} of {r['size']}", f"{r['registered']:.0%}", f"{r['reprojection_px']:.2f}",
+    body = [[r["capture"], f"{r['views']:.0f} of {r['size']}", f"{r['registered']:.0%}",
+             f"{r['reprojection_px']:.2f}" + ("" if cell(r.get("reference_reprojection_px"), ".2f") == "-" else
+                                              f" (published {r['reference_reprojection_px']:.2f})"),
              f"{cell(r['rotation_error_deg'], '.2f')} / {cell(r['centre_error'], '.1f', 100)}",
              f"{r['mask_iou']:.3f} (min {r['mask_iou_min']:.2f})",
              f"{r['masks_flagged']:.0f} ({r['flagged_below_08']:.0f} of {r['masks_below_08']:.0f} / "

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from dpi.capture.bundler import bundler_cameras
+from dpi.capture.bundler import bundler_cameras, read_bundler
 from dpi.capture.cameras import read_cameras
 from dpi.capture.consistency import mask_iou
 from dpi.io.images import exif_orientation, ldr_header_size, read_mask
@@ -42,7 +42,8 @@ WORK = work_dir("real_photos")
 CSV = results_csv("real_photos")
 METHODS = ("init", "dps", "none")
 STAGES = ("poses", "masks", "geometry", "uv")
-COLUMNS = ("capture", "views", "size", "registered", "reprojection_px", "rotation_error_deg", "centre_error",
+COLUMNS = ("capture", "views", "size", "registered", "reprojection_px", "reference_reprojection_px", "rotation_error_deg",
+           "centre_error",
            "mask_iou", "mask_iou_min", "masks_flagged", "masks_below_08", "flagged_below_08", "masks_below_09",
            "flagged_below_09", "flagged_above_09", *(f"{s}_seconds" for s in STAGES),
            *(f"{m}_view_psnr" for m in METHODS), "seconds", "stopped")
@@ -84,14 +85,17 @@ def held_out_psnr(summary: Path) -> dict[str, float]:
 
 def reference_errors(capture: RealCapture, cameras_json: Path) -> dict[str, float]:
     """Rotation (degrees) and camera-centre errors (fraction of the orbit's radius) of the derived cameras against
-    the published solution, after one similarity; NaN without one."""
+    the published solution, after one similarity, and that solution's own mean reprojection error (pixels, on its
+    points under its lens: how far it is itself from the photos); NaN without one."""
     if not capture.reference_cameras or not cameras_json.is_file():
-        return {"rotation_error_deg": float("nan"), "centre_error": float("nan")}
+        return {"rotation_error_deg": float("nan"), "centre_error": float("nan"),
+                "reference_reprojection_px": float("nan")}
     photos = sorted(p for p in (capture.folder / "images").iterdir() if p.is_file())
-    reference = bundler_cameras(capture.folder / capture.reference_cameras, [p.stem for p in photos],
-                                ldr_header_size(photos[0]), exif_orientation(photos[0]))
+    path = capture.folder / capture.reference_cameras
+    reference = bundler_cameras(path, [p.stem for p in photos], ldr_header_size(photos[0]), exif_orientation(photos[0]))
     errors = pose_errors(read_cameras(cameras_json), reference)
-    return {"rotation_error_deg": errors["rotation_error_deg_max"], "centre_error": errors["centre_error_max"]}
+    return {"rotation_error_deg": errors["rotation_error_deg_max"], "centre_error": errors["centre_error_max"],
+            "reference_reprojection_px": float(read_bundler(path).reprojection_errors().mean())}
 
 
 def stage_seconds(scene: SceneLayout) -> dict[str, float]:

@@ -52,3 +52,11 @@ def test_a_floor_far_below_a_floating_object_cuts_nothing_of_it(cameras):
 
 def test_an_object_seen_whole_with_nothing_under_it_has_no_support(cameras):
     assert plane_above(cameras, ball(300, 0.5)) is None
+
+
+def test_a_domed_table_is_cut_above_its_part_in_every_frame(cameras):
+    table = disc(4000, -0.5, 3.0)
+    table[:, 1] += 0.03 * (1 - np.linalg.norm(table[:, [0, 2]], axis=1) / 3.0)  # higher near the object's foot
+    shared = in_view_fraction(table, cameras) == 1
+    top = plane_above(cameras, np.concatenate([ball(300, 0.5) + [0, 0.03, 0], table]))
+    assert top >= np.quantile(table[shared, 1], 0.01) - 1e-9

@@ -5,12 +5,14 @@ looks down its -z axis with y up (OpenGL's axes, so the camera-to-world matrix i
 point at the image centre. The file names no images: its cameras follow the image list it was solved from (here
 the photos' sorted names). A camera Bundler could not place has f = 0 and is left out. The keypoints stored with
 the points are relative to the image centre: their extent says whether the cameras were solved on the stored
-(`stored`) or the upright (`upright`) orientation of photos that carry an EXIF rotation (`solved_size`).
+(`stored`) or the upright (`upright`) orientation of photos that carry an EXIF rotation (`solved_size`). The points
+and their observations give the solution's own reprojection error under its lens (`BundlerSolution`).
 """
 
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -21,8 +23,32 @@ class BundlerError(ValueError):
     """A Bundler file that does not read, naming the file and the line."""
 
 
-def read_bundler(path: str | os.PathLike) -> tuple[list[tuple[float, np.ndarray, np.ndarray]], np.ndarray]:
-    """([(f, R (3, 3), t (3,)) per camera], keypoints (K, 2) relative to the image centre) of a Bundler v0.3 file."""
+@dataclass(frozen=True)
+class BundlerSolution:
+    """A Bundler file's contents: per camera (f, k1, k2, R (3, 3), t (3,)), the points (N, 3), and each observation's
+    camera and point index (M,) and keypoint (M, 2), relative to the image centre with y up."""
+
+    cameras: list[tuple[float, float, float, np.ndarray, np.ndarray]]
+    points: np.ndarray
+    camera_index: np.ndarray
+    point_index: np.ndarray
+    keypoints: np.ndarray
+
+    def reprojection_errors(self) -> np.ndarray:
+        """(M,) pixels between each observation and its point projected by its camera under the file's own model
+        (x = -f r(p) p with p = (R X + t)_xy / (R X + t)_z and r = 1 + k1 |p|^2 + k2 |p|^4)."""
+        f, k1, k2 = (np.array([c[k] for c in self.cameras])[self.camera_index] for k in range(3))
+        rotation = np.stack([c[3] for c in self.cameras])[self.camera_index]
+        translation = np.stack([c[4] for c in self.cameras])[self.camera_index]
+        local = np.einsum("mij,mj->mi", rotation, self.points[self.point_index]) + translation
+        p = -local[:, :2] / local[:, 2:]
+        r2 = (p * p).sum(1)
+        projected = (f * (1 + k1 * r2 + k2 * r2 * r2))[:, None] * p
+        return np.linalg.norm(projected - self.keypoints, axis=1)
+
+
+def read_bundler(path: str | os.PathLike) -> BundlerSolution:
+    """The cameras, points and observations of a Bundler v0.3 file; one that does not read is a BundlerError."""
     with open(path) as f:
         lines = [line.split() for line in f if line.strip() and not line.startswith("#")]
     try:
@@ -30,16 +56,20 @@ def read_bundler(path: str | os.PathLike) -> tuple[list[tuple[float, np.ndarray,
         cameras = []
         for c in range(cameras_count):
             block = np.array(lines[1 + 5 * c: 6 + 5 * c], dtype=np.float64)
-            cameras.append((float(block[0, 0]), block[1:4], block[4]))
-        keypoints = []
+            cameras.append((float(block[0, 0]), float(block[0, 1]), float(block[0, 2]), block[1:4], block[4]))
+        points, observations = [], []
         row = 1 + 5 * cameras_count
-        for _ in range(points_count):
+        for index in range(points_count):
+            points.append([float(v) for v in lines[row]])
             views = lines[row + 2]
-            keypoints.extend((float(views[4 * k + 3]), float(views[4 * k + 4])) for k in range(int(views[0])))
+            observations.extend((int(views[4 * k + 1]), index, float(views[4 * k + 3]), float(views[4 * k + 4]))
+                                for k in range(int(views[0])))
             row += 3
     except (IndexError, ValueError) as exc:
         raise BundlerError(f"{path}: not a Bundler v0.3 file ({exc})") from None
-    return cameras, np.array(keypoints).reshape(-1, 2)
+    seen = np.array(observations, dtype=np.float64).reshape(-1, 4)
+    return BundlerSolution(cameras, np.array(points, dtype=np.float64).reshape(-1, 3), seen[:, 0].astype(int),
+                           seen[:, 1].astype(int), seen[:, 2:])
 
 
 def solved_size(keypoints: np.ndarray, size: tuple[int, int]) -> tuple[int, int]:
@@ -74,14 +104,14 @@ def bundler_cameras(path: str | os.PathLike, names: list[str], size: tuple[int, 
                     orientation: int = 1) -> dict[str, Camera]:
     """name -> Camera of a Bundler file whose cameras follow `names`, for photos of upright `size` (width, height, as
     dpi reads them) with EXIF `orientation`, turned upright; cameras with f = 0 (not placed) are left out."""
-    cameras, keypoints = read_bundler(path)
-    if len(cameras) != len(names):
-        raise BundlerError(f"{path}: {len(cameras)} cameras for {len(names)} images")
+    solution = read_bundler(path)
+    if len(solution.cameras) != len(names):
+        raise BundlerError(f"{path}: {len(solution.cameras)} cameras for {len(names)} images")
     stored = tuple(size[::-1]) if orientation >= 5 else tuple(size)
-    width, height = solved_size(keypoints, stored)
+    width, height = solved_size(solution.keypoints, stored)
     turn = orientation if (width, height) == stored else 1  # solved on the photos already upright
     out = {}
-    for name, (focal, rotation, translation) in zip(names, cameras):
+    for name, (focal, _, _, rotation, translation) in zip(names, solution.cameras):
         if focal <= 0:
             continue
         c2w = np.eye(4)

@@ -73,7 +73,10 @@ def common_view_depths(camera: Camera, cameras: list[Camera], margin: float) -> 
 
 
 SUPPORT_TOLERANCE = 0.01
-"""the support plane lies this fraction of the cameras' distance to the object above the support's highest points"""
+"""how thick the support's top is taken to be, as a fraction of the cameras' distance to the object: the plane lies
+this far above the support's top, and shared points this close above it are the support's too"""
+SUPPORT_QUANTILE = 0.01
+"""the lowest points every camera sees: this quantile of their heights (a few stray points below do not count)"""
 SUPPORT_REACH = 2.0
 """the support is looked for under the object and around it: within this many radii of the sphere every camera sees
 whole, around the vertical axis through its centre"""
@@ -82,9 +85,11 @@ whole, around the vertical axis through its centre"""
 def support_height(points: np.ndarray, cameras: list[Camera], up: np.ndarray, centre: np.ndarray,
                    radius: float) -> float | None:
     """Height (along `up`) of the level plane the object stands on, from the sparse points (N, 3) under and around it
-    (SUPPORT_REACH): the object is whole in every frame, what it stands on reaches out of some. The plane splits the
-    points' heights so that the fewest points every camera sees lie below it and the fewest others above (the lowest
-    such split: an object floating over a floor keeps its underside); None when no split beats none."""
+    (SUPPORT_REACH): the object is whole in every frame, what it stands on reaches out of some. The support's top is
+    the split of the points' heights that leaves the fewest points every camera sees below it and the fewest others
+    above (the lowest such split: an object floating over a floor keeps its underside), raised to the lowest points
+    every camera sees where they lie within SUPPORT_TOLERANCE of it (a table's top in every frame around the
+    object's foot); the plane lies SUPPORT_TOLERANCE above that top. None when no split beats none."""
     offset = points - centre
     height = offset @ up
     around = np.linalg.norm(offset - np.outer(height, up), axis=1) <= SUPPORT_REACH * radius
@@ -94,8 +99,12 @@ def support_height(points: np.ndarray, cameras: list[Camera], up: np.ndarray, ce
     below = int(np.argmin(errors))  # the points below the best split
     if below == 0:
         return None
-    distance = float(np.mean([np.linalg.norm(c.center - centre) for c in cameras]))
-    return float(centre @ up + heights[below - 1]) + SUPPORT_TOLERANCE * distance
+    tolerance = SUPPORT_TOLERANCE * float(np.mean([np.linalg.norm(c.center - centre) for c in cameras]))
+    top = heights[below - 1]
+    if shared.any():
+        lowest_shared = float(np.quantile(heights[shared], SUPPORT_QUANTILE))
+        top = max(top, lowest_shared) if lowest_shared <= top + tolerance else top
+    return float(centre @ up + top) + tolerance
 
 
 def view_seeds(grey: np.ndarray, camera: Camera, others: list[tuple[np.ndarray, Camera]], near: np.ndarray,
