@@ -4,7 +4,7 @@ Renders photo-only captures (PNG images, no cameras, masks or mesh; ground truth
 of a convex blob, a bumpy torus (a hole, self-occlusion) and a bowl (a cavity, a flat foot) in front
 of a textured or a plain backdrop, seen from the upper hemisphere only (`--elevations`, like a
 table-top capture) all around or on an arc (`--arc 180`: a half circle in front of the object, whose hull is
-open behind it), runs poses -> masks -> geometry -> uv as the workflow does, and prints one row
+open behind it; `--wall-behind 2`: the backdrop a flat wall close behind the object, as a head on a wall), runs poses -> masks -> geometry -> uv as the workflow does, and prints one row
 per capture: pose errors after Umeyama alignment, mask IoU, what the masks' witnesses flagged (views under 0.8
 IoU and how many of them were flagged; views over 0.9 IoU flagged), Chamfer distance (% of the bounding-box
 diagonal) and the seconds of every stage; rows (shape, views, size, rotation_deg, mask_iou,
@@ -118,6 +118,9 @@ def main() -> None:
                         help="seed the masks from the views' parallax (MaskConfig.parallax; default: the workflow's)")
     parser.add_argument("--backgrounds", nargs="+", default=["textured", "plain"])
     parser.add_argument("--arc", type=float, default=360.0, help="the cameras' sweep around the object, degrees")
+    parser.add_argument("--wall-behind", type=float, default=None,
+                        help="the textured backdrop's wall flat, this far behind the object (SynthConfig.wall_behind; "
+                        "the object's radius is about 1, the cameras' distance 6)")
     parser.add_argument("--max-features", type=int, default=2048, help="SIFT features per image (SfMConfig)")
     parser.add_argument("--matcher", default="auto", help="SfMConfig.matcher: auto, exhaustive or sequential")
     parser.add_argument("--views", type=int, default=32)
@@ -131,12 +134,14 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for shape in args.shapes:
             for background in args.backgrounds:
-                name = f"{shape}_{background}_{args.views}x{args.size}_{args.spp}spp_{args.arc:g}deg"
+                wall = "" if args.wall_behind is None else f"_wall{args.wall_behind:g}"
+                name = f"{shape}_{background}{wall}_{args.views}x{args.size}_{args.spp}spp_{args.arc:g}deg"
                 root = Path(args.captures or tmp) / name
                 cfg = SynthConfig(shape=shape, views=args.views, held_out_every=8, width=args.size, height=args.size,
                                   spp=args.spp, texture_size=256, camera_distance=6.0,
                                   elevations_deg=tuple(args.elevations), arc_deg=args.arc, albedo_detail=0.6,
-                                  background=background, image_format="png", photos_only=True)
+                                  background=background, wall_behind=args.wall_behind, image_format="png",
+                                  photos_only=True)
                 start = time.perf_counter()
                 if not (root / SYNTH_MARKER).is_file():
                     make_synthetic_capture(root, cfg, threads=args.threads, progress=False)
@@ -149,7 +154,8 @@ def main() -> None:
                 except Exception as exc:  # a failing stage is a result too: its message, without the temporary folder
                     message = str(exc).replace(f"{tmp}/", "").replace(f"work_{name}/", "")
                     row = {"error": f"{type(exc).__name__}: {message[:160]}"}
-                rows.append({"shape": shape, "background": background, "render_s": render_s, **row})
+                label = background if args.wall_behind is None else f"{background} wall {args.wall_behind:g} behind"
+                rows.append({"shape": shape, "background": label, "render_s": render_s, **row})
                 append_csv(args.out, {**rows[-1], "support_plane": args.support_plane, "stereo": args.stereo,
                                       "matcher": args.matcher, "max_features": args.max_features},
                            args.views, args.size, args.elevations, args.arc)

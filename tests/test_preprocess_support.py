@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from dpi.capture.cameras import from_fov, orbit
-from dpi.preprocess.depth_seeds import SUPPORT_TOLERANCE, support_height
+from dpi.preprocess.depth_seeds import SUPPORT_TOLERANCE, between_cameras, support_height
 from dpi.preprocess.hull import visible_sphere
 from dpi.preprocess.sfm import in_view_fraction
 
@@ -60,3 +60,15 @@ def test_a_domed_table_is_cut_above_its_part_in_every_frame(cameras):
     shared = in_view_fraction(table, cameras) == 1
     top = plane_above(cameras, np.concatenate([ball(300, 0.5) + [0, 0.03, 0], table]))
     assert top >= np.quantile(table[shared, 1], 0.01) - 1e-9
+
+
+def test_a_wall_close_behind_a_half_circle_capture_is_not_its_support():
+    cameras = [from_fov(c2w, 120, 120, 40.0, f"v{i}") for i, c2w in enumerate(orbit(16, 4.0, (15.0, 30.0),
+                                                                                       arc_deg=180.0))]
+    rng = np.random.default_rng(2)
+    wall = np.stack([np.full(3000, -1.2), rng.uniform(-2.5, 3.0, 3000), rng.uniform(-4.0, 4.0, 3000)], axis=1)
+    floor = disc(2000, -2.5, 4.0)
+    front = floor[floor[:, 0] > -1.2]  # the floor ends at the wall; the arc's middle is +x
+    assert not between_cameras(wall, cameras, UP).any() and between_cameras(front, cameras, UP).mean() > 0.3
+    top = plane_above(cameras, np.concatenate([ball(300, 0.5), front, wall]))
+    assert top == pytest.approx(-2.5, abs=0.05)

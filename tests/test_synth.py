@@ -9,7 +9,8 @@ from dpi.capture import load_capture
 from dpi.io.exr import read_exr, write_exr
 from dpi.io.images import read_mask
 from dpi.io.layout import SYNTH_MARKER
-from dpi.synth.capture import SynthConfig, ground_truth_envmap, make_synthetic_capture
+from dpi.synth.backdrop import backdrop_hits
+from dpi.synth.capture import SynthConfig, ground_truth_envmap, make_synthetic_capture, wall_behind
 from dpi.synth.shapes import SHAPES, make_shape
 from dpi.synth.textures import procedural_materials
 
@@ -76,3 +77,16 @@ def test_a_given_panorama_is_area_resampled_to_the_capture_map_height(tmp_path):
     env = ground_truth_envmap(SynthConfig.from_dict({"environment": str(tmp_path / "sky.exr"), "env_height": 8}))
     assert env.shape == (8, 16, 3)
     np.testing.assert_allclose(env.mean(axis=(0, 1)), panorama.mean(axis=(0, 1)), rtol=1e-5)
+
+
+def test_a_wall_behind_is_met_behind_the_object_facing_the_arcs_middle():
+    cfg = SynthConfig(arc_deg=180.0, wall_behind=2.0, camera_distance=6.0)
+    normal, distance = wall_behind(cfg)
+    assert np.isclose(np.linalg.norm(normal), 1.0) and normal[1] == 0.0
+    camera = 6.0 * normal  # the arc's middle camera, looking at the centre and past it
+    dirs = np.array([-normal, -normal + [0.0, 0.1, 0.0], normal])
+    uv, hit = backdrop_hits(np.tile(camera, (3, 1)), dirs / np.linalg.norm(dirs, axis=1, keepdims=True), -2.5, 15.0,
+                            (normal, distance))
+    assert hit.tolist() == [True, True, False]  # straight at the wall, a little up, and away from it (over nothing)
+    np.testing.assert_allclose(uv[0], [0.0, 0.0], atol=1e-9)  # the wall's point straight behind the centre
+    assert wall_behind(SynthConfig(arc_deg=180.0)) is None

@@ -79,20 +79,34 @@ SUPPORT_QUANTILE = 0.01
 """the lowest points every camera sees: this quantile of their heights (a few stray points below do not count)"""
 SUPPORT_REACH = 2.0
 """the support is looked for under the object and around it: within this many radii of the sphere every camera sees
-whole, around the vertical axis through its centre"""
+whole, around the vertical axis through its centre, and on the cameras' side (`between_cameras`)"""
+
+
+def between_cameras(points: np.ndarray, cameras: list[Camera], up: np.ndarray) -> np.ndarray:
+    """(N,) whether each point lies, seen from above, inside the hull of the camera centres: what the object stands
+    on reaches towards the cameras, a wall behind a half-circle capture does not."""
+    from scipy.spatial import Delaunay, QhullError
+
+    basis = np.linalg.svd(np.eye(3) - np.outer(up, up))[0][:, :2]  # two horizontal axes
+    centres = np.array([c.center for c in cameras]) @ basis
+    try:
+        return Delaunay(centres).find_simplex(points @ basis) >= 0
+    except QhullError:  # the centres on a line: no hull to tell the cameras' side by
+        return np.ones(len(points), dtype=bool)
 
 
 def support_height(points: np.ndarray, cameras: list[Camera], up: np.ndarray, centre: np.ndarray,
                    radius: float) -> float | None:
     """Height (along `up`) of the level plane the object stands on, from the sparse points (N, 3) under and around it
-    (SUPPORT_REACH): the object is whole in every frame, what it stands on reaches out of some. The support's top is
+    (SUPPORT_REACH, `between_cameras`): the object is whole in every frame, what it stands on reaches out of some. The support's top is
     the split of the points' heights that leaves the fewest points every camera sees below it and the fewest others
     above (the lowest such split: an object floating over a floor keeps its underside), raised to the lowest points
     every camera sees where they lie within SUPPORT_TOLERANCE of it (a table's top in every frame around the
     object's foot); the plane lies SUPPORT_TOLERANCE above that top. None when no split beats none."""
     offset = points - centre
     height = offset @ up
-    around = np.linalg.norm(offset - np.outer(height, up), axis=1) <= SUPPORT_REACH * radius
+    around = (np.linalg.norm(offset - np.outer(height, up), axis=1) <= SUPPORT_REACH * radius) & between_cameras(
+        points, cameras, up)
     order = np.argsort(height[around])
     heights, shared = height[around][order], (in_view_fraction(points[around], cameras) >= 1.0)[order]
     errors = np.concatenate([[0], np.cumsum(shared)]) + (~shared).sum() - np.concatenate([[0], np.cumsum(~shared)])

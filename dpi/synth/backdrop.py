@@ -53,24 +53,34 @@ def backdrop_texture(u: np.ndarray, v: np.ndarray, seed: int = 0) -> np.ndarray:
     return 0.03 + 0.87 * out
 
 
-def backdrop_hits(origins: np.ndarray, dirs: np.ndarray, ground: float, wall_radius: float) -> tuple[np.ndarray, np.ndarray]:
+def backdrop_hits(origins: np.ndarray, dirs: np.ndarray, ground: float, wall_radius: float,
+                  behind: tuple[np.ndarray, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Texture coordinates (N, 2) where rays (N, 3) meet the ground plane y = ground or the wall
     x^2 + z^2 = wall_radius^2 (the nearer), and whether they hit either (rays going up over the
-    wall see nothing: those are left to the caller)."""
+    wall see nothing: those are left to the caller). With `behind` (a horizontal unit direction n towards the
+    cameras, a distance D) the wall is instead the plane n . x = -D behind the object."""
     o, d = np.asarray(origins, np.float64), np.asarray(dirs, np.float64)
     with np.errstate(divide="ignore", invalid="ignore"):
         t_ground = np.where(d[:, 1] < -1e-9, (ground - o[:, 1]) / d[:, 1], np.inf)
-        a = d[:, 0] ** 2 + d[:, 2] ** 2
-        b = 2 * (o[:, 0] * d[:, 0] + o[:, 2] * d[:, 2])
-        c = o[:, 0] ** 2 + o[:, 2] ** 2 - wall_radius**2
-        t_wall = (-b + np.sqrt(np.maximum(b * b - 4 * a * c, 0))) / (2 * a)
-    t_wall = np.where(a > 1e-12, t_wall, np.inf)
+        if behind is None:
+            a = d[:, 0] ** 2 + d[:, 2] ** 2
+            b = 2 * (o[:, 0] * d[:, 0] + o[:, 2] * d[:, 2])
+            c = o[:, 0] ** 2 + o[:, 2] ** 2 - wall_radius**2
+            t_wall = np.where(a > 1e-12, (-b + np.sqrt(np.maximum(b * b - 4 * a * c, 0))) / (2 * a), np.inf)
+        else:
+            normal, distance = np.asarray(behind[0], np.float64), behind[1]
+            rate = d @ normal
+            t_wall = np.where(rate < -1e-9, (-distance - o @ normal) / rate, np.inf)
     on_ground = t_ground <= t_wall
     t = np.where(on_ground, t_ground, t_wall)
     p = o + t[:, None] * d
-    angle = np.arctan2(p[:, 0], p[:, 2]) * wall_radius
-    # cells of 0.4 units on the ground, growing with the distance on the wall (similar sizes in the image)
-    uv = np.where(on_ground[:, None], p[:, [0, 2]] / 0.4, np.stack([angle, p[:, 1]], -1) / (0.12 * wall_radius))
+    # cells of 0.4 units on the ground, on the far wall growing with its distance (similar sizes in the image)
+    if behind is None:
+        wall_uv = np.stack([np.arctan2(p[:, 0], p[:, 2]) * wall_radius, p[:, 1]], -1) / (0.12 * wall_radius)
+    else:
+        across = np.cross(np.asarray(behind[0], np.float64), [0.0, 1.0, 0.0])
+        wall_uv = np.stack([p @ across, p[:, 1]], -1) / 0.4
+    uv = np.where(on_ground[:, None], p[:, [0, 2]] / 0.4, wall_uv)
     return uv, np.isfinite(t)
 
 
@@ -82,7 +92,7 @@ def backdrop_level(env: np.ndarray) -> float:
 
 
 def backdrop_radiance(origins: np.ndarray, dirs: np.ndarray, kind: str, env: np.ndarray, ground: float,
-                      wall_radius: float, seed: int = 0) -> np.ndarray:
+                      wall_radius: float, seed: int = 0, behind: tuple[np.ndarray, float] | None = None) -> np.ndarray:
     """Linear radiance (N, 3) a camera sees along rays that miss the object, for a background kind."""
     if kind not in BACKGROUNDS:
         raise ValueError(f"background must be one of {', '.join(BACKGROUNDS)}, got {kind!r}")
@@ -93,12 +103,13 @@ def backdrop_radiance(origins: np.ndarray, dirs: np.ndarray, kind: str, env: np.
     level = backdrop_level(env)
     if kind == "plain":
         return np.full_like(sky, 0.45 * level)
-    uv, hit = backdrop_hits(origins, dirs, ground, wall_radius)
+    uv, hit = backdrop_hits(origins, dirs, ground, wall_radius, behind)
     return np.where(hit[:, None], level * backdrop_texture(uv[:, 0], uv[:, 1], seed), sky)
 
 
 def composite_backdrop(image: np.ndarray, origins: np.ndarray, dirs: np.ndarray, hits: np.ndarray, kind: str,
-                       env: np.ndarray, ground: float, wall_radius: float, seed: int = 0) -> np.ndarray:
+                       env: np.ndarray, ground: float, wall_radius: float, seed: int = 0,
+                       behind: tuple[np.ndarray, float] | None = None) -> np.ndarray:
     """A rendered image (h, w, 3) whose background (the env map) is replaced by a backdrop.
 
     origins, dirs: (h, w, s, 3) sub-pixel rays of the view; hits: (h, w, s) whether each hits the
@@ -111,7 +122,7 @@ def composite_backdrop(image: np.ndarray, origins: np.ndarray, dirs: np.ndarray,
     o, d, miss = origins.reshape(-1, 3), dirs.reshape(-1, 3), ~hits.reshape(-1)
     row, col = direction_to_texel(d[miss], env.shape[0])
     delta = np.zeros((h * w * s, 3))
-    back = backdrop_radiance(o[miss], d[miss], kind, env, ground, wall_radius, seed)
+    back = backdrop_radiance(o[miss], d[miss], kind, env, ground, wall_radius, seed, behind)
     delta[miss] = back - env[row, col]
     background = np.zeros((h * w * s, 3))
     background[miss] = back

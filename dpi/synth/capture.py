@@ -97,6 +97,10 @@ class SynthConfig:
     background: str = "env"
     """what the cameras see behind the object: env (the sky), textured (a ground plane and a wall,
     seen but not lighting the object, like a room) or plain (uniform grey, like a studio)"""
+    wall_behind: Annotated[float, Field(gt=0)] | None = None
+    """with `textured`: the wall is flat, this far behind the object's centre, facing the middle of the cameras'
+    arc (a head on a wall, a vase before a bookcase: little parallax between them); None: a wall round the whole
+    capture, 2.5 times the cameras' distance away"""
     albedo_detail: Weight = 0.0
     """strength (0-1) of a fine random pattern multiplied into the albedo, like print on a real object:
     features for structure from motion (0: the plain procedural albedo)"""
@@ -125,6 +129,15 @@ class SynthConfig:
         if "elevations_deg" in values:
             values["elevations_deg"] = tuple(float(e) for e in values["elevations_deg"])
         return settings_from_dict(cls, values)
+
+
+def wall_behind(cfg: SynthConfig) -> tuple[np.ndarray, float] | None:
+    """(horizontal unit direction towards the middle of the cameras' arc, distance) of a flat wall behind the
+    object (SynthConfig.wall_behind), or None."""
+    if cfg.wall_behind is None:
+        return None
+    azimuth = np.radians(cfg.seed * 7.0 + (cfg.arc_deg / 2 if cfg.arc_deg < 360 else 0.0))  # orbit's azimuths
+    return np.array([np.sin(azimuth), 0.0, np.cos(azimuth)]), cfg.wall_behind
 
 
 def clip_luminance(env: np.ndarray, multiple: float) -> np.ndarray:
@@ -230,7 +243,8 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
         image = np.clip(image, 0.0, None)
         if cfg.background != "env":
             image = composite_backdrop(image, *renderer.object_hits(i, supersample=3), cfg.background, env,
-                                       ground=-2.5, wall_radius=2.5 * cfg.camera_distance, seed=cfg.seed)
+                                       ground=-2.5, wall_radius=2.5 * cfg.camera_distance, seed=cfg.seed,
+                                       behind=wall_behind(cfg))
         if cfg.layout == "nerf_synthetic":
             split = "test" if cam.extras["held_out"] else "train"
             write_srgb_alpha(root / split / f"{cam.name}.png", image, renderer.coverage(i))
