@@ -24,6 +24,7 @@ FAST = {"preprocess": {"geometry": {"resolution": 48, "target_faces": 3000,
     ({"cameras": True, "masks": True, "mesh": True, "mesh_has_uv": True}, []),
     ({"cameras": False, "masks": True, "mesh": True, "mesh_has_uv": True}, ["poses"]),
     ({"cameras": True, "masks": True, "mesh": True, "mesh_has_uv": False}, ["uv"]),
+    ({"cameras": True, "masks": False, "mesh": True, "mesh_has_uv": True}, ["poses", "masks"]),
     ({"cameras": False, "masks": False, "mesh": False, "mesh_has_uv": False}, ["poses", "masks", "geometry", "uv"]),
 ])
 def test_needed_stages_follow_what_the_capture_gives(given, stages):
@@ -54,20 +55,21 @@ def folders(tmp_path, settings: dict | None = None) -> str:
 def test_dry_run_lists_the_needed_stages(capture_with_cameras, tmp_path, capsys):
     assert main(["preprocess", "capture", "--config", folders(tmp_path), "--dry-run"]) == 0
     lines = dict(line.split(None, 1) for line in capsys.readouterr().out.splitlines())
-    assert lines["poses"].startswith("skipped") and lines["masks"] == "run" and lines["uv"] == "run"
+    assert lines["poses"] == "run" and lines["masks"] == "run" and lines["uv"] == "run"  # points for the masks
     assert not (tmp_path / "results").exists()
 
 
-def test_preprocess_derives_masks_mesh_and_uvs_and_skips_given_cameras(capture_with_cameras, tmp_path, capsys):
+def test_preprocess_derives_masks_mesh_and_uvs_and_keeps_given_cameras(capture_with_cameras, tmp_path, capsys):
     from dpi.capture import complete_capture, read_capture_json
     from dpi.io.layout import SceneLayout
 
     _, truths = capture_with_cameras
     assert main(["preprocess", "capture", "--config", folders(tmp_path, FAST), "--threads", "1"]) == 0
     printed = capsys.readouterr().out
-    assert "poses     given" in printed and "uv        derived" in printed
+    assert "poses     derived" in printed and "uv        derived" in printed
     scene = SceneLayout(tmp_path / "results" / "capture")
-    assert not scene.poses_dir.exists()
+    summary = json.loads(scene.poses["summary"].read_text())
+    assert summary["cameras"] == "given" and summary["points"] == 0  # a plain sphere on a plain background
     ious = [mask_iou(read_mask(scene.masks / f"{name}.png"), truth) for name, truth in truths.items()]
     assert np.mean(ious) > 0.95, ious
     capture = complete_capture(read_capture_json(scene.capture_json), scene)

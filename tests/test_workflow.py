@@ -90,7 +90,7 @@ def test_given_inputs_skip_their_stages_and_missing_ones_are_planned(workdir, tm
     expected = {
         "given": {},
         "nocams": {"poses": 1},
-        "nomasks": {"masks": 1},
+        "nomasks": {"poses": 1, "masks": 1},
         "nouv": {"uv": 1},
         "photos": {"poses": 1, "masks": 1, "geometry": 1, "uv": 1},
     }

@@ -51,10 +51,12 @@ def normalise_capture(capture_dir: str | Path, out_json: str | Path) -> None:
 
 def derive_poses(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None, threads: int = 1) -> dict:
     """The capture's cameras into out_dir: its own COLMAP model when it brings one (dpi.capture.colmap_model; read
-    as given, and brought into dpi's frame unless the capture's mesh is in the model's), else structure from
+    as given, and brought into dpi's frame unless the capture's mesh is in the model's), its given cameras with
+    points triangulated under them (dpi.preprocess.known_poses: what the masks stage reads), else structure from
     motion on its images; cameras (transforms.json), sparse points and a summary (dpi.io.layout.poses_files)."""
     from dpi.capture.colmap_model import colmap_model_dir
     from dpi.capture.undistort import with_cameras
+    from dpi.preprocess.known_poses import triangulate_known
     from dpi.preprocess.sfm import SfMConfig, SfMError, normalise, read_model, run_sfm, write_points_ply
 
     capture = read_capture_json(capture_json)
@@ -67,7 +69,10 @@ def derive_poses(capture_json: str | Path, out_dir: str | Path, settings: dict |
     start = time.perf_counter()
     given = colmap_model_dir(capture.root)
     try:
-        if given is None:
+        if capture.provenance["cameras"] == "given":
+            model = triangulate_known(images, {v.name: v.camera for v in capture.views if v.camera},
+                                      out_dir / "colmap", cfg, threads)
+        elif given is None:
             model = normalise(run_sfm(images, out_dir / "colmap", cfg, threads, focal and float(focal)))
         else:
             model = read_model(given, cfg)

@@ -151,6 +151,53 @@ def upright_copies(images: list[Path], folder: Path) -> list[Path]:
     return copies
 
 
+def fresh_work(images: list[Path], work_dir: str | Path) -> tuple[list[Path], Path, Path]:
+    """An empty COLMAP work folder (with sparse/) for `images`, all in one folder: (the images as COLMAP reads them,
+    upright copies where EXIF rotates them; their folder; the work folder)."""
+    images = [Path(p) for p in images]
+    folders = {p.parent.resolve() for p in images}
+    if len(folders) != 1:
+        raise ValueError("COLMAP's images must all be in one folder")
+    image_dir = folders.pop()
+    work = Path(work_dir)
+    if work.exists():
+        shutil.rmtree(work)
+    (work / "sparse").mkdir(parents=True)
+    if any(exif_orientation(p) != 1 for p in images):  # COLMAP reads the stored pixels; dpi reads them upright
+        images = upright_copies(images, work / "upright")
+        image_dir = work / "upright"
+    return images, image_dir, work
+
+
+def extraction_options(cfg: SfMConfig, threads: int):
+    """COLMAP's SIFT extraction under the settings (image size, features, the contrast threshold)."""
+    import pycolmap
+
+    extraction = pycolmap.FeatureExtractionOptions()
+    extraction.num_threads = threads
+    extraction.max_image_size = cfg.max_image_size
+    extraction.sift.max_num_features = cfg.max_features
+    extraction.sift.peak_threshold = PEAK_THRESHOLD
+    return extraction
+
+
+def match_features(database: Path, matcher: str, threads: int) -> None:
+    """Match the database's images, every pair (`exhaustive`) or each with its SEQUENTIAL_OVERLAP neighbours in file
+    order; pairs already matched are kept."""
+    import pycolmap
+
+    matching = pycolmap.FeatureMatchingOptions()
+    matching.num_threads = threads
+    if matcher == "exhaustive":
+        pycolmap.match_exhaustive(database, matching_options=matching, device=pycolmap.Device.cpu)
+    else:
+        pairing = pycolmap.SequentialPairingOptions()
+        pairing.overlap = SEQUENTIAL_OVERLAP
+        pairing.num_threads = threads
+        pycolmap.match_sequential(database, matching_options=matching, pairing_options=pairing,
+                                  device=pycolmap.Device.cpu)
+
+
 def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = None,
             threads: int = 1, focal_length_px: float | None = None) -> SparseModel:
     """COLMAP on `images` (all in one folder; view name = file stem), in `work_dir` (database, model); a known
@@ -162,20 +209,8 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
     cfg = cfg or SfMConfig()
     if cfg.matcher not in MATCHERS:
         raise ValueError(f"matcher must be one of {', '.join(MATCHERS)}, got {cfg.matcher!r}")
-    images = [Path(p) for p in images]
-    folders = {p.parent.resolve() for p in images}
-    if len(folders) != 1:
-        raise ValueError("run_sfm: images must all be in one folder")
-    image_dir = folders.pop()
-    work = Path(work_dir)
-    if work.exists():
-        shutil.rmtree(work)
-    (work / "sparse").mkdir(parents=True)
-    if any(exif_orientation(p) != 1 for p in images):  # COLMAP reads the stored pixels; dpi reads them upright
-        images = upright_copies(images, work / "upright")
-        image_dir = work / "upright"
+    images, image_dir, work = fresh_work(images, work_dir)
     database = work / "database.db"
-    device = pycolmap.Device.cpu
     times = {}
 
     start = time.perf_counter()
@@ -185,18 +220,11 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
         with Image.open(images[0]) as im:
             width, height = im.size
         reader.camera_params = f"{focal_length_px},{width / 2},{height / 2},0"
-    extraction = pycolmap.FeatureExtractionOptions()
-    extraction.num_threads = threads
-    extraction.max_image_size = cfg.max_image_size
-    extraction.sift.max_num_features = cfg.max_features
-    extraction.sift.peak_threshold = PEAK_THRESHOLD
     pycolmap.extract_features(database, image_dir, image_names=[p.name for p in images],
                               camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
-                              extraction_options=extraction, device=device)
+                              extraction_options=extraction_options(cfg, threads), device=pycolmap.Device.cpu)
     times["extract_s"] = time.perf_counter() - start
 
-    matching = pycolmap.FeatureMatchingOptions()
-    matching.num_threads = threads
     options = pycolmap.IncrementalPipelineOptions()
     options.num_threads = threads
     options.random_seed = options.mapper.random_seed = options.triangulation.random_seed = COLMAP_SEED
@@ -210,13 +238,7 @@ def run_sfm(images: list[Path], work_dir: str | Path, cfg: SfMConfig | None = No
     def match_and_map(matcher: str) -> dict:
         """Match the database's images by `matcher` (pairs already matched are kept) and map them afresh."""
         start = time.perf_counter()
-        if matcher == "exhaustive":
-            pycolmap.match_exhaustive(database, matching_options=matching, device=device)
-        else:
-            pairing = pycolmap.SequentialPairingOptions()
-            pairing.overlap = SEQUENTIAL_OVERLAP
-            pairing.num_threads = threads
-            pycolmap.match_sequential(database, matching_options=matching, pairing_options=pairing, device=device)
+        match_features(database, matcher, threads)
         times["match_s"] = times.get("match_s", 0.0) + time.perf_counter() - start
         start = time.perf_counter()
         shutil.rmtree(work / "sparse")

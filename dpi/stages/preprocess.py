@@ -24,8 +24,10 @@ log = logging.getLogger(__name__)
 
 def needed_stages(given: dict[str, bool]) -> list[str]:
     """The stages a capture needs, in order, from what it gives (`dpi.capture.inspect_capture`): poses
-    without cameras, masks without masks, geometry without a mesh, uv without a mesh with UVs."""
-    needed = {"poses": not given["cameras"], "masks": not given["masks"], "geometry": not given["mesh"],
+    without cameras or masks (the masks stage reads its sparse points), masks without masks, geometry without a
+    mesh, uv without a mesh with UVs."""
+    needed = {"poses": not (given["cameras"] and given["masks"]), "masks": not given["masks"],
+              "geometry": not given["mesh"],
               "uv": not given["mesh_has_uv"]}
     return [stage for stage in STAGES if needed[stage]]
 
@@ -35,7 +37,7 @@ def stage_inputs(stage: str, given: dict[str, bool], scene: SceneLayout) -> dict
     names: the outputs of the stages before it, for what the capture does not give."""
     cameras = {} if given["cameras"] else {"cameras_json": scene.poses["cameras"]}
     if stage == "masks":
-        return {**cameras, **({} if given["cameras"] else {"points_ply": scene.poses["points"]})}
+        return {**cameras, "points_ply": scene.poses["points"]}
     if stage == "geometry":
         return {**cameras, **({} if given["masks"] else {"masks_dir": scene.masks})}
     if stage == "uv":  # the masks say how large the textures are (dpi.solve.problem.texture_size_for)
