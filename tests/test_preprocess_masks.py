@@ -189,6 +189,22 @@ def test_an_outline_through_the_object_or_the_background_has_no_edge_under_it(ca
     assert edge_support(image8, np.zeros_like(truth)) is None
 
 
+def test_a_mask_that_runs_out_of_the_frame_is_counted(cameras):
+    """The sphere whole in frame touches no edge; the same mask with a stand running down out of the frame does, by
+    the stand's width."""
+    from dpi.preprocess.mask_confidence import frame_contact, verdict
+
+    _, truth = sphere_view(cameras[0], "plain")
+    assert frame_contact(truth) == 0 and not verdict({"frame_contact": 0}, None)
+    rows, cols = np.nonzero(truth)
+    middle = int(np.median(cols))
+    stand = truth.copy()
+    stand[int(np.median(rows)):, middle - 2:middle + 3] = True
+    assert frame_contact(stand) == 5
+    why, = verdict({"frame_contact": 5}, None)
+    assert "reaches the frame's edge (5 px)" in why
+
+
 def test_the_verdict_names_each_failed_witness_and_a_mostly_unreliable_capture_stops():
     from dpi.preprocess.mask_confidence import check_usable, verdict
 

@@ -290,8 +290,10 @@ def readings_note(scene: SceneLayout) -> list[str]:
 
 def mask_title(name: str, view: dict) -> str:
     """A gallery title: the view's name and its mask's witnesses (dpi.preprocess.mask_confidence) that were measured."""
-    witnesses = [f"{label} {view[key]:.2f}" for key, label in
-                 (("point_coverage", "p"), ("edge_support", "e"), ("agreement", "h")) if key in view]
+    witnesses = [f"{label} {view[key]:.2f}" if isinstance(view[key], float) else f"{label} {view[key]}"
+                 for key, label in
+                 (("point_coverage", "p"), ("edge_support", "e"), ("agreement", "h"), ("frame_contact", "f"))
+                 if key in view]
     return "\n".join([name, " ".join(witnesses)]) if witnesses else name
 
 

@@ -7,6 +7,9 @@
 - **Edges** (absolute): an object's outline is where the image changes; a mask that cuts through the object or
   through the background runs across smooth fur or wallpaper. `edge_support` is the share of the mask's outline
   within a few pixels of an image edge (Canny).
+- **The frame** (absolute): the object is whole in every photo (the capture's one assumption), so a mask that reaches
+  the frame's edge holds something the frame cuts: the stand the object sits on, the ground, the background, or the
+  object is not whole in that photo. `frame_contact` counts the mask's pixels on the frame's edge.
 - **Other views** (relative): the mask's IoU with the projection of the hull the masks carve together
   (`agreement`, dpi.preprocess.masks.mask_agreement), against the median view's. The majority may be wrong the
   same way (every view missing the same part), which is why the absolute witnesses come first.
@@ -73,6 +76,11 @@ def image_edges(image8: np.ndarray) -> np.ndarray:
     return cv2.Canny(image, low, 2 * low, L2gradient=True) > 0
 
 
+def frame_contact(mask: np.ndarray) -> int:
+    """How many of the mask's (h, w) pixels lie on the frame's edge (its outer rows and columns)."""
+    return int(mask[[0, -1], :].sum() + mask[1:-1, [0, -1]].sum())
+
+
 def edge_support(image8: np.ndarray, mask: np.ndarray) -> float | None:
     """Share of the mask's (h, w) outline within EDGE_RADIUS of an edge of the image (h, w, 3 uint8); the outline
     along the image border is left out (the frame cut it there). None for an empty mask or outline."""
@@ -87,13 +95,16 @@ def edge_support(image8: np.ndarray, mask: np.ndarray) -> float | None:
 
 
 def verdict(view: dict, agreement_floor: float | None) -> list[str]:
-    """Why a view's mask (its summary: method, agreement, point_coverage, edge_support) is unreliable: one short
-    reason per failed witness, none when it is reliable."""
+    """Why a view's mask (its summary: method, agreement, point_coverage, frame_contact, edge_support) is
+    unreliable: one short reason per failed witness, none when it is reliable."""
     reasons = []
     if view.get("method") == "consensus hull":
         reasons.append("segmentation lost the object (the hull's projection stands in)")
     if view.get("point_coverage") is not None and view["point_coverage"] < POINT_COVERAGE_MIN:
         reasons.append(f"{1 - view['point_coverage']:.0%} of the object's points fall outside")
+    if view.get("frame_contact"):
+        reasons.append(f"it reaches the frame's edge ({view['frame_contact']} px): it holds what the frame cuts (a "
+                       "stand, the ground, the background), or the object is not whole in this photo")
     if view.get("edge_support") is not None and view["edge_support"] < EDGE_SUPPORT_MIN:
         reasons.append(f"{1 - view['edge_support']:.0%} of its outline is on no image edge")
     if agreement_floor is not None and view.get("agreement") is not None and view["agreement"] < agreement_floor:

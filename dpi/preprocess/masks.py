@@ -48,8 +48,8 @@ from dpi.io.images import read_image, resize, resize_mask, to_uint8, working_siz
 from dpi.io.settings import settings
 from dpi.preprocess.hull import marching_cubes, visible_sphere, visual_hull
 from dpi.preprocess.depth_seeds import BACKGROUND, OBJECT, PARAMS, depth_seeds
-from dpi.preprocess.mask_confidence import (AGREEMENT_VOTE_SHARE, MASK_AGREEMENT, edge_support, point_coverage,
-                                             verdict)
+from dpi.preprocess.mask_confidence import (AGREEMENT_VOTE_SHARE, MASK_AGREEMENT, edge_support, frame_contact,
+                                           point_coverage, verdict)
 from dpi.preprocess.morphology import grow, shrink
 from dpi.preprocess.stereo import grey
 
@@ -409,6 +409,7 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
         view = {"method": method, "foreground_fraction": round(float(mask.mean()), 4)}
         for key, value in (("agreement", None if agreement is None else agreement[i]),
                            ("point_coverage", point_coverage(camera, mask, points)),
+                           ("frame_contact", frame_contact(mask)),
                            ("edge_support", edge_support(image8, mask))):
             if value is not None:
                 view[key] = round(value, 4)
