@@ -20,7 +20,6 @@ from typing import Any
 
 from dpi.io.layout import INIT
 from dpi.solve.dps.loop import WATCH_STAGES
-from dpi.solve.init import glossy_share
 from dpi.solve.methods import METHODS
 from dpi.studies.engine import latest, read_rows
 
@@ -355,7 +354,7 @@ def presets(root: Path) -> str:
 
 def readings_forced(root: Path) -> str:
     """Readings study, --forced: per scene, each reading's init alone and its dps samples (held-out views, env
-    PSNR), with the closing-loss ratio (glossy over rough) and the glossy share the init's rule gives it."""
+    PSNR), with the closing-loss ratio (glossy over rough)."""
     rows = read_rows(root / RESULTS / "readings_forced.csv")
     body = []
     for scene in sorted({r["scene"] for r in rows}, key=lambda s: (s.split("_")[1], s.split("_")[2], s)):
@@ -364,7 +363,7 @@ def readings_forced(root: Path) -> str:
         if len(loss) < 2:
             continue
         ratio = loss["glossy"] / loss["rough"]
-        cells = [scene, f"{ratio:.2f}", f"{glossy_share(ratio):.2f}"]
+        cells = [scene, f"{ratio:.2f}"]
         for reading in ("rough", "glossy"):
             init = [r for r in sel if r["reading"] == reading and r["method"] == "init"]
             dps = [r for r in sel if r["reading"] == reading and r["method"] == "dps"]
@@ -373,7 +372,7 @@ def readings_forced(root: Path) -> str:
             cells += [f"{init[0]['novel_psnr']:.2f}", f"{views[0]:.2f}" if views else "-",
                       f"{env[0]:.2f}" if env else "-"]
         body.append(cells)
-    return markdown(["scene", "closing loss, glossy / rough", "glossy share", "rough: init views [dB]",
+    return markdown(["scene", "closing loss, glossy / rough", "rough: init views [dB]",
                      "rough: dps views [dB]", "rough: dps env [dB]", "glossy: init views [dB]", "glossy: dps views [dB]",
                      "glossy: dps env [dB]"], body)
 
