@@ -4,7 +4,8 @@ Renders photo-only captures (PNG images, no cameras, masks or mesh; ground truth
 of a convex blob, a bumpy torus (a hole, self-occlusion) and a bowl (a cavity, a flat foot) in front
 of a textured or a plain backdrop, seen from the upper hemisphere only (`--elevations`, like a
 table-top capture) all around or on an arc (`--arc 180`: a half circle in front of the object, whose hull is
-open behind it; `--wall-behind 2`: the backdrop a flat wall close behind the object, as a head on a wall), runs poses -> masks -> geometry -> uv as the workflow does, and prints one row
+open behind it; `--wall-behind 2`: the backdrop a flat wall close behind the object, as a head on a wall), runs
+poses -> masks -> geometry -> uv as the workflow does, and prints one row
 per capture: pose errors after Umeyama alignment, mask IoU, what the masks' witnesses flagged (views under 0.8
 IoU and how many of them were flagged; views over 0.9 IoU flagged), Chamfer distance (% of the bounding-box
 diagonal) and the seconds of every stage; rows (shape, views, size, rotation_deg, mask_iou,

@@ -42,10 +42,10 @@ WORK = work_dir("real_photos")
 CSV = results_csv("real_photos")
 METHODS = ("init", "dps", "none")
 STAGES = ("poses", "masks", "geometry", "uv")
-COLUMNS = ("capture", "views", "size", "registered", "reprojection_px", "reference_reprojection_px", "rotation_error_deg",
-           "centre_error",
-           "mask_iou", "mask_iou_min", "masks_flagged", "masks_below_08", "flagged_below_08", "masks_below_09",
-           "flagged_below_09", "flagged_above_09", *(f"{s}_seconds" for s in STAGES),
+COLUMNS = ("capture", "views", "size", "registered", "reprojection_px", "reference_reprojection_px",
+           "rotation_error_deg", "centre_error", "mask_iou", "mask_iou_min", "masks_flagged", "masks_below_08",
+           "flagged_below_08", "masks_below_09", "flagged_below_09", "flagged_above_09",
+           *(f"{s}_seconds" for s in STAGES),
            *(f"{m}_view_psnr" for m in METHODS), "seconds", "stopped")
 
 

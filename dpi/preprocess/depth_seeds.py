@@ -98,11 +98,12 @@ def between_cameras(points: np.ndarray, cameras: list[Camera], up: np.ndarray) -
 def support_height(points: np.ndarray, cameras: list[Camera], up: np.ndarray, centre: np.ndarray,
                    radius: float) -> float | None:
     """Height (along `up`) of the level plane the object stands on, from the sparse points (N, 3) under and around it
-    (SUPPORT_REACH, `between_cameras`): the object is whole in every frame, what it stands on reaches out of some. The support's top is
-    the split of the points' heights that leaves the fewest points every camera sees below it and the fewest others
-    above (the lowest such split: an object floating over a floor keeps its underside), raised to the lowest points
-    every camera sees where they lie within SUPPORT_TOLERANCE of it (a table's top in every frame around the
-    object's foot); the plane lies SUPPORT_TOLERANCE above that top. None when no split beats none."""
+    (SUPPORT_REACH, `between_cameras`): the object is whole in every frame, what it stands on reaches out of some.
+    The support's top is the split of the points' heights that leaves the fewest points every camera sees below it
+    and the fewest others above (the lowest such split: an object floating over a floor keeps its underside), raised
+    to the lowest points every camera sees where they lie within SUPPORT_TOLERANCE of it (a table's top in every
+    frame around the object's foot); the plane lies SUPPORT_TOLERANCE above that top. None when no split beats
+    none."""
     offset = points - centre
     height = offset @ up
     around = (np.linalg.norm(offset - np.outer(height, up), axis=1) <= SUPPORT_REACH * radius) & between_cameras(
@@ -117,7 +118,8 @@ def support_height(points: np.ndarray, cameras: list[Camera], up: np.ndarray, ce
     top = heights[below - 1]
     if shared.any():
         lowest_shared = float(np.quantile(heights[shared], SUPPORT_QUANTILE))
-        top = max(top, lowest_shared) if lowest_shared <= top + tolerance else top
+        if top < lowest_shared <= top + tolerance:
+            top = lowest_shared
     return float(centre @ up + top) + tolerance
 
 

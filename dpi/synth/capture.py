@@ -131,12 +131,17 @@ class SynthConfig:
         return settings_from_dict(cls, values)
 
 
+def orbit_phase_deg(cfg: SynthConfig) -> float:
+    """Azimuth of the capture's first camera (dpi.capture.cameras.orbit's phase): each seed turns the orbit."""
+    return cfg.seed * 7.0
+
+
 def wall_behind(cfg: SynthConfig) -> tuple[np.ndarray, float] | None:
     """(horizontal unit direction towards the middle of the cameras' arc, distance) of a flat wall behind the
     object (SynthConfig.wall_behind), or None."""
     if cfg.wall_behind is None:
         return None
-    azimuth = np.radians(cfg.seed * 7.0 + (cfg.arc_deg / 2 if cfg.arc_deg < 360 else 0.0))  # orbit's azimuths
+    azimuth = np.radians(orbit_phase_deg(cfg) + (cfg.arc_deg / 2 if cfg.arc_deg < 360 else 0.0))
     return np.array([np.sin(azimuth), 0.0, np.cos(azimuth)]), cfg.wall_behind
 
 
@@ -227,7 +232,8 @@ def _write_capture(root: Path, cfg: SynthConfig, threads: int | None, progress: 
                        ("metallic", materials.metallic)):
         write_exr(root / "gt" / f"{name}.exr", data)
 
-    poses = orbit(cfg.views, cfg.camera_distance, cfg.elevations_deg, phase_deg=cfg.seed * 7.0, arc_deg=cfg.arc_deg)
+    poses = orbit(cfg.views, cfg.camera_distance, cfg.elevations_deg, phase_deg=orbit_phase_deg(cfg),
+                  arc_deg=cfg.arc_deg)
     names = [f"r_{i:03d}" for i in range(cfg.views)]
     cameras = [from_fov(p, cfg.width, cfg.height, FOV_DEG, n) for p, n in zip(poses, names)]
     for i, cam in enumerate(cameras):
