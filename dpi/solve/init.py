@@ -131,13 +131,12 @@ def half_way_stop(ratio: float) -> str | None:
 
 def readings_line(record: dict) -> str:
     """One line of what the init's readings found: each closing loss, what stopped half-way or the evidence's log
-    Bayes factor, what was kept and the other reading's share of the samples."""
+    Bayes factor, what was kept and the other reading's posterior probability (its share of the samples)."""
     losses = ", ".join(f"{name} {loss:.4g}" for name, loss in record["closing_loss"].items())
     stopped = f"; {record['stopped']} stopped half-way" if record.get("stopped") else ""
     if "log_bayes_factor" in record:
         stopped += f"; log Bayes factor glossy over rough {record['log_bayes_factor']:+.1f}"
-    other = f"; {record['other_share']:.0%} of the samples from the {record['other']} reading" if record["other"] \
-        else ""
+    other = f"; the {record['other']} reading's probability {record['other_share']:.2g}" if record["other"] else ""
     return f"closing loss {losses}{stopped}; kept {record['kept']}{other}"
 
 
