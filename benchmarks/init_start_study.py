@@ -4,8 +4,9 @@ on every study scene?
 For each scene of the posterior, calibration and resolution studies and the roughness study's 0.2 dielectric
 (their captures, their workflow configs), the init's fit runs from each reading's start (dpi.solve.init.READINGS,
 start_fit) to the end, recording its closing loss half-way (`half_way_loss`: which fit stops there) and at the
-end (what the readings are compared by when both finish), its mean data loss over steps 20-39 (`pilot_loss`: a
-40-step pilot of each start, a rule tried first), the roughness 25th percentile and median metallic, and the
+end, the views' log evidence at the end (`log_evidence`, dpi.solve.evidence: what the readings are compared by when
+both finish), its mean data loss over steps 20-39 (`pilot_loss`: a 40-step pilot of each start, a rule tried
+first), the roughness 25th percentile and median metallic, and the
 held-out view PSNR of that start's init. A row per scene and start; `chosen` marks the reading the init keeps (the
 one not stopped half-way; where both finish, the one most samples start from), `best` the one whose held-out views
 are best.
@@ -36,7 +37,8 @@ from dpi.studies.scenes import (POSTERIOR_SCENES, RESOLUTION_SCENES, calibration
 
 CSV = results_csv("init_start_study")
 COLUMNS = ("study", "scene", "roughness", "metallic", "start_roughness", "start_metallic", "pilot_loss",
-           "half_way_loss", "closing_loss", "init_roughness_p25", "init_metallic_median", "novel_psnr", "chosen", "best", "seconds")
+           "half_way_loss", "closing_loss", "log_evidence", "init_roughness_p25", "init_metallic_median", "novel_psnr",
+           "chosen", "best", "seconds")
 PILOT = (20, 40)
 """steps whose mean data loss is `pilot_loss`: the second half of a 40-step pilot"""
 TEXT = ("study", "scene")
@@ -70,7 +72,7 @@ def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth
     from dpi.evaluation.sample_metrics import novel_view_metrics, render_held_out
     from dpi.io.layout import INIT
     from dpi.solve.decomposition import Decomposition
-    from dpi.solve.init import READINGS, closing_loss, roughness_p25, start_fit
+    from dpi.solve.init import READINGS, closing_loss, reading_evidence, roughness_p25, start_fit
     from dpi.solve.problem import SolveConfig
     from dpi.stages import load_problem
     from dpi.stages.seeding import seed_for
@@ -84,12 +86,13 @@ def scene_rows(study: str, root: Path, config: dict[str, Any], scene: str, synth
         run.run(cfg.iterations // 2, progress=False)
         half_way = closing_loss(run.trace)
         run.run(cfg.iterations, progress=False)
+        evidence = reading_evidence(problem, run, reading, seed_for(scene, INIT))
         log_env, materials = run.finish()
         pilot = [s["data"] for s in run.trace.steps[slice(*PILOT)] if s.get("data") is not None]
         renders = render_held_out(problem, Decomposition(log_env.exp(), materials), config["evaluate"]["spp"], 0)
         rows.append({"study": study, "scene": scene, "roughness": synth["roughness"], "metallic": synth["metallic"],
                      "start_roughness": start[0], "start_metallic": start[1], "pilot_loss": float(np.mean(pilot)),
-                     "half_way_loss": half_way, "closing_loss": closing_loss(run.trace),
+                     "half_way_loss": half_way, "closing_loss": closing_loss(run.trace), "log_evidence": evidence,
                      "init_roughness_p25": roughness_p25(materials),
                      "init_metallic_median": float(materials.metallic.median()),
                      "novel_psnr": novel_view_metrics(problem, renders)["novel_psnr"],
@@ -105,13 +108,14 @@ def row_settings(config: dict[str, Any], synth: dict[str, Any]) -> str:
 
 def mark(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Set `chosen` (the reading the init keeps, dpi.solve.init's rule: the one not stopped half-way, else the one
-    most samples come from) and `best` on one scene's two rows (rough start, glossy start)."""
-    from dpi.solve.init import glossy_share, half_way_stop
+    most samples come from by the views' evidence) and `best` on one scene's two rows (rough start, glossy start)."""
+    from dpi.solve.evidence import glossy_probability
+    from dpi.solve.init import half_way_stop
 
     first, glossy = rows
     stopped = half_way_stop(glossy["half_way_loss"] / first["half_way_loss"])
-    closing = glossy["closing_loss"] / first["closing_loss"]
-    keep = stopped == "rough" or (stopped is None and glossy_share(closing) > 0.5)
+    keep = stopped == "rough" or (stopped is None
+                                  and glossy_probability(glossy["log_evidence"] - first["log_evidence"]) > 0.5)
     best = max(rows, key=lambda r: r["novel_psnr"])
     for row in rows:
         row.update(chosen=int(row is (glossy if keep else first)), best=int(row is best))

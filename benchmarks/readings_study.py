@@ -5,7 +5,8 @@ a procedural room and a held-out real panorama that no study scene uses (with --
 32 px on a 150 deg arc or in 16 views of 48 px all around. Per scene and repeat (its own capture noise and init)
 the workflow's init fits both readings (dpi.solve.init) and `dps` draws `--samples` samples through the stage
 functions; one row of benchmarks/results/readings_study.csv per scene and repeat: the init's closing-loss ratio
-(glossy over rough; half-way, and `stopped` 1, where one of the two fits stopped there) and kept reading, the share of
+(glossy over rough; half-way, and `stopped` 1, where one of the two fits stopped there), the evidence's log Bayes
+factor glossy over rough where both finished (empty where one stopped), the kept reading, the share of
 samples that started from the glossy reading, the init's and the samples' held-out views and env PSNR (mean and
 worst sample), the samples' mean map, spread and calibration, and the init's seconds. Then a table per scene and
 the metal / rough spread ratios (Fig. 9).
@@ -38,7 +39,8 @@ COLUMNS = ("scene", "light", "views", "roughness", "metallic", "repeat", "readin
            "closing_loss", "novel_psnr", "env_psnr", "env_ssim", "albedo_mse", "train_fit", "train_fit_over_truth",
            "seconds")
 TEXT = ("scene", "light", "views", "reading", "method")
-GROUP_COLUMNS = ("scene", "light", "views", "roughness", "metallic", "repeat", "samples", "ratio", "stopped", "kept",
+GROUP_COLUMNS = ("scene", "light", "views", "roughness", "metallic", "repeat", "samples", "ratio", "stopped",
+                 "log_bayes_factor", "kept",
                  "glossy_samples", "init_novel_psnr", "init_env_psnr", "init_seconds", "novel_psnr", "env_psnr",
                  "albedo_mse", "seconds", "min_novel_psnr", "min_env_psnr", "env_mean_psnr", "env_sigma2_sample",
                  "calibration")
@@ -114,7 +116,8 @@ def sample_row(job: Job) -> dict[str, Any]:
     readings = json.loads(scene.sample_files(INIT)["trace"].read_text())["info"]["readings"]
     stopped = readings.get("stopped") is not None
     return {**row, "reading": info["reading"], "stopped": int(stopped),
-            "ratio": readings["half_way_ratio"] if stopped else readings["ratio"], "other_share": readings["other_share"]}
+            "ratio": readings["half_way_ratio"] if stopped else readings["ratio"],
+            "log_bayes_factor": readings.get("log_bayes_factor", ""), "other_share": readings["other_share"]}
 
 
 def group_row(scene: str, synth: dict, repeat: int, rows: list[dict[str, Any]], jobs: list[Job]) -> dict[str, Any]:
@@ -131,7 +134,8 @@ def group_row(scene: str, synth: dict, repeat: int, rows: list[dict[str, Any]], 
     light, views = scene.split("_")[1:3]
     return {"scene": scene, "light": light, "views": views, "roughness": synth["roughness"],
             "metallic": synth["metallic"], "repeat": repeat, "samples": len(samples),
-            "ratio": init["ratio"], "stopped": init["stopped"], "kept": init["reading"],
+            "ratio": init["ratio"], "stopped": init["stopped"], "log_bayes_factor": init["log_bayes_factor"],
+            "kept": init["reading"],
             "glossy_samples": sum(r["reading"] == "glossy" for r in samples) / len(samples),
             "init_novel_psnr": init["novel_psnr"], "init_env_psnr": init["env_psnr"], "init_seconds": init["seconds"],
             **{k: float(np.mean([r[k] for r in samples])) for k in ("novel_psnr", "env_psnr", "albedo_mse",

@@ -37,13 +37,13 @@ def test_the_init_log_line_says_what_was_fitted_and_kept():
               "other_share": 0.25}
     line = readings_line(record)
     assert "rough 0.02" in line and "glossy 0.011" in line and "kept glossy" in line
-    assert "25% of the samples from the rough reading" in line
+    assert "the rough reading's probability 0.25" in line
     stopped = readings_line({"closing_loss": {"rough": 0.02, "glossy": 0.05}, "stopped": "glossy", "kept": "rough",
                             "other": None, "other_share": 0.0})
-    assert "glossy stopped half-way" in stopped and "samples from" not in stopped
+    assert "glossy stopped half-way" in stopped and "probability" not in stopped
 
 
-def test_the_report_notes_two_readings_only_where_the_samples_come_from_both(tmp_path):
+def test_the_report_notes_two_readings_only_where_samples_start_from_both(tmp_path):
     from dpi.evaluation.report import readings_note
 
     scene = stage_job(tmp_path / "captures" / "scene", tmp_path / "results").paths
@@ -53,6 +53,9 @@ def test_the_report_notes_two_readings_only_where_the_samples_come_from_both(tmp
     record = {"closing_loss": {"rough": 0.02, "glossy": 0.011}, "kept": "glossy", "other": None, "other_share": 0.0}
     write_json(init, {"info": {"readings": record}})
     assert readings_note(scene) == []  # one reading clearly better
-    write_json(init, {"info": {"readings": {**record, "other": "rough", "other_share": 0.25}}})
+    write_json(init, {"info": {"readings": {**record, "other": "rough", "other_share": 1e-50}}})
+    write_json(scene.sample_files("dps", 0)["trace"], {"info": {"reading": "glossy"}})
+    assert readings_note(scene) == []  # the other reading is possible but starts no sample
+    write_json(scene.sample_files("dps", 1)["trace"], {"info": {"reading": "rough"}})
     note, = readings_note(scene)
-    assert "Two readings" in note and "25% of the samples from the rough reading" in note
+    assert "Two readings" in note and "1 of the samples start from the rough one" in note

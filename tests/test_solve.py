@@ -13,9 +13,8 @@ from dpi.render.renderer import RenderConfig
 from dpi.solve.classic import ClassicConfig, balanced_weight, classic_sample
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dip import DeepImagePrior, DIPConfig, dip_sample, network_levels
-from dpi.solve.init import (BOTH_BELOW, CLOSING_STEPS, GLOSSY_ALONE_BELOW, READINGS, START_ALBEDO, InitConfig,
-                            closing_loss, glossy_share, is_glossy, path_traced_init, roughness_p25, sample_reading,
-                            starting_materials)
+from dpi.solve.init import (CLOSING_STEPS, READINGS, START_ALBEDO, InitConfig, closing_loss, is_glossy,
+                            path_traced_init, roughness_p25, sample_reading, starting_materials)
 from dpi.solve.materials import MaterialTextures
 from dpi.solve.optimize import AdamFit, FreeEnvMap, OptimizeConfig, fit
 from dpi.solve.priors import chromaticity_penalty, global_norm_penalty, make_prior, smoothness_penalty
@@ -204,16 +203,17 @@ def test_the_init_fits_both_readings_and_keeps_the_one_most_samples_come_from(pr
     assert alone["rough"].trace.info["start"] == [0.5, 0.0] and alone["glossy"].trace.info["start"] == [0.1, 1.0]
     losses = {name: closing_loss(fit.trace) for name, fit in alone.items()}
     monkeypatch.setattr("dpi.solve.init.BOTH_FINISH", (0.0, math.inf))  # both always finish
-    ratio = losses["glossy"] / losses["rough"]
-    for both, glossy_alone, kept, other in ((4 * ratio, 2 * ratio, "glossy", None),  # glossy clearly better
-                                            (ratio / 2, ratio / 4, "rough", None),  # rough clearly better
-                                            (ratio * 1.1, ratio * 0.95, "glossy", "rough")):  # about equal
-        monkeypatch.setattr("dpi.solve.init.BOTH_BELOW", both)
-        monkeypatch.setattr("dpi.solve.init.GLOSSY_ALONE_BELOW", glossy_alone)
+    evidence = {"rough": 0.0, "glossy": 0.0}
+    monkeypatch.setattr("dpi.solve.init.reading_evidence", lambda problem, fit, name, seed: evidence[name])
+    for factor, kept, other in ((800.0, "glossy", None),  # the views favour the glossy reading beyond doubt
+                                (-60.0, "rough", "glossy"),  # the rough one (the glossy one keeps e^-60 of the samples)
+                                (0.5, "glossy", "rough")):  # about equally: both, in proportion
+        evidence["glossy"] = factor
         result = init("auto")
         assert result.record["kept"] == kept and result.record["other"] == other
+        assert result.record["log_bayes_factor"] == factor
         assert result.record["closing_loss"] == pytest.approx(losses, rel=1e-4)
-        assert result.record["ratio"] == pytest.approx(ratio, rel=1e-4)
+        assert result.record["ratio"] == pytest.approx(losses["glossy"] / losses["rough"], rel=1e-4)
         torch.testing.assert_close(result.kept.env, alone[kept].env, rtol=1e-4, atol=1e-5)
         torch.testing.assert_close(result.kept.materials.roughness, alone[kept].materials.roughness, rtol=1e-4,
                                    atol=1e-5)
@@ -221,7 +221,15 @@ def test_the_init_fits_both_readings_and_keeps_the_one_most_samples_come_from(pr
         assert (result.other is None) == (other is None)
         if other:
             torch.testing.assert_close(result.other.env, alone[other].env, rtol=1e-4, atol=1e-5)
-            assert 0 < result.record["other_share"] < 0.5
+            assert result.record["other_share"] == pytest.approx(1 / (1 + math.exp(abs(factor))), rel=1e-9)
+
+
+def test_both_finished_readings_are_weighed_by_their_evidence(problem, monkeypatch):
+    monkeypatch.setattr("dpi.solve.init.BOTH_FINISH", (0.0, math.inf))
+    record = path_traced_init(problem, InitConfig(iterations=4), seed=2, progress=False).record
+    assert math.isfinite(record["log_bayes_factor"])
+    smaller = math.exp(-abs(record["log_bayes_factor"]))
+    assert record["other_share"] == pytest.approx(smaller / (1 + smaller), abs=1e-300)
 
 
 @pytest.mark.parametrize("behind", ["glossy", "rough"])
@@ -235,13 +243,6 @@ def test_the_reading_behind_half_way_stops_there(problem, monkeypatch, behind):
     assert json.loads(json.dumps(result.record, allow_nan=False)) == result.record
     assert [s["step"] for s in result.kept.trace.steps] == list(range(6))
     assert result.kept.trace.info["reading"] == kept
-
-
-def test_glossy_share_falls_from_one_to_zero_across_the_band():
-    assert glossy_share(0.2) == 1.0 and glossy_share(GLOSSY_ALONE_BELOW) == 1.0
-    assert glossy_share(BOTH_BELOW) == 0.0 and glossy_share(1.3) == 0.0 and glossy_share(math.inf) == 0.0
-    middle = math.sqrt(GLOSSY_ALONE_BELOW * BOTH_BELOW)
-    assert glossy_share(middle) == pytest.approx(0.5)
 
 
 @pytest.mark.parametrize("share", [0.0, 0.1, 0.25, 0.4, 0.5])

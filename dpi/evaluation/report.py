@@ -30,7 +30,7 @@ from dpi.evaluation.view3d import install_viewer, view3d_section
 from dpi.io.atomic import write_text
 from dpi.io.exr import read_exr
 from dpi.io.images import read_image, read_mask
-from dpi.io.layout import INIT, SUMMARY_FILE, TEXTURE_NAMES, Layout, SceneLayout, texture_file, view_file
+from dpi.io.layout import INIT, SAMPLE_TRACE, SUMMARY_FILE, TEXTURE_NAMES, Layout, SceneLayout, texture_file, view_file
 from dpi.solve.init import readings_line
 from dpi.synth.capture import read_marker
 
@@ -276,16 +276,20 @@ def scene_section(scene_name: str, scene: SceneLayout, rows: list[dict[str, str]
 
 
 def readings_note(scene: SceneLayout) -> list[str]:
-    """A note where the init found two readings that explain the views about equally (dpi.solve.init), so the
-    samples come from both: what it measured and how the samples divide."""
+    """A note where samples start from both of the init's readings (dpi.solve.init: the views' evidence leaves the
+    material open): what it measured and how many samples start from the other reading."""
     trace = scene.sample_files(INIT)["trace"]
     readings = json.loads(trace.read_text())["info"].get("readings", {}) if trace.is_file() else {}
     if not readings.get("other"):
         return []
-    return [f"<p class='warning'><b>Two readings.</b> The views leave the material open: a rough dielectric and a "
-            f"glossy metal explain them about equally ({escape(readings_line(readings))}), so the samples come from "
-            "both; the roughness std below shows where they differ, and samples.csv names each sample's reading."
-            "</p>"]
+    started = [t for t in scene.root.glob(f"*/*/{SAMPLE_TRACE}")
+               if json.loads(t.read_text())["info"].get("reading") == readings["other"]]
+    if not started:
+        return []
+    return [f"<p class='warning'><b>Two readings.</b> The views leave the material open: the init fitted a rough "
+            f"dielectric and a glossy metal ({escape(readings_line(readings))}), and {len(started)} of the samples "
+            f"start from the {readings['other']} one; the roughness std below shows where they differ, and "
+            "samples.csv names each sample's reading.</p>"]
 
 
 def mask_title(name: str, view: dict) -> str:

@@ -5,10 +5,10 @@ The starting map is uniform, at the level that makes a grey (albedo 0.5) diffuse
 the mean observed foreground radiance; the textures start constant. Under that uniform map roughness
 changes nothing, so a fit from a rough start on a mirror stops half-way, its reflections smeared into the map,
 and a fit from a glossy start on a rough object paints the object's shading into the map: each start keeps its
-reading. So the init fits two readings, a rough dielectric and a glossy metal, and records how well each explains
-the training views (its closing loss). Where one clearly does better, every sample starts from it; where both do
-about equally (few, small views can show a mirror under a sharp light like a rough object under a soft one), the
-samples come from both, in proportion (glossy_share, sample_reading; docs/studies.md, "Two readings").
+reading. So the init fits two readings, a rough dielectric and a glossy metal. One clearly behind half-way stops
+there (its closing loss, BOTH_FINISH); where both finish, the views' evidence for each (dpi.solve.evidence: how well
+it explains them, less what its map's freedom costs) gives each its posterior probability, and the samples come
+from both in proportion (sample_reading; docs/studies.md, "Two readings").
 """
 
 from __future__ import annotations
@@ -22,20 +22,17 @@ import torch
 
 from dpi.io.settings import Steps, settings
 from dpi.solve.decomposition import Decomposition
+from dpi.solve.evidence import glossy_probability, log_evidence
 from dpi.solve.materials import MaterialTextures
 from dpi.solve.optimize import CHECKPOINT_EVERY, AdamFit, FreeEnvMap, OptimizeConfig
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
+from dpi.solve.transport import MAX_TRANSPORT_HEIGHT, TransportConfig, record_transport
 
 START_ALBEDO = 0.5
 READINGS = {"rough": (0.5, 0.0), "glossy": (0.1, 1.0)}
 """the two readings the init fits, by their constant (roughness, metallic) start: a rough dielectric and a glossy
 metal"""
-BOTH_BELOW, GLOSSY_ALONE_BELOW = 0.6, 0.5
-"""closing-loss ratios (glossy over rough): at or above BOTH_BELOW the rough reading alone explains the views, below
-GLOSSY_ALONE_BELOW the glossy one; in between both do about equally and the samples come from both (a metal under a
-free map explains a rough object's views a little better too: the dielectrics measured close at 0.58-1.46, the
-metals at 0.17-0.54; docs/studies.md, "Two readings")"""
 BOTH_FINISH = (0.45, 0.55)
 """half-way closing-loss ratios (glossy over rough) between which both fits finish; below, the rough fit stops
 half-way and the glossy reading is kept alone, at or above the upper bound the glossy fit stops and the rough one is
@@ -104,15 +101,15 @@ def closing_loss(trace: Trace) -> float:
     return sum(losses) / len(losses) if losses else math.inf
 
 
-def glossy_share(ratio: float) -> float:
-    """The share of samples drawn from the glossy reading, given the closing-loss ratio glossy / rough: 1 below
-    GLOSSY_ALONE_BELOW, 0 at BOTH_BELOW and above, linear in the log ratio in between (how much better the glossy
-    reading explains the views than a metal explains a rough object's)."""
-    if not ratio < BOTH_BELOW:
-        return 0.0
-    if ratio <= GLOSSY_ALONE_BELOW:
-        return 1.0
-    return math.log(BOTH_BELOW / ratio) / math.log(BOTH_BELOW / GLOSSY_ALONE_BELOW)
+def reading_evidence(problem: InverseProblem, fit: AdamFit, name: str, seed: int) -> float:
+    """The views' log evidence under one finished reading (dpi.solve.evidence), from its transport recorded on the
+    finest grid, as a sample of that reading records it (every texel drawn for the rough one, the bright ones for the
+    glossy one, whose narrow lobe the BSDF samples)."""
+    with torch.no_grad():
+        env = fit.env_model().exp()
+    transport = record_transport(problem, fit.materials, env, TransportConfig(), seed, MAX_TRANSPORT_HEIGHT,
+                                 every_texel=name == "rough")
+    return log_evidence(transport, env, fit.materials.albedo)
 
 
 def sample_reading(k: int, readings: dict) -> str:
@@ -133,12 +130,13 @@ def half_way_stop(ratio: float) -> str | None:
 
 
 def readings_line(record: dict) -> str:
-    """One line of what the init's readings found: each closing loss, what stopped half-way, what was kept and the
-    other reading's share of the samples."""
+    """One line of what the init's readings found: each closing loss, what stopped half-way or the evidence's log
+    Bayes factor, what was kept and the other reading's posterior probability (its share of the samples)."""
     losses = ", ".join(f"{name} {loss:.4g}" for name, loss in record["closing_loss"].items())
     stopped = f"; {record['stopped']} stopped half-way" if record.get("stopped") else ""
-    other = f"; {record['other_share']:.0%} of the samples from the {record['other']} reading" if record["other"] \
-        else ""
+    if "log_bayes_factor" in record:
+        stopped += f"; log Bayes factor glossy over rough {record['log_bayes_factor']:+.1f}"
+    other = f"; the {record['other']} reading's probability {record['other_share']:.2g}" if record["other"] else ""
     return f"closing loss {losses}{stopped}; kept {record['kept']}{other}"
 
 
@@ -165,7 +163,7 @@ class InitReadings:
 def path_traced_init(problem: InverseProblem, cfg: InitConfig, seed: int, progress: bool = True,
                      checkpoint: Path | None = None, checkpoint_every: int = CHECKPOINT_EVERY) -> InitReadings:
     """Fit env map + materials from each reading of `cfg.reading` (both for auto: the one clearly behind half-way
-    stops there, BOTH_FINISH); keep the one most samples come from (glossy_share).
+    stops there, BOTH_FINISH); keep the one most samples come from (the evidence's glossy_probability).
     `checkpoint`: the rough fit's resume file; the glossy fit's is its sibling."""
     names = list(READINGS) if cfg.reading == "auto" else [cfg.reading]
     fits = {name: start_fit(problem, cfg, name, seed) for name in names}
@@ -191,12 +189,17 @@ def path_traced_init(problem: InverseProblem, cfg: InitConfig, seed: int, progre
     if len(fits) == 1:
         record.update(kept=names[0], other=None, other_share=0.0)
     else:
-        ratio = record["ratio"] = None if "stopped" in record else losses["glossy"] / losses["rough"]
-        share = float(record.get("stopped") == "rough") if ratio is None else glossy_share(ratio)
+        if "stopped" in record:
+            record["ratio"], share, other_share = None, float(record["stopped"] == "rough"), 0.0
+        else:
+            record["ratio"] = losses["glossy"] / losses["rough"]
+            factor = record["log_bayes_factor"] = (reading_evidence(problem, fits["glossy"], "glossy", seed)
+                                                   - reading_evidence(problem, fits["rough"], "rough", seed))
+            share, other_share = glossy_probability(factor), glossy_probability(-abs(factor))  # the less likely, exactly
         kept = "glossy" if share > 0.5 else "rough"
         other = "rough" if kept == "glossy" else "glossy"
-        record.update(kept=kept, other=other if 0 < share < 1 else None,
-                      other_share=min(share, 1 - share), glossy_roughness_p25=roughness_p25(fits["glossy"].materials),
+        record.update(kept=kept, other=other if other_share > 0 else None,
+                      other_share=other_share, glossy_roughness_p25=roughness_p25(fits["glossy"].materials),
                       rough_roughness_p25=roughness_p25(fits["rough"].materials))
     results = {}
     for name in (record["kept"], record["other"]):
