@@ -2,7 +2,8 @@
 
 Scenes: a bumpy torus of roughness 0.05 (metal), 0.2, 0.5 and 0.8 (dielectrics) under a clear sky with a low sun,
 a procedural room and a held-out real panorama that no study scene uses (with --panoramas), seen in 8 views of
-32 px on a 150 deg arc or in 16 views of 48 px all around. Per scene and repeat (its own capture noise and init)
+32 px on a 150 deg arc or in 16 views of 48 px all around; with --held-out, scenes no rule of the init was designed
+on instead: another torus under a 12 and a 45 deg sun and a beach panorama, on the arc. Per scene and repeat (its own capture noise and init)
 the workflow's init fits both readings (dpi.solve.init) and `dps` draws `--samples` samples through the stage
 functions; one row of benchmarks/results/readings_study.csv per scene and repeat: the init's closing-loss ratio
 (glossy over rough; half-way, and `stopped` 1, where one of the two fits stopped there), the evidence's log Bayes
@@ -12,7 +13,7 @@ worst sample), the samples' mean map, spread and calibration, and the init's sec
 the metal / rough spread ratios (Fig. 9).
 
     .venv/bin/python benchmarks/readings_study.py --panoramas ../shared/panoramas [--scenes ...] [--repeats 3]
-        [--samples 4] [--jobs 2] [--cost | --forced]
+        [--samples 4] [--jobs 2] [--held-out] [--cost | --forced]
 
 With --cost, the init is timed with both readings and with the rough one alone, one after the other on the first
 repeat's captures (benchmarks/results/readings_cost.csv). With --forced, each reading's init is fitted alone and
@@ -50,6 +51,15 @@ LIGHTS = {"sun": {"environment": "sunsky", "sun_elevation_deg": 10.0, "sun_azimu
           "room": {"environment": "indoor", "environment_seed": 41, "prior": "indoor"},
           "real": {"panorama": "hilly_terrain_01_1k.hdr", "prior": "outdoor"}}
 """a clear sky with a low sun, a procedural room, a held-out real panorama with a sun that no study scene uses"""
+HELD_OUT_LIGHTS = {"sun12": {"environment": "sunsky", "sun_elevation_deg": 12.0, "sun_azimuth_deg": 120.0,
+                              "prior": "outdoor"},
+                   "sun45": {"environment": "sunsky", "sun_elevation_deg": 45.0, "sun_azimuth_deg": 120.0,
+                              "prior": "outdoor"},
+                   "beach": {"panorama": "spiaggia_di_mondello_1k.hdr", "prior": "outdoor"}}
+"""with --held-out: lights no rule of the init was designed on (a 12 and a 45 deg sun, a beach), on the arc and on
+another object (HELD_OUT_OBJECT)"""
+HELD_OUT_OBJECT = 11
+"""the bumpy torus's object seed in the held-out scenes (the study's own: BASE's)"""
 VIEWS = {"arc": {"views": 8, "held_out_every": 4, "width": 32, "height": 32, "arc_deg": 150.0,
                  "elevations_deg": (15.0, 40.0)},
          "around": {"views": 16, "held_out_every": 4, "width": 48, "height": 48, "arc_deg": 360.0,
@@ -63,21 +73,25 @@ def scene_name(light: str, views: str, roughness: float) -> str:
     return f"torus_{light}_{views}_r{round(roughness * 100):03d}"
 
 
-def study_scenes(panoramas: Path | None) -> dict[str, dict[str, Any]]:
-    """name -> synthetic capture settings (the real-light scenes only when `panoramas` is given)."""
+def study_scenes(panoramas: Path | None, held_out: bool = False) -> dict[str, dict[str, Any]]:
+    """name -> synthetic capture settings (the real-light scenes only when `panoramas` is given); with `held_out`,
+    the held-out scenes instead (HELD_OUT_LIGHTS on the arc, object seed HELD_OUT_OBJECT)."""
     from dpi.prior.panoramas import panorama_files
 
-    held_out = {p.name: p for family in ("outdoor", "indoor") for p in panorama_files(panoramas, family, "held_out")} \
+    files = {p.name: p for family in ("outdoor", "indoor") for p in panorama_files(panoramas, family, "held_out")} \
         if panoramas else {}
+    lights = HELD_OUT_LIGHTS if held_out else LIGHTS
+    views_of = {"arc": VIEWS["arc"]} if held_out else VIEWS
+    base = {**BASE, "seed": HELD_OUT_OBJECT} if held_out else BASE
     scenes = {}
-    for light, lit in LIGHTS.items():
+    for light, lit in lights.items():
         if "panorama" in lit:
-            if lit["panorama"] not in held_out:
+            if lit["panorama"] not in files:
                 continue
-            lit = {"prior": lit["prior"], "environment": str(held_out[lit["panorama"]].resolve())}
-        for views, seen in VIEWS.items():
+            lit = {"prior": lit["prior"], "environment": str(files[lit["panorama"]].resolve())}
+        for views, seen in views_of.items():
             for r in ROUGHNESSES:
-                scenes[scene_name(light, views, r)] = {**BASE, **seen, **lit, "roughness": r,
+                scenes[scene_name(light, views, r)] = {**base, **seen, **lit, "roughness": r,
                                                        "metallic": 1.0 if r <= 0.1 else 0.0}
     return scenes
 
@@ -238,10 +252,13 @@ def main() -> None:
     parser.add_argument("--cost", action="store_true",
                         help="time the init with both readings and with the rough one alone (the first repeat's "
                              "captures, one init at a time)")
+    parser.add_argument("--held-out", action="store_true",
+                        help="the held-out scenes (12 and 45 deg suns, a beach; another torus, on the arc) instead")
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     config = workflow_config()
-    scenes = {n: s for n, s in study_scenes(args.panoramas).items() if not args.scenes or n in args.scenes}
+    scenes = {n: s for n, s in study_scenes(args.panoramas, args.held_out).items()
+              if not args.scenes or n in args.scenes}
     if args.forced:
         args.out = args.out or CSV.with_name("readings_forced.csv")
         forced_readings(args, config, scenes)
