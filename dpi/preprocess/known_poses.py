@@ -10,14 +10,13 @@ reconstruction holds the given cameras under the database's ids, and COLMAP's po
 from __future__ import annotations
 
 import logging
-import time
 from pathlib import Path
 
 import numpy as np
 
 from dpi.capture.cameras import Camera
-from dpi.preprocess.sfm import (CV_TO_GL, EXHAUSTIVE_MAX_IMAGES, MIN_TRACK_LENGTH, OBJECT_VIEW_FRACTION, SfMConfig,
-                                SparseModel, extraction_options, fresh_work, match_features, object_points)
+from dpi.preprocess.sfm import (CV_TO_GL, EXHAUSTIVE_MAX_IMAGES, SfMConfig, SparseModel, extraction_options,
+                                fresh_work, match_features, sparse_points)
 
 log = logging.getLogger(__name__)
 
@@ -52,7 +51,6 @@ def triangulate_known(images: list[Path], cameras: dict[str, Camera], work_dir: 
     images = [p for p in map(Path, images) if p.stem in cameras]
     images, image_dir, work = fresh_work(images, work_dir)
     database = work / "database.db"
-    start = time.perf_counter()
     pycolmap.extract_features(database, image_dir, image_names=[p.name for p in images],
                               camera_mode=pycolmap.CameraMode.PER_IMAGE,
                               extraction_options=extraction_options(cfg, threads), device=pycolmap.Device.cpu)
@@ -70,14 +68,9 @@ def triangulate_known(images: list[Path], cameras: dict[str, Camera], work_dir: 
     options = pycolmap.IncrementalPipelineOptions()
     options.num_threads = threads
     model = pycolmap.triangulate_points(model, database, image_dir, work / "sparse", options=options)
-    tracks = [(p.xyz, p.color, p.track.length()) for p in model.points3D.values()]
-    xyz = np.array([t[0] for t in tracks], dtype=np.float64).reshape(-1, 3)
-    rgb = np.array([t[1] for t in tracks], dtype=np.float64).reshape(-1, 3) / 255.0
-    keep = np.array([t[2] >= MIN_TRACK_LENGTH for t in tracks], dtype=bool)
-    on_object = object_points(xyz[keep], list(cameras.values()), OBJECT_VIEW_FRACTION) if keep.any() else keep[keep]
-    summary = {"cameras": "given", "images": len(images), "registered": len(images), "points": int(keep.sum()),
+    xyz, rgb, on_object = sparse_points(model, cameras)
+    summary = {"cameras": "given", "images": len(images), "registered": len(images), "points": len(xyz),
                "object_points": int(on_object.sum()),
-               "mean_reprojection_error_px": float(model.compute_mean_reprojection_error()),
-               "seconds": round(time.perf_counter() - start, 3)}
+               "mean_reprojection_error_px": float(model.compute_mean_reprojection_error())}
     log.info("points triangulated under the given cameras: %s", summary)
-    return SparseModel(dict(cameras), xyz[keep], rgb[keep], on_object, summary)
+    return SparseModel(dict(cameras), xyz, rgb, on_object, summary)

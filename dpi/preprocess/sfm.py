@@ -359,13 +359,20 @@ def model_contents(model, summary: dict, images: int, cfg: SfMConfig, source: Pa
         raise SfMError(f"{source}: {len(cameras)} of {images} images registered consistently "
                        f"({len(rejected)} do not look at the object), fewer than "
                        f"min_registered_fraction={cfg.min_registered_fraction}", summary)
-    pts = [(p.xyz, p.color, p.track.length()) for p in model.points3D.values()]
-    xyz = np.array([p[0] for p in pts], dtype=np.float64).reshape(-1, 3)
-    rgb = np.array([p[1] for p in pts], dtype=np.float64).reshape(-1, 3) / 255.0
-    keep = np.array([p[2] >= MIN_TRACK_LENGTH for p in pts], dtype=bool)
-    on_object = object_points(xyz[keep], list(cameras.values()), OBJECT_VIEW_FRACTION)
+    xyz, rgb, on_object = sparse_points(model, cameras)
     summary["object_points"] = int(on_object.sum())
-    return SparseModel(cameras, xyz[keep], rgb[keep], on_object, summary)
+    return SparseModel(cameras, xyz, rgb, on_object, summary)
+
+
+def sparse_points(model, cameras: dict[str, Camera]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A COLMAP reconstruction's points seen in at least MIN_TRACK_LENGTH images: (points (N, 3), colours (N, 3) in
+    [0, 1], which are on the object under `cameras`, `object_points`)."""
+    tracks = [(p.xyz, p.color, p.track.length()) for p in model.points3D.values()]
+    xyz = np.array([t[0] for t in tracks], dtype=np.float64).reshape(-1, 3)
+    rgb = np.array([t[1] for t in tracks], dtype=np.float64).reshape(-1, 3) / 255.0
+    keep = np.array([t[2] >= MIN_TRACK_LENGTH for t in tracks], dtype=bool)
+    on_object = object_points(xyz[keep], list(cameras.values()), OBJECT_VIEW_FRACTION) if keep.any() else keep[keep]
+    return xyz[keep], rgb[keep], on_object
 
 
 def read_model(folder: Path, cfg: SfMConfig | None = None) -> SparseModel:
