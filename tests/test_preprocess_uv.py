@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dpi.preprocess.uv import bake, rasterize_uv, uv_atlas, write_uv_mesh
+from dpi.preprocess.uv import bake, bake_vertex_values, rasterize_uv, uv_atlas, write_uv_mesh
 from dpi.synth.shapes import blob
 
 
@@ -35,6 +35,13 @@ def test_atlas_covers_every_face_inside_the_unit_square(atlas):
     assert 0.3 < covered.mean() < 0.95  # charts are packed with gutters between them
     np.testing.assert_allclose(bary[covered].sum(-1), 1.0, atol=1e-9)
     assert (bary[covered] >= -1e-9).all()
+
+
+def test_vertex_values_bake_as_the_surface_points_do(atlas):
+    """Per-vertex positions interpolated over the texels are the texels' surface points (a linear function bakes the
+    same either way)."""
+    mesh, _ = atlas
+    np.testing.assert_allclose(bake_vertex_values(mesh, mesh.vertices, 64), bake(mesh, lambda p: p, 64), atol=1e-6)
 
 
 def test_baked_texture_reads_back_through_mitsuba(atlas, mi, tmp_path):

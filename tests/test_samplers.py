@@ -28,6 +28,7 @@ from dpi.solve.prior_space import prior_to_env
 from dpi.solve.problem import InverseProblem, ProblemConfig
 from dpi.solve.sun_model import map_energy, sun_direction_of, sun_env
 from dpi.solve.transport import AlbedoLookup, LightTransport
+from dpi.synth.shapes import blob
 
 
 def log_prior(height: int = 8) -> Prior:
@@ -61,6 +62,16 @@ class LinearProblem:
 
     def sample_views(self, count, generator):
         return list(self.train_ids)
+
+    @property
+    def mesh(self) -> dict[str, np.ndarray]:
+        """A blob with UVs, for what reads the problem's mesh (a sample's broad albedo field; the albedo plays no part
+        here)."""
+        import trimesh
+
+        shape = blob(resolution=8, seed=0)
+        normals = trimesh.Trimesh(shape.vertices, shape.faces, process=False).vertex_normals
+        return {"positions": shape.vertices, "normals": np.asarray(normals), "uvs": shape.uvs, "faces": shape.faces}
 
     def constrain_(self, materials):
         """No mesh, no seams: the materials clamped."""

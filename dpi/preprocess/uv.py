@@ -121,12 +121,21 @@ def bake(mesh: TriangleMesh, function: Callable[[np.ndarray], np.ndarray], size:
     surface points they map to; gutter texels copy the nearest chart texel."""
     index, bary = rasterize_uv(mesh, size)
     covered = index >= 0
-    tri = mesh.vertices[mesh.faces[index[covered]]]  # (N, 3, 3)
-    points = np.einsum("nk,nkd->nd", bary[covered], tri)
+    points = np.einsum("nk,nkd->nd", bary[covered], mesh.vertices[mesh.faces[index[covered]]])
     values = np.asarray(function(points), dtype=np.float64)
     values = values.reshape(len(points), -1)
     texture = np.zeros((size, size, values.shape[1]))
     texture[covered] = values
+    return fill_gutters(texture, covered).astype(np.float32)
+
+
+def bake_vertex_values(mesh: TriangleMesh, values: np.ndarray, size: int) -> np.ndarray:
+    """Texture (size, size, C) of per-vertex values (V, C) interpolated over the triangles each texel maps to (as
+    `bake` places them; gutters copy the nearest chart texel): a mesh's smooth normals in texture space."""
+    index, bary = rasterize_uv(mesh, size)
+    covered = index >= 0
+    texture = np.zeros((size, size, values.shape[1]))
+    texture[covered] = np.einsum("nk,nkd->nd", bary[covered], values[mesh.faces[index[covered]]])
     return fill_gutters(texture, covered).astype(np.float32)
 
 

@@ -39,9 +39,11 @@ from typing import Any
 import torch
 
 from dpi.io.settings import Count, Rate, Share, Steps, Weight, settings, settings_from_dict
+from dpi.solve.dps.balance_trade import sample_balance_factor
 from dpi.solve.dps.data_term import sample_transport
 from dpi.solve.dps.map_solve import PRIOR_STD, MapPrior, Resampling, cached_resampling, posterior_variance, solve_map
 from dpi.solve.dps.state import DPSRun, DPSState, Laps, finite, log_radiance, predicted_step, recentre_
+from dpi.solve.init import is_glossy
 from dpi.solve.optimize import all_finite
 from dpi.solve.sun_model import share_penalty, sun_env, wrap_uv_
 from dpi.solve.transport import LightTransport, TransportConfig
@@ -86,6 +88,10 @@ class ProximalConfig:
     DAPS, Zhang et al. 2024, for a prior of std PRIOR_STD): where the views are silent each sample's map moves as
     the prior allows instead of keeping x0_hat's guess, where they speak the solve pulls it back (0: samples near
     x0_hat's guess and alike; docs/studies.md, "the push's size" and "Light from real places")"""
+    balance_trade: bool = True
+    """on a rough init, each sample's albedo carries its own broad field over the normals while the map settles, as
+    large as the init's albedo varies, then returns to its start: the samples spread over the albedo's trade with the
+    light's balance instead of all drawing the balance a uniform albedo implies (dpi.solve.dps.balance_trade)"""
     perturb_rows: Count = 2
     """rows of the grid the push is white on, upsampled onto the prior's (at most the transport's): 2, a field as
     broad as the light's balance between sky and ground, sides and colour; finer, the push reaches detail the
@@ -166,6 +172,21 @@ def coarse_correction_(run: DPSRun, state: DPSState, x0_hat: torch.Tensor, heigh
     return up
 
 
+def trade_balance_(run: DPSRun, state: DPSState, n: int) -> None:
+    """`balance_trade` at step n: the sample's broad albedo field on at the first step, the start's albedo back at
+    the first step the materials move (a resumed sample's restored albedo is where this left it)."""
+    if not run.sampler.balance_trade or is_glossy(run.init.materials):
+        return
+    first_move = math.ceil(MATERIAL_START * run.num_steps)
+    if n not in (0, first_move):
+        return
+    with torch.no_grad():
+        state.materials.albedo.copy_(run.cfg.start_materials(run.init).albedo)
+        if n == 0:
+            state.materials.albedo.mul_(sample_balance_factor(run.problem, run.init.materials.albedo, run.seed))
+            run.problem.constrain_(state.materials)
+
+
 def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     """x0_hat, `inner_steps` joint data updates of (map, materials, exposure) near it, stochastic re-noising."""
     settings: ProximalConfig = run.sampler
@@ -183,6 +204,7 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     if n == 0:
         with torch.no_grad():
             state.log_map.copy_(log_radiance(run, x0_hat))
+    trade_balance_(run, state, n)
     if settings.map_solve:
         solve_step_map(run, state, transport, x0_hat, prox_weight, n, settings.map_solve)
     laps.lap("solve")
