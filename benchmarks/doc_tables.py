@@ -175,6 +175,9 @@ DESIGN_METRICS = (*LIGHT_METRICS[:2], Metric("calibration at 2 rows", "calibrati
                   Metric("brightest 1 %: share of energy", "peak_share", ".2f"),
                   Metric("the truth's", "peak_share_truth", ".2f", spread=False))
 """the design runs' light columns, with the calibration of the light's broad balance and how concentrated it is"""
+BALANCE_METRICS = (*(Metric(f"{which}: log error at {rows} rows / init's", f"balance_{key}_{rows}", ".2f", -1)
+                     for which, key in (("mean map", "mean"), ("worst sample", "worst")) for rows in (2, 8)),)
+"""the light's broad balance against the init's (benchmarks/light_realism.py's BALANCE columns)"""
 
 
 def light_realism(csv_name: str, root: Path, metrics: tuple[Metric, ...] = LIGHT_METRICS) -> str:
@@ -497,6 +500,7 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "glossy_cost_seeds": partial(dev_table, ("glossy_cost_seeds.csv",), ("group", "method", "sampler")),
     "mean_map": partial(mean_map, "mean_map_posterior.csv"),
     "light_realism": partial(light_realism, "light_realism.csv"),
+    "light_balance_ratios": partial(light_realism, "light_realism.csv", metrics=BALANCE_METRICS),
     "light_start": partial(dev_table, ("light_start_dev.csv",), ("group", "method", "sampler")),
     "light_start_realism": partial(light_realism, "dev/light_start_realism.csv"),
     "light_push": partial(dev_table, ("light_prior_perturb_dev.csv",), ("group", "method", "sampler")),
@@ -508,6 +512,8 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "light_profile_realism": partial(light_realism, "dev/light_profile_realism.csv", metrics=DESIGN_METRICS),
     "light_balance": partial(dev_table, ("light_balance_dev.csv",), ("group", "method", "sampler")),
     "light_balance_realism": partial(light_realism, "dev/light_balance_realism.csv", metrics=DESIGN_METRICS),
+    "light_trade": partial(dev_table, ("light_trade_dev.csv",), ("group", "method", "sampler")),
+    "light_trade_realism": partial(light_realism, "dev/light_trade_realism.csv", metrics=DESIGN_METRICS),
 }
 """every generated table by the name its markers use"""
 

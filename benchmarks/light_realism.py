@@ -4,7 +4,8 @@
         [--study benchmarks/results/posterior_study.csv ...] [--out benchmarks/results/light_realism.csv]
 
 For every (scene, method, sampler) the posterior study drew on a real-light scene (dpi.studies.scenes.
-REAL_LIGHT_SCENES) or a design scene (DEV_SCENES, `posterior_study.py --dev`), over its seeds:
+REAL_LIGHT_SCENES), a design scene (DEV_SCENES, `posterior_study.py --dev`) or a held-out one (HELD_OUT_LIGHT_SCENES,
+`--held-out`), over its seeds:
 - realism: each sample's realism distance (dpi.evaluation.realism) to the manifest's held-out real panoramas of
   the scene's family less the scene's own (a map that copies the truth should not pass for realism; its accuracy
   is env PSNR's business), mean and std over the samples;
@@ -12,7 +13,9 @@ REAL_LIGHT_SCENES) or a design scene (DEV_SCENES, `posterior_study.py --dev`), o
   maps shrunk to COARSE_ROWS rows: the light's broad balance (sky against ground, one side against another);
 - env PSNR / SSIM of the samples' mean map (dpi.solve.spread.mean_log_map) against the truth;
 - how concentrated the light is (`peak_share`: the brightest 1 % of texels' share of the energy, at the realism's
-  REALISM_HEIGHT rows), the samples' mean beside the truth's.
+  REALISM_HEIGHT rows), the samples' mean beside the truth's;
+- the light's broad balance against the init's: the log error at BALANCE_ROWS rows (dpi.evaluation.metrics) of the
+  samples' mean map and of the worst sample, each over the init's (`balance_mean_2`, `balance_worst_8`, ...).
 Rows go to the CSV, rewritten whole; it prints the means per group, method and sampler.
 """
 
@@ -26,24 +29,26 @@ import numpy as np
 import torch
 
 from dpi.capture import read_capture_json, read_ground_truth
-from dpi.evaluation.metrics import env_metrics, resize_image
+from dpi.evaluation.metrics import BALANCE_ROWS, balance_error, env_metrics, resize_image
 from dpi.evaluation.realism import REALISM_HEIGHT, patches, sliced_wasserstein
 from dpi.io.exr import read_exr
-from dpi.io.layout import Layout
+from dpi.io.layout import INIT, Layout
 from dpi.light.envmap import top_energy_share
 from dpi.prior.data import read_panorama
 from dpi.prior.panoramas import panorama_files
 from dpi.solve.spread import calibration, mean_log_map
 from dpi.studies.engine import read_rows, results_csv, sample_label, work_dir, write_rows
-from dpi.studies.scenes import DEV_SCENES, REAL_LIGHT_SCENES
+from dpi.studies.scenes import DEV_SCENES, HELD_OUT_LIGHT_SCENES, REAL_LIGHT_SCENES
 
-SCENES = {**REAL_LIGHT_SCENES, **DEV_SCENES}
+SCENES = {**REAL_LIGHT_SCENES, **DEV_SCENES, **HELD_OUT_LIGHT_SCENES}
 COARSE_ROWS = 2
 """rows of the maps whose calibration is the broad balance's"""
 PEAK_FRACTION = 0.01
 """the brightest texels whose share of the energy says how concentrated a map's light is"""
+BALANCE = tuple(f"balance_{which}_{rows}" for which in ("mean", "worst") for rows in BALANCE_ROWS)
+"""the balance columns: mean map's and worst sample's log error at each of BALANCE_ROWS rows over the init's"""
 METRICS = ("realism", "realism_std", "calibration", "calibration_coarse", "env_mean_psnr", "env_mean_ssim",
-           "env_psnr", "peak_share", "peak_share_truth")
+           "env_psnr", "peak_share", "peak_share_truth", *BALANCE)
 
 
 def coarse(env: np.ndarray) -> np.ndarray:
@@ -54,6 +59,18 @@ def coarse(env: np.ndarray) -> np.ndarray:
 def peak_share(env: np.ndarray) -> float:
     """dpi.light.envmap.top_energy_share of the map's PEAK_FRACTION at REALISM_HEIGHT rows (area average)."""
     return top_energy_share(resize_image(env, REALISM_HEIGHT, 2 * REALISM_HEIGHT), PEAK_FRACTION)
+
+
+def balance_ratios(envs: list[np.ndarray], init: np.ndarray | None, truth: np.ndarray) -> dict[str, float]:
+    """The BALANCE columns: the samples' mean map's and their worst's log error at each of BALANCE_ROWS rows over
+    the init's (nan without an init)."""
+    out = {}
+    for rows in BALANCE_ROWS:
+        reference = balance_error(init, truth, rows) if init is not None else float("nan")
+        errors = [balance_error(env, truth, rows) for env in envs]
+        out[f"balance_mean_{rows}"] = round(balance_error(mean_log_map(envs), truth, rows) / reference, 3)
+        out[f"balance_worst_{rows}"] = round(max(errors) / reference, 3)
+    return out
 
 
 def main() -> None:
@@ -84,6 +101,8 @@ def main() -> None:
         truth = read_ground_truth(read_capture_json(layout.scene(scene).capture_json).gt["envmap"], "envmap")
         distances = [sliced_wasserstein(patches(env), references) for env in envs]
         mean = env_metrics(mean_log_map(envs), truth)
+        init_env = layout.scene(scene).sample_files(INIT)["env"]
+        init = read_exr(init_env) if init_env.exists() else None
         rows.append({"scene": scene, "group": group, "method": method, "sampler": sampler, "samples": len(envs),
                      "realism": round(float(np.mean(distances)), 4), "realism_std": round(float(np.std(distances)), 4),
                      "calibration": round(calibration(envs, truth), 3),
@@ -92,7 +111,7 @@ def main() -> None:
                      "env_mean_ssim": round(mean["env_ssim"], 4),
                      "env_psnr": round(float(np.mean([env_metrics(e, truth)["env_psnr"] for e in envs])), 3),
                      "peak_share": round(float(np.mean([peak_share(e) for e in envs])), 4),
-                     "peak_share_truth": round(peak_share(truth), 4)})
+                     "peak_share_truth": round(peak_share(truth), 4), **balance_ratios(envs, init, truth)})
     write_rows(args.out, rows, settings="")
     print(f"{'group':<12} {'method':<12} {'sampler':<24} {'n':>3} " + " ".join(f"{m:>14}" for m in METRICS))
     for key in sorted({(r["group"], r["method"], r["sampler"]) for r in rows}):

@@ -7,6 +7,8 @@ arc, under a sun map, an indoor room and a map clipped to the paper's tone-curve
 8-bit test panoramas). The `glossy` group is a shiny metal object seen from all around, where a
 free fit already recovers the light and a prior can only tie. With `--panoramas DIR` the `real` group
 joins: ambiguous objects under the manifest's held-out real panoramas (dpi.studies.scenes.REAL_LIGHT_SCENES).
+`--dev` draws the design scenes instead (DEV_SCENES: where a sampler's design is chosen) and `--held-out` the
+held-out light scenes (HELD_OUT_LIGHT_SCENES: where a chosen design is judged), each in its own folder.
 Each scene gets one initialisation; each method then draws one sample per seed through the workflow's own
 stage functions (dpi.stages) with config.yaml's settings (preset applied), and the workflow's
 evaluation scores it.
@@ -30,10 +32,12 @@ from typing import Any
 
 from dpi.studies.engine import (SAMPLE_COLUMNS, dps_variants, mean_std_cells, method_jobs, prior_checkpoints,
                                 results_csv, run_job, run_study, work_dir, workflow_config, write_workflow)
-from dpi.studies.scenes import DEV_SCENES, POSTERIOR_SCENES, REAL_LIGHT_SCENES, real_light_scenes
+from dpi.studies.scenes import (DEV_SCENES, HELD_OUT_LIGHT_SCENES, POSTERIOR_SCENES, REAL_LIGHT_SCENES,
+                                real_light_scenes)
 
 WORK = work_dir("posterior_study")
 DEV_WORK = work_dir("light_dev")
+HELD_OUT_WORK = work_dir("light_held_out")
 CSV = results_csv("posterior_study")
 METHODS = ("init", "none", "smoothness", "sds", "dip", "dps")
 
@@ -56,11 +60,15 @@ def summary(rows: list[dict[str, Any]]) -> list[str]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--scenes", nargs="*", default=None,
-                        choices=[*POSTERIOR_SCENES, *REAL_LIGHT_SCENES, *DEV_SCENES],
+                        choices=[*POSTERIOR_SCENES, *REAL_LIGHT_SCENES, *DEV_SCENES, *HELD_OUT_LIGHT_SCENES],
                         help="default: every scene (the real-light ones with --panoramas)")
     parser.add_argument("--dev", action="store_true",
                         help="the design scenes instead (dpi.studies.scenes.DEV_SCENES; needs --panoramas), in their "
                              "own folder: for choosing a design apart from the study's scenes")
+    parser.add_argument("--held-out", action="store_true",
+                        help="the held-out light scenes instead (dpi.studies.scenes.HELD_OUT_LIGHT_SCENES; needs "
+                             "--panoramas), in their own folder: for judging a chosen design on scenes it was not "
+                             "chosen on")
     parser.add_argument("--panoramas", type=Path, default=None,
                         help="folder holding the manifest's held-out panoramas: adds the real-light scenes")
     parser.add_argument("--methods", nargs="*", default=list(METHODS), choices=list(METHODS))
@@ -84,10 +92,13 @@ def main() -> None:
     config = workflow_config()
     priors = prior_checkpoints(args.prior)
     config["illumination_prior"]["checkpoints"].update(priors)
-    if args.dev and not args.panoramas:
-        parser.error("--dev: pass --panoramas DIR")
-    args.work = args.work or (DEV_WORK if args.dev else WORK)
+    if (args.dev or args.held_out) and not args.panoramas:
+        parser.error("--dev and --held-out: pass --panoramas DIR")
+    if args.dev and args.held_out:
+        parser.error("--dev or --held-out, not both")
+    args.work = args.work or (DEV_WORK if args.dev else HELD_OUT_WORK if args.held_out else WORK)
     available = real_light_scenes(args.panoramas, DEV_SCENES) if args.dev else \
+        real_light_scenes(args.panoramas, HELD_OUT_LIGHT_SCENES) if args.held_out else \
         {**POSTERIOR_SCENES, **(real_light_scenes(args.panoramas) if args.panoramas else {})}
     wanted = args.scenes or list(available)
     missing = [name for name in wanted if name not in available]

@@ -95,3 +95,17 @@ def test_a_default_written_out_hashes_like_one_left_out(tmp_path):
 
     assert job({}).settings_hash == job({"render": {"spp": 16}, "init": {"iterations": 200}}).settings_hash
     assert job({}).settings_hash != job({"render": {"spp": 8}}).settings_hash
+
+
+def test_held_out_light_scenes_are_valid_and_apart_from_every_other():
+    """Each held-out scene builds a synthetic capture, and none shares an object (shape and seed) with a study's or a
+    design scene: what it judges was not chosen on it."""
+    from dpi.studies.scenes import DEV_SCENES, HELD_OUT_LIGHT_SCENES, POSTERIOR_SCENES, REAL_LIGHT_SCENES
+    from dpi.synth.capture import SynthConfig
+
+    def objects(scenes):
+        return {(synth.get("shape", "blob"), synth["seed"]) for _, synth in scenes.values()}
+
+    for _, synth in HELD_OUT_LIGHT_SCENES.values():
+        SynthConfig.from_dict({k: v for k, v in synth.items() if k not in ("panorama", "prior")})
+    assert not objects(HELD_OUT_LIGHT_SCENES) & objects({**POSTERIOR_SCENES, **REAL_LIGHT_SCENES, **DEV_SCENES})

@@ -94,6 +94,25 @@ DEV_SCENES: dict[str, tuple[str, dict[str, Any]]] = {
 posterior study does not use, and procedural maps of other seeds (`posterior_study.py --dev`)"""
 
 
+HELD_OUT_LIGHT_SCENES: dict[str, tuple[str, dict[str, Any]]] = {
+    "ho_torus_overpass": ("held_out_real", {**AMBIGUOUS, "shape": "bumpy_torus", "seed": 41, "arc_deg": 120.0,
+                                            "elevations_deg": (30.0, 55.0), "panorama": "pedestrian_overpass_1k.hdr",
+                                            "prior": "outdoor"}),
+    "ho_blob_venice": ("held_out_real", {**AMBIGUOUS, "shape": "blob", "seed": 42, "arc_deg": 200.0,
+                                         "elevations_deg": (5.0, 30.0), "panorama": "venice_sunset_1k.hdr",
+                                         "prior": "outdoor"}),
+    "ho_torus_market": ("held_out_real", {**AMBIGUOUS, "shape": "bumpy_torus", "seed": 43, "arc_deg": 180.0,
+                                          "panorama": "leadenhall_market_1k.hdr", "prior": "indoor"}),
+    "ho_blob_provence": ("held_out_real", {**AMBIGUOUS, "shape": "blob", "seed": 44, "arc_deg": 120.0,
+                                           "elevations_deg": (20.0, 45.0), "panorama": "provence_studio_1k.exr",
+                                           "prior": "indoor"}),
+    "ho_plate_venice": ("held_out_mixed", {**MIXED, "seed": 45, "views": 16, "elevations_deg": (35.0, 60.0),
+                                           "panorama": "venice_sunset_1k.hdr", "prior": "outdoor"}),
+}
+"""scenes no study and no design run uses, for judging a design once it is chosen: other objects and cameras (other
+arcs and heights) under held-out panoramas, one of them no other scene uses (`posterior_study.py --held-out`)"""
+
+
 def real_light_scenes(folder: Path, scenes: dict[str, tuple[str, dict[str, Any]]] = REAL_LIGHT_SCENES
                       ) -> dict[str, tuple[str, dict[str, Any]]]:
     """`scenes` (REAL_LIGHT_SCENES) with a panorama lit by the file of that name in `folder`, each checked against
