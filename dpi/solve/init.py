@@ -75,6 +75,10 @@ def roughness_p25(materials: MaterialTextures) -> float:
     return float(torch.quantile(materials.roughness.detach().flatten(), 0.25))
 
 
+METAL_TEXEL = 0.5
+"""a texel whose metallic is above this is read as metal (a sample's `materials_start: parts`, its balance trade)"""
+
+
 def is_glossy(materials: MaterialTextures, threshold: float = GLOSSY_ROUGHNESS) -> bool:
     """True when the roughness 25th percentile is below `threshold`: a shiny object, at least in part."""
     return roughness_p25(materials) < threshold

@@ -48,7 +48,11 @@ def balance_factor(normals: np.ndarray, spread: float, seed: int) -> torch.Tenso
     return torch.from_numpy(np.exp(normals @ directions.T)).float()
 
 
-def sample_balance_factor(problem: InverseProblem, init_albedo: torch.Tensor, seed: int) -> torch.Tensor:
-    """A sample's broad albedo field (module notes), at the init's texture size."""
+def sample_balance_factor(problem: InverseProblem, init_albedo: torch.Tensor, dielectric: torch.Tensor,
+                          seed: int) -> torch.Tensor:
+    """A sample's broad albedo field (module notes) at the init's texture size, on the `dielectric` texels (size,
+    size; bool) and 1 elsewhere: a metal's albedo is the colour of its reflections, which pin the light they show."""
     normals, chart = normal_texture(problem, init_albedo.shape[0])
-    return balance_factor(normals, log_spread(init_albedo.detach().numpy(), chart), seed)
+    mask = dielectric.numpy()
+    factor = balance_factor(normals, log_spread(init_albedo.detach().numpy(), chart & mask), seed)
+    return torch.where(dielectric[..., None], factor, torch.ones_like(factor))

@@ -21,11 +21,9 @@ from dpi.solve.dps.proximal import ProximalConfig, proximal_step
 from dpi.solve.dps.refine import RefineConfig
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.dps.sun_choice import SunConfig
-from dpi.solve.init import START_ALBEDO, is_glossy, starting_materials
+from dpi.solve.init import METAL_TEXEL, START_ALBEDO, is_glossy, starting_materials
 from dpi.solve.materials import MaterialRates, MaterialTextures
 
-METAL_TEXEL = 0.5
-"""a texel whose metallic is above this is read as metal (`materials_start: parts`)"""
 
 StepFunction = Callable[[DPSRun, DPSState, int], dict[str, Any]]
 

@@ -43,7 +43,7 @@ from dpi.solve.dps.balance_trade import sample_balance_factor
 from dpi.solve.dps.data_term import sample_transport
 from dpi.solve.dps.map_solve import PRIOR_STD, MapPrior, Resampling, cached_resampling, posterior_variance, solve_map
 from dpi.solve.dps.state import DPSRun, DPSState, Laps, finite, log_radiance, predicted_step, recentre_
-from dpi.solve.init import is_glossy
+from dpi.solve.init import METAL_TEXEL
 from dpi.solve.optimize import all_finite
 from dpi.solve.sun_model import share_penalty, sun_env, wrap_uv_
 from dpi.solve.transport import LightTransport, TransportConfig
@@ -89,7 +89,7 @@ class ProximalConfig:
     the prior allows instead of keeping x0_hat's guess, where they speak the solve pulls it back (0: samples near
     x0_hat's guess and alike; docs/studies.md, "the push's size" and "Light from real places")"""
     balance_trade: bool = True
-    """on a rough init, each sample's albedo carries its own broad field over the normals while the map settles, as
+    """each sample's albedo carries its own broad field over the normals (on its dielectric texels) while the map settles, as
     large as the init's albedo varies, then returns to its start: the samples spread over the albedo's trade with the
     light's balance instead of all drawing the balance a uniform albedo implies (dpi.solve.dps.balance_trade)"""
     perturb_rows: Count = 2
@@ -173,17 +173,21 @@ def coarse_correction_(run: DPSRun, state: DPSState, x0_hat: torch.Tensor, heigh
 
 
 def trade_balance_(run: DPSRun, state: DPSState, n: int) -> None:
-    """`balance_trade` at step n: the sample's broad albedo field on at the first step, the start's albedo back at
-    the first step the materials move (a resumed sample's restored albedo is where this left it)."""
-    if not run.sampler.balance_trade or is_glossy(run.init.materials):
-        return
+    """`balance_trade` at step n: the sample's broad albedo field on its dielectric texels at the first step, the
+    start's albedo back at the first step the materials move (a resumed sample's restored albedo is where this left
+    it)."""
     first_move = math.ceil(MATERIAL_START * run.num_steps)
-    if n not in (0, first_move):
+    if not run.sampler.balance_trade or n not in (0, first_move):
+        return
+    start = run.cfg.start_materials(run.init)
+    dielectric = start.metallic[..., 0] <= METAL_TEXEL
+    if not bool(dielectric.any()):
         return
     with torch.no_grad():
-        state.materials.albedo.copy_(run.cfg.start_materials(run.init).albedo)
+        state.materials.albedo.copy_(start.albedo)
         if n == 0:
-            state.materials.albedo.mul_(sample_balance_factor(run.problem, run.init.materials.albedo, run.seed))
+            state.materials.albedo.mul_(sample_balance_factor(run.problem, run.init.materials.albedo, dielectric,
+                                                              run.seed))
             run.problem.constrain_(state.materials)
 
 
