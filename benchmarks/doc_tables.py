@@ -514,6 +514,9 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "light_balance_realism": partial(light_realism, "dev/light_balance_realism.csv", metrics=DESIGN_METRICS),
     "light_trade": partial(dev_table, ("light_trade_dev.csv",), ("group", "method", "sampler")),
     "light_trade_realism": partial(light_realism, "dev/light_trade_realism.csv", metrics=DESIGN_METRICS),
+    "light_trade_heldout": partial(dev_table, ("light_trade_heldout.csv",), ("group", "method", "sampler")),
+    "light_trade_heldout_realism": partial(light_realism, "dev/light_trade_heldout_realism.csv",
+                                           metrics=(*DESIGN_METRICS[:-2], *BALANCE_METRICS)),
 }
 """every generated table by the name its markers use"""
 
