@@ -188,9 +188,19 @@ def light_realism(csv_name: str, root: Path, metrics: tuple[Metric, ...] = LIGHT
     return grouped_table(rows, ("group", "method", "sampler"), metrics, rank_by="group", order=method_order)
 
 
+def calibration_rows(root: Path) -> list[dict]:
+    """The calibration study's latest rows on the scenes every method was run on (a method run on more scenes
+    than the others is compared on the shared ones)."""
+    rows = latest(read_rows(root / RESULTS / "calibration_study.csv"), CALIBRATION_KEY)
+    methods = {(r["method"], r["sampler"]) for r in rows}
+    shared = {scene for scene in {r["scene"] for r in rows}
+              if {(r["method"], r["sampler"]) for r in rows if r["scene"] == scene} == methods}
+    return [r for r in rows if r["scene"] in shared]
+
+
 def calibration(root: Path) -> str:
     """Calibration study: metal and rough objects, means over repeats x lights x objects."""
-    rows = latest(read_rows(root / RESULTS / "calibration_study.csv"), CALIBRATION_KEY)
+    rows = calibration_rows(root)
     for row in rows:
         row["material"] = "metal" if row["metallic"] >= 0.5 else "rough"
     metrics = (ENV, ALBEDO, Metric("view PSNR [dB]", "novel_psnr", ".2f", +1, spread=False),
@@ -202,7 +212,7 @@ def calibration(root: Path) -> str:
 def fig9_ratios(root: Path) -> str:
     """Calibration study, Fig. 9: the metal's env sigma2_sample over the rough object's, per object, light and
     repeat (a mirror's samples agree, a rough object's differ); its range per method."""
-    rows = latest(read_rows(root / RESULTS / "calibration_study.csv"), CALIBRATION_KEY)
+    rows = calibration_rows(root)
     spread = {(r["object"], r["light"], r["repeat"], r["method"], r["sampler"], r["metallic"] >= 0.5):
               r["env_sigma2_sample"] for r in rows if r["method"] != "init"}
     ratios: dict[tuple, list[float]] = {}

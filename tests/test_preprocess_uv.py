@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dpi.preprocess.uv import bake, bake_vertex_values, rasterize_uv, uv_atlas, write_uv_mesh
+from dpi.preprocess.uv import bake, uv_atlas, write_uv_mesh
+from dpi.render.texels import bake_vertex_values, chart_texels, fill_gutters, rasterize_uv
 from dpi.synth.shapes import blob
 
 
@@ -30,7 +31,7 @@ def test_atlas_covers_every_face_inside_the_unit_square(atlas):
     mesh, summary = atlas
     assert summary["faces"] == len(mesh.faces) and len(mesh.uvs) == len(mesh.vertices)
     assert mesh.uvs.min() >= 0 and mesh.uvs.max() <= 1
-    index, bary = rasterize_uv(mesh, 128)
+    index, bary = rasterize_uv(mesh.uvs, mesh.faces, 128)
     covered = index >= 0
     assert 0.3 < covered.mean() < 0.95  # charts are packed with gutters between them
     np.testing.assert_allclose(bary[covered].sum(-1), 1.0, atol=1e-9)
@@ -41,7 +42,7 @@ def test_vertex_values_bake_as_the_surface_points_do(atlas):
     """Per-vertex positions interpolated over the texels are the texels' surface points (a linear function bakes the
     same either way)."""
     mesh, _ = atlas
-    np.testing.assert_allclose(bake_vertex_values(mesh, mesh.vertices, 64), bake(mesh, lambda p: p, 64), atol=1e-6)
+    np.testing.assert_allclose(bake_vertex_values(mesh.uvs, mesh.faces, mesh.vertices, 64), bake(mesh, lambda p: p, 64), atol=1e-6)
 
 
 def test_baked_texture_reads_back_through_mitsuba(atlas, mi, tmp_path):
@@ -87,10 +88,8 @@ def test_seam_ratio_known_answers(atlas):
 
 
 def test_fill_gutters_copies_the_nearest_chart_texel(atlas):
-    from dpi.preprocess.uv import chart_texels, fill_gutters
-
     mesh, _ = atlas
-    covered = chart_texels(mesh, 128)
+    covered = chart_texels(mesh.uvs, mesh.faces, 128)
     texture = np.zeros((128, 128, 1))
     texture[covered] = 1.0
     filled = fill_gutters(texture, covered)

@@ -73,12 +73,10 @@ def unit_to_uint8(values: np.ndarray) -> np.ndarray:
 
 
 def chart_coverage(mesh: AssetMesh, size: int) -> np.ndarray:
-    """(size, size) bool: the texels the mesh's charts read (dpi.preprocess.uv.chart_texels)."""
-    from dpi.preprocess.uv import chart_texels
-    from dpi.synth.shapes import TriangleMesh
+    """(size, size) bool: the texels the mesh's charts read (dpi.render.texels.chart_texels)."""
+    from dpi.render.texels import chart_texels
 
-    return chart_texels(TriangleMesh(mesh.positions.astype(np.float64), mesh.faces.astype(np.int64),
-                                     mesh.uvs.astype(np.float64)), size)
+    return chart_texels(mesh.uvs.astype(np.float64), mesh.faces.astype(np.int64), size)
 
 
 def sample_textures(sample: AssetSample, mesh: AssetMesh) -> dict[str, np.ndarray]:
@@ -86,7 +84,7 @@ def sample_textures(sample: AssetSample, mesh: AssetMesh) -> dict[str, np.ndarra
     never read empty texels): `base_color` (sRGB), `metallic_roughness` (glTF's packing: roughness in green,
     metallic in blue, red unused at 255), and `roughness`, `metallic` alone (linear, for USD). A texture with a
     non-finite texel is refused, naming its file."""
-    from dpi.preprocess.uv import fill_gutters
+    from dpi.render.texels import fill_gutters
 
     files = sample.files
     textures, coverage = {}, {}

@@ -16,9 +16,8 @@ import numpy as np
 import torch
 
 from dpi.io.images import luminance
-from dpi.preprocess.uv import bake_vertex_values, chart_texels
+from dpi.render.texels import bake_vertex_values, chart_texels
 from dpi.solve.problem import InverseProblem
-from dpi.synth.shapes import TriangleMesh
 
 MAD_TO_STD = 1.4826
 """a normal distribution's std over its median absolute deviation"""
@@ -26,11 +25,11 @@ MAD_TO_STD = 1.4826
 
 def normal_texture(problem: InverseProblem, size: int) -> tuple[np.ndarray, np.ndarray]:
     """(size, size, 3) unit smooth normals of the problem's mesh in texture space, and its chart texels (size, size)."""
-    arrays = problem.mesh
-    mesh = TriangleMesh(arrays["positions"].astype(np.float64), arrays["faces"], arrays["uvs"].astype(np.float64))
-    normals = bake_vertex_values(mesh, arrays["normals"].astype(np.float64), size)
+    mesh = problem.mesh
+    uvs = mesh["uvs"].astype(np.float64)
+    normals = bake_vertex_values(uvs, mesh["faces"], mesh["normals"].astype(np.float64), size)
     normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), 1e-12)
-    return normals, chart_texels(mesh, size)
+    return normals, chart_texels(uvs, mesh["faces"], size)
 
 
 def log_spread(albedo: np.ndarray, chart: np.ndarray) -> float:
