@@ -293,9 +293,11 @@ def refine_masks(images8: list[np.ndarray | None], cameras: list[Camera], masks:
                  resolution: int = CONSENSUS_RESOLUTION,
                  seeds: list[np.ndarray | None] | None = None) -> tuple[list[np.ndarray], list[str]]:
     """The consensus rounds (module notes): the hull comes from every view's mask, and the views with an
-    8-bit sRGB image (None: keep the mask, e.g. a keyed one) are cut again, their parallax `seeds`' background set
-    (the object's seeds reach half a matching window past the outline, which the band decides). Returns the masks and
-    each view's method ("grabcut", "consensus hull" where GrabCut lost the object, "kept")."""
+    8-bit sRGB image (None: keep the mask, e.g. a keyed one) are cut again with their parallax `seeds` set: the
+    background's everywhere, the object's half a matching window inside the projected hull (a seed reaches that far
+    past the outline, which the band decides; inside, it keeps a part thinner than the band, a statue's head, from
+    being left to colour alone). Returns the masks and each view's method ("grabcut", "consensus hull" where
+    GrabCut lost the object, "kept")."""
     seeds = seeds or [None] * len(cameras)
     methods = ["grabcut" if image8 is not None else "kept" for image8 in images8]
     for fraction, band in rounds:
@@ -310,8 +312,9 @@ def refine_masks(images8: list[np.ndarray | None], cameras: list[Camera], masks:
             if image8 is None:
                 continue
             width = max(2, int(round(band * np.sqrt(outline.sum()))))
-            background = None if seeds[i] is None else np.where(seeds[i] == BACKGROUND, BACKGROUND, 0)
-            masks[i] = clean_mask(grabcut(image8, with_seeds(band_prior(outline, width), background),
+            kept = None if seeds[i] is None else np.where(
+                (seeds[i] == OBJECT) & ~shrink(outline, PARAMS.window // 2), 0, seeds[i])
+            masks[i] = clean_mask(grabcut(image8, with_seeds(band_prior(outline, width), kept),
                                           GRABCUT_ITERATIONS), FILL_HOLES_BELOW)
             methods[i] = "grabcut"
             if mask_iou(masks[i], outline) < 0.5:  # GrabCut lost the object: keep the views' consensus
