@@ -275,3 +275,29 @@ def test_a_missing_or_broken_segmenter_is_one_line(cameras, tmp_path):
         derive_masks(images, views, tmp_path / "masks", MaskConfig(weights=str(tmp_path / "junk.pt2")))
     with pytest.raises(ValueError, match="method learned needs preprocess.masks.weights"):
         derive_masks(images, views, tmp_path / "masks", MaskConfig(method="learned"))
+
+
+def test_the_consensus_hull_is_cut_where_the_object_stands():
+    """A sphere's masks carve a hull whose projection, cut at a support plane through its equator, is the
+    silhouette of the half above the plane, not the whole sphere's."""
+    import trimesh
+
+    from dpi.preprocess.masks import consensus_outlines
+
+    def above_the_plane(camera, height: float) -> np.ndarray:
+        """Pixels whose ray crosses the unit sphere somewhere above y = height (the cut sphere's silhouette)."""
+        origins, dirs = pixel_rays(camera)
+        o, d = origins[:, :, 0], dirs[:, :, 0]
+        b = (o * d).sum(-1)
+        disc = b * b - ((o * o).sum(-1) - 1.0)
+        ends = [o[..., 1] + (-b + sign * np.sqrt(np.maximum(disc, 0))) * d[..., 1] for sign in (-1, 1)]
+        return (disc > 0) & (np.maximum(*ends) > height)
+
+    sphere = trimesh.creation.icosphere(subdivisions=4)
+    up, height = np.array([0.0, 1.0, 0.0]), 0.0
+    cameras = [from_fov(c2w, 48, 48, 40.0) for c2w in orbit(8, 4.0, (15.0, 35.0))]
+    masks = [mesh_silhouette(c, np.asarray(sphere.vertices), np.asarray(sphere.faces)) for c in cameras]
+    outlines = consensus_outlines(cameras, masks, 2, 48, (up, height))
+    for camera, mask, outline in zip(cameras, masks, outlines):
+        truth = above_the_plane(camera, height)
+        assert mask_iou(outline, truth) > 0.9 and mask_iou(outline, truth) > mask_iou(mask, truth) + 0.05

@@ -165,15 +165,22 @@ FRAME_MARGIN = 0.05
 """the object may reach this fraction of the image's size past a frame's edges"""
 
 
+def support_plane(cameras: list[Camera], centre: np.ndarray, points: np.ndarray | None
+                  ) -> tuple[np.ndarray, float] | None:
+    """(up, height) of the level plane the object stands on, from the scene's sparse `points` (N, 3) round the point
+    `centre` the cameras look at (`support_height`); None without points or a split."""
+    if points is None or not len(points):
+        return None
+    up = up_direction(cameras)
+    height = support_height(points, cameras, up, centre, visible_sphere(cameras)[1])
+    return None if height is None else (up, height)
+
+
 def depth_seeds(greys: list[np.ndarray], cameras: list[Camera], centre: np.ndarray,
-                points: np.ndarray | None = None) -> list[np.ndarray]:
+                support: tuple[np.ndarray, float] | None = None) -> list[np.ndarray]:
     """Each view's seeds (view_seeds) against its NEIGHBOURS nearest views (by their direction to `centre`), the
     object inside the space every camera sees (`common_view_depths`: the object is whole in every frame), above the
-    support plane the scene's sparse `points` (N, 3) show (`support_height`), if any."""
+    `support` plane (`support_plane`), if any."""
     neighbours = neighbour_views(cameras, centre, NEIGHBOURS, PARAMS.max_baseline_deg)
-    up = up_direction(cameras)
-    height = (support_height(points, cameras, up, centre, visible_sphere(cameras)[1])
-              if points is not None and len(points) else None)
-    support = None if height is None else (up, height)
     return [view_seeds(greys[i], cameras[i], [(greys[j], cameras[j]) for j in neighbours[i]],
                        *common_view_depths(cameras[i], cameras, FRAME_MARGIN), support) for i in range(len(cameras))]

@@ -19,7 +19,8 @@ puts it behind, as background in every pass: a busy background that colour canno
 of the current masks, carved where at least a fraction of the views see a voxel outside them (so
 a part that some views miss, or a patch of background that one view takes for the object, does
 not matter), is projected into every view, and GrabCut decides only in a band around the
-projected outline: deeper inside is foreground, farther outside background. Each round lowers
+projected outline: deeper inside is foreground, farther outside background. The hull is cut at the
+plane the object stands on (where the sparse points show one): below it is the plinth or table. Each round lowers
 the votes and narrows the band. Where GrabCut still disagrees with the projection, the
 projection is the mask.
 
@@ -46,8 +47,8 @@ from dpi.capture.cameras import Camera
 from dpi.capture.consistency import mask_iou
 from dpi.io.images import read_image, resize, resize_mask, to_uint8, working_size, write_mask
 from dpi.io.settings import settings
-from dpi.preprocess.hull import marching_cubes, visible_sphere, visual_hull
-from dpi.preprocess.depth_seeds import BACKGROUND, OBJECT, PARAMS, depth_seeds
+from dpi.preprocess.hull import cut_below, marching_cubes, visible_sphere, visual_hull
+from dpi.preprocess.depth_seeds import BACKGROUND, OBJECT, PARAMS, depth_seeds, support_plane
 from dpi.preprocess.mask_confidence import (AGREEMENT_VOTE_SHARE, MASK_AGREEMENT, edge_support, frame_contact,
                                            point_coverage, verdict)
 from dpi.preprocess.morphology import grow, shrink
@@ -280,10 +281,14 @@ def mesh_silhouette(camera: Camera, vertices: np.ndarray, faces: np.ndarray, sup
     return fine.reshape(camera.height, s, camera.width, s).mean(axis=(1, 3)) >= 0.5
 
 
-def consensus_outlines(cameras: list[Camera], masks: list[np.ndarray], votes: int,
-                       resolution: int) -> list[np.ndarray]:
-    """Each view's projection of the visual hull carved from `masks` where `votes` views see a voxel outside."""
+def consensus_outlines(cameras: list[Camera], masks: list[np.ndarray], votes: int, resolution: int,
+                       support: tuple[np.ndarray, float] | None = None) -> list[np.ndarray]:
+    """Each view's projection of the visual hull carved from `masks` where `votes` views see a voxel outside, and
+    below the `support` plane (up, height) if any: the object stands on it, and a silhouette hull's skirt down to it
+    (the space under a bulge that no view sees round) is the plinth or table in front of the object's foot."""
     field, origin, size, _ = visual_hull(cameras, masks, resolution, outside_votes=votes)
+    if support is not None:
+        field = cut_below(field, origin, size, *support)
     vertices, faces = marching_cubes(field, origin, size)
     return [mesh_silhouette(camera, vertices, faces) for camera in cameras]
 
@@ -291,19 +296,20 @@ def consensus_outlines(cameras: list[Camera], masks: list[np.ndarray], votes: in
 def refine_masks(images8: list[np.ndarray | None], cameras: list[Camera], masks: list[np.ndarray],
                  rounds: tuple[tuple[float, float], ...] = CONSENSUS_ROUNDS,
                  resolution: int = CONSENSUS_RESOLUTION,
-                 seeds: list[np.ndarray | None] | None = None) -> tuple[list[np.ndarray], list[str]]:
+                 seeds: list[np.ndarray | None] | None = None,
+                 support: tuple[np.ndarray, float] | None = None) -> tuple[list[np.ndarray], list[str]]:
     """The consensus rounds (module notes): the hull comes from every view's mask, and the views with an
     8-bit sRGB image (None: keep the mask, e.g. a keyed one) are cut again with their parallax `seeds` set: the
     background's everywhere, the object's half a matching window inside the projected hull (a seed reaches that far
     past the outline, which the band decides; inside, it keeps a part thinner than the band, a statue's head, from
-    being left to colour alone). Returns the masks and each view's method ("grabcut", "consensus hull" where
+    being left to colour alone). The hull is cut at the `support` plane (`consensus_outlines`). Returns the masks and each view's method ("grabcut", "consensus hull" where
     GrabCut lost the object, "kept")."""
     seeds = seeds or [None] * len(cameras)
     methods = ["grabcut" if image8 is not None else "kept" for image8 in images8]
     for fraction, band in rounds:
         votes = max(2, int(round(fraction * len(cameras))))
         try:
-            outlines = consensus_outlines(cameras, masks, votes, resolution)
+            outlines = consensus_outlines(cameras, masks, votes, resolution, support)
         except ValueError as exc:
             log.warning("consensus round skipped: %s", exc)
             break
@@ -329,16 +335,16 @@ SEED_SIZE = 240
 
 
 def parallax_seeds(pictures: list[np.ndarray], cameras: list[Camera], centre: np.ndarray,
-                   scene_points: np.ndarray | None = None) -> list[np.ndarray]:
-    """Each view's parallax seeds (dpi.preprocess.depth_seeds; `centre`: the point the cameras look at; the scene's
-    sparse points show what the object stands on), matched at SEED_SIZE, each kind shrunk by half the matcher's
+                   support: tuple[np.ndarray, float] | None = None) -> list[np.ndarray]:
+    """Each view's parallax seeds (dpi.preprocess.depth_seeds; `centre`: the point the cameras look at; `support`: the
+    plane the object stands on, depth_seeds.support_plane), matched at SEED_SIZE, each kind shrunk by half the matcher's
     window there (a window that straddles the outline matches both sides), at the pictures' size (nearest)."""
     height, width = pictures[0].shape[:2]
     small_w, small_h = working_size((width, height), SEED_SIZE)
     small = [camera.resized(small_w, small_h) for camera in cameras]
     greys = [grey(resize(torch.from_numpy(p), small_h, small_w).numpy(), PARAMS.blur_px) for p in pictures]
     out = []
-    for seeds in depth_seeds(greys, small, centre, scene_points):
+    for seeds in depth_seeds(greys, small, centre, support):
         kept = np.zeros_like(seeds)
         for kind in (OBJECT, BACKGROUND):
             kept[shrink(seeds == kind, PARAMS.window // 2)] = kind
@@ -347,12 +353,14 @@ def parallax_seeds(pictures: list[np.ndarray], cameras: list[Camera], centre: np
     return out
 
 
-def mask_agreement(cameras: list[Camera], masks: list[np.ndarray], resolution: int) -> list[float] | None:
+def mask_agreement(cameras: list[Camera], masks: list[np.ndarray], resolution: int,
+                   support: tuple[np.ndarray, float] | None = None) -> list[float] | None:
     """Each view's IoU with the projection of the hull carved where AGREEMENT_VOTE_SHARE of the views see a voxel
-    outside their masks (None when no hull can be carved, e.g. masks that share no object)."""
+    outside their masks, and below the `support` plane (None when no hull can be carved, e.g. masks that share no
+    object)."""
     votes = max(2, int(round(AGREEMENT_VOTE_SHARE * len(cameras))))
     try:
-        outlines = consensus_outlines(cameras, masks, votes, resolution)
+        outlines = consensus_outlines(cameras, masks, votes, resolution, support)
     except ValueError as exc:
         log.warning("mask agreement not measured: %s", exc)
         return None
@@ -389,7 +397,8 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
         points = drop_outliers(points, OUTLIER_STD_RATIO)
     images8 = [to_uint8(picture) for picture in pictures]
     prompted = any(choose_method(image8, cfg, segmenter)[0] != "key" for image8 in images8)  # keying takes no seeds
-    seeds = parallax_seeds(pictures, views, centre, scene_points) if cfg.parallax and prompted else [None] * len(views)
+    support = support_plane(views, centre, scene_points)
+    seeds = parallax_seeds(pictures, views, centre, support) if cfg.parallax and prompted else [None] * len(views)
     first = [object_mask(picture, camera, cfg, sphere, points, segmenter, seed)
              for picture, camera, seed in zip(pictures, views, seeds)]
     masks, methods = [m for m, _ in first], [method for _, method in first]
@@ -398,11 +407,11 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
                **({"segmenter": str(weights)} if weights else {})}
     if "grabcut" in methods:
         to_cut = [image8 if method == "grabcut" else None for image8, method in zip(images8, methods)]
-        refined, new_methods = refine_masks(to_cut, views, masks, seeds=seeds)
+        refined, new_methods = refine_masks(to_cut, views, masks, seeds=seeds, support=support)
         masks = refined
         methods = [old if new == "kept" else new for old, new in zip(methods, new_methods)]
         summary["consensus_rounds"] = len(CONSENSUS_ROUNDS)
-    agreement = mask_agreement(views, masks, CONSENSUS_RESOLUTION) if len(views) >= 3 else None
+    agreement = mask_agreement(views, masks, CONSENSUS_RESOLUTION, support) if len(views) >= 3 else None
     floor = None if agreement is None else MASK_AGREEMENT * float(np.median(agreement))
     reasons = {}
     for i, (name, image8, camera, mask, method) in enumerate(zip(names, images8, views, masks, methods)):
