@@ -527,6 +527,9 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "light_trade_heldout": partial(dev_table, ("light_trade_heldout.csv",), ("group", "method", "sampler")),
     "light_trade_heldout_realism": partial(light_realism, "dev/light_trade_heldout_realism.csv",
                                            metrics=(*DESIGN_METRICS[:-2], *BALANCE_METRICS)),
+    "light_pin": partial(dev_table, ("light_pin_dev.csv",), ("group", "method", "sampler")),
+    "light_pin_realism": partial(light_realism, "dev/light_pin_realism.csv",
+                                 metrics=(*DESIGN_METRICS[:-2], *BALANCE_METRICS)),
 }
 """every generated table by the name its markers use"""
 

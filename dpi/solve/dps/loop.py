@@ -131,22 +131,21 @@ def strip_frames(snapshots: list[torch.Tensor], count: int) -> list[torch.Tensor
 
 LOBE_SR = (0.05, 0.25)
 """solid angle (sr) of the map a pixel of the object sees (a texel's over the pixel's largest texel weight over its
-total, averaged per texel over the pixels that see it, by their weight): up to the first, a mirror's, whose views pin
-down what they reflect; from the second on, a rough object's wide lobe, whose sample stays as drawn (on a transport
-grid as coarse as a rough lobe nothing is pinned)"""
+total, the median over the texels the views see): up to the first, a mirror's, whose views pin down what they
+reflect; from the second on, a rough object's wide lobe, whose sample stays as drawn (on a transport grid as coarse
+as a rough lobe nothing is pinned)"""
 
 
 def seen_weight(weights: torch.Tensor, height: int) -> torch.Tensor:
     """(height, 2 height) in [0, 1): how firmly the training views pin each texel, from each recorded pixel's weight on
     each texel (P, N): the views' weight on the texel over the median seen texel's (as s / (s + median)), times how
-    mirror-like the pixels that see it are (1 at a lobe of LOBE_SR[0] or less, 0 from LOBE_SR[1]): on a rough body
-    standing on a mirror plate, the directions the plate reflects are pinned and those only the body sees are not."""
+    mirror-like the views are (1 at a lobe of LOBE_SR[0] or less, 0 from LOBE_SR[1])."""
     seen = weights.sum(0)
     if not bool((seen > 0).any()):
         return torch.zeros(height, 2 * height)
     pixel_sharpness = weights.amax(dim=1, keepdim=True) / weights.sum(dim=1, keepdim=True).clamp_min(1e-30)
-    sharpness = (pixel_sharpness * weights).sum(0) / seen.clamp_min(1e-30)
-    lobe = 4 * math.pi / weights.shape[1] / sharpness.clamp_min(1e-30)
+    sharpness = ((pixel_sharpness * weights).sum(0) / seen.clamp_min(1e-30))[seen > 0].median()
+    lobe = 4 * math.pi / weights.shape[1] / sharpness
     mirror = ((LOBE_SR[1] - lobe) / (LOBE_SR[1] - LOBE_SR[0])).clamp(0, 1)
     median = seen[seen > 0].median()
     return (mirror * seen / (seen + median)).reshape(height, 2 * height)
