@@ -302,8 +302,8 @@ def refine_masks(images8: list[np.ndarray | None], cameras: list[Camera], masks:
     8-bit sRGB image (None: keep the mask, e.g. a keyed one) are cut again with their parallax `seeds` set: the
     background's everywhere, the object's half a matching window inside the projected hull (a seed reaches that far
     past the outline, which the band decides; inside, it keeps a part thinner than the band, a statue's head, from
-    being left to colour alone). The hull is cut at the `support` plane (`consensus_outlines`). Returns the masks and each view's method ("grabcut", "consensus hull" where
-    GrabCut lost the object, "kept")."""
+    being left to colour alone). The hull is cut at the `support` plane (`consensus_outlines`). Returns the masks
+    and each view's method ("grabcut", "consensus hull" where GrabCut lost the object, "kept")."""
     seeds = seeds or [None] * len(cameras)
     methods = ["grabcut" if image8 is not None else "kept" for image8 in images8]
     for fraction, band in rounds:

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from dpi.io.settings import Steps, settings
-from dpi.render.texels import fill_gutters, rasterize_uv
+from dpi.render.texels import texel_values, texture_from
 from dpi.synth.shapes import TriangleMesh
 
 
@@ -80,14 +80,8 @@ def parametrize(vertices: np.ndarray, faces: np.ndarray, texture_size: int,
 def bake(mesh: TriangleMesh, function: Callable[[np.ndarray], np.ndarray], size: int) -> np.ndarray:
     """Texture (size, size, C) whose texels hold `function` (points (N, 3) -> values (N, C)) at the
     surface points they map to; gutter texels copy the nearest chart texel."""
-    index, bary = rasterize_uv(mesh.uvs, mesh.faces, size)
-    covered = index >= 0
-    points = np.einsum("nk,nkd->nd", bary[covered], mesh.vertices[mesh.faces[index[covered]]])
-    values = np.asarray(function(points), dtype=np.float64)
-    values = values.reshape(len(points), -1)
-    texture = np.zeros((size, size, values.shape[1]))
-    texture[covered] = values
-    return fill_gutters(texture, covered).astype(np.float32)
+    covered, points = texel_values(mesh.uvs, mesh.faces, mesh.vertices, size)
+    return texture_from(covered, np.asarray(function(points), dtype=np.float64).reshape(len(points), -1))
 
 
 def write_uv_mesh(path: str | Path, mesh: TriangleMesh) -> None:

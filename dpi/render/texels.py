@@ -43,20 +43,32 @@ def rasterize_uv(uvs: np.ndarray, faces: np.ndarray, size: int) -> tuple[np.ndar
     return index, bary
 
 
-def bake_vertex_values(uvs: np.ndarray, faces: np.ndarray, values: np.ndarray, size: int) -> np.ndarray:
-    """Texture (size, size, C) of per-vertex values (V, C) interpolated over the triangle each texel centre lies in,
-    gutters copying the nearest chart texel: a mesh's smooth normals in texture space, for example."""
+def texel_values(uvs: np.ndarray, faces: np.ndarray, values: np.ndarray, size: int
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The texels whose centre a triangle covers (size, size; bool) and per-vertex `values` (V, C) interpolated at
+    those centres (n, C): a mesh's surface points or smooth normals in texture space."""
     index, bary = rasterize_uv(uvs, faces, size)
     covered = index >= 0
-    texture = np.zeros((size, size, values.shape[1]))
-    texture[covered] = np.einsum("nk,nkd->nd", bary[covered], values[faces[index[covered]]])
+    return covered, np.einsum("nk,nkd->nd", bary[covered], values[faces[index[covered]]])
+
+
+def texture_from(covered: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Texture (size, size, C) holding `values` (n, C) at the `covered` texels (size, size) and, in the gutters, the
+    nearest covered texel's."""
+    texture = np.zeros((*covered.shape, values.shape[1]))
+    texture[covered] = values
     return fill_gutters(texture, covered).astype(np.float32)
 
 
+def chart_of(covered: np.ndarray) -> np.ndarray:
+    """(size, size) bool: the texels a bilinear lookup inside the charts reads, those a triangle covers (`covered`)
+    and their neighbours: what a solve fits; the rest is gutter."""
+    return binary_dilation(covered, np.ones((3, 3), bool))
+
+
 def chart_texels(uvs: np.ndarray, faces: np.ndarray, size: int) -> np.ndarray:
-    """(size, size) bool: the texels a bilinear lookup inside the charts reads (those whose centre a triangle covers,
-    and their neighbours): what a solve fits; the rest is gutter."""
-    return binary_dilation(rasterize_uv(uvs, faces, size)[0] >= 0, np.ones((3, 3), bool))
+    """`chart_of` the texels a mesh's triangles cover at `size`."""
+    return chart_of(rasterize_uv(uvs, faces, size)[0] >= 0)
 
 
 def fill_gutters(texture: np.ndarray, covered: np.ndarray) -> np.ndarray:

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from dpi.io.images import luminance
-from dpi.render.texels import bake_vertex_values, chart_texels
+from dpi.render.texels import chart_of, texel_values, texture_from
 from dpi.solve.problem import InverseProblem
 
 MAD_TO_STD = 1.4826
@@ -26,10 +26,11 @@ MAD_TO_STD = 1.4826
 def normal_texture(problem: InverseProblem, size: int) -> tuple[np.ndarray, np.ndarray]:
     """(size, size, 3) unit smooth normals of the problem's mesh in texture space, and its chart texels (size, size)."""
     mesh = problem.mesh
-    uvs = mesh["uvs"].astype(np.float64)
-    normals = bake_vertex_values(uvs, mesh["faces"], mesh["normals"].astype(np.float64), size)
+    covered, normals = texel_values(mesh["uvs"].astype(np.float64), mesh["faces"], mesh["normals"].astype(np.float64),
+                                    size)
+    normals = texture_from(covered, normals)
     normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), 1e-12)
-    return normals, chart_texels(uvs, mesh["faces"], size)
+    return normals, chart_of(covered)
 
 
 def log_spread(albedo: np.ndarray, chart: np.ndarray) -> float:
