@@ -530,6 +530,9 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "light_pin": partial(dev_table, ("light_pin_dev.csv",), ("group", "method", "sampler")),
     "light_pin_realism": partial(light_realism, "dev/light_pin_realism.csv",
                                  metrics=(*DESIGN_METRICS[:-2], *BALANCE_METRICS)),
+    "light_hold": partial(dev_table, ("light_hold_dev.csv",), ("group", "method", "sampler")),
+    "light_hold_realism": partial(light_realism, "dev/light_hold_realism.csv",
+                                  metrics=(*DESIGN_METRICS[:-2], *BALANCE_METRICS)),
 }
 """every generated table by the name its markers use"""
 
