@@ -530,9 +530,12 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "light_pin": partial(dev_table, ("light_pin_dev.csv",), ("group", "method", "sampler")),
     "light_pin_realism": partial(light_realism, "dev/light_pin_realism.csv",
                                  metrics=(*DESIGN_METRICS[:-2], *BALANCE_METRICS)),
-    "light_hold": partial(dev_table, ("light_hold_dev.csv",), ("group", "method", "sampler")),
-    "light_hold_realism": partial(light_realism, "dev/light_hold_realism.csv",
-                                  metrics=(*DESIGN_METRICS[:-2], *BALANCE_METRICS)),
+    "light_settle": partial(dev_table, ("light_settle_dev.csv",), ("group", "method", "sampler")),
+    "light_settle_realism": partial(light_realism, "dev/light_settle_realism.csv",
+                                    metrics=(*DESIGN_METRICS[:-2], *BALANCE_METRICS)),
+    "light_settle_heldout": partial(dev_table, ("light_settle_heldout.csv",), ("group", "method", "sampler")),
+    "light_settle_heldout_realism": partial(light_realism, "dev/light_settle_heldout_realism.csv",
+                                            metrics=(*DESIGN_METRICS[:-2], *BALANCE_METRICS)),
 }
 """every generated table by the name its markers use"""
 
