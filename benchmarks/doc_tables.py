@@ -480,6 +480,18 @@ def balance_trace(root: Path) -> str:
     return grouped_table(rows, ("group", "variant", "label"), metrics, order=order)
 
 
+def balance_views(root: Path) -> str:
+    """Which 2-row balance the training views prefer under each albedo, and the broad field each albedo holds
+    (benchmarks/balance_views.py), per group of scenes."""
+    rows = read_rows(root / RESULTS / "balance_views.csv", ("scene", "group", "albedo"))
+    albedos = ("start", "init", "truth", "truth_materials", "samples")
+    metrics = (Metric("data loss: true map", "loss_true", ".3f"),
+               Metric("true map, init's balance", "loss_init_balance", ".3f"),
+               Metric("true map, flat balance", "loss_flat", ".3f"),
+               Metric("albedo's broad field", "field", ".2f"))
+    return grouped_table(rows, ("group", "albedo"), metrics, order=lambda key: (key[0], albedos.index(key[1])))
+
+
 def seams(root: Path) -> str:
     """The albedo's seam ratio (benchmarks/seams.py) per capture, scene and method: mean and worst over seeds, with
     the given mesh's faces, the atlas's and its texture size."""
@@ -497,7 +509,7 @@ def seams(root: Path) -> str:
 
 TABLES: dict[str, Callable[[Path], str]] = {
     "seams": seams,
-    "balance_trace": balance_trace,
+    "balance_trace": balance_trace, "balance_views": balance_views,
     "readings": readings, "readings_forced": readings_forced, "readings_fig9": readings_fig9,
     "readings_evidence": readings_evidence, "readings_cost": readings_cost, "mask_witnesses": mask_witnesses,
     "presets": presets, "posterior": posterior, "posterior_full": posterior_full, "calibration": calibration,

@@ -10,9 +10,13 @@ same seed.
 
 from __future__ import annotations
 
+from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.init import is_glossy
-from dpi.solve.transport import MAX_TRANSPORT_HEIGHT, ROUGH_TRANSPORT_HEIGHT, LightTransport, record_transport
+from dpi.solve.materials import MaterialTextures
+from dpi.solve.problem import InverseProblem
+from dpi.solve.transport import (MAX_TRANSPORT_HEIGHT, ROUGH_TRANSPORT_HEIGHT, LightTransport, TransportConfig,
+                                 record_transport)
 
 
 def sample_transport(run: DPSRun, state: DPSState) -> tuple[LightTransport, bool]:
@@ -22,9 +26,15 @@ def sample_transport(run: DPSRun, state: DPSState) -> tuple[LightTransport, bool
     frequencies its views see, every texel drawn."""
     recorded = "transport" not in state.extra
     if recorded:
-        glossy = is_glossy(run.init.materials)
-        state.extra["transport"] = record_transport(run.problem, run.cfg.start_materials(run.init), run.init.env,
-                                                    run.sampler.transport, run.render_seed(0, 97),
-                                                    MAX_TRANSPORT_HEIGHT if glossy else ROUGH_TRANSPORT_HEIGHT,
-                                                    every_texel=not glossy)
+        state.extra["transport"] = start_transport(run.problem, run.init, run.cfg.start_materials(run.init),
+                                                   run.sampler.transport, run.render_seed(0, 97))
     return state.extra["transport"], recorded
+
+
+def start_transport(problem: InverseProblem, init: Decomposition, start: MaterialTextures, settings: TransportConfig,
+                    seed: int) -> LightTransport:
+    """The transport a sample from `init` records under its starting materials `start` (sample_transport), recorded
+    with `seed`."""
+    glossy = is_glossy(init.materials)
+    return record_transport(problem, start, init.env, settings, seed,
+                            MAX_TRANSPORT_HEIGHT if glossy else ROUGH_TRANSPORT_HEIGHT, every_texel=not glossy)

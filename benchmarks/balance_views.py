@@ -1,0 +1,132 @@
+"""Which broad balance of light the training views prefer, and which part of a decomposition carries it (issue 77).
+
+    .venv/bin/python benchmarks/balance_views.py [--work results/benchmarks/light_dev ...] [--scenes ...]
+        [--samples dps_proximal] [--out benchmarks/results/balance_views.csv]
+
+For each scene of the study folders (`posterior_study.py --dev`'s, the posterior study's) with a true map and true
+textures, the training views' transport is recorded as a dps sample records it (dpi.solve.dps.data_term: under the
+sample's starting materials, guided by the init's map), and each row is one albedo: the samples' grey start, the
+init's, the truth's. Its columns:
+- the relative data loss at the exposure's optimum (the share of the views' energy left unexplained) of the true map
+  (`loss_true`), of the true map with the init's 2-row balance (`loss_init_balance`) and with a flat 2-row balance
+  (`loss_flat`): the balance the views prefer under that albedo;
+- `field`: the albedo's broad field over the object's normals (the RMS slope of its log luminance on the smooth
+  normal, over the dielectric texels), the part of the light's balance an albedo can hold; a row `samples` gives the
+  mean field of the `--samples` folder's albedos (no losses).
+The CSV is rewritten whole; it prints the rows.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from dpi.capture import read_ground_truth
+from dpi.config.pipeline import Pipeline
+from dpi.evaluation.truth import true_materials
+from dpi.io.exr import read_exr
+from dpi.io.images import luminance
+from dpi.io.layout import INIT, Layout
+from dpi.solve.dps.balance_trade import normal_texture
+from dpi.solve.dps.data_term import start_transport
+from dpi.solve.init import METAL_TEXEL, is_glossy
+from dpi.solve.transport import LightTransport, record_transport
+from dpi.stages.inverse import load_problem
+from dpi.studies.engine import results_csv, work_dir, workflow_config, write_rows
+from dpi.studies.scenes import DEV_SCENES, HELD_OUT_LIGHT_SCENES, POSTERIOR_SCENES, REAL_LIGHT_SCENES
+
+SCENES = {**POSTERIOR_SCENES, **REAL_LIGHT_SCENES, **DEV_SCENES, **HELD_OUT_LIGHT_SCENES}
+BALANCE_ROWS = 2
+"""rows of the balance swapped between maps: sky against ground, four sides"""
+SEED = 97
+"""the transport's recording seed"""
+
+
+def coarse_log(env: torch.Tensor) -> torch.Tensor:
+    """(1, 3, rows, 2 rows) log of the map area-averaged to BALANCE_ROWS rows."""
+    return torch.nn.functional.interpolate(env.permute(2, 0, 1)[None], size=(BALANCE_ROWS, 2 * BALANCE_ROWS),
+                                           mode="area").clamp_min(1e-12).log()
+
+
+def with_balance(env: torch.Tensor, balance: torch.Tensor) -> torch.Tensor:
+    """`env` (H, 2H, 3) with its coarse log balance moved to `balance` (per channel, up to its mean): the difference
+    upsampled bilinearly, the finer detail kept."""
+    change = balance - coarse_log(env)
+    change = change - change.mean(dim=(2, 3), keepdim=True)
+    up = torch.nn.functional.interpolate(change, size=env.shape[:2], mode="bilinear", align_corners=False)
+    return env * torch.exp(up[0].permute(1, 2, 0))
+
+
+def relative_loss(transport: LightTransport, env: torch.Tensor, albedo: torch.Tensor) -> float:
+    """Squared residual over the views' energy at the least-squares exposure of `env` (at the transport's size)."""
+    small = torch.nn.functional.interpolate(env.permute(2, 0, 1)[None], size=(transport.height, 2 * transport.height),
+                                           mode="area")[0].permute(1, 2, 0)
+    image, observed = transport.image(small, albedo).double(), transport.observed.double()
+    scale = float((image * observed).sum() / image.square().sum().clamp_min(1e-30))
+    return float((scale * image - observed).square().sum() / observed.square().sum())
+
+
+def broad_field(albedo: np.ndarray, normals: np.ndarray, mask: np.ndarray) -> float:
+    """RMS slope of the albedo's log luminance on the normal over the `mask` texels (least squares with a level)."""
+    y = np.log(np.maximum(luminance(albedo)[mask], 1e-4))
+    design = np.concatenate([np.ones((int(mask.sum()), 1)), normals[mask]], axis=1)
+    return float(np.sqrt(np.mean(np.square(np.linalg.lstsq(design, y, rcond=None)[0][1:]))))
+
+
+def scene_rows(scene: str, folder: Path, pipeline: Pipeline, samples: str) -> list[dict]:
+    """The rows of one scene (module notes)."""
+    problem = load_problem(folder / "capture.json", pipeline.solve_settings(1))
+    init = problem.load_decomposition(folder / INIT)
+    cfg = pipeline.method_settings("dps")
+    start = cfg.start_materials(init)
+    transport = start_transport(problem, init, start, cfg.proximal.transport, SEED)
+    truth_env = torch.as_tensor(read_ground_truth(problem.capture.gt["envmap"], "envmap")).float()
+    size = init.materials.albedo.shape[0]
+    truth = true_materials(problem, size)
+    normals, chart = normal_texture(problem, size)
+    dielectric = chart & (init.materials.metallic[..., 0] <= METAL_TEXEL).numpy()
+    maps = {"loss_true": truth_env, "loss_init_balance": with_balance(truth_env, coarse_log(init.env)),
+            "loss_flat": with_balance(truth_env, coarse_log(truth_env).mean(dim=(2, 3), keepdim=True).expand(
+                -1, -1, BALANCE_ROWS, 2 * BALANCE_ROWS))}
+    group = SCENES[scene][0]
+    true_transport = record_transport(problem, truth, init.env, cfg.proximal.transport, SEED, transport.height,
+                                      every_texel=not is_glossy(init.materials))
+    rows = []
+    for label, albedo, recorded in (("start", start.albedo, transport), ("init", init.materials.albedo, transport),
+                                    ("truth", truth.albedo, transport), ("truth_materials", truth.albedo,
+                                                                         true_transport)):
+        rows.append({"scene": scene, "group": group, "albedo": label,
+                     **{name: round(relative_loss(recorded, env, albedo), 4) for name, env in maps.items()},
+                     "field": round(broad_field(albedo.detach().numpy(), normals, dielectric), 3)})
+    drawn = [read_exr(p) for p in sorted((folder / samples).glob("*/albedo.exr"))]
+    drawn = [a for a in drawn if a.shape[0] == size]
+    if drawn:
+        rows.append({"scene": scene, "group": group, "albedo": "samples", **{name: float("nan") for name in maps},
+                     "field": round(float(np.mean([broad_field(a, normals, dielectric) for a in drawn])), 3)})
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--work", type=Path, nargs="+", default=[work_dir("light_dev")], help="study folders")
+    parser.add_argument("--scenes", nargs="*", default=None, help="default: every scene with true textures")
+    parser.add_argument("--samples", default="dps_proximal", help="method folder whose albedos' field is shown")
+    parser.add_argument("--out", type=Path, default=results_csv("balance_views"))
+    args = parser.parse_args()
+    pipeline = Pipeline(workflow_config())
+    rows = []
+    for work in args.work:
+        layout = Layout.of_study(work)
+        for name in sorted(p.parent.name for p in layout.results.glob("*/capture.json")):
+            if name in SCENES and (args.scenes is None or name in args.scenes):
+                rows += scene_rows(name, layout.scene(name).capture_json.parent, pipeline, args.samples)
+    write_rows(args.out, rows, settings="")
+    for row in rows:
+        print(" ".join(f"{k} {v}" for k, v in row.items()))
+
+
+if __name__ == "__main__":
+    main()
