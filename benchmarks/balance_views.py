@@ -52,11 +52,11 @@ def coarse_log(env: torch.Tensor) -> torch.Tensor:
 
 
 def with_balance(env: torch.Tensor, balance: torch.Tensor) -> torch.Tensor:
-    """`env` (H, 2H, 3) with its coarse log balance moved to `balance` (per channel, up to its mean): the difference
-    upsampled bilinearly, the finer detail kept."""
+    """`env` (H, 2H, 3; H a multiple of BALANCE_ROWS) with its coarse log balance moved to `balance` (per channel, up to
+    its mean): each coarse cell scaled by one factor, so the finer detail is kept and the coarse balance is exact."""
     change = balance - coarse_log(env)
     change = change - change.mean(dim=(2, 3), keepdim=True)
-    up = torch.nn.functional.interpolate(change, size=env.shape[:2], mode="bilinear", align_corners=False)
+    up = torch.nn.functional.interpolate(change, size=env.shape[:2], mode="nearest")
     return env * torch.exp(up[0].permute(1, 2, 0))
 
 
