@@ -6,7 +6,9 @@
 For each scene of the study folders (`posterior_study.py --dev`'s, the posterior study's) with a true map and true
 textures, the training views' transport is recorded as a dps sample records it (dpi.solve.dps.data_term: under the
 sample's starting materials, guided by the init's map), and each row is one albedo: the samples' grey start, the
-init's, the truth's. Its columns:
+init's, the truth's; then the truth's under transports recorded with the true roughness (`truth_roughness`), the
+true metallic (`truth_metallic`) or both (`truth_materials`) in place of the start's: what the start's reading of
+each costs. Its columns:
 - the relative data loss at the exposure's optimum (the share of the views' energy left unexplained) of the true map
   (`loss_true`), of the true map with the init's 2-row balance (`loss_init_balance`) and with a flat 2-row balance
   (`loss_flat`): the balance the views prefer under that albedo;
@@ -33,6 +35,7 @@ from dpi.io.layout import INIT, Layout
 from dpi.solve.dps.balance_trade import normal_texture
 from dpi.solve.dps.data_term import start_transport
 from dpi.solve.init import METAL_TEXEL, is_glossy
+from dpi.solve.materials import MaterialTextures
 from dpi.solve.transport import LightTransport, record_transport
 from dpi.stages.inverse import load_problem
 from dpi.studies.engine import results_csv, work_dir, workflow_config, write_rows
@@ -92,12 +95,18 @@ def scene_rows(scene: str, folder: Path, pipeline: Pipeline, samples: str) -> li
             "loss_flat": with_balance(truth_env, coarse_log(truth_env).mean(dim=(2, 3), keepdim=True).expand(
                 -1, -1, BALANCE_ROWS, 2 * BALANCE_ROWS))}
     group = SCENES[scene][0]
-    true_transport = record_transport(problem, truth, init.env, cfg.proximal.transport, SEED, transport.height,
-                                      every_texel=not is_glossy(init.materials))
+    def recorded_under(roughness: torch.Tensor, metallic: torch.Tensor) -> LightTransport:
+        materials = MaterialTextures(truth.albedo, roughness, metallic)
+        return record_transport(problem, materials, init.env, cfg.proximal.transport, SEED, transport.height,
+                                every_texel=not is_glossy(init.materials))
+
+    readings = (("start", start.albedo, transport), ("init", init.materials.albedo, transport),
+                ("truth", truth.albedo, transport),
+                ("truth_roughness", truth.albedo, recorded_under(truth.roughness, start.metallic)),
+                ("truth_metallic", truth.albedo, recorded_under(start.roughness, truth.metallic)),
+                ("truth_materials", truth.albedo, recorded_under(truth.roughness, truth.metallic)))
     rows = []
-    for label, albedo, recorded in (("start", start.albedo, transport), ("init", init.materials.albedo, transport),
-                                    ("truth", truth.albedo, transport), ("truth_materials", truth.albedo,
-                                                                         true_transport)):
+    for label, albedo, recorded in readings:
         rows.append({"scene": scene, "group": group, "albedo": label,
                      **{name: round(relative_loss(recorded, env, albedo), 4) for name, env in maps.items()},
                      "field": round(broad_field(albedo.detach().numpy(), normals, dielectric), 3)})

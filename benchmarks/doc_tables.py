@@ -484,7 +484,7 @@ def balance_views(root: Path) -> str:
     """Which 2-row balance the training views prefer under each albedo, and the broad field each albedo holds
     (benchmarks/balance_views.py), per group of scenes."""
     rows = read_rows(root / RESULTS / "balance_views.csv", ("scene", "group", "albedo"))
-    albedos = ("start", "init", "truth", "truth_materials", "samples")
+    albedos = ("start", "init", "truth", "truth_roughness", "truth_metallic", "truth_materials", "samples")
     metrics = (Metric("data loss: true map", "loss_true", ".3f"),
                Metric("true map, init's balance", "loss_init_balance", ".3f"),
                Metric("true map, flat balance", "loss_flat", ".3f"),
