@@ -63,11 +63,15 @@ def with_balance(env: torch.Tensor, balance: torch.Tensor) -> torch.Tensor:
     return env * torch.exp(up[0].permute(1, 2, 0))
 
 
-def relative_loss(transport: LightTransport, env: torch.Tensor, albedo: torch.Tensor) -> float:
-    """Squared residual over the views' energy at the least-squares exposure of `env` (at the transport's size)."""
-    small = torch.nn.functional.interpolate(env.permute(2, 0, 1)[None], size=(transport.height, 2 * transport.height),
+def at_height(env: torch.Tensor, height: int) -> torch.Tensor:
+    """The (H, 2H, 3) map area-averaged to `height` rows (a transport's grid)."""
+    return torch.nn.functional.interpolate(env.permute(2, 0, 1)[None], size=(height, 2 * height),
                                            mode="area")[0].permute(1, 2, 0)
-    image, observed = transport.image(small, albedo).double(), transport.observed.double()
+
+
+def relative_loss(transport: LightTransport, env: torch.Tensor, albedo: torch.Tensor) -> float:
+    """Squared residual over the views' energy at the least-squares exposure of `env` (on the transport's grid)."""
+    image, observed = transport.image(env, albedo).double(), transport.observed.double()
     scale = float((image * observed).sum() / image.square().sum().clamp_min(1e-30))
     return float((scale * image - observed).square().sum() / observed.square().sum())
 
@@ -94,7 +98,9 @@ def scene_rows(scene: str, folder: Path, pipeline: Pipeline, samples: str) -> li
     maps = {"loss_true": truth_env, "loss_init_balance": with_balance(truth_env, coarse_log(init.env)),
             "loss_flat": with_balance(truth_env, coarse_log(truth_env).mean(dim=(2, 3), keepdim=True).expand(
                 -1, -1, BALANCE_ROWS, 2 * BALANCE_ROWS))}
+    maps = {name: at_height(env, transport.height) for name, env in maps.items()}  # every transport's grid
     group = SCENES[scene][0]
+
     def recorded_under(roughness: torch.Tensor, metallic: torch.Tensor) -> LightTransport:
         materials = MaterialTextures(truth.albedo, roughness, metallic)
         return record_transport(problem, materials, init.env, cfg.proximal.transport, SEED, transport.height,
