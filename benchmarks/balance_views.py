@@ -30,7 +30,7 @@ from dpi.capture import read_ground_truth
 from dpi.config.pipeline import Pipeline
 from dpi.evaluation.truth import true_materials
 from dpi.io.exr import read_exr
-from dpi.io.images import luminance
+from dpi.io.images import luminance, resize
 from dpi.io.layout import INIT, Layout
 from dpi.solve.dps.balance_trade import normal_texture
 from dpi.solve.dps.data_term import start_transport
@@ -63,12 +63,6 @@ def with_balance(env: torch.Tensor, balance: torch.Tensor) -> torch.Tensor:
     return env * torch.exp(up[0].permute(1, 2, 0))
 
 
-def at_height(env: torch.Tensor, height: int) -> torch.Tensor:
-    """The (H, 2H, 3) map area-averaged to `height` rows (a transport's grid)."""
-    return torch.nn.functional.interpolate(env.permute(2, 0, 1)[None], size=(height, 2 * height),
-                                           mode="area")[0].permute(1, 2, 0)
-
-
 def relative_loss(transport: LightTransport, env: torch.Tensor, albedo: torch.Tensor) -> float:
     """Squared residual over the views' energy at the least-squares exposure of `env` (on the transport's grid)."""
     image, observed = transport.image(env, albedo).double(), transport.observed.double()
@@ -98,7 +92,8 @@ def scene_rows(scene: str, folder: Path, pipeline: Pipeline, samples: str) -> li
     maps = {"loss_true": truth_env, "loss_init_balance": with_balance(truth_env, coarse_log(init.env)),
             "loss_flat": with_balance(truth_env, coarse_log(truth_env).mean(dim=(2, 3), keepdim=True).expand(
                 -1, -1, BALANCE_ROWS, 2 * BALANCE_ROWS))}
-    maps = {name: at_height(env, transport.height) for name, env in maps.items()}  # every transport's grid
+    grid = (transport.height, 2 * transport.height)  # every transport's
+    maps = {name: resize(env, *grid) for name, env in maps.items()}
     group = SCENES[scene][0]
 
     def recorded_under(roughness: torch.Tensor, metallic: torch.Tensor) -> LightTransport:

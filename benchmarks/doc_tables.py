@@ -178,6 +178,8 @@ DESIGN_METRICS = (*LIGHT_METRICS[:2], Metric("calibration at 2 rows", "calibrati
 BALANCE_METRICS = (*(Metric(f"{which}: log error at {rows} rows / init's", f"balance_{key}_{rows}", ".2f", -1)
                      for which, key in (("mean map", "mean"), ("worst sample", "worst")) for rows in (2, 8)),)
 """the light's broad balance against the init's (benchmarks/light_realism.py's BALANCE columns)"""
+BALANCE_DESIGN_METRICS = (*DESIGN_METRICS[:-2], *BALANCE_METRICS)
+"""the design runs' light columns with the broad balance against the init's in place of how concentrated it is"""
 
 
 def light_realism(csv_name: str, root: Path, metrics: tuple[Metric, ...] = LIGHT_METRICS) -> str:
@@ -538,16 +540,14 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "light_trade_realism": partial(light_realism, "dev/light_trade_realism.csv", metrics=DESIGN_METRICS),
     "light_trade_heldout": partial(dev_table, ("light_trade_heldout.csv",), ("group", "method", "sampler")),
     "light_trade_heldout_realism": partial(light_realism, "dev/light_trade_heldout_realism.csv",
-                                           metrics=(*DESIGN_METRICS[:-2], *BALANCE_METRICS)),
+                                           metrics=BALANCE_DESIGN_METRICS),
     "light_pin": partial(dev_table, ("light_pin_dev.csv",), ("group", "method", "sampler")),
-    "light_pin_realism": partial(light_realism, "dev/light_pin_realism.csv",
-                                 metrics=(*DESIGN_METRICS[:-2], *BALANCE_METRICS)),
+    "light_pin_realism": partial(light_realism, "dev/light_pin_realism.csv", metrics=BALANCE_DESIGN_METRICS),
     "light_settle": partial(dev_table, ("light_settle_dev.csv",), ("group", "method", "sampler")),
-    "light_settle_realism": partial(light_realism, "dev/light_settle_realism.csv",
-                                    metrics=(*DESIGN_METRICS[:-2], *BALANCE_METRICS)),
+    "light_settle_realism": partial(light_realism, "dev/light_settle_realism.csv", metrics=BALANCE_DESIGN_METRICS),
     "light_settle_heldout": partial(dev_table, ("light_settle_heldout.csv",), ("group", "method", "sampler")),
     "light_settle_heldout_realism": partial(light_realism, "dev/light_settle_heldout_realism.csv",
-                                            metrics=(*DESIGN_METRICS[:-2], *BALANCE_METRICS)),
+                                            metrics=BALANCE_DESIGN_METRICS),
 }
 """every generated table by the name its markers use"""
 
