@@ -106,6 +106,8 @@ def method_order(key: tuple, method_at: int = 1) -> tuple:
     return (*key[:method_at], rank, *(str(k) for k in key[method_at + 1:]))
 
 
+BY_METHOD = ("group", "method", "sampler")
+"""the rows a study table shows: one per group, method and dps sampler"""
 CALIBRATION_KEY = ("scene", "method", "sampler", "repeat")
 VIEW = Metric("view PSNR [dB]", "novel_psnr", ".2f", +1)
 ENV = Metric("env PSNR [dB]", "env_psnr", ".2f", +1)
@@ -139,11 +141,10 @@ def posterior_full(root: Path) -> str:
     metrics = (VIEW, ENV, Metric("env SSIM", "env_ssim", ".3f", +1, spread=False), ALBEDO,
                Metric("relight PSNR-H [dB]", "relight_psnr_h", ".2f", +1),
                Metric("relight PSNR-L [dB]", "relight_psnr_l", ".2f", +1), FIT, SECONDS)
-    return grouped_table(posterior_rows(root), ("group", "method", "sampler"), metrics, rank_by="group",
-                         order=method_order)
+    return grouped_table(posterior_rows(root), BY_METHOD, metrics, rank_by="group", order=method_order)
 
 
-def dev_table(csv_names: tuple[str, ...], keys: tuple[str, ...], root: Path) -> str:
+def dev_table(csv_names: tuple[str, ...], root: Path, keys: tuple[str, ...] = BY_METHOD) -> str:
     """Posterior-study dev runs (benchmarks/results/dev/; variants are dps sampler labels, other priors'
     SAMPLER@CHECKPOINT) per `keys` (group or scene, method, sampler)."""
     rows = latest([r for name in csv_names for r in read_rows(root / RESULTS / "dev" / name)],
@@ -163,7 +164,7 @@ def mean_map(csv_name: str, root: Path) -> str:
                Metric("mean map: env PSNR [dB]", "mean_env_psnr", ".2f", +1),
                Metric("one sample: env SSIM", "sample_env_ssim", ".3f", +1, spread=False),
                Metric("mean map: env SSIM", "mean_env_ssim", ".3f", +1, spread=False))
-    return grouped_table(rows, ("group", "method", "sampler"), metrics, rank_by="group", order=method_order)
+    return grouped_table(rows, BY_METHOD, metrics, rank_by="group", order=method_order)
 
 
 LIGHT_METRICS = (Metric("realism distance (lower: more real)", "realism", ".3f", -1),
@@ -187,7 +188,7 @@ def light_realism(csv_name: str, root: Path, metrics: tuple[Metric, ...] = LIGHT
     group, method and sampler, over scenes: each sample's realism distance to held-out real panoramas (less the
     scene's own), the calibration of its samples and their mean map's accuracy."""
     rows = latest(read_rows(root / RESULTS / csv_name), ("scene", "method", "sampler"))
-    return grouped_table(rows, ("group", "method", "sampler"), metrics, rank_by="group", order=method_order)
+    return grouped_table(rows, BY_METHOD, metrics, rank_by="group", order=method_order)
 
 
 def calibration_rows(root: Path) -> list[dict]:
@@ -234,7 +235,7 @@ def train_fit(root: Path) -> str:
     for row in rows:
         row["above_truth"] = float(row["train_fit_over_truth"] > 1.05)
     metrics = (FIT, Metric("share above 1.05x the truth's", "above_truth", ".2f", spread=False))
-    return grouped_table(rows, ("group", "method", "sampler"), metrics, rank_by="group", order=method_order)
+    return grouped_table(rows, BY_METHOD, metrics, rank_by="group", order=method_order)
 
 
 def resolution(root: Path) -> str:
@@ -518,34 +519,34 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "fig9": fig9_ratios, "train_fit": train_fit, "resolution": resolution, "roughness": roughness,
     "tradeoff": tradeoff, "lens": lens, "realism": realism, "real_photos": real_photos, "pinned_light": pinned_light,
     "glossy_cost": glossy_cost,
-    "prior_size": partial(dev_table, ("prior64_dev.csv",), ("group", "method", "sampler")),
-    "prior_real": partial(dev_table, ("prior32_real_dev.csv",), ("group", "method", "sampler")),
-    "sun_fit": partial(dev_table, ("fit_sun_dev.csv", "sun_refine_dev.csv"), ("scene", "method", "sampler")),
-    "glossy_cost_seeds": partial(dev_table, ("glossy_cost_seeds.csv",), ("group", "method", "sampler")),
+    "prior_size": partial(dev_table, ("prior64_dev.csv",)),
+    "prior_real": partial(dev_table, ("prior32_real_dev.csv",)),
+    "sun_fit": partial(dev_table, ("fit_sun_dev.csv", "sun_refine_dev.csv"), keys=("scene", "method", "sampler")),
+    "glossy_cost_seeds": partial(dev_table, ("glossy_cost_seeds.csv",)),
     "mean_map": partial(mean_map, "mean_map_posterior.csv"),
     "light_realism": partial(light_realism, "light_realism.csv"),
     "light_balance_ratios": partial(light_realism, "light_realism.csv", metrics=BALANCE_METRICS),
-    "light_start": partial(dev_table, ("light_start_dev.csv",), ("group", "method", "sampler")),
+    "light_start": partial(dev_table, ("light_start_dev.csv",)),
     "light_start_realism": partial(light_realism, "dev/light_start_realism.csv"),
-    "light_push": partial(dev_table, ("light_prior_perturb_dev.csv",), ("group", "method", "sampler")),
+    "light_push": partial(dev_table, ("light_prior_perturb_dev.csv",)),
     "light_push_realism": partial(light_realism, "dev/light_push_realism.csv"),
     "light_push_mean_map": partial(mean_map, "dev/light_push_mean_map.csv"),
     "light_design": partial(dev_table, ("light_grain_dev.csv", "light_mix_dev.csv", "light_prior_dev.csv",
-                                         "light_sun_dev.csv"), ("group", "method", "sampler")),
+                                         "light_sun_dev.csv")),
     "light_design_realism": partial(light_realism, "dev/light_design_realism.csv", metrics=DESIGN_METRICS),
     "light_profile_realism": partial(light_realism, "dev/light_profile_realism.csv", metrics=DESIGN_METRICS),
-    "light_balance": partial(dev_table, ("light_balance_dev.csv",), ("group", "method", "sampler")),
+    "light_balance": partial(dev_table, ("light_balance_dev.csv",)),
     "light_balance_realism": partial(light_realism, "dev/light_balance_realism.csv", metrics=DESIGN_METRICS),
-    "light_trade": partial(dev_table, ("light_trade_dev.csv",), ("group", "method", "sampler")),
+    "light_trade": partial(dev_table, ("light_trade_dev.csv",)),
     "light_trade_realism": partial(light_realism, "dev/light_trade_realism.csv", metrics=DESIGN_METRICS),
-    "light_trade_heldout": partial(dev_table, ("light_trade_heldout.csv",), ("group", "method", "sampler")),
+    "light_trade_heldout": partial(dev_table, ("light_trade_heldout.csv",)),
     "light_trade_heldout_realism": partial(light_realism, "dev/light_trade_heldout_realism.csv",
                                            metrics=BALANCE_DESIGN_METRICS),
-    "light_pin": partial(dev_table, ("light_pin_dev.csv",), ("group", "method", "sampler")),
+    "light_pin": partial(dev_table, ("light_pin_dev.csv",)),
     "light_pin_realism": partial(light_realism, "dev/light_pin_realism.csv", metrics=BALANCE_DESIGN_METRICS),
-    "light_settle": partial(dev_table, ("light_settle_dev.csv",), ("group", "method", "sampler")),
+    "light_settle": partial(dev_table, ("light_settle_dev.csv",)),
     "light_settle_realism": partial(light_realism, "dev/light_settle_realism.csv", metrics=BALANCE_DESIGN_METRICS),
-    "light_settle_heldout": partial(dev_table, ("light_settle_heldout.csv",), ("group", "method", "sampler")),
+    "light_settle_heldout": partial(dev_table, ("light_settle_heldout.csv",)),
     "light_settle_heldout_realism": partial(light_realism, "dev/light_settle_heldout_realism.csv",
                                             metrics=BALANCE_DESIGN_METRICS),
 }
