@@ -2,21 +2,28 @@
 
 A sample records it once, at its first step, under its starting materials (DPSConfig.start_materials),
 guided by the init's map; the albedo is a variable of the transport, so nothing needs
-recording again as it moves, and the roughness stays the init's until the refinement path-traces it (a choice
-among recorded roughness levels, tried before, kept the init's on every study scene). Its cost is counted in the
+recording again as it moves, and the roughness stays the start's until the refinement path-traces it. With
+`proximal.lobe_choice` a rough init's sample records it at its start instead, at several lobe widths, and keeps the
+one its views favour (dpi.solve.dps.lobe_choice). Its cost is counted in the
 step that records it (`seconds_transport`) and in the trace's info. A resumed sample records it again with the
 same seed.
 """
 
 from __future__ import annotations
 
+import torch
+
 from dpi.solve.decomposition import Decomposition
+from dpi.solve.dps.lobe_choice import LOBE_FACTORS, favoured_level
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.init import is_glossy
 from dpi.solve.materials import MaterialTextures
 from dpi.solve.problem import InverseProblem
 from dpi.solve.transport import (MAX_TRANSPORT_HEIGHT, ROUGH_TRANSPORT_HEIGHT, LightTransport, TransportConfig,
                                  record_transport)
+
+LOBE_TRANSPORT = "lobe_transport"
+"""state.extra's key of the transport `choose_lobe_` recorded, until the first step takes it"""
 
 
 def sample_transport(run: DPSRun, state: DPSState) -> tuple[LightTransport, bool]:
@@ -26,9 +33,26 @@ def sample_transport(run: DPSRun, state: DPSState) -> tuple[LightTransport, bool
     frequencies its views see, every texel drawn."""
     recorded = "transport" not in state.extra
     if recorded:
-        state.extra["transport"] = start_transport(run.problem, run.init, run.cfg.start_materials(run.init),
-                                                   run.sampler.transport, run.render_seed(0, 97))
+        state.extra["transport"] = state.extra.pop(LOBE_TRANSPORT, None) or start_transport(
+            run.problem, run.init, run.cfg.start_materials(run.init), run.sampler.transport, run.render_seed(0, 97))
     return state.extra["transport"], recorded
+
+
+def choose_lobe_(run: DPSRun, state: DPSState) -> None:
+    """With `lobe_choice`, on a rough init: the sample's transport recorded at LOBE_FACTORS more lobe widths, and
+    the level its views favour under the start's albedo kept as its transport and its roughness (module notes). At
+    the sample's start, before a resumed sample's state is restored over it."""
+    if not getattr(run.sampler, "lobe_choice", False) or is_glossy(run.init.materials):
+        return
+    start = run.cfg.start_materials(run.init)
+    transport = record_transport(run.problem, start, run.init.env, run.sampler.transport, run.render_seed(0, 97),
+                                 ROUGH_TRANSPORT_HEIGHT, levels=LOBE_FACTORS)
+    level, shares = favoured_level(transport, start.albedo)
+    state.extra[LOBE_TRANSPORT] = transport.at_level(level)
+    state.extra["lobe"] = {"factor": round((1.0, *LOBE_FACTORS)[level], 4),
+                           "unexplained": [round(s, 5) for s in shares]}
+    with torch.no_grad():
+        state.materials.roughness.copy_(transport.roughness[level])
 
 
 def start_transport(problem: InverseProblem, init: Decomposition, start: MaterialTextures, settings: TransportConfig,

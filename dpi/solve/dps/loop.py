@@ -25,6 +25,7 @@ from dpi.prior.sample import Prior
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.config import SAMPLERS, DPSConfig
+from dpi.solve.dps.data_term import choose_lobe_
 from dpi.solve.dps.refine import refine
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.dps.sun_choice import LR_SUN, LR_SUN_UV, wants_sun
@@ -99,6 +100,7 @@ def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: D
     lr_map = getattr(sampler, "lr_map", 0.0)  # samplers without a log map never step it
     state = DPSState(x, materials, torch.zeros(()), log_map, sun_uv, sun_log,
                      state_optimizer(materials, cfg, lr_map, log_map, sun_uv, sun_log), generator)
+    choose_lobe_(run, state)
     return run, state
 
 
@@ -223,6 +225,8 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
         pinned = seen_weight(transport_weights(transport), transport.height)
         env = keep_what_the_views_see(env, init.env, pinned)
         trace.info["pinned_by_views"] = round(float(pinned.mean()), 4)
+    if "lobe" in state.extra:
+        trace.info["lobe"] = state.extra["lobe"]
     if watch:
         watch("kept", run.num_steps, env)
     env, materials, refine_trace = refine(problem, env, state.materials, run.cfg.refine, run.cfg,

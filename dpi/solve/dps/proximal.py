@@ -92,6 +92,9 @@ class ProximalConfig:
     """each sample's albedo carries its own broad field over the normals (on its dielectric texels) while the map settles, as
     large as the init's albedo varies, then returns to its start: the samples spread over the albedo's trade with the
     light's balance instead of all drawing the balance a uniform albedo implies (dpi.solve.dps.balance_trade)"""
+    lobe_choice: bool = False
+    """a rough init's sample starts from the lobe width its views favour under the start's albedo, among the init's
+    and four more recorded beside it (dpi.solve.dps.lobe_choice)"""
     perturb_rows: Count = 2
     """rows of the grid the push is white on, upsampled onto the prior's (at most the transport's): 2, a field as
     broad as the light's balance between sky and ground, sides and colour; finer, the push reaches detail the

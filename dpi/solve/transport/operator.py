@@ -130,6 +130,14 @@ class LightTransport:
         return sum(t.element_size() * t.numel() for t in (self.matrix, self.observed, self.lookup.rows,
                                                           self.lookup.texels, self.lookup.weights))
 
+    def at_level(self, level: int) -> "LightTransport":
+        """This recording with only roughness level `level` kept (as its level 0), its materials' roughness that
+        level's."""
+        materials = self.materials.detached()
+        materials.roughness = self.roughness[level].clone()
+        return LightTransport(self.matrix[:, level:level + 1].clone(), self.lookup, self.observed, self.height,
+                              [self.roughness[level]], materials, self.foreground, self.seconds)
+
     def seen_albedo(self, albedo: torch.Tensor) -> torch.Tensor:
         """(P, 3) the albedo each recorded pixel sees, from an (R, R, 3) texture (differentiable)."""
         return self.lookup.apply(albedo.reshape(-1, 3))

@@ -29,6 +29,7 @@ at the brightest texels (a sun): the product of the two halves' residuals does n
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,7 +39,7 @@ from dpi.render.renderer import SEED_MODULUS, texture_plugin
 from dpi.solve.materials import MaterialTextures
 from dpi.solve.problem import InverseProblem
 from dpi.solve.transport.operator import AlbedoLookup, LightTransport, resize_map
-from dpi.solve.transport.settings import (HALVES, ROUGH_TRANSPORT_HEIGHT, TransportConfig, roughness_levels,
+from dpi.solve.transport.settings import (HALVES, ROUGH_TRANSPORT_HEIGHT, TransportConfig, lobe_levels,
                                           transport_height)
 
 BRIGHT_SHARE = 0.5
@@ -418,15 +419,16 @@ class ViewTransport:
 
 def record_view(problem: InverseProblem, view: int, materials: MaterialTextures, guide: np.ndarray,
                 settings: TransportConfig, seed: int, pixels: np.ndarray | None = None,
-                height: int | None = None, levels: int = 0, every_texel: bool = True) -> ViewTransport:
-    """The transport of `pixels` (default: the view's foreground) under `materials` and `levels` more roughness
-    levels (module notes) for maps of `height` rows (default the problem's; the guide is at the problem's); seeded.
+                height: int | None = None, levels: Sequence[float] = (), every_texel: bool = True) -> ViewTransport:
+    """The transport of `pixels` (default: the view's foreground) under `materials` and one more roughness level per
+    lobe-width factor in `levels` (settings.lobe_levels) for maps of `height` rows (default the problem's; the guide
+    is at the problem's); seeded.
     Without `every_texel` the direct light is drawn texel by texel only for the bright texels, and the BSDF's own
     samples take the rest: a glossy object's narrow lobe finds its texels, at a fraction of the rays."""
     if pixels is None:
         pixels = np.flatnonzero(problem.masks[view].numpy().reshape(-1))
     rng = np.random.default_rng(seed)
-    levels = roughness_levels(materials.roughness, levels)
+    levels = lobe_levels(materials.roughness, levels)
     setup = view_setup(problem, view, pixels, materials, levels, guide, height or problem.settings.env_height, rng)
     bright = bright_texels(resize_map(guide, setup.height), BRIGHT_SHARE)
     drawn = None if every_texel else np.isin(np.arange(2 * setup.height ** 2), bright)
@@ -458,10 +460,10 @@ def transport_pixels(problem: InverseProblem, limit: int, rng: np.random.Generat
 
 def record_transport(problem: InverseProblem, materials: MaterialTextures, env: torch.Tensor,
                      settings: TransportConfig, seed: int, max_height: int = ROUGH_TRANSPORT_HEIGHT,
-                     levels: int = 0, every_texel: bool = True) -> LightTransport:
+                     levels: Sequence[float] = (), every_texel: bool = True) -> LightTransport:
     """The light transport of the training views' foreground pixels (at most settings.pixels of them) under
-    `materials` and `levels` more roughness levels, for maps of `transport_height` rows (at most `max_height`), with
-    next-event directions guided by `env` (the problem's size; module notes)."""
+    `materials` and one more roughness level per lobe-width factor in `levels`, for maps of `transport_height` rows
+    (at most `max_height`), with next-event directions guided by `env` (the problem's size; module notes)."""
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
     chosen = transport_pixels(problem, settings.pixels, rng)
@@ -480,6 +482,6 @@ def record_transport(problem: InverseProblem, materials: MaterialTextures, env: 
     size = problem.settings.texture_size
     lookup = AlbedoLookup(torch.from_numpy(np.concatenate(rows)), torch.from_numpy(np.concatenate(cols)),
                           torch.from_numpy(np.concatenate(weights)), (first, size * size))
-    levels = roughness_levels(materials.roughness, levels)
+    levels = lobe_levels(materials.roughness, levels)
     return LightTransport(torch.cat(matrices, dim=4), lookup, torch.cat(observed), height, levels, materials.detached(),
                           sum(int(problem.masks[v].sum()) for v in problem.train_ids), time.perf_counter() - start)

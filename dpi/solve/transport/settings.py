@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Annotated
 
 import torch
@@ -45,21 +46,13 @@ ROUGH_TRANSPORT_HEIGHT = 16
 recording's cost grows with the texels (a glossy object's views resolve detail up to MAX_TRANSPORT_HEIGHT)"""
 
 
-ROUGHNESS_RANGE = (0.05, 0.9)
-"""the medians the roughness levels span, evenly in log GGX alpha (alpha = roughness^2: a lobe's width), from a
-mirror to a matte surface"""
-
-
-def roughness_levels(roughness: torch.Tensor, count: int) -> list[torch.Tensor]:
-    """The roughness textures a transport is recorded under: the given one, then `count` copies shifted so that
-    their medians spread evenly in log alpha over ROUGHNESS_RANGE (its detail kept, clamped to the valid range)."""
+def lobe_levels(roughness: torch.Tensor, factors: Sequence[float]) -> list[torch.Tensor]:
+    """The roughness textures a transport is recorded under: the given one, then one per factor with its lobe width
+    (GGX alpha = roughness^2) times that factor, texel by texel (clamped to the valid range)."""
     from dpi.solve.materials import RANGES
 
-    centre = float(roughness.detach().median())
-    low, high = (math.log(r ** 2) for r in ROUGHNESS_RANGE)
-    medians = [math.exp((low + (high - low) * i / max(count - 1, 1)) / 2) for i in range(count)]
-    return [roughness.detach().clone(), *((roughness.detach() - centre + m).clamp(*RANGES["roughness"])
-                                          for m in medians)]
+    base = roughness.detach()
+    return [base.clone(), *((base * math.sqrt(f)).clamp(*RANGES["roughness"]) for f in factors)]
 
 
 def transport_height(env_height: int, max_height: int = MAX_TRANSPORT_HEIGHT) -> int:
