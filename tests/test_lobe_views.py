@@ -30,7 +30,8 @@ def test_block_operator_times_the_factors_is_the_scaled_albedo_seen():
     size = 2 * BLOCK
     rng = np.random.default_rng(0)
     texels = torch.from_numpy(rng.integers(0, size * size, 300))
-    lookup = AlbedoLookup(torch.arange(300) // 3, texels, torch.from_numpy(rng.uniform(0.1, 1.0, 300)), (100, size ** 2))
+    weights = torch.from_numpy(rng.uniform(0.1, 1.0, 300))
+    lookup = AlbedoLookup(torch.arange(300) // 3, texels, weights, (100, size ** 2))
     albedo = torch.from_numpy(rng.uniform(0.2, 0.8, (size, size, 3)))
     factors = rng.uniform(0.5, 2.0, (4, 3))
     scaled = albedo.reshape(-1, 3) * torch.from_numpy(factors[block_index(size)])
