@@ -2,11 +2,11 @@
 
 A sample records it once, at its first step, under its starting materials (DPSConfig.start_materials),
 guided by the init's map; the albedo is a variable of the transport, so nothing needs
-recording again as it moves, and the roughness stays the start's until the refinement path-traces it. With
-`proximal.lobe_choice` a rough init's sample records it at its start instead, at several lobe widths, and keeps the
-one its views favour (dpi.solve.dps.lobe_choice). Its cost is counted in the
-step that records it (`seconds_transport`) and in the trace's info. A resumed sample records it again with the
-same seed.
+recording again as it moves, and the roughness stays the start's until the refinement path-traces it. Its cost is
+counted in the step that records it (`seconds_transport`) and in the trace's info. With `proximal.lobe_choice` a
+rough init's sample records it before its first step instead, at several lobe widths, and keeps the one its views
+favour (dpi.solve.dps.lobe_choice; its seconds in the trace's info only). A resumed sample records it again with
+the same seed.
 """
 
 from __future__ import annotations
