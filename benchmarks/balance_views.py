@@ -31,7 +31,7 @@ from dpi.config.pipeline import Pipeline
 from dpi.evaluation.truth import true_materials
 from dpi.io.exr import read_exr
 from dpi.io.images import luminance, resize
-from dpi.io.layout import INIT, Layout
+from dpi.io.layout import INIT
 from dpi.solve.dps.balance_trade import normal_texture
 from dpi.solve.dps.data_term import start_transport
 from dpi.solve.init import METAL_TEXEL, is_glossy
@@ -39,9 +39,8 @@ from dpi.solve.materials import MaterialTextures
 from dpi.solve.transport import LightTransport, record_transport
 from dpi.stages.inverse import load_problem
 from dpi.studies.engine import results_csv, work_dir, workflow_config, write_rows
-from dpi.studies.scenes import DEV_SCENES, HELD_OUT_LIGHT_SCENES, POSTERIOR_SCENES, REAL_LIGHT_SCENES
+from dpi.studies.scenes import STUDY_SCENES, drawn_scenes
 
-SCENES = {**POSTERIOR_SCENES, **REAL_LIGHT_SCENES, **DEV_SCENES, **HELD_OUT_LIGHT_SCENES}
 BALANCE_ROWS = 2
 """rows of the balance swapped between maps: sky against ground, four sides"""
 SEED = 97
@@ -94,7 +93,7 @@ def scene_rows(scene: str, folder: Path, pipeline: Pipeline, samples: str) -> li
                 -1, -1, BALANCE_ROWS, 2 * BALANCE_ROWS))}
     grid = (transport.height, 2 * transport.height)  # every transport's
     maps = {name: resize(env, *grid) for name, env in maps.items()}
-    group = SCENES[scene][0]
+    group = STUDY_SCENES[scene][0]
 
     def recorded_under(roughness: torch.Tensor, metallic: torch.Tensor) -> LightTransport:
         materials = MaterialTextures(truth.albedo, roughness, metallic)
@@ -127,12 +126,8 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=results_csv("balance_views"))
     args = parser.parse_args()
     pipeline = Pipeline(workflow_config())
-    rows = []
-    for work in args.work:
-        layout = Layout.of_study(work)
-        for name in sorted(p.parent.name for p in layout.results.glob("*/capture.json")):
-            if name in SCENES and (args.scenes is None or name in args.scenes):
-                rows += scene_rows(name, layout.scene(name).capture_json.parent, pipeline, args.samples)
+    rows = [row for name, folder in drawn_scenes(args.work, args.scenes)
+            for row in scene_rows(name, folder, pipeline, args.samples)]
     write_rows(args.out, rows, settings="")
     for row in rows:
         print(" ".join(f"{k} {v}" for k, v in row.items()))

@@ -25,16 +25,16 @@ import torch
 
 from dpi.config.pipeline import Pipeline
 from dpi.evaluation.truth import true_materials
-from dpi.io.layout import INIT, Layout
+from dpi.io.layout import INIT
 from dpi.solve.dps.balance_trade import normal_texture
+from dpi.solve.dps.data_term import start_transport
 from dpi.solve.dps.lobe_choice import LOBE_FACTORS, nonnegative_quadratic, unexplained
 from dpi.solve.init import is_glossy
-from dpi.solve.transport import ROUGH_TRANSPORT_HEIGHT, LightTransport, record_transport
+from dpi.solve.transport import LightTransport
 from dpi.stages.inverse import load_problem
 from dpi.studies.engine import results_csv, workflow_config, write_rows
-from dpi.studies.scenes import DEV_SCENES, HELD_OUT_LIGHT_SCENES, POSTERIOR_SCENES, REAL_LIGHT_SCENES
+from dpi.studies.scenes import STUDY_SCENES, drawn_scenes
 
-SCENES = {**POSTERIOR_SCENES, **REAL_LIGHT_SCENES, **DEV_SCENES, **HELD_OUT_LIGHT_SCENES}
 FACTORS = (1.0, *LOBE_FACTORS)
 """each recorded level's lobe width over the init's"""
 BLOCK = 8
@@ -92,8 +92,7 @@ def scene_rows(scene: str, folder: Path, pipeline: Pipeline) -> list[dict]:
     chart = torch.from_numpy(normal_texture(problem, size)[1])
     true_factor = float((truth.roughness[..., 0][chart].median() / init.materials.roughness[..., 0][chart].median())
                         ** 2)
-    transport = record_transport(problem, start, init.env, cfg.proximal.transport, SEED, ROUGH_TRANSPORT_HEIGHT,
-                                 levels=LOBE_FACTORS)
+    transport = start_transport(problem, init, start, cfg.proximal.transport, SEED, LOBE_FACTORS)
     albedo = init.materials.albedo.detach()
     judges = {"start": lambda level: unexplained(transport, start.albedo, level),
               "init": lambda level: unexplained(transport, albedo, level),
@@ -102,7 +101,7 @@ def scene_rows(scene: str, folder: Path, pipeline: Pipeline) -> list[dict]:
     rows = []
     for name, judge in judges.items():
         shares = [judge(level) for level in range(len(FACTORS))]
-        rows.append({"scene": scene, "group": SCENES[scene][0], "albedo": name,
+        rows.append({"scene": scene, "group": STUDY_SCENES[scene][0], "albedo": name,
                      "favoured": round(FACTORS[int(np.argmin(shares))], 3), "true": round(true_factor, 3),
                      **{f"share_{f:.2f}": round(v, 5) for f, v in sorted(zip(FACTORS, shares))}})
     return rows
@@ -116,15 +115,12 @@ def main() -> None:
     args = parser.parse_args()
     pipeline = Pipeline(workflow_config())
     rows = []
-    for work in args.work:
-        layout = Layout.of_study(work)
-        for name in sorted(p.parent.name for p in layout.results.glob("*/capture.json")):
-            folder = layout.scene(name).capture_json.parent
-            if name in SCENES and (args.scenes is None or name in args.scenes) and (folder / INIT).exists():
-                new = scene_rows(name, folder, pipeline)
-                rows += new
-                for row in new:
-                    print(" ".join(f"{k} {v}" for k, v in row.items()), flush=True)
+    for name, folder in drawn_scenes(args.work, args.scenes):
+        if (folder / INIT).exists():
+            new = scene_rows(name, folder, pipeline)
+            rows += new
+            for row in new:
+                print(" ".join(f"{k} {v}" for k, v in row.items()), flush=True)
     write_rows(args.out, rows, settings="")
 
 

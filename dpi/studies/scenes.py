@@ -5,8 +5,11 @@ come from seed streams no prior trained on, or from Mitsuba's sunsky."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
+
+from dpi.io.layout import Layout
 
 SIZE = {"views": 8, "held_out_every": 4, "width": 32, "height": 32, "spp": 128, "env_height": 32,
         "texture_size": 32}
@@ -111,6 +114,21 @@ HELD_OUT_LIGHT_SCENES: dict[str, tuple[str, dict[str, Any]]] = {
 }
 """scenes no study and no design run uses, for judging a design once it is chosen: other objects and cameras (other
 arcs and heights) under held-out panoramas, one of them no other scene uses (`posterior_study.py --held-out`)"""
+
+
+STUDY_SCENES = {**POSTERIOR_SCENES, **REAL_LIGHT_SCENES, **DEV_SCENES, **HELD_OUT_LIGHT_SCENES}
+"""every scene of the posterior study's folders by name (the study's, real light, design, held out)"""
+
+
+def drawn_scenes(works: Iterable[Path], names: Iterable[str] | None = None) -> Iterator[tuple[str, Path]]:
+    """(name, results folder) of each STUDY_SCENES scene the study folders `works` hold (its capture.json written),
+    among `names` (default: every one), in name order within each folder."""
+    wanted = None if names is None else set(names)
+    for work in works:
+        layout = Layout.of_study(work)
+        for name in sorted(p.parent.name for p in layout.results.glob("*/capture.json")):
+            if name in STUDY_SCENES and (wanted is None or name in wanted):
+                yield name, layout.scene(name).capture_json.parent
 
 
 def real_light_scenes(folder: Path, scenes: dict[str, tuple[str, dict[str, Any]]] = REAL_LIGHT_SCENES

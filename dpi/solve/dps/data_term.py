@@ -11,6 +11,8 @@ the same seed.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import torch
 
 from dpi.solve.decomposition import Decomposition
@@ -45,8 +47,8 @@ def choose_lobe_(run: DPSRun, state: DPSState) -> None:
     if not getattr(run.sampler, "lobe_choice", False) or is_glossy(run.init.materials):
         return
     start = run.cfg.start_materials(run.init)
-    transport = record_transport(run.problem, start, run.init.env, run.sampler.transport, run.render_seed(0, 97),
-                                 ROUGH_TRANSPORT_HEIGHT, levels=LOBE_FACTORS)
+    transport = start_transport(run.problem, run.init, start, run.sampler.transport, run.render_seed(0, 97),
+                                LOBE_FACTORS)
     level, shares = favoured_level(transport, start.albedo)
     state.extra[LOBE_TRANSPORT] = transport.at_level(level)
     state.extra["lobe"] = {"factor": round((1.0, *LOBE_FACTORS)[level], 4),
@@ -56,9 +58,9 @@ def choose_lobe_(run: DPSRun, state: DPSState) -> None:
 
 
 def start_transport(problem: InverseProblem, init: Decomposition, start: MaterialTextures, settings: TransportConfig,
-                    seed: int) -> LightTransport:
+                    seed: int, levels: Sequence[float] = ()) -> LightTransport:
     """The transport a sample from `init` records under its starting materials `start` (sample_transport), recorded
-    with `seed`."""
+    with `seed`, and at `levels` more lobe widths (transport.lobe_levels)."""
     glossy = is_glossy(init.materials)
     return record_transport(problem, start, init.env, settings, seed,
-                            MAX_TRANSPORT_HEIGHT if glossy else ROUGH_TRANSPORT_HEIGHT, every_texel=not glossy)
+                            MAX_TRANSPORT_HEIGHT if glossy else ROUGH_TRANSPORT_HEIGHT, levels, not glossy)
