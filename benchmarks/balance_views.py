@@ -34,6 +34,7 @@ from dpi.io.images import luminance, resize
 from dpi.io.layout import INIT
 from dpi.solve.dps.balance_trade import normal_texture
 from dpi.solve.dps.data_term import start_transport
+from dpi.solve.dps.start import sample_start_materials
 from dpi.solve.init import METAL_TEXEL, is_glossy
 from dpi.solve.materials import MaterialTextures
 from dpi.solve.transport import LightTransport, record_transport
@@ -81,7 +82,7 @@ def scene_rows(scene: str, folder: Path, pipeline: Pipeline, samples: str) -> li
     problem = load_problem(folder / "capture.json", pipeline.solve_settings(1))
     init = problem.load_decomposition(folder / INIT)
     cfg = pipeline.method_settings("dps")
-    start = cfg.start_materials(init)
+    start = sample_start_materials(init)
     transport = start_transport(problem, init, start, cfg.proximal.transport, SEED)
     truth_env = torch.as_tensor(read_ground_truth(problem.capture.gt["envmap"], "envmap")).float()
     size = init.materials.albedo.shape[0]

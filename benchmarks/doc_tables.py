@@ -495,19 +495,6 @@ def balance_views(root: Path) -> str:
     return grouped_table(rows, ("group", "albedo"), metrics, order=lambda key: (key[0], albedos.index(key[1])))
 
 
-def lobe_views(root: Path) -> str:
-    """The lobe width the training views favour under each albedo, beside the truth's, per scene
-    (benchmarks/lobe_views.py): factors of the init's lobe width (GGX alpha)."""
-    rows = read_rows(root / RESULTS / "lobe_views.csv", ("scene", "albedo"))
-    albedos = ("start", "init", "blocks", "truth")
-    favoured = {(r["scene"], r["albedo"]): r["favoured"] for r in rows}
-    scenes = sorted({(r["group"], r["scene"], r["true"]) for r in rows})
-    header = ["group", "scene", "the truth's lobe / init's", *(f"favoured under the {a} albedo" for a in albedos)]
-    return markdown(header, [[group, scene, f"{true:.2f}",
-                              *(f"{favoured[scene, a]:.2f}" if (scene, a) in favoured else "-" for a in albedos)]
-                             for group, scene, true in scenes])
-
-
 def seams(root: Path) -> str:
     """The albedo's seam ratio (benchmarks/seams.py) per capture, scene and method: mean and worst over seeds, with
     the given mesh's faces, the atlas's and its texture size."""
@@ -525,7 +512,7 @@ def seams(root: Path) -> str:
 
 TABLES: dict[str, Callable[[Path], str]] = {
     "seams": seams,
-    "balance_trace": balance_trace, "balance_views": balance_views, "lobe_views": lobe_views,
+    "balance_trace": balance_trace, "balance_views": balance_views,
     "readings": readings, "readings_forced": readings_forced, "readings_fig9": readings_fig9,
     "readings_evidence": readings_evidence, "readings_cost": readings_cost, "mask_witnesses": mask_witnesses,
     "presets": presets, "posterior": posterior, "posterior_full": posterior_full, "calibration": calibration,

@@ -143,8 +143,8 @@ its rows), and what one recording costs."""
     print(f"\ndata term over all {len(views)} training views, loss and gradient w.r.t. map and albedo "
           f"({repeats} repeats):")
     print(f"  path traced ({problem.renderer.settings.spp} spp): {costs['render']:.1f} ms")
-    print(f"  recorded transport ({transport.pixels} of {transport.foreground} foreground pixels, "
-          f"{len(transport.roughness)} roughness levels): {costs['transport']:.2f} ms "
+    print(f"  recorded transport ({transport.pixels} of {transport.foreground} foreground pixels): "
+          f"{costs['transport']:.2f} ms "
           f"({costs['render'] / costs['transport']:.0f}x faster); one recording ({settings.spp} paths + "
           f"{settings.direct_spp} direct samples per pixel) {1e3 * recording:.0f} ms "
           f"(= {recording / (1e-3 * costs['render']):.1f} path-traced evaluations), {transport.nbytes / 2**20:.0f} MB")

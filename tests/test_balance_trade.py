@@ -15,6 +15,7 @@ from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps import DPSConfig, posterior_steps, start_run
 from dpi.solve.dps.balance_trade import balance_factor, log_spread, normal_texture
 from dpi.solve.dps.proximal import MATERIAL_START
+from dpi.solve.dps.start import sample_start_materials
 from dpi.solve.init import InitConfig, path_traced_init
 from dpi.solve.problem import InverseProblem, ProblemConfig
 from tests.test_samplers import gaussian_prior
@@ -54,7 +55,7 @@ def test_the_field_is_on_while_the_map_settles_and_off_once_the_materials_move(t
     assert np.allclose(np.linalg.norm(normals, axis=-1), 1.0, atol=1e-5)
     cfg = DPSConfig.from_dict({"steps": 5, "proximal": {"start_noise": 1.0}})
     run, state = start_run(problem, gaussian_prior(), init, cfg, seed=2)
-    start = cfg.start_materials(init).albedo
+    start = sample_start_materials(init).albedo
     first_move = math.ceil(MATERIAL_START * run.num_steps)
     for n, _ in enumerate(posterior_steps(run, state)):
         log_ratio = torch.log(state.materials.albedo.detach() / start)[torch.from_numpy(chart)]
@@ -73,7 +74,7 @@ def test_the_field_is_on_while_the_map_settles_and_off_once_the_materials_move(t
     mixed.materials.metallic[:, :4] = 1.0
     run, state = start_run(problem, gaussian_prior(), mixed, cfg, seed=2)
     next(posterior_steps(run, state))
-    albedo, start = state.materials.albedo.detach(), cfg.start_materials(mixed).albedo
+    albedo, start = state.materials.albedo.detach(), sample_start_materials(mixed).albedo
     # metal, the colour of reflections that pin their light, away from the border texels the seams tie to others
     assert torch.equal(albedo[1:7, 1:4], start[1:7, 1:4])
     assert float(torch.log(albedo[:, 4:] / start[:, 4:])[torch.from_numpy(chart[:, 4:])].std()) > 0.05

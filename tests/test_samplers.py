@@ -81,13 +81,13 @@ class LinearProblem:
         """The measurement as an exact light transport: its offset is A (both halves, every channel), its slope 0."""
         operator = torch.cat(self.operators)  # (P, N)
         pixels, texels = operator.shape
-        matrix = torch.zeros(2, 1, 2, 3, pixels, texels)
+        matrix = torch.zeros(2, 2, 3, pixels, texels)
         matrix[1] = operator
         size = self.settings.texture_size
         lookup = AlbedoLookup(torch.zeros(0, dtype=torch.long), torch.zeros(0, dtype=torch.long), torch.zeros(0),
                               (pixels, size * size))
         return LightTransport(matrix, lookup, torch.cat(self.images).double(), self.settings.env_height,
-                              [torch.full((size, size, 1), 0.5)], MaterialTextures.constant(size), pixels, 0.0)
+                              MaterialTextures.constant(size), pixels, 0.0)
 
 
 class GaussianDenoiser(torch.nn.Module):

@@ -1,5 +1,5 @@
-"""The recorded light transport: Mitsuba's envmap and bitmap lookups exactly, images under other maps, albedos
-and roughness levels against the path tracer, its gradients against Dr.Jit's, the two halves' unbiased data
+"""The recorded light transport: Mitsuba's envmap and bitmap lookups exactly, images under other maps and albedos
+against the path tracer, its gradients against Dr.Jit's, the two halves' unbiased data
 term, and the normal equations of map and albedo against it."""
 
 from __future__ import annotations
@@ -12,12 +12,10 @@ from dpi.capture import load_capture
 from dpi.render.renderer import RenderConfig, texture_plugin
 from dpi.solve.materials import MaterialTextures
 from dpi.solve.problem import InverseProblem, ProblemConfig
-from dpi.solve.transport import TransportConfig, guide_map, lobe_levels, record_transport, record_view
+from dpi.solve.transport import TransportConfig, guide_map, record_transport, record_view
 from dpi.solve.transport.record import texel_weights, texture_weights, transport_pixels
 
 HEIGHT, SIZE = 8, 8
-LOBES = (1 / 16, 4.0)
-"""the lobe widths recorded beside the materials': near a mirror, and matte"""
 
 
 @pytest.fixture(scope="module")
@@ -69,16 +67,6 @@ def test_texture_weights_are_mitsubas_bitmap_lookup(mi):
                                atol=1e-5)
 
 
-def test_lobe_levels_scale_each_texels_lobe_width():
-    base = materials().roughness
-    levels = lobe_levels(base, LOBES)
-    assert len(levels) == 3 and torch.equal(levels[0], base)
-    for factor, level in zip(LOBES, levels[1:]):
-        inside = (level > 0.021) & (level < 0.999)  # clamped to the valid range elsewhere
-        assert inside.float().mean() > 0.5
-        torch.testing.assert_close(level[inside].square(), factor * base[inside].square())
-
-
 def render_mean(problem, env, mats, view, seeds=range(3), spp=256) -> np.ndarray:
     with torch.no_grad():
         return np.mean([problem.render(env, mats, view, seed=s, spp=spp).numpy() for s in seeds], axis=0)
@@ -86,21 +74,20 @@ def render_mean(problem, env, mats, view, seeds=range(3), spp=256) -> np.ndarray
 
 @pytest.fixture(scope="module")
 def recorded(problem):
-    """One view's transport at many samples (the image tests) under materials() and two more roughness levels."""
+    """One view's transport at many samples (the image tests) under materials()."""
     view = problem.train_ids[0]
     settings = TransportConfig(spp=128)
-    return view, record_view(problem, view, materials(), guide_map(random_map(0)), settings, seed=3, levels=LOBES)
+    return view, record_view(problem, view, materials(), guide_map(random_map(0)), settings, seed=3)
 
 
-@pytest.mark.parametrize("level", [0, 1, 2])
-def test_images_under_other_maps_albedos_and_roughness_like_the_path_tracer(problem, recorded, level):
+def test_images_under_other_maps_and_albedos_like_the_path_tracer(problem, recorded):
     view, t = recorded
     mask = problem.masks[view].numpy()
-    roughness = lobe_levels(materials().roughness, LOBES)[level]
+    roughness = materials().roughness
     for seed, spread in ((5, 1.0), (6, 2.0)):  # maps the recording's guide never saw, up to e^4 dynamic range
         env, albedo = random_map(seed, spread), random_albedo(seed)
         mats = MaterialTextures(albedo, roughness, materials().metallic)
-        cached = t.image(env.numpy(), albedo.numpy(), level)[mask]
+        cached = t.image(env.numpy(), albedo.numpy())[mask]
         reference = render_mean(problem, env, mats, view)[mask]
         independent = render_mean(problem, env, mats, view, seeds=[11], spp=256)[mask]
         noise = np.sqrt(np.mean((independent - reference) ** 2))
@@ -134,8 +121,7 @@ def test_bright_texels_alone_drawn_still_give_the_path_tracers_images(problem):
 
 @pytest.fixture(scope="module")
 def transport(problem):
-    return record_transport(problem, materials(), random_map(2), TransportConfig(spp=16), seed=4,
-                            levels=LOBES[:1])
+    return record_transport(problem, materials(), random_map(2), TransportConfig(spp=16), seed=4)
 
 
 def test_the_halves_product_is_the_data_term_without_the_recordings_noise(problem, transport):
@@ -157,12 +143,12 @@ def test_the_halves_product_is_the_data_term_without_the_recordings_noise(proble
 
 def test_image_equations_are_the_fit_loss_and_its_gradient(transport):
     albedo, env = random_albedo(10), random_map(10).double()
-    equations = transport.image_equations(albedo, level=1)
-    fit = float(transport.fit_loss(env, albedo, level=1))
+    equations = transport.image_equations(albedo)
+    fit = float(transport.fit_loss(env, albedo))
     assert float(equations.sum_squares(env)) == pytest.approx(fit, rel=1e-4)
     flat = env.reshape(-1, 3).T
     leaf = env.clone().requires_grad_(True)
-    transport.fit_loss(leaf, albedo, level=1).backward()
+    transport.fit_loss(leaf, albedo).backward()
     np.testing.assert_allclose(leaf.grad.reshape(-1, 3).T.numpy(),
                                (2 * (equations.apply(flat) - equations.rhs)).numpy(), rtol=1e-3,
                                atol=1e-4 * float(leaf.grad.abs().max()))
@@ -191,7 +177,7 @@ def test_gradient_of_the_transport_is_drjits(problem, recorded):
     rows, index, weight = t.lookup
     seen = np.zeros((len(t.pixels), 3))
     np.add.at(seen, rows, weight[:, None] * albedo.numpy().reshape(-1, 3)[index])
-    slope, offset = t.matrix[0, 0].mean(0), t.matrix[1, 0].mean(0)  # (3, pixels, texels), the halves' mean
+    slope, offset = t.matrix[0].mean(0), t.matrix[1].mean(0)  # (3, pixels, texels), the halves' mean
     ours = np.einsum("cpn,pc->nc", seen.T[:, :, None] * slope + offset, r)
     grads = []
     mats = MaterialTextures(albedo, materials().roughness, materials().metallic)

@@ -9,9 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
 from functools import partial
-from typing import Annotated, Any, Callable, Literal
+from typing import Annotated, Any, Callable
 
-import torch
 from pydantic import Field
 
 from dpi.io.settings import Count, Rate, SettingsError, Steps, check_keys, settings, settings_from_dict
@@ -21,8 +20,8 @@ from dpi.solve.dps.proximal import ProximalConfig, proximal_step
 from dpi.solve.dps.refine import RefineConfig
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.dps.sun_choice import SunConfig
-from dpi.solve.init import METAL_TEXEL, START_ALBEDO, is_glossy, starting_materials
-from dpi.solve.materials import MaterialRates, MaterialTextures
+from dpi.solve.init import is_glossy
+from dpi.solve.materials import MaterialRates
 
 
 StepFunction = Callable[[DPSRun, DPSState, int], dict[str, Any]]
@@ -84,13 +83,6 @@ class DPSConfig(MaterialRates):
     (the reference's gradient guidance through the path tracer)"""
     steps: Annotated[int, Field(ge=2, le=1000)] = 100
     """reverse-diffusion steps (respaced from the prior's 1000; the paper uses 1000)"""
-    materials_start: Literal["reset", "parts", "metallic", "init"] = "parts"
-    """the materials a sample starts from, and its light transport is recorded under: reset (a grey albedo and, on a
-    rough init, its median metallic everywhere: dpi.solve.init.starting_materials), parts (reset, but the texels the
-    init reads as metal, metallic above one half, keep its metallic: a metal part stays metal), metallic (a grey albedo, the
-    init's roughness and metallic textures as they are: a metal part the init reads rough keeps its metal) or init
-    (the init's textures as they are: views and light fit best, the albedo keeps the init's trade with the light).
-    Chosen in docs/studies.md, the section on where a sample's broad balance goes"""
     proximal: ProximalConfig = field(default_factory=ProximalConfig)
     sun: SunConfig = field(default_factory=SunConfig)
     refine: RefineConfig = field(default_factory=RefineConfig)
@@ -100,21 +92,6 @@ class DPSConfig(MaterialRates):
     def sampler_settings(self) -> Any:
         """The chosen sampler's own settings (the paper's: its fixed ones)."""
         return self.proximal if self.sampler == "proximal" else PaperSampler()
-
-    def start_materials(self, init: Decomposition) -> MaterialTextures:
-        """The materials a sample from `init` starts from (`materials_start`), a copy."""
-        if self.materials_start in ("reset", "parts"):
-            materials = starting_materials(init)
-            if self.materials_start == "parts":
-                with torch.no_grad():
-                    metal = init.materials.metallic > METAL_TEXEL
-                    materials.metallic[metal] = init.materials.metallic[metal]
-            return materials
-        materials = init.materials.detached()
-        if self.materials_start == "metallic":
-            with torch.no_grad():
-                materials.albedo.fill_(START_ALBEDO)
-        return materials
 
     def for_init(self, init: Decomposition, prior_rows: int) -> DPSConfig:
         """The settings a sample from `init` runs with, under a prior of `prior_rows` rows: the one place a glossy

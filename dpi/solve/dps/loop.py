@@ -25,8 +25,8 @@ from dpi.prior.sample import Prior
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.config import SAMPLERS, DPSConfig
-from dpi.solve.dps.data_term import choose_lobe_
 from dpi.solve.dps.refine import refine
+from dpi.solve.dps.start import sample_start_materials
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.dps.sun_choice import LR_SUN, LR_SUN_UV, wants_sun
 from dpi.solve.materials import MaterialRates, MaterialTextures
@@ -69,7 +69,7 @@ def data_norm(problem: InverseProblem) -> float:
 
 def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: DPSConfig,
               seed: int, radiance_scale: float | None = None) -> tuple[DPSRun, DPSState]:
-    """The fixed part of one sample and its loop state at its first step (its materials: DPSConfig.start_materials):
+    """The fixed part of one sample and its loop state at its first step (its materials: dpi.solve.dps.start):
     x_T ~ N(0, I), or the init map noised to the sampler's start_noise."""
     adapted = cfg.for_init(init, prior.height)
     if adapted is not cfg:
@@ -86,7 +86,7 @@ def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: D
     has_sun = wants_sun(cfg.sun, sampler.models_sun, prior.family, init.materials, sun)
     run = DPSRun(problem, prior, sampler, cfg, diffusion, seed, scale, data_norm(problem), first,
                  cfg.sun if has_sun else None, init)
-    materials = cfg.start_materials(init)
+    materials = sample_start_materials(init)
     for _, t in materials.items():
         t.requires_grad_(True)
     shape = (1, 3, prior.height, 2 * prior.height)
@@ -100,7 +100,6 @@ def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: D
     lr_map = getattr(sampler, "lr_map", 0.0)  # samplers without a log map never step it
     state = DPSState(x, materials, torch.zeros(()), log_map, sun_uv, sun_log,
                      state_optimizer(materials, cfg, lr_map, log_map, sun_uv, sun_log), generator)
-    choose_lobe_(run, state)
     return run, state
 
 
@@ -156,7 +155,7 @@ def seen_weight(weights: torch.Tensor, height: int) -> torch.Tensor:
 def transport_weights(transport: LightTransport) -> torch.Tensor:
     """(P, N) each recorded pixel's weight on each texel at the materials' own roughness (slope and offset, halves'
     mean, channels summed)."""
-    return transport.mean[:, 0].abs().sum(dim=(0, 1))
+    return transport.mean.abs().sum(dim=(0, 1))
 
 
 def keep_what_the_views_see(env: torch.Tensor, init_env: torch.Tensor, weight: torch.Tensor) -> torch.Tensor:
@@ -225,8 +224,6 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
         pinned = seen_weight(transport_weights(transport), transport.height)
         env = keep_what_the_views_see(env, init.env, pinned)
         trace.info["pinned_by_views"] = round(float(pinned.mean()), 4)
-    if "lobe" in state.extra:
-        trace.info["lobe"] = state.extra["lobe"]
     if watch:
         watch("kept", run.num_steps, env)
     env, materials, refine_trace = refine(problem, env, state.materials, run.cfg.refine, run.cfg,

@@ -42,6 +42,7 @@ from dpi.io.settings import Count, Rate, Share, Steps, Weight, settings, setting
 from dpi.solve.dps.balance_trade import sample_balance_factor
 from dpi.solve.dps.data_term import sample_transport
 from dpi.solve.dps.map_solve import PRIOR_STD, MapPrior, Resampling, cached_resampling, posterior_variance, solve_map
+from dpi.solve.dps.start import sample_start_materials
 from dpi.solve.dps.state import DPSRun, DPSState, Laps, finite, log_radiance, predicted_step, recentre_
 from dpi.solve.init import METAL_TEXEL
 from dpi.solve.optimize import all_finite
@@ -92,9 +93,6 @@ class ProximalConfig:
     """each sample's albedo carries its own broad field over the normals (on its dielectric texels) while the map settles, as
     large as the init's albedo varies, then returns to its start: the samples spread over the albedo's trade with the
     light's balance instead of all drawing the balance a uniform albedo implies (dpi.solve.dps.balance_trade)"""
-    lobe_choice: bool = False
-    """a rough init's sample starts from the lobe width its views favour under the start's albedo, among the init's
-    and four more recorded beside it (dpi.solve.dps.lobe_choice)"""
     perturb_rows: Count = 2
     """rows of the grid the push is white on, upsampled onto the prior's (at most the transport's): 2, a field as
     broad as the light's balance between sky and ground, sides and colour; finer, the push reaches detail the
@@ -182,7 +180,7 @@ def trade_balance_(run: DPSRun, state: DPSState, n: int) -> None:
     first_move = math.ceil(MATERIAL_START * run.num_steps)
     if not run.sampler.balance_trade or n not in (0, first_move):
         return
-    start = run.cfg.start_materials(run.init)
+    start = sample_start_materials(run.init)
     dielectric = start.metallic[..., 0] <= METAL_TEXEL
     if not bool(dielectric.any()):
         return

@@ -88,16 +88,14 @@ class NormalEquations:
 
 @dataclass
 class LightTransport:
-    """The training views' transport at the recorded pixels (module notes), per roughness level: slope A and
-    offset B, (2, levels, HALVES, 3, P, N) float32; the albedo each pixel sees (a sparse (P, R^2) lookup); the
-    views' values (P, 3); the levels' roughness textures and the materials it was recorded with."""
+    """The training views' transport at the recorded pixels (module notes): slope A and offset B,
+    (2, HALVES, 3, P, N) float32; the albedo each pixel sees (a sparse (P, R^2) lookup); the views' values (P, 3);
+    the materials it was recorded with."""
 
     matrix: torch.Tensor
     lookup: AlbedoLookup
     observed: torch.Tensor
     height: int
-    roughness: list[torch.Tensor]
-    """the roughness texture of each level (level 0: the materials')"""
     materials: MaterialTextures
     foreground: int
     """foreground pixels of the training views (the recorded ones are all of them or a subset)"""
@@ -106,12 +104,12 @@ class LightTransport:
 
     @property
     def slope(self) -> torch.Tensor:
-        """A: (levels, HALVES, 3, P, N)."""
+        """A: (HALVES, 3, P, N)."""
         return self.matrix[0]
 
     @property
     def offset(self) -> torch.Tensor:
-        """B: (levels, HALVES, 3, P, N)."""
+        """B: (HALVES, 3, P, N)."""
         return self.matrix[1]
 
     @property
@@ -130,55 +128,45 @@ class LightTransport:
         return sum(t.element_size() * t.numel() for t in (self.matrix, self.observed, self.lookup.rows,
                                                           self.lookup.texels, self.lookup.weights))
 
-    def at_level(self, level: int) -> "LightTransport":
-        """This recording with only roughness level `level` kept (as its level 0), its materials' roughness that
-        level's."""
-        materials = self.materials.detached()
-        materials.roughness = self.roughness[level].clone()
-        return LightTransport(self.matrix[:, level:level + 1].clone(), self.lookup, self.observed, self.height,
-                              [self.roughness[level]], materials, self.foreground, self.seconds)
-
     def seen_albedo(self, albedo: torch.Tensor) -> torch.Tensor:
         """(P, 3) the albedo each recorded pixel sees, from an (R, R, 3) texture (differentiable)."""
         return self.lookup.apply(albedo.reshape(-1, 3))
 
-    def halves(self, env: torch.Tensor, albedo: torch.Tensor, level: int = 0) -> torch.Tensor:
-        """(..., HALVES, P, 3) each half's image of the recorded pixels under a map, an albedo and a roughness
-        level (a slice: several, leading dimension; differentiable)."""
+    def halves(self, env: torch.Tensor, albedo: torch.Tensor) -> torch.Tensor:
+        """(HALVES, P, 3) each half's image of the recorded pixels under a map and an albedo (differentiable)."""
         light = env.reshape(-1, 3).T
         a = self.seen_albedo(albedo).T.to(self.slope.dtype)
-        return (a * apply_light(self.slope[level], light) + apply_light(self.offset[level], light)).transpose(-1, -2)
+        return (a * apply_light(self.slope, light) + apply_light(self.offset, light)).transpose(-1, -2)
 
     @cached_property
     def mean(self) -> torch.Tensor:
-        """The halves' mean transport: (2, levels, 3, P, N) (slope, offset), kept once asked for."""
-        return self.matrix.mean(dim=2)
+        """The halves' mean transport: (2, 3, P, N) (slope, offset), kept once asked for."""
+        return self.matrix.mean(dim=1)
 
-    def image(self, env: torch.Tensor, albedo: torch.Tensor, level: int = 0) -> torch.Tensor:
-        """(P, 3) the recorded pixels' image under a map, an albedo and a roughness level: the halves' mean
-        (differentiable)."""
+    def image(self, env: torch.Tensor, albedo: torch.Tensor) -> torch.Tensor:
+        """(P, 3) the recorded pixels' image under a map and an albedo: the halves' mean (differentiable)."""
         light = env.reshape(-1, 3).T
         a = self.seen_albedo(albedo).T.to(self.matrix.dtype)
-        return (a * apply_light(self.mean[0, level], light) + apply_light(self.mean[1, level], light)).T
+        return (a * apply_light(self.mean[0], light) + apply_light(self.mean[1], light)).T
 
-    def sum_squares(self, env: torch.Tensor, albedo: torch.Tensor, level: int = 0) -> torch.Tensor:
+    def sum_squares(self, env: torch.Tensor, albedo: torch.Tensor) -> torch.Tensor:
         """Sum over the recorded pixels of the squared residual, without the recording's noise: the product of
         the two halves' residuals (unbiased; module notes). A value to compare, not a loss to descend: it is not
         bounded below (halves that disagree make it negative), so `fit_loss` is the one to optimise."""
-        first, second = self.halves(env, albedo, level) - self.observed.to(self.slope.dtype)
+        first, second = self.halves(env, albedo) - self.observed.to(self.slope.dtype)
         return (first * second).sum()
 
-    def fit_loss(self, env: torch.Tensor, albedo: torch.Tensor, level: int = 0) -> torch.Tensor:
+    def fit_loss(self, env: torch.Tensor, albedo: torch.Tensor) -> torch.Tensor:
         """Sum over the recorded pixels of the squared residual of the halves' mean image (differentiable): convex,
         and above `sum_squares` by the recording's variance (an optimiser following the halves' product would
         pull them apart, into the recording's noise)."""
-        return (self.image(env, albedo, level) - self.observed.to(self.slope.dtype)).square().sum()
+        return (self.image(env, albedo) - self.observed.to(self.slope.dtype)).square().sum()
 
-    def image_equations(self, albedo: torch.Tensor, level: int = 0) -> NormalEquations:
-        """`fit_loss` as normal equations in the map under a fixed albedo and roughness level: of the halves'
-        mean transport M_p = a_p A_p + B_p, G = M^T M and b = M^T y."""
+    def image_equations(self, albedo: torch.Tensor) -> NormalEquations:
+        """`fit_loss` as normal equations in the map under a fixed albedo: of the halves' mean transport
+        M_p = a_p A_p + B_p, G = M^T M and b = M^T y."""
         a = self.seen_albedo(albedo.detach()).T[:, :, None].to(self.slope.dtype)
-        matrix = a * self.mean[0, level] + self.mean[1, level]  # (3, P, N)
+        matrix = a * self.mean[0] + self.mean[1]  # (3, P, N)
         observed = self.observed.T
         rhs = (matrix.transpose(1, 2) @ observed.to(matrix.dtype)[:, :, None])[..., 0].double()
         return NormalEquations((matrix.transpose(1, 2) @ matrix).double(), rhs,

@@ -29,7 +29,6 @@ at the brightest texels (a sun): the product of the two halves' residuals does n
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,8 +38,7 @@ from dpi.render.renderer import SEED_MODULUS, texture_plugin
 from dpi.solve.materials import MaterialTextures
 from dpi.solve.problem import InverseProblem
 from dpi.solve.transport.operator import AlbedoLookup, LightTransport, resize_map
-from dpi.solve.transport.settings import (HALVES, ROUGH_TRANSPORT_HEIGHT, TransportConfig, lobe_levels,
-                                          transport_height)
+from dpi.solve.transport.settings import HALVES, ROUGH_TRANSPORT_HEIGHT, TransportConfig, transport_height
 
 BRIGHT_SHARE = 0.5
 """the brightest texels that hold this share of the guide map's energy get extra direct-light draws ..."""
@@ -120,18 +118,18 @@ class Bins:
 
 
 class Accumulator:
-    """Adds (pixel, direction, half, weights of A and B per roughness level) contributions into a view's dense
-    transports through the map's lookup: `matrix` (2 (slope, offset), levels, HALVES, 3, pixels, texels)."""
+    """Adds (pixel, direction, half, weights of A and B) contributions into a view's dense transports through the
+    map's lookup: `matrix` (2 (slope, offset), HALVES, 3, pixels, texels)."""
 
-    def __init__(self, levels: int, count: int, height: int, drawn: np.ndarray | None = None):
+    def __init__(self, count: int, height: int, drawn: np.ndarray | None = None):
         self.height, self.texels = height, 2 * height * height
-        self.matrix = np.zeros((2, levels, HALVES, 3, count, self.texels), np.float32)
+        self.matrix = np.zeros((2, HALVES, 3, count, self.texels), np.float32)
         self.drawn = drawn
         """the texels `record_direct` draws (a bool per texel); None: every texel"""
 
-    def add(self, level: int, row: np.ndarray, half: np.ndarray, direction: np.ndarray, slope: np.ndarray,
+    def add(self, row: np.ndarray, half: np.ndarray, direction: np.ndarray, slope: np.ndarray,
             offset: np.ndarray, drawn_factor: np.ndarray | None = None) -> None:
-        """T[level, half, c, row, texel] += weight_c x bilinear(texel; direction) for every contribution (weights
+        """T[half, c, row, texel] += weight_c x bilinear(texel; direction) for every contribution (weights
         (n, 3)); `drawn_factor` (one per contribution) applies to the drawn texels' columns only: a BSDF sample
         shares a column with `record_direct`'s draws of that texel alone."""
         if len(row) == 0:
@@ -139,10 +137,10 @@ class Accumulator:
         index, bilinear = texel_weights(direction, self.height)
         if drawn_factor is not None:
             bilinear = np.where(self.drawn[index], drawn_factor[:, None] * bilinear, bilinear)
-        rows = self.matrix.shape[4]
+        rows = self.matrix.shape[3]
         bins = Bins(((half[:, None] * 3 * rows + row[:, None]) * self.texels + index).reshape(-1))
         for part, weight in enumerate((slope, offset)):
-            block = self.matrix[part, level].reshape(-1)
+            block = self.matrix[part].reshape(-1)
             for c in range(3):  # channel c of half h starts at (h * 3 + c) * rows * texels of the block
                 bins.add(block[c * rows * self.texels:], (bilinear * weight[:, c:c + 1]).reshape(-1))
 
@@ -169,8 +167,7 @@ def tent_inverse(xi):
 @dataclass
 class ViewSetup:
     """What the recorders of one view share: Mitsuba's scene and sensor, the pixels (flat indices into the
-    (h, w) image) and their footprints, and per roughness level the BSDFs of base colour 0 and 1 (the rest as
-    recorded)."""
+    (h, w) image) and their footprints, and the BSDFs of base colour 0 and 1 (the rest as recorded)."""
 
     mi: object
     scene: object
@@ -180,7 +177,8 @@ class ViewSetup:
     height: int
     footprint: tuple[np.ndarray, np.ndarray]
     """(pixels x FOOTPRINT) sub-pixel offsets in x and y, stratified"""
-    levels: list[tuple[object, object]]
+    bsdfs: tuple[object, object]
+    """the principled BSDF of the materials' roughness and metallic at base colour 0 and at 1"""
 
     def footprint_position(self, row, point):
         """Film position of footprint point `point` of pixel row `row` (Dr.Jit arrays)."""
@@ -192,33 +190,33 @@ class ViewSetup:
         return mi.Point2f((mi.Float(pixel % w) + dr.gather(mi.Float, mi.Float(self.footprint[0]), index)) / w,
                           (mi.Float(pixel // w) + dr.gather(mi.Float, mi.Float(self.footprint[1]), index)) / h)
 
-    def first_bounce(self, level: int, si, direction, active):
-        """(f(1) - f(0), f(0), pdf) of the principled BSDF of roughness level `level` at `si` towards world
-        `direction` (cosine included; the sampling density does not depend on the base colour)."""
+    def first_bounce(self, si, direction, active):
+        """(f(1) - f(0), f(0), pdf) of the principled BSDF at `si` towards world `direction` (cosine included; the
+        sampling density does not depend on the base colour)."""
         ctx, wo = self.mi.BSDFContext(), si.to_local(direction)
-        dark, bright = self.levels[level]
+        dark, bright = self.bsdfs
         offset, pdf = dark.eval_pdf(ctx, si, wo, active)
         return bright.eval(ctx, si, wo, active) - offset, offset, pdf
 
 
 def view_setup(problem: InverseProblem, view: int, pixels: np.ndarray, materials: MaterialTextures,
-               roughness: list[torch.Tensor], guide: np.ndarray, height: int, rng: np.random.Generator) -> ViewSetup:
+               guide: np.ndarray, height: int, rng: np.random.Generator) -> ViewSetup:
     """The scene under the guide map and `materials` (their roughness samples the paths), and what the recorders
-    of `view` share; `roughness`: the textures of the levels recorded; `height`: the rows of the maps T takes."""
+    of `view` share; `height`: the rows of the maps T takes."""
     renderer = problem.renderer
     renderer.set_scene(torch.from_numpy(guide), materials.albedo, materials.roughness, materials.metallic)
     mi = renderer.mi
     camera = renderer.cameras[view]
     metallic = texture_plugin(materials.metallic.detach().float().numpy())
-    levels = [tuple(mi.load_dict({"type": "principled", "base_color": {"type": "rgb", "value": value},
-                                  "roughness": texture_plugin(level.detach().float().numpy()), "metallic": metallic})
-                    for value in (0.0, 1.0)) for level in roughness]
+    roughness = texture_plugin(materials.roughness.detach().float().numpy())
+    bsdfs = tuple(mi.load_dict({"type": "principled", "base_color": {"type": "rgb", "value": value},
+                                "roughness": roughness, "metallic": metallic}) for value in (0.0, 1.0))
     jitter = ((np.arange(FOOTPRINT)[None, :, None] + rng.random((len(pixels), FOOTPRINT, 2)))
               / FOOTPRINT).astype(np.float32)  # stratified in x and y (as Latin hypercube rows), per pixel
     jitter[..., 1] = np.take_along_axis(jitter[..., 1], rng.permuted(np.tile(np.arange(FOOTPRINT), (len(pixels), 1)),
                                                                       axis=1), axis=1)
     return ViewSetup(mi, renderer.scene, renderer.scene.sensors()[view], pixels, (camera.height, camera.width),
-                     height, (jitter[..., 0].reshape(-1), jitter[..., 1].reshape(-1)), levels)
+                     height, (jitter[..., 0].reshape(-1), jitter[..., 1].reshape(-1)), bsdfs)
 
 
 def albedo_lookup(setup: ViewSetup, texture_size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -246,11 +244,11 @@ def albedo_lookup(setup: ViewSetup, texture_size: int) -> tuple[np.ndarray, np.n
 def record_direct(setup: ViewSetup, spp: int, seed: int, cells: np.ndarray) -> np.ndarray:
     """Light arriving straight from the map at the first surface point, texel by texel: for every texel one
     direction drawn in proportion to its bilinear tent in (u, v) (Mitsuba's lookup, `texel_weights`; so a sun's
-    texel is never missed and gets its exact share), shadow-tested, weighted against each level's BSDF sampling
+    texel is never missed and gets its exact share), shadow-tested, weighted against the BSDF's sampling
     by the balance heuristic (`record_paths` takes the rest); `spp` camera samples per pixel, alternately in the
     two halves. The sample's weight is f cos / (its density + the BSDF's), times the tent's area over its density
     in (u, v), 2 pi^2 sin(theta) |tent| (the first and last rows' tents are halves at the poles: their draws fold
-    back). Returns the columns of `cells`: (2 (slope, offset), levels, HALVES, 3, pixels, cells). A launch draws
+    back). Returns the columns of `cells`: (2 (slope, offset), HALVES, 3, pixels, cells). A launch draws
     one camera sample of each half for every (pixel, cell) of a chunk of cells, so its lanes fill a dense block:
     summed by plain array additions, in a fixed order (Dr.Jit's parallel atomic adds sum in whatever order its
     threads run, and a seeded sample must come out the same twice)."""
@@ -261,7 +259,7 @@ def record_direct(setup: ViewSetup, spp: int, seed: int, cells: np.ndarray) -> n
     du, dv = 1.0 / width, 1.0 / (height - 1)
     rows = len(setup.pixels)
     cell_list = mi.UInt32(np.asarray(cells).astype(np.uint32))
-    out = np.zeros((2, len(setup.levels), HALVES, 3, rows, len(cells)), np.float32)
+    out = np.zeros((2, HALVES, 3, rows, len(cells)), np.float32)
     chunk = max(1, min(len(cells), CHUNK_LANES // max(HALVES * rows, 1)))
     sampler = mi.load_dict({"type": "independent"})
     per_half = spp // HALVES
@@ -293,16 +291,13 @@ def record_direct(setup: ViewSetup, spp: int, seed: int, cells: np.ndarray) -> n
             hit &= ~setup.scene.ray_test(si.spawn_ray(d), hit)
             density = texel_density(d.y, height)
             scale = dr.select(hit, area * 2 * dr.pi ** 2 * dr.sin(theta) / per_half, 0.0)
-            values = []
-            for level in range(len(setup.levels)):  # each level weighed against its own BSDF sampling
-                slope, offset, bsdf_pdf = setup.first_bounce(level, si, d, hit)
-                weight = scale * density / (density + bsdf_pdf)
-                values.append((slope * weight, offset * weight))
-            dr.eval(*(v for pair in values for v in pair))
-            for level, pair in enumerate(values):
-                for part, value in enumerate(pair):
-                    out[part, level, ..., first:first + count] += np.asarray(value).reshape(3, HALVES, rows, count
-                                                                                           ).transpose(1, 0, 2, 3)
+            slope, offset, bsdf_pdf = setup.first_bounce(si, d, hit)
+            weight = scale * density / (density + bsdf_pdf)
+            pair = (slope * weight, offset * weight)
+            dr.eval(*pair)
+            for part, value in enumerate(pair):
+                out[part, ..., first:first + count] += np.asarray(value).reshape(3, HALVES, rows, count
+                                                                                 ).transpose(1, 0, 2, 3)
     return out
 
 
@@ -318,13 +313,13 @@ def bright_texels(guide: np.ndarray, share: float) -> np.ndarray:
     return np.sort(order[:count]) if count <= energy.size // 8 else np.zeros(0, np.int64)
 
 
-def record_paths(setup: ViewSetup, accumulator: Accumulator, level: int, spp: int, max_depth: int, seed: int,
+def record_paths(setup: ViewSetup, accumulator: Accumulator, spp: int, max_depth: int, seed: int,
                  rng: np.random.Generator) -> None:
     """Everything but `record_direct`'s part, along prb's paths (`spp` per pixel, alternately in the two halves):
     the map seen by the camera, BSDF-sampled rays that escape (after the first surface point weighted against the
     texel-by-texel draws, after later ones against next-event estimation), and next-event estimation from the
     second point on. The first surface point's BSDF weight is split into its base colour's slope and offset.
-    The scene's roughness must be the level's (its BSDF samples the paths)."""
+    The scene's materials must be the setup's (its BSDF samples the paths)."""
     import drjit as dr
     from mitsuba.ad.integrators.common import mis_weight  # the power heuristic, as prb weighs its techniques
 
@@ -349,7 +344,7 @@ def record_paths(setup: ViewSetup, accumulator: Accumulator, level: int, spp: in
         dr.eval(mask, direction, beta_slope, beta_offset, weight)
         m = np.asarray(mask, bool)
         scale = np.asarray(weight, np.float64).T[m]
-        accumulator.add(level, rows[m], half[m], np.asarray(direction).T[m], np.asarray(beta_slope).T[m] * scale,
+        accumulator.add(rows[m], half[m], np.asarray(direction).T[m], np.asarray(beta_slope).T[m] * scale,
                         np.asarray(beta_offset).T[m] * scale,
                         None if drawn_factor is None else np.asarray(drawn_factor, np.float64)[m])
 
@@ -379,7 +374,7 @@ def record_paths(setup: ViewSetup, accumulator: Accumulator, level: int, spp: in
         sample, weight = bsdf.sample(ctx, si, sampler.next_1d(), sampler.next_2d(), active)
         direction = si.to_world(sample.wo)
         if depth == 0:  # the first point's base colour: f(a) / pdf = a (f(1) - f(0)) / pdf + f(0) / pdf
-            slope, offset, _ = setup.first_bounce(level, si, direction, active)
+            slope, offset, _ = setup.first_bounce(si, direction, active)
             pdf = dr.select(sample.pdf > 0, sample.pdf, 1.0)
             beta_slope, beta_offset = beta_offset * slope / pdf, beta_offset * offset / pdf
         else:
@@ -394,7 +389,7 @@ def record_paths(setup: ViewSetup, accumulator: Accumulator, level: int, spp: in
 
 @dataclass
 class ViewTransport:
-    """The recording of one view's pixels: slope A and offset B (2, levels, HALVES, 3, pixels, texels), and each
+    """The recording of one view's pixels: slope A and offset B (2, HALVES, 3, pixels, texels), and each
     pixel's albedo lookup (COO rows, texel indices, weights)."""
 
     matrix: np.ndarray
@@ -403,15 +398,15 @@ class ViewTransport:
     shape: tuple[int, int]
     lookup: tuple[np.ndarray, np.ndarray, np.ndarray]
 
-    def image(self, env: np.ndarray, albedo: np.ndarray, level: int = 0) -> np.ndarray:
-        """The view's (h, w, 3) image under an (H, 2H, 3) map, an (R, R, 3) albedo and a roughness level:
+    def image(self, env: np.ndarray, albedo: np.ndarray) -> np.ndarray:
+        """The view's (h, w, 3) image under an (H, 2H, 3) map and an (R, R, 3) albedo:
         a_p (A L) + B L on the recorded pixels (both halves' mean), 0 elsewhere."""
         rows, index, weight = self.lookup
         seen = np.zeros((len(self.pixels), 3))
         np.add.at(seen, rows, weight[:, None] * albedo.reshape(-1, 3)[index])
         light = env.reshape(-1, 3)
-        value = seen * np.einsum("hcpn,nc->pc", self.matrix[0, level], light) / HALVES \
-            + np.einsum("hcpn,nc->pc", self.matrix[1, level], light) / HALVES
+        value = seen * np.einsum("hcpn,nc->pc", self.matrix[0], light) / HALVES \
+            + np.einsum("hcpn,nc->pc", self.matrix[1], light) / HALVES
         out = np.zeros((self.shape[0] * self.shape[1], 3))
         out[self.pixels] = value
         return out.reshape(*self.shape, 3)
@@ -419,20 +414,18 @@ class ViewTransport:
 
 def record_view(problem: InverseProblem, view: int, materials: MaterialTextures, guide: np.ndarray,
                 settings: TransportConfig, seed: int, pixels: np.ndarray | None = None,
-                height: int | None = None, levels: Sequence[float] = (), every_texel: bool = True) -> ViewTransport:
-    """The transport of `pixels` (default: the view's foreground) under `materials` and one more roughness level per
-    lobe-width factor in `levels` (settings.lobe_levels) for maps of `height` rows (default the problem's; the guide
-    is at the problem's); seeded.
+                height: int | None = None, every_texel: bool = True) -> ViewTransport:
+    """The transport of `pixels` (default: the view's foreground) under `materials` for maps of `height` rows
+    (default the problem's; the guide is at the problem's); seeded.
     Without `every_texel` the direct light is drawn texel by texel only for the bright texels, and the BSDF's own
     samples take the rest: a glossy object's narrow lobe finds its texels, at a fraction of the rays."""
     if pixels is None:
         pixels = np.flatnonzero(problem.masks[view].numpy().reshape(-1))
     rng = np.random.default_rng(seed)
-    levels = lobe_levels(materials.roughness, levels)
-    setup = view_setup(problem, view, pixels, materials, levels, guide, height or problem.settings.env_height, rng)
+    setup = view_setup(problem, view, pixels, materials, guide, height or problem.settings.env_height, rng)
     bright = bright_texels(resize_map(guide, setup.height), BRIGHT_SHARE)
     drawn = None if every_texel else np.isin(np.arange(2 * setup.height ** 2), bright)
-    accumulator = Accumulator(len(levels), len(pixels), setup.height, drawn)
+    accumulator = Accumulator(len(pixels), setup.height, drawn)
     if every_texel:
         accumulator.matrix = record_direct(setup, settings.direct_spp, seed * 7 + 1, np.arange(accumulator.texels))
     else:
@@ -441,9 +434,7 @@ def record_view(problem: InverseProblem, view: int, materials: MaterialTextures,
         extra = record_direct(setup, BRIGHT_SPP, seed * 7 + 2, bright)
         share = settings.direct_spp / (settings.direct_spp + BRIGHT_SPP)
         accumulator.matrix[..., bright] = share * accumulator.matrix[..., bright] + (1 - share) * extra
-    for level, roughness in enumerate(levels):  # the paths as each level's BSDF samples them
-        problem.renderer.set_scene(torch.from_numpy(guide), materials.albedo, roughness, materials.metallic)
-        record_paths(setup, accumulator, level, settings.spp, problem.renderer.settings.max_depth, seed, rng)
+    record_paths(setup, accumulator, settings.spp, problem.renderer.settings.max_depth, seed, rng)
     return ViewTransport(accumulator.matrix, pixels, setup.size, albedo_lookup(setup, problem.settings.texture_size))
 
 
@@ -460,10 +451,9 @@ def transport_pixels(problem: InverseProblem, limit: int, rng: np.random.Generat
 
 def record_transport(problem: InverseProblem, materials: MaterialTextures, env: torch.Tensor,
                      settings: TransportConfig, seed: int, max_height: int = ROUGH_TRANSPORT_HEIGHT,
-                     levels: Sequence[float] = (), every_texel: bool = True) -> LightTransport:
+                     every_texel: bool = True) -> LightTransport:
     """The light transport of the training views' foreground pixels (at most settings.pixels of them) under
-    `materials` and one more roughness level per lobe-width factor in `levels`, for maps of `transport_height` rows
-    (at most `max_height`), with next-event directions guided by `env` (the problem's size; module notes)."""
+    `materials`, for maps of `transport_height` rows (at most `max_height`), with next-event directions guided by `env` (the problem's size; module notes)."""
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
     chosen = transport_pixels(problem, settings.pixels, rng)
@@ -472,7 +462,7 @@ def record_transport(problem: InverseProblem, materials: MaterialTextures, env: 
     matrices, observed, rows, cols, weights = [], [], [], [], []
     first = 0
     for j, (v, pixels) in enumerate(chosen.items()):
-        t = record_view(problem, v, materials, guide, settings, seed * 1009 + j, pixels, height, levels, every_texel)
+        t = record_view(problem, v, materials, guide, settings, seed * 1009 + j, pixels, height, every_texel)
         matrices.append(torch.from_numpy(t.matrix))
         observed.append(problem.images[v].reshape(-1, 3)[torch.from_numpy(pixels)].double())
         rows.append(t.lookup[0] + first)
@@ -482,6 +472,5 @@ def record_transport(problem: InverseProblem, materials: MaterialTextures, env: 
     size = problem.settings.texture_size
     lookup = AlbedoLookup(torch.from_numpy(np.concatenate(rows)), torch.from_numpy(np.concatenate(cols)),
                           torch.from_numpy(np.concatenate(weights)), (first, size * size))
-    levels = lobe_levels(materials.roughness, levels)
-    return LightTransport(torch.cat(matrices, dim=4), lookup, torch.cat(observed), height, levels, materials.detached(),
+    return LightTransport(torch.cat(matrices, dim=3), lookup, torch.cat(observed), height, materials.detached(),
                           sum(int(problem.masks[v].sum()) for v in problem.train_ids), time.perf_counter() - start)

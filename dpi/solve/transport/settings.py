@@ -1,12 +1,9 @@
-"""How a light transport is recorded (its settings, the roughness levels) and the map size it takes."""
+"""How a light transport is recorded (its settings) and the map size it takes."""
 
 from __future__ import annotations
 
-import math
-from collections.abc import Sequence
 from typing import Annotated
 
-import torch
 from pydantic import Field
 
 from dpi.io.settings import Count, settings
@@ -44,15 +41,6 @@ class TransportConfig:
 ROUGH_TRANSPORT_HEIGHT = 16
 """the largest map (rows) a rough object's transport takes: its views fix the light's low frequencies only, and the
 recording's cost grows with the texels (a glossy object's views resolve detail up to MAX_TRANSPORT_HEIGHT)"""
-
-
-def lobe_levels(roughness: torch.Tensor, factors: Sequence[float]) -> list[torch.Tensor]:
-    """The roughness textures a transport is recorded under: the given one, then one per factor with its lobe width
-    (GGX alpha = roughness^2) times that factor, texel by texel (clamped to the valid range)."""
-    from dpi.solve.materials import RANGES
-
-    base = roughness.detach()
-    return [base.clone(), *((base * math.sqrt(f)).clamp(*RANGES["roughness"]) for f in factors)]
 
 
 def transport_height(env_height: int, max_height: int = MAX_TRANSPORT_HEIGHT) -> int:
