@@ -6,7 +6,7 @@
 For each design scene (dpi.studies.scenes.DEV_SCENES: other objects and held-out panoramas than the studies') and
 seed, each dps variant (the configured sampler as `proximal`, plus `--dps` variants such as materials held at the
 init's: `held:lr_albedo=1e-9,refine.lr_texels=1e-9`) draws one sample through the workflow's sample stage while
-dpi.solve.dps.loop's `watch` records the map at every stage: the network's x0_hat and the solved map of each reverse
+dpi.solve.dps.loop.dps_phases yields the map at every stage: the network's x0_hat and the solved map of each reverse
 step, the loop's map, after keep_what_the_views_see, and after the refinement. Each row is one (scene, variant, seed,
 stage, step) with the map's log error at 2 and 8 rows against the truth (dpi.evaluation.metrics.balance_error); the
 init's map is the `init` stage. The CSV's rows of the scenes and variants run are replaced, the others kept; it
@@ -21,19 +21,19 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-import torch
 
 from dpi.capture import read_capture_json, read_ground_truth
 from dpi.evaluation.metrics import BALANCE_ROWS, balance_error
 from dpi.io.exr import read_exr
 from dpi.io.layout import INIT
-from dpi.solve.dps.loop import WATCH_STAGES
-from dpi.stages.inverse import sample_stage
+from dpi.solve.dps.loop import MAP_PHASES
+from dpi.solve.methods import dps_phases_of
+from dpi.stages.inverse import load_problem, sample_job
 from dpi.studies.engine import (claim_sample_dir, dps_variants, method_jobs, prepare_job, read_rows, results_csv,
                                 work_dir, workflow_config, write_rows)
 from dpi.studies.scenes import DEV_SCENES, real_light_scenes
 
-STAGES = ("init", *WATCH_STAGES)
+STAGES = ("init", *MAP_PHASES)
 TEXT = ("scene", "group", "variant", "stage", "label")
 """the CSV's text columns"""
 SHOWN_STEPS = (0.0, 0.5, 1.0)
@@ -46,15 +46,25 @@ def errors(env: np.ndarray, truth: np.ndarray) -> dict[str, float]:
 
 
 def trace_job(job, truth: np.ndarray) -> list[dict]:
-    """Draw the job's sample with a watch on its map; one row per watched stage and step."""
+    """Draw the job's sample phase by phase (its sample stage's inputs, nothing written); one row per map it yields."""
     rows: list[dict] = []
-
-    def watch(stage: str, step: int, env: torch.Tensor) -> None:
-        rows.append({"stage": stage, "step": step, **errors(env.detach().double().numpy(), truth)})
-
     claim_sample_dir(job)
-    sample_stage(job.stage_job(threads=1), watch)
+    stage = job.stage_job(threads=1)
+    _, sample = sample_job(stage, load_problem(stage.paths.capture_json, stage.solve))
+    for phase in dps_phases_of(sample):
+        step = phase["record"]["step"] if phase["phase"] == "step" else None
+        maps = {name: phase[name] for name in ("x0_hat", "solved")} if step is not None \
+            else {phase["phase"]: phase["env"]}
+        for stage_name, env in maps.items():
+            if env is not None:
+                rows.append({"stage": stage_name, "step": step if step is not None else phase_steps(rows),
+                             **errors(env.detach().double().numpy(), truth)})
     return [{"scene": job.scene, "group": job.group, "variant": job.sampler, "seed": job.seed, **r} for r in rows]
+
+
+def phase_steps(rows: list[dict]) -> int:
+    """The step number a phase after the loop is recorded at: the loop's steps."""
+    return max((int(r["step"]) for r in rows if r["stage"] in ("x0_hat", "solved")), default=-1) + 1
 
 
 def labelled(rows: list[dict], init: dict[str, float]) -> list[dict]:

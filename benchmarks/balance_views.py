@@ -33,9 +33,8 @@ from dpi.io.exr import read_exr
 from dpi.io.images import luminance, resize
 from dpi.io.layout import INIT
 from dpi.solve.dps.balance_trade import normal_texture
-from dpi.solve.dps.data_term import start_transport
-from dpi.solve.dps.start import sample_start_materials
-from dpi.solve.init import METAL_TEXEL, is_glossy
+from dpi.solve.dps.start import glossy_start, sample_start_materials, start_transport
+from dpi.solve.init import METAL_TEXEL
 from dpi.solve.materials import MaterialTextures
 from dpi.solve.transport import LightTransport, record_transport
 from dpi.stages.inverse import load_problem
@@ -99,7 +98,7 @@ def scene_rows(scene: str, folder: Path, pipeline: Pipeline, samples: str) -> li
     def recorded_under(roughness: torch.Tensor, metallic: torch.Tensor) -> LightTransport:
         materials = MaterialTextures(truth.albedo, roughness, metallic)
         return record_transport(problem, materials, init.env, cfg.proximal.transport, SEED, transport.height,
-                                every_texel=not is_glossy(init.materials))
+                                every_texel=not glossy_start(init))
 
     readings = (("start", start.albedo, transport), ("init", init.materials.albedo, transport),
                 ("truth", truth.albedo, transport),

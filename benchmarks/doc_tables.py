@@ -19,7 +19,8 @@ from pathlib import Path
 from typing import Any
 
 from dpi.io.layout import INIT
-from dpi.solve.dps.loop import WATCH_STAGES
+from dpi.solve.dps.loop import MAP_PHASES
+from dpi.solve.dps.start import GLOSSY_REFINE_FACTOR
 from dpi.solve.methods import METHODS
 from dpi.studies.engine import latest, read_rows
 
@@ -360,7 +361,7 @@ def presets(root: Path) -> str:
         pipeline = Pipeline(apply_preset({**deepcopy(base), "preset": name}))
         problem, dps = pipeline.solve_settings().problem, pipeline.method_settings("dps")
         refine = dps.refine.iterations
-        body.append([f"`{name}`", str(dps.steps), f"{refine} ({refine * dps.glossy.refine_factor} on a glossy object)",
+        body.append([f"`{name}`", str(dps.steps), f"{refine} ({refine * GLOSSY_REFINE_FACTOR} on a glossy object)",
                      str(pipeline.solve_settings().render.spp), str(pipeline.init_settings.iterations),
                      f"{problem.resolution} px" if problem.resolution else "the capture's own",
                      f"{problem.env_height} x {2 * problem.env_height}", str(problem.texture_size or f"the capture's (at most {problem.max_texture_size})")])
@@ -465,7 +466,7 @@ def mask_witnesses(root: Path) -> str:
                      "flagged, views over 0.9", "stopped"], body)
 
 
-BALANCE_STAGES = ("init", *WATCH_STAGES)
+BALANCE_STAGES = ("init", *MAP_PHASES)
 """benchmarks/balance_trace.py's stages: the init's map, then a sample's as it forms"""
 
 

@@ -19,7 +19,7 @@ from dpi.prior.sample import Prior, draw_samples
 from dpi.prior.unet import SMALL_CONFIGS, UNetModel
 from dpi.render.renderer import RenderConfig
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.dps import SAMPLERS, DPSConfig, dps_sample, posterior_steps, start_run
+from dpi.solve.dps import SAMPLERS, DPSConfig, dps_phases, dps_sample, posterior_steps, start_run
 from dpi.solve.dps.map_solve import PRIOR_STD, Resampling, posterior_variance
 from dpi.solve.dps.proximal import ProximalConfig
 from dpi.solve.init import InitConfig, path_traced_init
@@ -263,6 +263,22 @@ def test_every_sampler_runs_in_the_one_loop_and_is_seeded(problem_and_init, samp
     torch.testing.assert_close(d.env, again.decomposition.env, rtol=1e-3, atol=1e-3)
     other = dps_sample(problem, log_prior(), init, cfg, seed=5, progress=False).decomposition.env
     assert float((other - d.env).abs().max()) > 1e-2
+
+
+def test_a_sample_yields_its_phases_in_order_and_the_last_is_its_result(problem_and_init):
+    """dps_phases yields one record per reverse step with x0_hat and the solved map, then the loop's, the kept and the
+    refined maps; the refined phase carries the sample, whose map is the refined one and whose trace has every step."""
+    problem, init = problem_and_init
+    cfg = DPSConfig.from_dict({"steps": 3, "refine": {"iterations": 1}, "proximal": {"start_noise": 1.0}})
+    phases = list(dps_phases(problem, log_prior(), init, cfg, seed=4, progress=False))
+    assert [p["phase"] for p in phases] == ["step"] * 3 + ["loop", "kept", "refined"]
+    assert [p["record"]["step"] for p in phases[:3]] == [0, 1, 2]
+    height = problem.settings.env_height
+    for p in phases[:3]:
+        assert p["x0_hat"].shape[-1] == 3 and p["solved"].shape == p["x0_hat"].shape
+    assert all(p["env"].shape == (height, 2 * height, 3) and bool(torch.isfinite(p["env"]).all()) for p in phases[3:])
+    result = phases[-1]["result"]
+    assert torch.equal(result.decomposition.env, phases[-1]["env"]) and len(result.decomposition.trace.steps) == 3
 
 
 def test_unknown_sampler_is_an_error():

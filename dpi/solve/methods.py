@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import torch
 
@@ -16,8 +16,7 @@ from dpi.solve.adaptive import AdaptiveConfig, plan_steps
 from dpi.solve.classic import ClassicConfig, classic_sample
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dip import DIPConfig, dip_sample
-from dpi.solve.dps import DPSConfig, dps_sample
-from dpi.solve.dps.loop import Watch
+from dpi.solve.dps import DPSConfig, dps_phases
 from dpi.solve.priors import PRIOR_NAMES
 from dpi.solve.problem import InverseProblem
 from dpi.solve.sds import SDSConfig, sds_sample
@@ -43,8 +42,6 @@ class SampleJob:
     """the problem's radiance per unit of the prior's (scene.yaml's, over the exposure; None: estimated)"""
     adaptive: AdaptiveConfig | None = None
     progress: bool = True
-    watch: Watch | None = None
-    """sees the map as it forms (methods that report it: dps)"""
 
 
 @dataclass(frozen=True)
@@ -76,16 +73,26 @@ def sds(job: SampleJob) -> Decomposition:
     return sds_sample(job.problem, job.prior, job.init, job.settings, job.seed, job.progress, job.radiance_scale)
 
 
-def dps(job: SampleJob) -> Decomposition:
-    """The paper's diffusion posterior sampling; fewer steps on a diffuse scene (dpi.solve.adaptive, recorded in the
-    trace's info) and the x0_hat strip next to the sample."""
+def dps_phases_of(job: SampleJob) -> Iterator[dict[str, Any]]:
+    """The job's dps sample phase by phase (dpi.solve.dps.loop.dps_phases), fewer steps on a diffuse scene
+    (dpi.solve.adaptive, recorded in the trace's info of the last phase's result)."""
     cfg = job.settings
     requested = cfg.steps
     cfg.steps, reason = plan_steps(job.init.materials, cfg.steps, job.adaptive or AdaptiveConfig())
     print(f"adaptive: {reason}", flush=True)
-    result = dps_sample(job.problem, job.prior, job.init, cfg, job.seed, job.progress, job.resume,
-                        radiance_scale=job.radiance_scale, watch=job.watch)
-    result.decomposition.trace.info["adaptive"] = {"steps": cfg.steps, "requested_steps": requested, "reason": reason}
+    for phase in dps_phases(job.problem, job.prior, job.init, cfg, job.seed, job.progress, job.resume,
+                            radiance_scale=job.radiance_scale):
+        if "result" in phase:
+            phase["result"].decomposition.trace.info["adaptive"] = {"steps": cfg.steps, "requested_steps": requested,
+                                                                   "reason": reason}
+        yield phase
+
+
+def dps(job: SampleJob) -> Decomposition:
+    """The paper's diffusion posterior sampling (dps_phases_of, to its end) and the x0_hat strip next to the sample."""
+    for phase in dps_phases_of(job):
+        pass
+    result = phase["result"]
     write_grid(job.out_dir / X0_STRIP, torch.stack(result.snapshots), columns=len(result.snapshots))
     return result.decomposition
 

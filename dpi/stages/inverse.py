@@ -17,7 +17,6 @@ from dpi.prior.sample import load_scene_prior
 from dpi.render import backend
 from dpi.solve.adaptive import MIN_SAMPLES, plan_samples
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.dps.loop import Watch
 from dpi.solve.exposure import MIDDLE_GREY
 from dpi.solve.init import path_traced_init, readings_line, sample_reading
 from dpi.solve.methods import REGISTRY, SampleJob
@@ -67,28 +66,33 @@ def sample_init(job: StageJob, problem: InverseProblem) -> tuple[str, Decomposit
     return reading, problem.load_decomposition(job.paths.other_reading_dir() if other else job.paths.sample_dir(INIT))
 
 
-def sample_stage(job: StageJob, watch: Watch | None = None) -> None:
-    """Posterior sample k of the job's method into its folder (envmap, textures, trace.json); `watch` sees its map
-    as it forms (dpi.solve.dps.loop.Watch).
+def sample_job(job: StageJob, problem: InverseProblem) -> tuple[str, SampleJob]:
+    """What drawing posterior sample k of the job's method needs (dpi.solve.methods.SampleJob) on its `problem`, and
+    the init reading it starts from.
 
     A method that uses the diffusion prior loads the one of the scene's family (dpi.config.pipeline); scene.yaml's
-    `radiance_scale` is in the capture's radiance. `dps` runs fewer steps on a diffuse scene (config
-    `adaptive`); the decision and its reason are in the trace's info."""
+    `radiance_scale` is in the capture's radiance."""
     cfg = job.pipeline.method_settings(job.method)
-    entry = REGISTRY[job.method]
-    problem = load_problem(job.paths.capture_json, job.solve)
     out = job.sample_dir
     reading, init = sample_init(job, problem)
-    sample = SampleJob(problem, init, cfg,
-                       seed_for(job.scene, job.method, job.k), out, out / RESUME_FILE,
-                       adaptive=job.pipeline.adaptive, progress=job.progress, watch=watch)
-    if entry.needs_prior:
+    sample = SampleJob(problem, init, cfg, seed_for(job.scene, job.method, job.k), out, out / RESUME_FILE,
+                       adaptive=job.pipeline.adaptive, progress=job.progress)
+    if REGISTRY[job.method].needs_prior:
         sample.prior = load_scene_prior(problem.capture.options, job.pipeline.method_prior(job.scene, job.method))
         scale = problem.capture.options.get("radiance_scale")  # in scene radiance
         sample.radiance_scale = None if scale is None else scale / problem.exposure
-    result = entry.sample(sample)
+    return reading, sample
+
+
+def sample_stage(job: StageJob) -> None:
+    """Posterior sample k of the job's method into its folder (envmap, textures, trace.json), from `sample_job`'s
+    inputs. `dps` runs fewer steps on a diffuse scene (config `adaptive`); the decision and its reason are in the
+    trace's info."""
+    problem = load_problem(job.paths.capture_json, job.solve)
+    reading, sample = sample_job(job, problem)
+    result = REGISTRY[job.method].sample(sample)
     result.trace.info.update({"scene": job.scene, "k": job.k, "reading": reading})
-    problem.save_decomposition(result, out)
+    problem.save_decomposition(result, sample.out_dir)
 
 
 def sample_plan_stage(job: StageJob) -> dict:

@@ -8,15 +8,17 @@ transport, `data_term`) and `paper` (the reference's gradient guidance through t
 
 - config: DPSConfig (method_params.dps) and the samplers by name
 - state: the fixed run and the loop state a step advances
-- loop: start_run, posterior_steps (the loop as a generator) and dps_sample
+- start: the materials a sample starts from
+- loop: start_run, posterior_steps (the loop as a generator), dps_phases (the sample phase by phase) and dps_sample
 - data_term: the recorded light transport as a sampler's data term
 - proximal, paper: one sampler each
 - map_solve: the map's Gauss-Newton solve on the transport (proximal's per-step solve)
-- sun: the parametric sun's settings and when a sample gets one
+- sun_choice: the parametric sun's settings and when a sample gets one
+- balance_trade: each sample's broad albedo field while the map settles
 - refine: the refinement
 """
 
 from dpi.solve.dps.config import SAMPLERS, DPSConfig
-from dpi.solve.dps.loop import DPSResult, dps_sample, posterior_steps, start_run
+from dpi.solve.dps.loop import DPSResult, dps_phases, dps_sample, posterior_steps, start_run
 
-__all__ = ["SAMPLERS", "DPSConfig", "DPSResult", "dps_sample", "posterior_steps", "start_run"]
+__all__ = ["SAMPLERS", "DPSConfig", "DPSResult", "dps_phases", "dps_sample", "posterior_steps", "start_run"]

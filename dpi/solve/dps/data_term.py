@@ -1,22 +1,16 @@
 """The recorded light transport as a sampler's data term (dpi.solve.transport): no path tracing per step.
 
-A sample records it once, at its first step, under its starting materials (dpi.solve.dps.start),
-guided by the init's map; the albedo is a variable of the transport, so nothing needs
-recording again as it moves, and the roughness stays the start's until the refinement path-traces it. Its cost is
-counted in the step that records it (`seconds_transport`) and in the trace's info. A resumed sample records it
-again with the same seed.
+A sample records it once, at its first step, under its starting materials (dpi.solve.dps.start), guided by the
+init's map; the albedo is a variable of the transport, so nothing needs recording again as it moves, and the
+roughness stays the start's until the refinement path-traces it. Its cost is counted in the step that records it
+(`seconds_transport`) and in the trace's info. A resumed sample records it again with the same seed.
 """
 
 from __future__ import annotations
 
-from dpi.solve.decomposition import Decomposition
-from dpi.solve.dps.start import sample_start_materials
+from dpi.solve.dps.start import sample_start_materials, start_transport
 from dpi.solve.dps.state import DPSRun, DPSState
-from dpi.solve.init import is_glossy
-from dpi.solve.materials import MaterialTextures
-from dpi.solve.problem import InverseProblem
-from dpi.solve.transport import (MAX_TRANSPORT_HEIGHT, ROUGH_TRANSPORT_HEIGHT, LightTransport, TransportConfig,
-                                 record_transport)
+from dpi.solve.transport import LightTransport
 
 
 def sample_transport(run: DPSRun, state: DPSState) -> tuple[LightTransport, bool]:
@@ -26,13 +20,3 @@ def sample_transport(run: DPSRun, state: DPSState) -> tuple[LightTransport, bool
         state.extra["transport"] = start_transport(run.problem, run.init, sample_start_materials(run.init),
                                                    run.sampler.transport, run.render_seed(0, 97))
     return state.extra["transport"], recorded
-
-
-def start_transport(problem: InverseProblem, init: Decomposition, start: MaterialTextures, settings: TransportConfig,
-                    seed: int) -> LightTransport:
-    """The transport a sample from `init` records under its starting materials `start`, with `seed`. A glossy init's
-    takes larger maps, whose detail its views resolve, and draws the direct light only for the bright texels, its
-    narrow lobe sampled by the BSDF; a rough one's takes the low frequencies its views see, every texel drawn."""
-    glossy = is_glossy(init.materials)
-    return record_transport(problem, start, init.env, settings, seed,
-                            MAX_TRANSPORT_HEIGHT if glossy else ROUGH_TRANSPORT_HEIGHT, not glossy)

@@ -1,8 +1,9 @@
 """One `dps` posterior sample: the reverse-diffusion loop around a sampler's step, then the refinement.
 
 `posterior_steps` is the loop: a generator that runs one sampler step per schedule step and yields
-its record, like guided-diffusion's `p_sample_loop_progressive`; `dps_sample` consumes it for the
-trace, the progress bar and the resume file, and benchmarks/dps_step.py for its timings. A step
+its record, like guided-diffusion's `p_sample_loop_progressive`; `dps_phases` consumes it for the
+trace, the progress bar and the resume file and yields the whole sample phase by phase (its maps as they form, for
+benchmarks/balance_trace.py), `dps_sample` runs that to its end, and benchmarks/dps_step.py times the loop. A step
 with a non-finite network output, loss or gradient does not update (it is counted in the trace).
 Given a `checkpoint` file the loop saves its state there every `checkpoint_every` steps and a
 rerun continues from it (see dpi.solve.checkpoint); the refinement, short, is simply run again.
@@ -14,7 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Iterator
 
 import numpy as np
 import torch
@@ -26,7 +27,7 @@ from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.config import SAMPLERS, DPSConfig
 from dpi.solve.dps.refine import refine
-from dpi.solve.dps.start import sample_start_materials
+from dpi.solve.dps.start import glossy_start, sample_start_materials, settings_for_init
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.dps.sun_choice import LR_SUN, LR_SUN_UV, wants_sun
 from dpi.solve.materials import MaterialRates, MaterialTextures
@@ -71,11 +72,12 @@ def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: D
               seed: int, radiance_scale: float | None = None) -> tuple[DPSRun, DPSState]:
     """The fixed part of one sample and its loop state at its first step (its materials: dpi.solve.dps.start):
     x_T ~ N(0, I), or the init map noised to the sampler's start_noise."""
-    adapted = cfg.for_init(init, prior.height)
+    adapted = settings_for_init(cfg, init, prior.height)
     if adapted is not cfg:
-        print(f"glossy init: method_params.dps.glossy applies (proximal inner_steps {adapted.proximal.inner_steps}, "
-              f"map_solve {adapted.proximal.map_solve}; refine iterations {adapted.refine.iterations}, "
-              f"views_per_step {adapted.refine.views_per_step}, lr_texels {adapted.refine.lr_texels:g})", flush=True)
+        print(f"glossy init: its samples' rule applies (dpi.solve.dps.start: proximal inner_steps "
+              f"{adapted.proximal.inner_steps}, map_solve {adapted.proximal.map_solve}; refine iterations "
+              f"{adapted.refine.iterations}, views_per_step {adapted.refine.views_per_step}, lr_texels "
+              f"{adapted.refine.lr_texels:g})", flush=True)
     cfg = adapted
     sampler = cfg.sampler_settings
     generator = torch.Generator().manual_seed(seed)
@@ -83,7 +85,7 @@ def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: D
     scale = radiance_scale or estimate_radiance_scale(init.env, prior)
     first = int(round(sampler.start_noise * (diffusion.num_timesteps - 1)))
     sun = extract_sun(init.env)
-    has_sun = wants_sun(cfg.sun, sampler.models_sun, prior.family, init.materials, sun)
+    has_sun = wants_sun(cfg.sun, sampler.models_sun, prior.family, glossy_start(init), sun)
     run = DPSRun(problem, prior, sampler, cfg, diffusion, seed, scale, data_norm(problem), first,
                  cfg.sun if has_sun else None, init)
     materials = sample_start_materials(init)
@@ -110,12 +112,10 @@ def posterior_steps(run: DPSRun, state: DPSState, start: int = 0) -> Iterator[di
         yield step(run, state, n)
 
 
-WATCH_STAGES = ("x0_hat", "solved", "loop", "kept", "refined")
-"""the stages a Watch sees, in the order a sample passes them"""
-Watch = Callable[[str, int, torch.Tensor], None]
-"""an observer of a sample's map as it forms: (stage, step, map (H, 2H, 3) at any scale); per step `x0_hat` (the
-network's guess) and `solved` (the step's map after its data updates), then once each `loop` (the loop's map),
-`kept` (after keep_what_the_views_see) and `refined` (the written map); for diagnosis (benchmarks/balance_trace.py)"""
+MAP_PHASES = ("x0_hat", "solved", "loop", "kept", "refined")
+"""the maps `dps_phases` yields, in the order a sample passes them: per step `x0_hat` (the network's guess) and
+`solved` (the step's map after its data updates), then once each `loop` (the loop's map), `kept` (after
+keep_what_the_views_see) and `refined` (the written map)"""
 
 
 STRIP_FRAMES = 8
@@ -171,14 +171,15 @@ def keep_what_the_views_see(env: torch.Tensor, init_env: torch.Tensor, weight: t
     return torch.exp(w * a + (1 - w) * (b + shift))
 
 
-def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: DPSConfig, seed: int,
-               progress: bool = True, checkpoint: Path | None = None,
-               checkpoint_every: int = CHECKPOINT_EVERY, radiance_scale: float | None = None,
-               watch: Watch | None = None) -> DPSResult:
-    """One posterior sample: reverse diffusion guided by the renderer, joint material steps, refinement.
-    With a `checkpoint` file the sample continues from the state a killed run of it left there. `radiance_scale`:
-    the problem's radiance per unit of the prior's (None: estimated from the init's map); `watch` sees the map as it
-    forms (Watch)."""
+def dps_phases(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: DPSConfig, seed: int,
+               progress: bool = True, checkpoint: Path | None = None, checkpoint_every: int = CHECKPOINT_EVERY,
+               radiance_scale: float | None = None) -> Iterator[dict[str, Any]]:
+    """One posterior sample phase by phase (reverse diffusion guided by the views, joint material steps, refinement),
+    as guided-diffusion's progressive loop: per reverse step {"phase": "step", "record": its trace record, "x0_hat",
+    "solved"}, then {"phase": "loop"}, {"phase": "kept"} and {"phase": "refined", "result": the DPSResult}, each with
+    its map (H, 2H, 3) under `env` (MAP_PHASES name them). With a `checkpoint` file the sample continues from the state
+    a killed run of it left there. `radiance_scale`: the problem's radiance per unit of the prior's (None: estimated
+    from the init's map)."""
     run, state = start_run(problem, prior, init, cfg, seed, radiance_scale)
     settings = asdict(cfg)
     trace = Trace(info={"method": "dps", "sampler": cfg.sampler, "seed": seed, "radiance_scale": run.scale,
@@ -197,11 +198,11 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
         refreshes += int(record.get("refresh", False))
         trace.record(**record)
         bar.update(1)
-        if watch and "skipped" not in record:
-            with torch.no_grad():
-                guess = prior.encoding.to_radiance(state.snapshots[-1][None])
-                watch("x0_hat", record["step"], guess[0].permute(1, 2, 0))
-                watch("solved", record["step"], torch.exp(state.log_map[0]).permute(1, 2, 0))
+        with torch.no_grad():
+            guess = prior.encoding.to_radiance(state.snapshots[-1][None])[0].permute(1, 2, 0) \
+                if state.snapshots else None
+            solved = torch.exp(state.log_map[0]).permute(1, 2, 0).clone()
+        yield {"phase": "step", "record": record, "x0_hat": guess, "solved": solved}
         n = record["step"] + 1
         if store and n < run.num_steps and store.due(n, start):
             store.save(LoopState.capture(n, state.tensors(), state.optimizer, state.generator, trace,
@@ -215,8 +216,7 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
         trace.info["transport"] = {"recordings": refreshes, "seconds": round(transport.seconds, 3),
                                    "pixels": transport.pixels, "foreground": transport.foreground,
                                    "bytes": transport.nbytes}
-    if watch:
-        watch("loop", run.num_steps, env)
+    yield {"phase": "loop", "env": env}
     if run.sun:
         trace.info["sun"] = {**sun_summary(state.sun_uv.detach(), sun_irradiance, env),
                              "merged_spots": merged}
@@ -224,14 +224,21 @@ def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
         pinned = seen_weight(transport_weights(transport), transport.height)
         env = keep_what_the_views_see(env, init.env, pinned)
         trace.info["pinned_by_views"] = round(float(pinned.mean()), 4)
-    if watch:
-        watch("kept", run.num_steps, env)
+    yield {"phase": "kept", "env": env}
     env, materials, refine_trace = refine(problem, env, state.materials, run.cfg.refine, run.cfg,
                                           seed + 1, progress)
-    if watch:
-        watch("refined", run.num_steps, env)
     trace.info["refine"] = refine_trace.summary()
     trace.nan_skips += refine_trace.nan_skips
     if store:
         store.remove()
-    return DPSResult(Decomposition(env, materials, trace), strip_frames(state.snapshots, STRIP_FRAMES))
+    yield {"phase": "refined", "env": env,
+           "result": DPSResult(Decomposition(env, materials, trace), strip_frames(state.snapshots, STRIP_FRAMES))}
+
+
+def dps_sample(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: DPSConfig, seed: int,
+               progress: bool = True, checkpoint: Path | None = None, checkpoint_every: int = CHECKPOINT_EVERY,
+               radiance_scale: float | None = None) -> DPSResult:
+    """One posterior sample (dps_phases, run to its end)."""
+    for phase in dps_phases(problem, prior, init, cfg, seed, progress, checkpoint, checkpoint_every, radiance_scale):
+        pass
+    return phase["result"]

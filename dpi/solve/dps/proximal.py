@@ -13,7 +13,7 @@ steps from x0_hat do not reach the views). The solve's target is x0_hat pushed b
 large as the prior's uncertainty about x0 at that step (`perturb`, as DAPS draws x0): where the views are
 silent each sample keeps its own push, where they speak the solve pulls it back, so the samples' spread
 follows what the views leave open. Then `inner_steps` Adam steps move map, albedo and sun together (on a
-glossy init, `DPSConfig.for_init` sets what changes). l starts from x0_hat at the first step and from the
+glossy init, dpi.solve.dps.start sets what changes). l starts from x0_hat at the first step and from the
 previous step's l after that (DiffPIR's restart from each step's x0_hat lost the start's guess where the views
 are silent).
 Then re-noise:

@@ -1,12 +1,44 @@
-"""Where a `dps` sample starts: its materials, recorded into its light transport."""
+"""Where a `dps` sample starts: its materials, what a glossy init changes, and the transport it records.
+
+Whether the init is glossy (dpi.solve.init.is_glossy) is read here once, by `glossy_start`, and decides the rest:
+a glossy init's sample records a finer transport and draws the direct light only for the bright texels (its narrow
+lobe sampled by the BSDF), skips the map's solve (a mirror's views pin the light where they reflect it), takes two
+data updates a step, refines twice as long on one view a step (the loop does not move the roughness a mirror's views
+hinge on), and polishes its map's texels freely where the map has the prior's rows. A rough init's sample runs its
+settings as they are, and gets a parametric sun where the sun's rule allows (dpi.solve.dps.sun_choice).
+"""
 
 from __future__ import annotations
+
+from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import torch
 
 from dpi.solve.decomposition import Decomposition
-from dpi.solve.init import METAL_TEXEL, starting_materials
+from dpi.solve.init import METAL_TEXEL, is_glossy, starting_materials
 from dpi.solve.materials import MaterialTextures
+from dpi.solve.problem import InverseProblem
+from dpi.solve.transport import (MAX_TRANSPORT_HEIGHT, ROUGH_TRANSPORT_HEIGHT, LightTransport, TransportConfig,
+                                 record_transport)
+
+if TYPE_CHECKING:
+    from dpi.solve.dps.config import DPSConfig
+
+GLOSSY_INNER_STEPS = 2
+"""a glossy init's data updates a step (it skips the map's solve)"""
+GLOSSY_REFINE_FACTOR = 2
+"""a glossy init's refinement runs this many times `refine.iterations` ..."""
+GLOSSY_REFINE_VIEWS = 1
+"""... on this many views a step"""
+GLOSSY_LR_TEXELS = 0.02
+"""a glossy init's polish rate on a map with at least the prior's rows (a coarser map keeps `refine.lr_texels`:
+fitting reflections finer than its texels only sharpens it away from the light)"""
+
+
+def glossy_start(init: Decomposition) -> bool:
+    """Whether a sample from `init` starts as a glossy object's (module notes)."""
+    return is_glossy(init.materials)
 
 
 def sample_start_materials(init: Decomposition) -> MaterialTextures:
@@ -18,3 +50,25 @@ def sample_start_materials(init: Decomposition) -> MaterialTextures:
         metal = init.materials.metallic > METAL_TEXEL
         materials.metallic[metal] = init.materials.metallic[metal]
     return materials
+
+
+def settings_for_init(cfg: DPSConfig, init: Decomposition, prior_rows: int) -> DPSConfig:
+    """The settings a sample from `init` runs with, under a prior of `prior_rows` rows (module notes): a rough init's
+    are `cfg` itself."""
+    if not glossy_start(init):
+        return cfg
+    proximal = replace(cfg.proximal, inner_steps=GLOSSY_INNER_STEPS, map_solve=0)
+    lr_texels = GLOSSY_LR_TEXELS if init.env.shape[0] >= prior_rows else cfg.refine.lr_texels
+    refine = replace(cfg.refine, iterations=cfg.refine.iterations * GLOSSY_REFINE_FACTOR,
+                     views_per_step=GLOSSY_REFINE_VIEWS, lr_texels=lr_texels)
+    return replace(cfg, proximal=proximal, refine=refine)
+
+
+def start_transport(problem: InverseProblem, init: Decomposition, start: MaterialTextures, settings: TransportConfig,
+                    seed: int) -> LightTransport:
+    """The transport a sample from `init` records under its starting materials `start`, with `seed` (module notes:
+    a glossy init's the finer one with the bright texels' direct draws; a rough one's the low frequencies its views
+    see, every texel drawn)."""
+    glossy = glossy_start(init)
+    return record_transport(problem, start, init.env, settings, seed,
+                            MAX_TRANSPORT_HEIGHT if glossy else ROUGH_TRANSPORT_HEIGHT, not glossy)

@@ -48,7 +48,8 @@ class DPSRun:
     sampler: Any
     """the sampler's own settings (dpi.solve.dps.config.SAMPLERS)"""
     cfg: Any
-    """the sample's dps settings (dpi.solve.dps.config.DPSConfig, adapted to the init by its `for_init`)"""
+    """the sample's dps settings (dpi.solve.dps.config.DPSConfig, adapted to the init by
+    dpi.solve.dps.start.settings_for_init)"""
     diffusion: Diffusion
     seed: int
     scale: float

@@ -3,7 +3,8 @@
 With a sun the sampled map is the prior's sky plus a point of irradiance at a fitted position; it
 starts from the init map's brightest region. Whether a sample gets one is `mode`: on, off, or auto
 (on for samplers that model one, with the outdoor prior, for objects that are not glossy, when the
-init's bright region carries a share of its energy worth modelling).
+init's bright region carries a share of its energy worth modelling): a glossy object mirrors the light, its views
+resolve its sun, and the sun's share prior only costs accuracy there.
 """
 
 from __future__ import annotations
@@ -11,8 +12,6 @@ from __future__ import annotations
 from typing import Any
 
 from dpi.io.settings import SettingsError, Share, Weight, settings, settings_from_dict
-from dpi.solve.init import GLOSSY_ROUGHNESS, is_glossy
-from dpi.solve.materials import MaterialTextures
 from dpi.solve.sun_model import SunExtraction
 
 SUN_MODES = ("auto", "on", "off")
@@ -24,9 +23,6 @@ LR_SUN_UV = 0.003
 """Adam rate of the sun's map coordinates (u spans 360 deg, v 180 deg)"""
 
 
-MIN_ROUGHNESS = GLOSSY_ROUGHNESS
-"""auto leaves it off for an init that `is_glossy` at this threshold: a glossy object mirrors the light,
-the views resolve its sun, and the sun's share prior only costs accuracy there"""
 MIN_SHARE = 0.05
 """the sun is kept only when that excess carries at least this share of the init map's energy"""
 
@@ -56,10 +52,10 @@ class SunConfig:
         return settings
 
 
-def wants_sun(settings: SunConfig, sampler_models_sun: bool, family: str, materials: MaterialTextures,
-              sun: SunExtraction) -> bool:
-    """Whether a sample gets a parametric sun (the module's rule for `mode`)."""
+def wants_sun(settings: SunConfig, sampler_models_sun: bool, family: str, glossy: bool, sun: SunExtraction) -> bool:
+    """Whether a sample gets a parametric sun (the module's rule for `mode`); `glossy`: the sample starts as a glossy
+    object's (dpi.solve.dps.start.glossy_start)."""
     if settings.mode != "auto":
         return settings.mode == "on"
-    return (sampler_models_sun and family in SUN_FAMILIES and not is_glossy(materials, MIN_ROUGHNESS)
+    return (sampler_models_sun and family in SUN_FAMILIES and not glossy
             and sun.share >= MIN_SHARE)
