@@ -25,8 +25,11 @@ from dpi.solve.methods import METHODS
 from dpi.studies.engine import latest, read_rows
 
 RESULTS = Path("benchmarks") / "results"
+NOTEBOOK = Path("notebook") / "results"
+"""the lab notebook's CSVs: dev sweeps and superseded rows (notebook/README.md)"""
 """the committed study CSVs, relative to a checkout's root"""
-DOCUMENTS = (Path("README.md"), Path("docs") / "studies.md", Path("docs") / "studies_log.md", Path("docs") / "priors.md")
+DOCUMENTS = (Path("README.md"), Path("docs") / "studies.md", Path("docs") / "priors.md", Path("notebook") / "log.md",
+             Path("notebook") / "studies.md")
 """the documents whose tables are generated"""
 METHOD_ORDER = (INIT, *METHODS)
 """rows of a method table: the init, then the methods in their registry's order"""
@@ -146,12 +149,17 @@ def posterior_full(root: Path) -> str:
 
 
 def dev_table(csv_names: tuple[str, ...], root: Path, keys: tuple[str, ...] = BY_METHOD) -> str:
-    """Posterior-study dev runs (benchmarks/results/dev/; variants are dps sampler labels, other priors'
+    """Posterior-study dev runs (notebook/results/dev/; variants are dps sampler labels, other priors'
     SAMPLER@CHECKPOINT) per `keys` (group or scene, method, sampler)."""
-    rows = latest([r for name in csv_names for r in read_rows(root / RESULTS / "dev" / name)],
+    rows = latest([r for name in csv_names for r in read_rows(root / NOTEBOOK / "dev" / name)],
                   ("scene", "method", "sampler", "seed"))
     metrics = (VIEW, ENV, ALBEDO, Metric("relight PSNR-H [dB]", "relight_psnr_h", ".2f", +1), FIT, SECONDS)
     return grouped_table(rows, keys, metrics, rank_by=keys[0], order=method_order)
+
+
+def csv_path(root: Path, csv_name: str) -> Path:
+    """A study CSV by name: `dev/...` and `previous/...` are the notebook's, the rest benchmarks/results'."""
+    return root / (NOTEBOOK if csv_name.split("/")[0] in ("dev", "previous") else RESULTS) / csv_name
 
 
 def mean_map(csv_name: str, root: Path) -> str:
@@ -160,7 +168,7 @@ def mean_map(csv_name: str, root: Path) -> str:
     groups = {r["scene"]: r["group"] for r in posterior_rows(root)}
     rows = [{**r, "group": groups.get(r["scene"], ""), "method": r["method"].partition("_")[0],
              "sampler": r["method"].partition("_")[2]}  # a folder is METHOD or dps_SAMPLER
-            for r in latest(read_rows(root / RESULTS / csv_name), ("scene", "method"))]
+            for r in latest(read_rows(csv_path(root, csv_name)), ("scene", "method"))]
     metrics = (Metric("one sample: env PSNR [dB]", "sample_env_psnr", ".2f", +1),
                Metric("mean map: env PSNR [dB]", "mean_env_psnr", ".2f", +1),
                Metric("one sample: env SSIM", "sample_env_ssim", ".3f", +1, spread=False),
@@ -188,7 +196,7 @@ def light_realism(csv_name: str, root: Path, metrics: tuple[Metric, ...] = LIGHT
     """How real and how well spread the env maps are on the real-light scenes (benchmarks/light_realism.py), per
     group, method and sampler, over scenes: each sample's realism distance to held-out real panoramas (less the
     scene's own), the calibration of its samples and their mean map's accuracy."""
-    rows = latest(read_rows(root / RESULTS / csv_name), ("scene", "method", "sampler"))
+    rows = latest(read_rows(csv_path(root, csv_name)), ("scene", "method", "sampler"))
     return grouped_table(rows, BY_METHOD, metrics, rank_by="group", order=method_order)
 
 
@@ -280,7 +288,7 @@ def pinned_light(root: Path) -> str:
     """Dev run of dps's pinned light (dpi.solve.dps.loop.seen_weight): each variant's held-out views, env map and
     relighting per study and scene kind (the mirror torus at 128 rows of the resolution study, the posterior
     study's glossy blob and two rough ones, the calibration study's three metals), and the init's."""
-    rows = read_rows(root / RESULTS / "dev" / "pinned_light_dev.csv", ("variant", "study", "scene"))
+    rows = read_rows(root / NOTEBOOK / "dev" / "pinned_light_dev.csv", ("variant", "study", "scene"))
     for row in rows:
         row["kind"] = "rough" if row["scene"] in ("blob_rough", "blob_sun", "blob_room") else "metal"
     order = ("init", "base", "fine_detail", "init_where_seen", "init_where_seen_levelled", "soft_weight",
@@ -294,7 +302,7 @@ def pinned_light(root: Path) -> str:
 def glossy_cost(root: Path) -> str:
     """Dev run of the glossy path's cost: each variant's held-out views, env map, training fit and seconds on the
     posterior study's glossy blob (3 seeds) and the calibration study's metals (repeat 0, 4 samples a row)."""
-    rows = read_rows(root / RESULTS / "dev" / "glossy_cost_dev.csv", ("variant", "study", "scene"))
+    rows = read_rows(root / NOTEBOOK / "dev" / "glossy_cost_dev.csv", ("variant", "study", "scene"))
     order = ("levels3_refine2", "levels0_refine2", "levels0_refine1", "levels0_refine1_half_steps",
              "levels0_refine2_one_view", "levels0_refine2_one_view_1024px")
     metrics = (Metric("view PSNR [dB]", "novel_psnr", ".2f"), Metric("env PSNR [dB]", "env_psnr", ".2f"),

@@ -18,7 +18,7 @@ evaluation scores it.
 Rows go to benchmarks/results/posterior_study.csv (one per scene, method, sampler, seed and settings
 hash; rows already there with the same settings are kept and not rerun, so an interrupted study
 continues, and other settings add rows), then it prints mean +- std per group, method and sampler.
-`--dps NAME:key=value,...` adds a dps variant (dev sweeps: `--out benchmarks/results/dev/NAME.csv`).
+`--dps NAME:key=value,...` adds a dps variant (dev sweeps: `--out notebook/results/dev/NAME.csv`).
 `--workflow FILE.yaml` writes the same scenes and methods as a workflow config instead, for the workflow's
 report (the paper's Tables 2-3 as a workflow).
 """

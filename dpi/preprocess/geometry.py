@@ -34,7 +34,7 @@ OBJECT_IN_FRAME = True
 NEXT_PASS_FROM = 0.02
 """stereo's next pass runs only where the last one opened a concavity, removing at least this fraction of the
 hull's voxels: on a convex object (a first pass trims about 1 % of a hull from 32 views) a further pass costs as
-much again for nothing (docs/studies_log.md, "Preprocessing accuracy")"""
+much again for nothing (notebook/log.md, "Preprocessing accuracy")"""
 PHOTO_SIZE = 480
 """longer side (px) of the photos the ground test and stereo match: larger ones are area-downsampled,
 cameras and masks follow (their windows are in pixels and their cost grows with the pixels; None:

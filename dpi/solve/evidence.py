@@ -10,7 +10,7 @@ where s_n^2 is the residual's mean square at the map (the views' noise and what 
 the variance of the map's log radiance, and J^T J = diag(u) G diag(u) the views' normal equations G in log radiance
 at the map's radiance u. The log-determinant is the Occam factor: a reading whose transport lets the views pin more
 directions of the map pays for each. A prior in log radiance leaves room for a sun, which one on linear radiance
-does not (docs/studies_log.md, "the Bayes factor with a prior in log radiance").
+does not (notebook/log.md, "the Bayes factor with a prior in log radiance").
 """
 
 from __future__ import annotations

@@ -89,7 +89,7 @@ def starting_materials(init: Decomposition) -> MaterialTextures:
     the init's median metallic everywhere (on a glossy one, `is_glossy`, its metallic texture).
 
     The init fits a rough object's materials under a blurred light and explains the highlights it cannot place
-    with metal, so its metallic texture is a poor start there (docs/studies_log.md, "the material start"). A mirror's
+    with metal, so its metallic texture is a poor start there (notebook/log.md, "the material start"). A mirror's
     views resolve its materials: there the texture starts."""
     materials = init.materials.detached()
     with torch.no_grad():

@@ -62,7 +62,7 @@ NOISE_MIX = 0.5
 """share zeta of fresh noise in the re-noising (0: deterministic DDIM, 1: all fresh)"""
 MATERIAL_START = 0.6
 """share of the steps before the materials move: the map settles its light first, and the albedo then fits that
-light instead of trading against it (docs/studies_log.md, "the material start's step")"""
+light instead of trading against it (notebook/log.md, "the material start's step")"""
 
 
 @settings
