@@ -519,6 +519,15 @@ def seams(root: Path) -> str:
     return grouped_table(rows, ("capture", "scene", "method"), shown, rank_by="scene", order=method_order)
 
 
+def sun_size(root: Path) -> str:
+    """The written sun's size the training views chose (benchmarks/sun_size.py), per scene over its samples."""
+    rows = read_rows(root / RESULTS / "sun_size.csv", ("scene",))
+    metrics = (Metric("radius written [deg]", "radius_deg", ".2f", 0),
+               Metric("views' loss: chosen / own size", "loss_ratio", ".2f", -1),
+               Metric("training fit / truth's", "train_fit_over_truth", ".2f", -1), ENV, VIEW)
+    return grouped_table(rows, ("scene",), metrics)
+
+
 TABLES: dict[str, Callable[[Path], str]] = {
     "seams": seams,
     "balance_trace": balance_trace, "balance_views": balance_views,
@@ -527,7 +536,7 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "presets": presets, "posterior": posterior, "posterior_full": posterior_full, "calibration": calibration,
     "fig9": fig9_ratios, "train_fit": train_fit, "resolution": resolution, "roughness": roughness,
     "tradeoff": tradeoff, "lens": lens, "realism": realism, "real_photos": real_photos, "pinned_light": pinned_light,
-    "glossy_cost": glossy_cost,
+    "glossy_cost": glossy_cost, "sun_size": sun_size,
     "prior_size": partial(dev_table, ("prior64_dev.csv",)),
     "prior_real": partial(dev_table, ("prior32_real_dev.csv",)),
     "sun_fit": partial(dev_table, ("fit_sun_dev.csv", "sun_refine_dev.csv"), keys=("scene", "method", "sampler")),

@@ -101,3 +101,44 @@ def test_share_penalty_vanishes_at_its_target_and_grows_away_from_it():
     full = env + sun_env(torch.tensor([0.5, 0.5]), sun, 8)
     assert float(share_penalty(sun, full, 0.5)) == pytest.approx(0.0, abs=1e-8)
     assert float(share_penalty(sun, full, 0.8)) > float(share_penalty(sun, full, 0.6)) > 0
+
+
+class RadiusProblem:
+    """A stand-in whose training loss is (radius - best)^2 plus a seed's noise of std `noise` (the env carries r)."""
+
+    def __init__(self, best: float, noise: float):
+        self.best, self.noise, self.train_ids = best, noise, list(range(3))
+
+    def data_loss(self, env, materials, views, seed):
+        jitter = np.random.default_rng(seed).normal(0.0, self.noise)
+        return (float(env[0, 0, 0]) - self.best) ** 2 + jitter
+
+
+def test_the_written_suns_size_is_the_one_the_views_favour_else_the_suns_own():
+    from dpi.light.sunlight import SUN_RADIUS_DEG
+    from dpi.solve.dps.sun_size import sun_radii, views_sun_radius
+
+    def env_with_sun(radius):
+        return torch.full((2, 4, 3), radius)
+
+    radii = sun_radii(32)  # from the sun's own, doubling up to a texel of a 32-row map
+    assert radii[0] == SUN_RADIUS_DEG and radii[-1] <= 180 / 32 < 2 * radii[-1] and len(radii) == 5
+    radius, losses = views_sun_radius(RadiusProblem(radii[2], 1e-6), env_with_sun, None, seed=0, prior_rows=32)
+    assert radius == radii[2] and set(losses) == {f"{r:g}" for r in radii}
+    # views that cannot tell the sizes apart (differences far inside their noise) keep the sun's own
+    radius, _ = views_sun_radius(RadiusProblem(radii[2], 1e3), env_with_sun, None, seed=0, prior_rows=32)
+    assert radius == SUN_RADIUS_DEG
+
+
+@pytest.mark.parametrize("radius", [0.2665, 2.0, 8.0])
+def test_a_sun_of_any_radius_keeps_its_energy(radius):
+    uv, irradiance = torch.tensor([0.3, 0.35]), torch.tensor([3.0, 2.0, 1.0])
+    torch.testing.assert_close(map_energy(sun_env(uv, irradiance, 64, radius)).float(), irradiance, rtol=1e-4,
+                               atol=1e-5)
+
+
+def test_a_larger_sun_spreads_its_energy_over_more_texels():
+    uv, irradiance = torch.tensor([0.3, 0.35]), torch.tensor([3.0, 2.0, 1.0])
+    own, wide = (sun_env(uv, irradiance, 64, r)[..., 0] for r in (0.2665, 8.0))
+    assert float(wide.max()) < 0.1 * float(own.max())
+    assert int((wide > 0.5 * wide.max()).sum()) > 10 * int((own > 0.5 * own.max()).sum())

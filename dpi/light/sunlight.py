@@ -49,13 +49,13 @@ def _angles_to(direction: torch.Tensor, height: int) -> torch.Tensor:
     return 2 * torch.asin((chord / 2).clamp(max=1.0))
 
 
-def sun_weights(direction: torch.Tensor, height: int) -> torch.Tensor:
+def sun_weights(direction: torch.Tensor, height: int, radius_deg: float = SUN_RADIUS_DEG) -> torch.Tensor:
     """(H, 2H) radiance per unit irradiance of a sun towards unit `direction` (3,) on an H x 2H map: the
-    disc (radius SUN_RADIUS_DEG, its edge spread over one texel) and the aureole, each normalised so that
-    weights x texel solid angles sum to its share of 1."""
+    disc (radius `radius_deg`, the sun's own by default, its edge spread over one texel) and the aureole, each
+    normalised so that weights x texel solid angles sum to its share of 1."""
     angle = _angles_to(direction, height)
     texel = math.pi / height
-    radius = math.radians(SUN_RADIUS_DEG)
+    radius = math.radians(radius_deg)
     disc = ((radius + texel - angle) / texel).clamp(0.0, 1.0)
     extent = max(math.radians(AUREOLE_EXTENT_DEG), 1.5 * texel)  # on a coarse map: at least the nearest texels
     aureole = torch.exp(-angle / math.radians(AUREOLE_DEG)) * (angle <= extent)
@@ -65,10 +65,11 @@ def sun_weights(direction: torch.Tensor, height: int) -> torch.Tensor:
     return (1 - AUREOLE_SHARE) * disc + AUREOLE_SHARE * aureole
 
 
-def draw_sun(direction: torch.Tensor, irradiance: torch.Tensor, height: int) -> torch.Tensor:
-    """(H, 2H, 3) map of a sun of `irradiance` (3,) towards unit `direction` (3,): its energy (radiance x
-    solid angle, summed) is `irradiance`; differentiable in both."""
-    return sun_weights(direction, height)[..., None] * irradiance
+def draw_sun(direction: torch.Tensor, irradiance: torch.Tensor, height: int,
+             radius_deg: float = SUN_RADIUS_DEG) -> torch.Tensor:
+    """(H, 2H, 3) map of a sun of `irradiance` (3,) towards unit `direction` (3,) as a disc of `radius_deg`: its
+    energy (radiance x solid angle, summed) is `irradiance`; differentiable in both."""
+    return sun_weights(direction, height, radius_deg)[..., None] * irradiance
 
 
 def draw_sun_np(direction: np.ndarray, irradiance: np.ndarray, height: int) -> np.ndarray:

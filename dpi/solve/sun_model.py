@@ -19,6 +19,7 @@ import torch
 
 from dpi.io.images import luminance
 from dpi.light.envmap import direction_to_uv, texel_solid_angles
+from dpi.light.sunlight import SUN_RADIUS_DEG as DISC_RADIUS_DEG
 from dpi.light.sunlight import direction_of_uv, draw_sun, peel_brightest
 
 
@@ -53,10 +54,12 @@ def extract_sun(env: torch.Tensor, radius_deg: float = SUN_RADIUS_DEG) -> SunExt
     return SunExtraction(spot.sky, uv, spot.irradiance, spot.share)
 
 
-def sun_env(uv: torch.Tensor, irradiance: torch.Tensor, height: int) -> torch.Tensor:
-    """(H, 2H, 3) map of a sun of `irradiance` (3,) at map coordinates `uv` (2,), drawn as a disc with its
-    aureole (dpi.light.sunlight): its energy is `irradiance` on any map, differentiable in both."""
-    return draw_sun(direction_of_uv(uv), irradiance, height)
+def sun_env(uv: torch.Tensor, irradiance: torch.Tensor, height: int,
+            radius_deg: float = DISC_RADIUS_DEG) -> torch.Tensor:
+    """(H, 2H, 3) map of a sun of `irradiance` (3,) at map coordinates `uv` (2,), drawn as a disc of `radius_deg`
+    (the sun's own by default) with its aureole (dpi.light.sunlight): its energy is `irradiance` on any map,
+    differentiable in both."""
+    return draw_sun(direction_of_uv(uv), irradiance, height, radius_deg)
 
 
 def sun_direction_of(uv: torch.Tensor) -> np.ndarray:

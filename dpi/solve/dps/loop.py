@@ -21,6 +21,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from dpi.light.sunlight import SUN_RADIUS_DEG
 from dpi.prior.diffusion import q_sample
 from dpi.prior.sample import Prior
 from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
@@ -30,6 +31,7 @@ from dpi.solve.dps.refine import refine
 from dpi.solve.dps.start import glossy_start, sample_start_materials, settings_for_init
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.dps.sun_choice import LR_SUN, LR_SUN_UV, wants_sun
+from dpi.solve.dps.sun_size import views_sun_radius
 from dpi.solve.materials import MaterialRates, MaterialTextures
 from dpi.solve.prior_space import env_to_prior, estimate_radiance_scale
 from dpi.solve.problem import InverseProblem
@@ -210,7 +212,11 @@ def dps_phases(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
     bar.close()
     transport = state.extra.get("transport")
     with torch.no_grad():
-        env, sun_irradiance, merged = run.written_env(prior.encoding.to_radiance(state.x.clamp(-1, 1)), state)
+        radiance = prior.encoding.to_radiance(state.x.clamp(-1, 1))
+    radius, radius_losses = views_sun_radius(problem, lambda r: run.written_env(radiance, state, r)[0],
+                                             state.materials, seed + 2, prior.height) if run.sun else (SUN_RADIUS_DEG, None)
+    with torch.no_grad():
+        env, sun_irradiance, merged = run.written_env(radiance, state, radius)
     trace.info["log_exposure"] = float(state.log_exposure)
     if transport is not None:
         trace.info["transport"] = {"recordings": refreshes, "seconds": round(transport.seconds, 3),
@@ -219,7 +225,7 @@ def dps_phases(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
     yield {"phase": "loop", "env": env}
     if run.sun:
         trace.info["sun"] = {**sun_summary(state.sun_uv.detach(), sun_irradiance, env),
-                             "merged_spots": merged}
+                             "merged_spots": merged, "radius_deg": radius, "radius_losses": radius_losses}
     if transport is not None:
         pinned = seen_weight(transport_weights(transport), transport.height)
         env = keep_what_the_views_see(env, init.env, pinned)

@@ -14,6 +14,7 @@ from typing import Any
 import torch
 
 from dpi.io.images import luminance
+from dpi.light.sunlight import SUN_RADIUS_DEG as DISC_RADIUS_DEG
 from dpi.light.sunlight import merge_spots_into_sun
 from dpi.prior.diffusion import Diffusion, model_output_with_random_roll, model_timesteps, p_mean_variance
 from dpi.prior.sample import Prior
@@ -84,16 +85,17 @@ class DPSRun:
         `height` rows, times the state's exposure."""
         return self.scale * torch.exp(state.log_exposure) * resample_env(radiance, height)
 
-    def written_env(self, radiance: torch.Tensor, state: "DPSState") -> tuple[torch.Tensor, torch.Tensor, int]:
+    def written_env(self, radiance: torch.Tensor, state: "DPSState",
+                    sun_radius_deg: float = DISC_RADIUS_DEG) -> tuple[torch.Tensor, torch.Tensor, int]:
         """The sample's map at the problem's height: with a sun, any bright spot the prior drew in the sky is
-        moved into the fitted sun (dpi.light.sunlight.merge_spots_into_sun), so one sun remains; returns the map, the
-        sun's irradiance (zero without one) and the number of spots merged."""
+        moved into the fitted sun (dpi.light.sunlight.merge_spots_into_sun), so one sun remains, drawn as a disc of
+        `sun_radius_deg`; returns the map, the sun's irradiance (zero without one) and the number of spots merged."""
         height = self.problem.settings.env_height
         sky = self.sky(radiance, state, height)
         if not self.sun:
             return sky, torch.zeros(3), 0
         sky, irradiance, merged = merge_spots_into_sun(sky, self.sun_irradiance(state), radiance.shape[-2])
-        return sky + sun_env(state.sun_uv, irradiance, height), irradiance, merged
+        return sky + sun_env(state.sun_uv, irradiance, height, sun_radius_deg), irradiance, merged
 
     def sun_irradiance(self, state: "DPSState") -> torch.Tensor:
         """(3,) the state's sun in scene radiance units (its log irradiance is in the prior's, times the exposure)."""
