@@ -28,7 +28,7 @@ from dpi.io.exr import read_exr
 from dpi.io.layout import INIT
 from dpi.solve.dps.loop import MAP_PHASES
 from dpi.solve.methods import dps_phases_of
-from dpi.stages.inverse import load_problem, sample_job
+from dpi.stages.inverse import sample_job
 from dpi.studies.engine import (claim_sample_dir, dps_variants, method_jobs, prepare_job, read_rows, results_csv,
                                 work_dir, workflow_config, write_rows)
 from dpi.studies.scenes import DEV_SCENES, real_light_scenes
@@ -50,7 +50,7 @@ def trace_job(job, truth: np.ndarray) -> list[dict]:
     rows: list[dict] = []
     claim_sample_dir(job)
     stage = job.stage_job(threads=1)
-    _, sample = sample_job(stage, load_problem(stage.paths.capture_json, stage.solve))
+    _, sample = sample_job(stage)
     for phase in dps_phases_of(sample):
         step = phase["record"]["step"] if phase["phase"] == "step" else None
         maps = {name: phase[name] for name in ("x0_hat", "solved")} if step is not None \

@@ -66,13 +66,14 @@ def sample_init(job: StageJob, problem: InverseProblem) -> tuple[str, Decomposit
     return reading, problem.load_decomposition(job.paths.other_reading_dir() if other else job.paths.sample_dir(INIT))
 
 
-def sample_job(job: StageJob, problem: InverseProblem) -> tuple[str, SampleJob]:
-    """What drawing posterior sample k of the job's method needs (dpi.solve.methods.SampleJob) on its `problem`, and
-    the init reading it starts from.
+def sample_job(job: StageJob) -> tuple[str, SampleJob]:
+    """What drawing posterior sample k of the job's method needs (dpi.solve.methods.SampleJob: its settings, checked
+    before anything is read, then its problem and init), and the init reading it starts from.
 
     A method that uses the diffusion prior loads the one of the scene's family (dpi.config.pipeline); scene.yaml's
     `radiance_scale` is in the capture's radiance."""
     cfg = job.pipeline.method_settings(job.method)
+    problem = load_problem(job.paths.capture_json, job.solve)
     out = job.sample_dir
     reading, init = sample_init(job, problem)
     sample = SampleJob(problem, init, cfg, seed_for(job.scene, job.method, job.k), out, out / RESUME_FILE,
@@ -88,11 +89,10 @@ def sample_stage(job: StageJob) -> None:
     """Posterior sample k of the job's method into its folder (envmap, textures, trace.json), from `sample_job`'s
     inputs. `dps` runs fewer steps on a diffuse scene (config `adaptive`); the decision and its reason are in the
     trace's info."""
-    problem = load_problem(job.paths.capture_json, job.solve)
-    reading, sample = sample_job(job, problem)
+    reading, sample = sample_job(job)
     result = REGISTRY[job.method].sample(sample)
     result.trace.info.update({"scene": job.scene, "k": job.k, "reading": reading})
-    problem.save_decomposition(result, sample.out_dir)
+    sample.problem.save_decomposition(result, sample.out_dir)
 
 
 def sample_plan_stage(job: StageJob) -> dict:

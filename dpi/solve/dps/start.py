@@ -11,7 +11,7 @@ settings as they are, and gets a parametric sun where the sun's rule allows (dpi
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import Any
 
 import torch
 
@@ -21,9 +21,6 @@ from dpi.solve.materials import MaterialTextures
 from dpi.solve.problem import InverseProblem
 from dpi.solve.transport import (MAX_TRANSPORT_HEIGHT, ROUGH_TRANSPORT_HEIGHT, LightTransport, TransportConfig,
                                  record_transport)
-
-if TYPE_CHECKING:
-    from dpi.solve.dps.config import DPSConfig
 
 GLOSSY_INNER_STEPS = 2
 """a glossy init's data updates a step (it skips the map's solve)"""
@@ -52,9 +49,9 @@ def sample_start_materials(init: Decomposition) -> MaterialTextures:
     return materials
 
 
-def settings_for_init(cfg: DPSConfig, init: Decomposition, prior_rows: int) -> DPSConfig:
-    """The settings a sample from `init` runs with, under a prior of `prior_rows` rows (module notes): a rough init's
-    are `cfg` itself."""
+def settings_for_init(cfg: Any, init: Decomposition, prior_rows: int) -> Any:
+    """The dps settings (dpi.solve.dps.config.DPSConfig) a sample from `init` runs with, under a prior of `prior_rows`
+    rows (module notes): a rough init's are `cfg` itself."""
     if not glossy_start(init):
         return cfg
     proximal = replace(cfg.proximal, inner_steps=GLOSSY_INNER_STEPS, map_solve=0)
