@@ -29,7 +29,7 @@ NOTEBOOK = Path("notebook") / "results"
 """the lab notebook's CSVs: dev sweeps and superseded rows (notebook/README.md)"""
 """the committed study CSVs, relative to a checkout's root"""
 DOCUMENTS = (Path("README.md"), Path("docs") / "studies.md", Path("docs") / "priors.md", Path("notebook") / "log.md",
-             Path("notebook") / "studies.md")
+             Path("notebook") / "studies.md", Path("notebook") / "priors.md")
 """the documents whose tables are generated"""
 METHOD_ORDER = (INIT, *METHODS)
 """rows of a method table: the init, then the methods in their registry's order"""
