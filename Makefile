@@ -4,6 +4,8 @@
 VENV ?= .venv
 CORES ?= 2
 PYTEST_ARGS ?=
+# the real HDR panoramas the real-light study rows use (the manifest's files; dpi.prior.panoramas)
+PANORAMAS ?= ../shared/panoramas
 
 .PHONY: setup demo test test-fast test-slurm benchmarks studies tables clean
 
@@ -24,14 +26,14 @@ test-fast: setup
 
 # the quick benchmarks (minutes): cost of a render step, of a dps step, of the procedural worlds
 benchmarks: setup
-	$(VENV)/bin/python benchmarks/render_step.py
-	$(VENV)/bin/python benchmarks/dps_step.py
-	$(VENV)/bin/python benchmarks/outdoor_generator.py
+	$(VENV)/bin/python benchmarks/timing/render_step.py
+	$(VENV)/bin/python benchmarks/timing/dps_step.py
+	$(VENV)/bin/python benchmarks/timing/outdoor_generator.py
 
 # the studies behind the docs' tables (hours on 2 cores; a row already there with the same settings is kept),
 # then the tables regenerated from their CSVs
 studies: setup
-	$(VENV)/bin/python benchmarks/posterior_study.py
+	$(VENV)/bin/python benchmarks/posterior_study.py --panoramas $(PANORAMAS)
 	$(VENV)/bin/python benchmarks/calibration_study.py
 	$(VENV)/bin/python benchmarks/roughness_study.py
 	$(VENV)/bin/python benchmarks/resolution_study.py

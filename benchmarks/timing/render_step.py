@@ -3,7 +3,7 @@
 Uses the demo scene's mesh, ground-truth sky and textures (captures/demo, rendered first if missing).
 Prints a table; the first, kernel-compiling call of every configuration is excluded.
 
-    .venv/bin/python benchmarks/render_step.py [--sizes 32 64 128] [--spp 4 16 64] [--threads 2]
+    .venv/bin/python benchmarks/timing/render_step.py [--sizes 32 64 128] [--spp 4 16 64] [--threads 2]
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from dpi.render.renderer import RenderConfig, Renderer
 from dpi.solve.materials import MaterialTextures
 from dpi.synth.capture import SynthConfig, make_synthetic_capture
 
-DEMO = Path(__file__).resolve().parent.parent / "captures" / "demo"
+DEMO = Path(__file__).resolve().parents[2] / "captures" / "demo"
 
 
 def time_render_step(renderer: Renderer, env: torch.Tensor, mats: MaterialTextures, repeats: int) -> float:

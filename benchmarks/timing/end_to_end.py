@@ -9,7 +9,7 @@ evaluation, figures and report (`snakemake --cores N`); the preset's working res
 size the inverse stages work at.
 Rows (capture, views, size, preset, seconds) go to benchmarks/results/end_to_end.csv.
 
-    .venv/bin/python benchmarks/end_to_end.py [--presets draft default] [--cores 2]
+    .venv/bin/python benchmarks/timing/end_to_end.py [--presets draft default] [--cores 2]
 """
 
 from __future__ import annotations

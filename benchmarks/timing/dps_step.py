@@ -23,7 +23,7 @@ With 2 threads on a machine whose cores are busy with other work, torch's OpenMP
 (libgomp's default) and the network can run tens of times slower; compare with
 OMP_WAIT_POLICY=PASSIVE in the environment (the header line says which was set).
 
-    .venv/bin/python benchmarks/dps_step.py [--samplers proximal paper] [--steps 20] [--rebuilt-steps 6] [--threads 2]
+    .venv/bin/python benchmarks/timing/dps_step.py [--samplers proximal paper] [--steps 20] [--rebuilt-steps 6] [--threads 2]
 """
 
 from __future__ import annotations

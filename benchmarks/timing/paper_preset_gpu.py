@@ -7,7 +7,7 @@ forward + backward) of one 128 x 256 map. The stages run through the workflow's 
 (dpi.stages) with the preset's settings; Mitsuba's variant is the config's `auto` (cuda_ad_rgb on a GPU).
 A smoke run on the CPU: `--presets draft --skip-network`.
 
-    python benchmarks/paper_preset_gpu.py [--scenes demo blob_sun] [--presets default paper] [--out OUT] [--work DIR]
+    python benchmarks/timing/paper_preset_gpu.py [--scenes demo blob_sun] [--presets default paper] [--out OUT] [--work DIR]
 
 Rows (part, scene, preset, variant, device, seconds, detail) go to OUT/paper_preset_gpu.csv as each part ends, so a
 run cut short keeps what it measured; a table is printed last.
@@ -33,7 +33,7 @@ from dpi.io.layout import INIT, Layout
 from dpi.studies.engine import PROVENANCE, current_commit, job_settings, prepare_capture, settings_hash
 from dpi.studies.scenes import POSTERIOR_SCENES as SCENES
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "captures" / "demo"
 COLUMNS = ("part", "scene", "preset", "variant", "device", "seconds", "detail")
 

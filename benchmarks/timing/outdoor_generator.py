@@ -1,6 +1,6 @@
 """Speed and dynamic range of the procedural outdoor generator, per scene kind.
 
-    .venv/bin/python benchmarks/outdoor_generator.py [--height 32] [--count 50] [--sheet outdoor_examples.png]
+    .venv/bin/python benchmarks/timing/outdoor_generator.py [--height 32] [--count 50] [--sheet outdoor_examples.png]
 
 For each kind (urban, landscape, overcast) it generates `count` maps on one thread and prints the
 CPU seconds per map (process time, so other jobs on the machine do not inflate it), the median and
