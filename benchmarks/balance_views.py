@@ -32,7 +32,7 @@ from dpi.evaluation.truth import true_materials
 from dpi.io.exr import read_exr
 from dpi.io.images import luminance, resize
 from dpi.io.layout import INIT
-from dpi.solve.dps.balance_trade import normal_texture
+from dpi.render.texels import chart_of, texel_values, texture_from
 from dpi.solve.dps.start import glossy_start, sample_start_materials, start_transport
 from dpi.solve.init import METAL_TEXEL
 from dpi.solve.materials import MaterialTextures
@@ -45,6 +45,16 @@ BALANCE_ROWS = 2
 """rows of the balance swapped between maps: sky against ground, four sides"""
 SEED = 97
 """the transport's recording seed"""
+
+
+def normal_texture(problem, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """(size, size, 3) unit smooth normals of the problem's mesh in texture space, and its chart texels (size, size)."""
+    mesh = problem.mesh
+    covered, normals = texel_values(mesh["uvs"].astype(np.float64), mesh["faces"], mesh["normals"].astype(np.float64),
+                                    size)
+    normals = texture_from(covered, normals)
+    normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), 1e-12)
+    return normals, chart_of(covered)
 
 
 def coarse_log(env: torch.Tensor) -> torch.Tensor:

@@ -14,7 +14,6 @@ transport, `data_term`) and `paper` (the reference's gradient guidance through t
 - proximal, paper: one sampler each
 - map_solve: the map's Gauss-Newton solve on the transport (proximal's per-step solve)
 - sun_choice: the parametric sun's settings and when a sample gets one
-- balance_trade: each sample's broad albedo field while the map settles
 - refine: the refinement
 """
 

@@ -57,8 +57,10 @@ class DPSResult:
 def state_optimizer(materials: MaterialTextures, rates: MaterialRates, lr_map: float, log_map: torch.Tensor,
                     sun_uv: torch.Tensor, sun_log: torch.Tensor) -> torch.optim.Adam:
     """Adam on albedo / roughness / metallic, the map's log radiance and the sun, each at its own rate
-    (a sampler's step updates those whose gradient it computed)."""
-    return torch.optim.Adam([*({"params": [t], "lr": rates.rate(name)} for name, t in materials.items()),
+    (a sampler's step updates those whose gradient it computed; the materials' groups keep their rate as `base_lr`,
+    which a sampler may scale)."""
+    return torch.optim.Adam([*({"params": [t], "lr": rates.rate(name), "base_lr": rates.rate(name), "material": True}
+                               for name, t in materials.items()),
                              {"params": [log_map], "lr": lr_map},
                              {"params": [sun_uv], "lr": LR_SUN_UV},
                              {"params": [sun_log], "lr": LR_SUN}], betas=ADAM_BETAS)

@@ -19,11 +19,11 @@ are silent).
 Then re-noise:
 x_{t-1} = sqrt(abar_{t-1}) z + sqrt(1 - abar_{t-1}) (sqrt(1 - zeta) eps_hat + sqrt(zeta) eps) with
 eps_hat recomputed from z (zeta = NOISE_MIX), so samples stay diverse. The proximal weight grows as the noise falls
-(DiffPIR's rho_t ~ 1 / sigma_t^2), so late steps keep what the data put into x_t early. The
-materials move only after MATERIAL_START of the steps: while x0_hat is still a blur, free albedo
-steps would absorb the map's errors (the roughness stays the init's: the transport is recorded under it). It
-starts from the init map noised to `start_noise`
-(SDEdit). The refinement (dpi.solve.dps.refine) then path-traces all the materials.
+(DiffPIR's rho_t ~ 1 / sigma_t^2), so late steps keep what the data put into x_t early. Light and albedo move
+together from the first step, the materials' Adam rates times abar_t, the signal's share of x_t: they move as firmly
+as the map they are fitted under (an albedo held while the map settles hands the map its pattern; one free at its
+full rate from a noisy x0_hat absorbs the map's errors). The roughness stays the init's: the transport is recorded
+under it. It starts from the init map noised to `start_noise` (SDEdit). The refinement (dpi.solve.dps.refine) then path-traces all the materials.
 
 With a sun (dpi.solve.dps.sun_choice) the map is the prior's sky plus a parametric sun; its position and
 irradiance are fitted with the rest, and a prior on its share of the map's energy settles what the
@@ -39,12 +39,9 @@ from typing import Any
 import torch
 
 from dpi.io.settings import Count, Rate, Share, Steps, Weight, settings, settings_from_dict
-from dpi.solve.dps.balance_trade import sample_balance_factor
 from dpi.solve.dps.data_term import sample_transport
 from dpi.solve.dps.map_solve import PRIOR_STD, MapPrior, Resampling, cached_resampling, posterior_variance, solve_map
-from dpi.solve.dps.start import sample_start_materials
 from dpi.solve.dps.state import DPSRun, DPSState, Laps, finite, log_radiance, predicted_step, recentre_
-from dpi.solve.init import METAL_TEXEL
 from dpi.solve.optimize import all_finite
 from dpi.solve.sun_model import share_penalty, sun_env, wrap_uv_
 from dpi.solve.transport import LightTransport, TransportConfig
@@ -60,9 +57,6 @@ SOLVE_CG_ITERATIONS = 10
 
 NOISE_MIX = 0.5
 """share zeta of fresh noise in the re-noising (0: deterministic DDIM, 1: all fresh)"""
-MATERIAL_START = 0.6
-"""share of the steps before the materials move: the map settles its light first, and the albedo then fits that
-light instead of trading against it (notebook/log.md, "the material start's step")"""
 
 
 @settings
@@ -89,10 +83,6 @@ class ProximalConfig:
     DAPS, Zhang et al. 2024, for a prior of std PRIOR_STD): where the views are silent each sample's map moves as
     the prior allows instead of keeping x0_hat's guess, where they speak the solve pulls it back (0: samples near
     x0_hat's guess and alike; docs/studies.md, "the push's size" and "Light from real places")"""
-    balance_trade: bool = True
-    """each sample's albedo carries its own broad field over the normals (on its dielectric texels) while the map settles, as
-    large as the init's albedo varies, then returns to its start: the samples spread over the albedo's trade with the
-    light's balance instead of all drawing the balance a uniform albedo implies (dpi.solve.dps.balance_trade)"""
     perturb_rows: Count = 2
     """rows of the grid the push is white on, upsampled onto the prior's (at most the transport's): 2, a field as
     broad as the light's balance between sky and ground, sides and colour; finer, the push reaches detail the
@@ -139,10 +129,15 @@ def solve_step_map(run: DPSRun, state: DPSState, transport: LightTransport, x0_h
     little in between; the data updates after the solve see the current one). With `perturb` the target is pushed
     by a coarse random field (ProximalConfig.perturb)."""
     settings: ProximalConfig = run.sampler
-    built = state.extra.get("gram")
-    if built is None or n - built[0] >= GRAM_EVERY:
-        built = state.extra["gram"] = (n, transport.image_equations(state.materials.albedo))
-    equations = built[1]
+    formed = int(state.normal_step)
+    if formed < 0 or n - formed >= GRAM_EVERY:  # due: formed under the current albedo, which is kept for a resume
+        with torch.no_grad():
+            state.normal_albedo.copy_(state.materials.albedo)
+        state.normal_step.fill_(n)
+        state.extra.pop("gram", None)
+    if "gram" not in state.extra:  # a resumed sample forms the ones in use again
+        state.extra["gram"] = transport.image_equations(state.normal_albedo)
+    equations = state.extra["gram"]
     sigma2 = data_unit(run, transport) / 2
     variance = x0_hat.numel() / (2 * max(prox_weight, 1e-12))
     extra = None
@@ -173,25 +168,6 @@ def coarse_correction_(run: DPSRun, state: DPSState, x0_hat: torch.Tensor, heigh
     return up
 
 
-def trade_balance_(run: DPSRun, state: DPSState, n: int) -> None:
-    """`balance_trade` at step n: the sample's broad albedo field on its dielectric texels at the first step, the
-    start's albedo back at the first step the materials move (a resumed sample's restored albedo is where this left
-    it)."""
-    first_move = math.ceil(MATERIAL_START * run.num_steps)
-    if not run.sampler.balance_trade or n not in (0, first_move):
-        return
-    start = sample_start_materials(run.init)
-    dielectric = start.metallic[..., 0] <= METAL_TEXEL
-    if not bool(dielectric.any()):
-        return
-    with torch.no_grad():
-        state.materials.albedo.copy_(start.albedo)
-        if n == 0:
-            state.materials.albedo.mul_(sample_balance_factor(run.problem, run.init.materials.albedo, dielectric,
-                                                              run.seed))
-            run.problem.constrain_(state.materials)
-
-
 def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     """x0_hat, `inner_steps` joint data updates of (map, materials, exposure) near it, stochastic re-noising."""
     settings: ProximalConfig = run.sampler
@@ -203,13 +179,11 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
     abar = float(run.diffusion.alphas_cumprod[i])
     abar_prev = float(run.diffusion.alphas_cumprod_prev[i])
     prox_weight = settings.prox_weight * abar / (1.0 - abar)
-    materials_move = n >= MATERIAL_START * run.num_steps
     transport, recorded = sample_transport(run, state)
     laps.lap("transport")
     if n == 0:
         with torch.no_grad():
             state.log_map.copy_(log_radiance(run, x0_hat))
-    trade_balance_(run, state, n)
     if settings.map_solve:
         solve_step_map(run, state, transport, x0_hat, prox_weight, n, settings.map_solve)
     laps.lap("solve")
@@ -231,9 +205,9 @@ def proximal_step(run: DPSRun, state: DPSState, n: int) -> dict[str, Any]:
         if not all_finite([state.log_map, state.sun_uv, state.sun_log, *dict(state.materials.items()).values()]):
             skipped += 1
             continue
-        if not materials_move:
-            for _, t in state.materials.items():
-                t.grad = None
+        for group in state.optimizer.param_groups:
+            if group.get("material"):
+                group["lr"] = group["base_lr"] * abar
         state.optimizer.step()
         run.problem.constrain_(state.materials)
         wrap_uv_(state.sun_uv)

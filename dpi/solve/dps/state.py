@@ -127,15 +127,24 @@ class DPSState:
     """(3,) log irradiance of the sun per channel, in the prior's normalised units (times the exposure)"""
     optimizer: torch.optim.Adam
     generator: torch.Generator
+    normal_albedo: torch.Tensor | None = None
+    """the albedo the views' normal equations in use were formed under, and the step they were formed at
+    (`normal_step`; -1: none yet): saved, so a resumed sample forms the same ones"""
+    normal_step: torch.Tensor = field(default_factory=lambda: torch.tensor(-1))
     snapshots: list[torch.Tensor] = field(default_factory=list)
     """x0_hat at a few steps, for the progress strip"""
     extra: dict[str, Any] = field(default_factory=dict)
     """a sampler's caches (not saved in resume files: rebuilt from the tensors, e.g. the light transport)"""
 
+    def __post_init__(self) -> None:
+        if self.normal_albedo is None:
+            self.normal_albedo = self.materials.albedo.detach().clone()
+
     def tensors(self) -> dict[str, torch.Tensor]:
         """The loop's variables by name (for resume files)."""
         return {"x": self.x, **dict(self.materials.items()), "log_exposure": self.log_exposure,
-                "log_map": self.log_map, "sun_uv": self.sun_uv, "sun_log": self.sun_log}
+                "log_map": self.log_map, "sun_uv": self.sun_uv, "sun_log": self.sun_log,
+                "normal_albedo": self.normal_albedo, "normal_step": self.normal_step}
 
 
 class Laps:
