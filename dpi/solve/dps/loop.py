@@ -3,8 +3,8 @@
 `posterior_steps` is the loop: a generator that runs one sampler step per schedule step and yields
 its record, like guided-diffusion's `p_sample_loop_progressive`; `dps_phases` consumes it for the
 trace, the progress bar and the resume file and yields the whole sample phase by phase (its maps as they form, for
-benchmarks/balance_trace.py), `dps_sample` runs that to its end, and benchmarks/timing/dps_step.py times the loop. A step
-with a non-finite network output, loss or gradient does not update (it is counted in the trace).
+benchmarks/balance_trace.py), `dps_sample` runs that to its end, and benchmarks/timing/dps_step.py times the loop.
+A step with a non-finite network output, loss or gradient does not update (it is counted in the trace).
 Given a `checkpoint` file the loop saves its state there every `checkpoint_every` steps and a
 rerun continues from it (see dpi.solve.checkpoint); the refinement, short, is simply run again.
 The file is deleted when the sample is done.
@@ -215,8 +215,9 @@ def dps_phases(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
     transport = state.extra.get("transport")
     with torch.no_grad():
         radiance = prior.encoding.to_radiance(state.x.clamp(-1, 1))
-    radius, radius_losses = views_sun_radius(problem, lambda r: run.written_env(radiance, state, r)[0],
-                                             state.materials, seed + 2, prior.height) if run.sun else (SUN_RADIUS_DEG, None)
+    radius, radius_losses = (views_sun_radius(problem, lambda r: run.written_env(radiance, state, r)[0],
+                                              state.materials, seed + 2, prior.height)
+                             if run.sun else (SUN_RADIUS_DEG, None))
     with torch.no_grad():
         env, sun_irradiance, merged = run.written_env(radiance, state, radius)
     trace.info["log_exposure"] = float(state.log_exposure)

@@ -23,7 +23,8 @@ eps_hat recomputed from z (zeta = NOISE_MIX), so samples stay diverse. The proxi
 together from the first step, the materials' Adam rates times abar_t, the signal's share of x_t: they move as firmly
 as the map they are fitted under (an albedo held while the map settles hands the map its pattern; one free at its
 full rate from a noisy x0_hat absorbs the map's errors). The roughness stays the init's: the transport is recorded
-under it. It starts from the init map noised to `start_noise` (SDEdit). The refinement (dpi.solve.dps.refine) then path-traces all the materials.
+under it. It starts from the init map noised to `start_noise` (SDEdit). The refinement (dpi.solve.dps.refine) then
+path-traces all the materials.
 
 With a sun (dpi.solve.dps.sun_choice) the map is the prior's sky plus a parametric sun; its position and
 irradiance are fitted with the rest, and a prior on its share of the map's energy settles what the

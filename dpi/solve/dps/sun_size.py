@@ -4,8 +4,9 @@ The data term sees the map on the transport's grid, where a sun is one blurred t
 energy, not its size. Written as the real sun's 0.53 deg disc, a sun that the views saw as a broad highlight (a light
 source larger than the sun, a procedural world's sun texel) renders a glossy object's highlight far brighter and
 narrower than the photos show. So before the refinement each candidate radius, from the sun's own up to a texel of
-the prior's map, is path traced over the training views (the loop's materials, two seeds each): the smallest radius whose loss is within two noise deviations of the best one
-is written, the sun's own wherever the views cannot tell (a rough object).
+the prior's map, is path traced over the training views (the loop's materials, two seeds each): the smallest radius
+whose loss is within two noise deviations of the best one is written, the sun's own wherever the views cannot tell (a
+rough object).
 """
 
 from __future__ import annotations
