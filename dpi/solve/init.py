@@ -76,7 +76,7 @@ def roughness_p25(materials: MaterialTextures) -> float:
 
 
 METAL_TEXEL = 0.5
-"""a texel whose metallic is above this is read as metal (a dps sample's start keeps its metal, its balance trade)"""
+"""a texel whose metallic is above this is read as metal (a dps sample's start keeps its metal)"""
 
 
 def is_glossy(materials: MaterialTextures, threshold: float = GLOSSY_ROUGHNESS) -> bool:

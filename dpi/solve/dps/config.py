@@ -27,17 +27,17 @@ StepFunction = Callable[[DPSRun, DPSState, int], dict[str, Any]]
 
 @dataclass(frozen=True)
 class Sampler:
-    """One way of using the data in a reverse step: its settings dataclass and its step function."""
+    """One way of using the data in a reverse step: its settings dataclass, its step function, and the config section
+    that holds its settings (None: its settings are fixed, the dataclass's defaults)."""
 
     settings: type
     step: StepFunction
+    section: str | None = None
 
 
-SAMPLERS: dict[str, Sampler] = {"proximal": Sampler(ProximalConfig, proximal_step),
+SAMPLERS: dict[str, Sampler] = {"proximal": Sampler(ProximalConfig, proximal_step, "proximal"),
                                 "paper": Sampler(PaperSampler, paper_step)}
-"""dps's samplers by name (the `sampler` setting); the first is the default. The proximal sampler's settings are
-a config section; the paper's are the reference's, fixed"""
-
+"""dps's samplers by name (the `sampler` setting); the first is the default"""
 
 
 SECTIONS: dict[str, Callable[[Any], Any]] = {"proximal": ProximalConfig.from_dict,
@@ -64,8 +64,9 @@ class DPSConfig(MaterialRates):
 
     @property
     def sampler_settings(self) -> Any:
-        """The chosen sampler's own settings (the paper's: its fixed ones)."""
-        return self.proximal if self.sampler == "proximal" else PaperSampler()
+        """The chosen sampler's own settings: its config section's, or its fixed ones (SAMPLERS)."""
+        sampler = SAMPLERS[self.sampler]
+        return getattr(self, sampler.section) if sampler.section else sampler.settings()
 
     @classmethod
     def from_dict(cls, values: dict[str, Any] | None) -> "DPSConfig":

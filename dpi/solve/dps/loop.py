@@ -111,7 +111,7 @@ def start_run(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: D
 
 def posterior_steps(run: DPSRun, state: DPSState, start: int = 0) -> Iterator[dict[str, Any]]:
     """Run the sampler's reverse steps start .. end on `state`, yielding each step's record."""
-    step = {s.settings: s.step for s in SAMPLERS.values()}[type(run.sampler)]
+    step = SAMPLERS[run.cfg.sampler].step
     for n in range(start, run.num_steps):
         yield step(run, state, n)
 
