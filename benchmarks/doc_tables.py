@@ -564,6 +564,8 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "light_pin_realism": partial(light_realism, "dev/light_pin_realism.csv", metrics=BALANCE_DESIGN_METRICS),
     "joint_start": partial(dev_table, ("joint_start_dev.csv", "joint_start_heldout.csv")),
     "demo_pixels": partial(dev_table, ("demo_pixels.csv",)),
+    "defaults_1202": partial(dev_table, ("joint_start_dev.csv", "joint_start_heldout.csv", "defaults_1202_dev.csv",
+                                         "defaults_1202_heldout.csv")),
     "light_settle": partial(dev_table, ("light_settle_dev.csv",)),
     "light_settle_realism": partial(light_realism, "dev/light_settle_realism.csv", metrics=BALANCE_DESIGN_METRICS),
     "light_settle_heldout": partial(dev_table, ("light_settle_heldout.csv",)),
