@@ -214,12 +214,11 @@ def dps_phases(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
     bar.close()
     transport = state.extra.get("transport")
     with torch.no_grad():
-        radiance = prior.encoding.to_radiance(state.x.clamp(-1, 1))
-    radius, radius_losses = (views_sun_radius(problem, lambda r: run.written_env(radiance, state, r)[0],
-                                              state.materials, seed + 2, prior.height)
-                             if run.sun else (SUN_RADIUS_DEG, None))
-    with torch.no_grad():
-        env, sun_irradiance, merged = run.written_env(radiance, state, radius)
+        sky, sun_irradiance, merged = run.written_sky(prior.encoding.to_radiance(state.x.clamp(-1, 1)), state)
+        radius, radius_losses = (views_sun_radius(problem, lambda r: run.with_sun(sky, sun_irradiance, state, r),
+                                                  state.materials, seed + 2, prior.height)
+                                 if run.sun else (SUN_RADIUS_DEG, None))
+        env = run.with_sun(sky, sun_irradiance, state, radius)
     trace.info["log_exposure"] = float(state.log_exposure)
     if transport is not None:
         trace.info["transport"] = {"recordings": refreshes, "seconds": round(transport.seconds, 3),

@@ -85,17 +85,27 @@ class DPSRun:
         `height` rows, times the state's exposure."""
         return self.scale * torch.exp(state.log_exposure) * resample_env(radiance, height)
 
-    def written_env(self, radiance: torch.Tensor, state: "DPSState",
-                    sun_radius_deg: float = DISC_RADIUS_DEG) -> tuple[torch.Tensor, torch.Tensor, int]:
-        """The sample's map at the problem's height: with a sun, any bright spot the prior drew in the sky is
-        moved into the fitted sun (dpi.light.sunlight.merge_spots_into_sun), so one sun remains, drawn as a disc of
-        `sun_radius_deg`; returns the map, the sun's irradiance (zero without one) and the number of spots merged."""
-        height = self.problem.settings.env_height
-        sky = self.sky(radiance, state, height)
+    def written_sky(self, radiance: torch.Tensor, state: "DPSState") -> tuple[torch.Tensor, torch.Tensor, int]:
+        """The sample's map at the problem's height without its sun: with a sun, any bright spot the prior drew in the
+        sky is moved into the fitted sun (dpi.light.sunlight.merge_spots_into_sun), so one sun remains; returns the
+        sky, the sun's irradiance (zero without one) and the number of spots merged."""
+        sky = self.sky(radiance, state, self.problem.settings.env_height)
         if not self.sun:
             return sky, torch.zeros(3), 0
-        sky, irradiance, merged = merge_spots_into_sun(sky, self.sun_irradiance(state), radiance.shape[-2])
-        return sky + sun_env(state.sun_uv, irradiance, height, sun_radius_deg), irradiance, merged
+        return merge_spots_into_sun(sky, self.sun_irradiance(state), radiance.shape[-2])
+
+    def with_sun(self, sky: torch.Tensor, irradiance: torch.Tensor, state: "DPSState",
+                 sun_radius_deg: float = DISC_RADIUS_DEG) -> torch.Tensor:
+        """A written sky (`written_sky`) with the sample's sun of `irradiance` drawn as a disc of `sun_radius_deg`
+        (the sky itself without a sun)."""
+        return sky + sun_env(state.sun_uv, irradiance, sky.shape[0], sun_radius_deg) if self.sun else sky
+
+    def written_env(self, radiance: torch.Tensor, state: "DPSState",
+                    sun_radius_deg: float = DISC_RADIUS_DEG) -> tuple[torch.Tensor, torch.Tensor, int]:
+        """The sample's map at the problem's height (`written_sky` with its sun drawn as a disc of `sun_radius_deg`),
+        the sun's irradiance and the number of spots merged."""
+        sky, irradiance, merged = self.written_sky(radiance, state)
+        return self.with_sun(sky, irradiance, state, sun_radius_deg), irradiance, merged
 
     def sun_irradiance(self, state: "DPSState") -> torch.Tensor:
         """(3,) the state's sun in scene radiance units (its log irradiance is in the prior's, times the exposure)."""
