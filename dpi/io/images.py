@@ -14,6 +14,7 @@ from PIL import Image
 
 from dpi.io.atomic import atomic_path
 from dpi.io.exr import EXRError, read_exr
+from dpi.io.pixel_bound import size_problem
 
 LDR_SUFFIXES = (".png", ".jpg", ".jpeg")
 HDR_SUFFIXES = (".exr",)
@@ -84,7 +85,7 @@ EXIF_ORIENTATION = 0x0112
 @contextmanager
 def headers_only() -> Iterator[None]:
     """Pillow without its own decompression-bomb stop, for reading headers: dpi checks the size itself before
-    decoding (MAX_IMAGE_PIXELS)."""
+    decoding (dpi.io.pixel_bound)."""
     limit = Image.MAX_IMAGE_PIXELS
     Image.MAX_IMAGE_PIXELS = None
     try:
@@ -93,12 +94,44 @@ def headers_only() -> Iterator[None]:
         Image.MAX_IMAGE_PIXELS = limit
 
 
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+PNG_CHUNKS = 100_000
+"""most chunks of a PNG looked through for its EXIF"""
+
+
+def png_exif(path: Path) -> bytes | None:
+    """The EXIF block of a PNG's eXIf chunk, found by walking the chunks' headers (nothing decompressed: Pillow's
+    getexif decodes the whole image to look past the pixel data); None where it has none."""
+    with open(path, "rb") as f:
+        if f.read(8) != PNG_SIGNATURE:
+            return None
+        for _ in range(PNG_CHUNKS):
+            head = f.read(8)
+            if len(head) < 8:
+                return None
+            length, kind = int.from_bytes(head[:4], "big"), head[4:]
+            if kind == b"eXIf":
+                return f.read(length)
+            if kind == b"IEND":
+                return None
+            f.seek(length + 4, os.SEEK_CUR)  # the data and its CRC
+    return None
+
+
 def exif_orientation(path: Path) -> int:
-    """A photo's EXIF orientation (1, upright, where it has none or the file has no EXIF)."""
+    """A photo's EXIF orientation (1, upright, where it has none or the file has no EXIF), read from the header and
+    the EXIF block alone (`png_exif`; a JPEG's APP1 segment), the pixels never decoded."""
     try:
         with headers_only(), Image.open(path) as image:
-            return int(image.getexif().get(EXIF_ORIENTATION, 1))
-    except (OSError, ValueError):
+            if image.format != "PNG":
+                return int(image.getexif().get(EXIF_ORIENTATION, 1))
+        data = png_exif(path)
+        if not data:
+            return 1
+        exif = Image.Exif()
+        exif.load(data)
+        return int(exif.get(EXIF_ORIENTATION, 1))
+    except (OSError, ValueError, SyntaxError):
         return 1
 
 
@@ -110,36 +143,31 @@ def upright(values: np.ndarray, orientation: int) -> np.ndarray:
     return np.ascontiguousarray(ops[orientation](values)) if orientation in ops else values
 
 
-MAX_IMAGE_PIXELS = 1 << 27
-"""most pixels a PNG/JPG may declare (134 megapixels, more than a 100-megapixel camera back's): its header is read
-and checked before anything is decoded, so a small file that declares a huge image stops at once"""
-
-
 def ldr_header_size(path: Path) -> tuple[int, int]:
     """(width, height) a PNG/JPG's header declares, turned by its EXIF orientation (as `decode_ldr` returns it),
-    nothing decoded; an unreadable header is an ImageError naming the file."""
+    nothing decoded; an unreadable header, or one beyond the pixel bound (dpi.io.pixel_bound), is an ImageError
+    naming the file."""
     try:
         with headers_only(), Image.open(path) as image:
             width, height = image.size
-            orientation = int(image.getexif().get(EXIF_ORIENTATION, 1))
     except (OSError, ValueError, SyntaxError):
         raise ImageError(f"{path}: not a readable image (no {path.suffix.lstrip('.')} header)") from None
-    return (height, width) if orientation >= 5 else (width, height)
+    problem = size_problem(width, height)
+    if problem:
+        raise ImageError(f"{path}: {problem}")
+    return (height, width) if exif_orientation(path) >= 5 else (width, height)
 
 
 def decode_ldr(path: Path) -> np.ndarray:
     """A PNG/JPG's code values in [0, 1] at its bit depth (8 or 16), (H, W, C): grey (C = 1), RGB or RGBA,
     turned upright by its EXIF orientation (images and masks alike). Its header's size is checked first
-    (MAX_IMAGE_PIXELS)."""
+    (`ldr_header_size`)."""
     import cv2
 
     raw = np.fromfile(path, dtype=np.uint8)
     if raw.size == 0:
         raise ImageError(f"{path}: not a readable image (empty file)")
-    width, height = ldr_header_size(path)
-    if width * height > MAX_IMAGE_PIXELS:
-        raise ImageError(f"{path}: declares {width}x{height} px, more than the {MAX_IMAGE_PIXELS} pixels dpi decodes "
-                         "(a corrupt header, or an image far larger than a photo)")
+    ldr_header_size(path)
     data = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED)
     if data is None:
         raise ImageError(f"{path}: not a readable image (truncated, or not a {path.suffix.lstrip('.')} file)")
@@ -153,18 +181,69 @@ def decode_ldr(path: Path) -> np.ndarray:
     return upright(values, exif_orientation(path))
 
 
+RADIANCE_HEADER = 1 << 16
+"""most bytes of a Radiance file's header (its text lines and the resolution line) looked through"""
+RADIANCE_FORMATS = ("32-bit_rle_rgbe", "32-bit_rle_xyze")
+
+
+def radiance_header(path: Path, raw: bytes) -> tuple[int, str, list[tuple[str, str, int]]]:
+    """A Radiance file's header: where its pixels start, its FORMAT and its resolution line as (sign, axis, count)
+    twice (scanlines first: "-Y 512 +X 1024" is the usual top-down, left-to-right order); checked against the pixel
+    bound before anything is decoded."""
+    if not raw.startswith((b"#?RADIANCE", b"#?RGBE")):
+        raise ImageError(f"{path}: not a Radiance HDR file (no #?RADIANCE signature)")
+    end = raw.find(b"\n\n", 0, RADIANCE_HEADER)
+    stop = raw.find(b"\n", end + 2, RADIANCE_HEADER) if end >= 0 else -1
+    if stop < 0:
+        raise ImageError(f"{path}: not a readable Radiance HDR file (no end of header and resolution line in its "
+                         f"first {RADIANCE_HEADER} bytes)")
+    lines = raw[:end].decode("latin-1").splitlines()
+    formats = [line.split("=", 1)[1].strip() for line in lines if line.startswith("FORMAT=")]
+    form = formats[-1] if formats else RADIANCE_FORMATS[0]
+    if form not in RADIANCE_FORMATS:
+        raise ImageError(f"{path}: Radiance FORMAT={form}: dpi reads {' and '.join(RADIANCE_FORMATS)}")
+    tokens = raw[end + 2:stop].decode("latin-1").split()
+    try:
+        axes = [(tokens[i][0], tokens[i][1], int(tokens[i + 1])) for i in (0, 2)]
+    except (IndexError, ValueError):
+        axes = []
+    if len(tokens) != 4 or len(axes) != 2 or {a[1] for a in axes} != {"X", "Y"} or \
+            any(a[0] not in "+-" for a in axes):
+        raise ImageError(f"{path}: not a readable Radiance HDR file (resolution line {raw[end + 2:stop][:40]!r})")
+    problem = size_problem(axes[1][2], axes[0][2]) if axes[0][1] == "Y" else size_problem(axes[0][2], axes[1][2])
+    if problem:
+        raise ImageError(f"{path}: {problem}")
+    return stop + 1, form, axes
+
+
 def read_hdr(path: str | os.PathLike) -> np.ndarray:
-    """Linear RGB float32 (H, W, 3) of a Radiance .hdr file (OpenCV's reader); an unreadable file is an ImageError
-    naming it."""
+    """Linear RGB float32 (H, W, 3) of a Radiance .hdr file: its header read and bounded first (`radiance_header`),
+    the run-length pixels decoded by OpenCV, then turned by the resolution line's orientation and an XYZE file's
+    colours converted to RGB; an unreadable file is an ImageError naming it."""
     import cv2
+
+    from dpi.io.exr import XYZ_TO_RGB
 
     path = Path(path)
     if not path.is_file():
         raise ImageError(f"{path}: image file does not exist")
-    data = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
-    if data is None or data.dtype != np.float32:
-        raise ImageError(f"{path}: not a readable Radiance HDR file")
-    return np.ascontiguousarray(data[..., ::-1])
+    raw = path.read_bytes()
+    start, form, axes = radiance_header(path, raw)
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # a truncated file is said once, below
+    (s1, a1, n1), (s2, _, n2) = axes
+    usual = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n" + f"-Y {n1} +X {n2}\n".encode()  # scanlines as stored
+    data = cv2.imdecode(np.frombuffer(usual + raw[start:], np.uint8), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
+    if data is None or data.dtype != np.float32 or data.shape[:2] != (n1, n2):
+        raise ImageError(f"{path}: not a readable Radiance HDR file (truncated pixels)")
+    image = data[..., ::-1]
+    if a1 == "X":  # scanlines are columns
+        image = image.transpose(1, 0, 2)
+    y_sign, x_sign = (s1, s2) if a1 == "Y" else (s2, s1)
+    image = image[::-1] if y_sign == "+" else image  # +Y: the bottom scanline first
+    image = image[:, ::-1] if x_sign == "-" else image
+    if form == "32-bit_rle_xyze":
+        image = np.clip(image @ XYZ_TO_RGB.T, 0, None)
+    return np.ascontiguousarray(image, dtype=np.float32)
 
 
 def hdr_bytes(linear: np.ndarray) -> bytes:
