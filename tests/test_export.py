@@ -171,3 +171,45 @@ def test_the_reports_3d_view_renders_and_follows_the_sample(exported, tmp_path):
 
 def test_png_bytes_takes_one_channel_images():
     assert Image.open(__import__("io").BytesIO(png_bytes(np.zeros((4, 4, 1), np.uint8)))).mode == "L"
+
+
+def sample_rows(job) -> list[tuple[str, list[Path]]]:
+    return [(method, [job.paths.sample_dir(method, k) for k in range(n)]) for method, n in SAMPLES.items()]
+
+
+def test_an_export_folder_that_links_outside_results_is_refused_and_nothing_written_there(exported, tmp_path):
+    from dpi.io.atomic import OutputError
+
+    outside = tmp_path / "elsewhere"
+    outside.mkdir()
+    folder = exported.paths.export_dir
+    kept = folder.with_name("export_kept")
+    folder.rename(kept)
+    try:
+        folder.symlink_to(outside, target_is_directory=True)
+        with pytest.raises(OutputError, match="is a link"):
+            export_stage(exported, sample_rows(exported))
+        assert list(outside.iterdir()) == []
+    finally:
+        folder.unlink(missing_ok=True)
+        kept.rename(folder)
+
+
+def test_a_failed_export_leaves_the_previous_folder_whole_and_no_stray_files(exported, monkeypatch):
+    import dpi.stages.export as stage
+
+    folder = exported.paths.export_dir
+    before = sorted(p.relative_to(folder) for p in folder.rglob("*"))
+    (folder / "stale.txt").write_text("from an older export")
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("USD writer failed")
+
+    monkeypatch.setattr(stage, "write_usd", broken)
+    with pytest.raises(RuntimeError, match="USD writer failed"):
+        export_stage(exported, sample_rows(exported))
+    assert sorted(p.name for p in folder.parent.iterdir() if p.name.startswith(".export")) == []
+    assert (folder / "stale.txt").is_file()
+    monkeypatch.undo()
+    export_stage(exported, sample_rows(exported))  # a whole export replaces the folder: the stale file goes
+    assert sorted(p.relative_to(folder) for p in folder.rglob("*")) == before

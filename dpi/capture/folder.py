@@ -237,17 +237,33 @@ def mask_files(root: Path, images: dict[str, Path], size: tuple[int, int],
 def gt_files(root: Path) -> dict[str, Path]:
     """name -> ground-truth map (gt/{name}.exr, any case; the env map also as gt/envmap.hdr), each read as every stage
     reads it (`read_ground_truth`)."""
-    gt = {}
+    gt, sizes = {}, {}
     for name in GT_NAMES:
         suffixes = (".exr", ".hdr") if name == "envmap" else (".exr",)
         for path in named_files(root / "gt", tuple(f"{name}{s}" for s in suffixes))[:1]:
             inside_capture(root, path, f"ground truth {name}")
             try:
-                read_ground_truth(path, name)
-            except (EXRError, EnvmapLayoutError) as exc:
+                data = read_ground_truth(path, name)
+            except (EXRError, EnvmapLayoutError, ImageError) as exc:
                 raise CaptureError(str(exc)) from exc
+            if name != "envmap":
+                sizes[path] = check_truth_texture(path, data, sizes)
             gt[name] = path
     return gt
+
+
+def check_truth_texture(path: Path, data: np.ndarray, earlier: dict[Path, tuple[int, int]]) -> tuple[int, int]:
+    """A true texture's (width, height): square, as the atlas it is painted on, and the size of the `earlier` ones
+    (one atlas holds them all); else one CaptureError naming it."""
+    height, width = data.shape[:2]
+    if height != width:
+        raise CaptureError(f"{path}: ground truth texture is {width}x{height} px; a texture on the mesh's atlas is "
+                           "square (R x R)")
+    for other, size in earlier.items():
+        if size != (width, height):
+            raise CaptureError(f"{path}: ground truth texture is {width}x{height} px, {other.name} is "
+                               f"{size[0]}x{size[1]}: the true textures share one atlas")
+    return width, height
 
 
 def read_ground_truth(path: str | os.PathLike, name: str, log: bool = False) -> np.ndarray:

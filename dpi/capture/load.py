@@ -13,7 +13,7 @@ from dpi.capture.cameras import Camera, read_cameras
 from dpi.capture.colmap_model import check_colmap_model, colmap_model_dir
 from dpi.capture.consistency import cameras_problem
 from dpi.capture.folder import alpha_masks, check_images, check_root, gt_files, image_files, mask_files
-from dpi.capture.meshes import check_mesh, mesh_file, mesh_has_uv
+from dpi.capture.meshes import check_mesh, mesh_file, mesh_has_uv, true_surface
 from dpi.capture.mitsuba_scene import camera_xml, xml_cameras
 from dpi.capture.model import Capture, CaptureError, CaptureWarning, View
 from dpi.capture.nerf_synthetic import read_splits, split_files
@@ -160,7 +160,7 @@ def load_capture(root: str | os.PathLike) -> Capture:
         if problem:
             raise CaptureError(f"{camera_file}: {problem}")
     has_uv = mesh is not None and mesh_has_uv(mesh)
-    gt = gt_files(root)
+    gt = {**gt_files(root), **true_surface(root)}
     held = held_out_names(root, names, options, cameras, camera_file)
     views = [View(n, images[n], None if masks is None else masks[n], cameras.get(n), n in held) for n in names]
     provenance = {

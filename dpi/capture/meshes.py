@@ -26,6 +26,10 @@ PLY_UV_PAIRS = (("u", "v"), ("s", "t"), ("texture_u", "texture_v"), ("texture_s"
 PLY_HEADER_BYTES = 1 << 16
 
 
+TRUE_SURFACE = "mesh.ply"
+"""the true surface with the UVs gt/'s textures belong to (gt/mesh.ply), where the capture's own mesh is not it"""
+
+
 def mesh_file(root: Path, options: dict) -> Path | None:
     """The given mesh: mesh.ply / .obj / .glb / .gltf (any case), else scene.xml's mesh shape (the one named `object`
     if several)."""
@@ -105,3 +109,17 @@ def check_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
     if uv is not None and not np.isfinite(uv).all():
         raise CaptureError(f"{path}: mesh UVs contain NaN or Inf values")
     return np.asarray(mesh.vertices), np.asarray(mesh.faces)
+
+
+def true_surface(root: Path) -> dict[str, Path]:
+    """{"mesh": gt/mesh.ply} when the capture holds the true surface, checked as the given mesh is (inside the
+    capture, loads with faces and finite values) and to carry the UVs its textures are painted on; {} without one."""
+    found = named_files(root / "gt", (TRUE_SURFACE,))[:1]
+    if not found:
+        return {}
+    inside_capture(root, found[0], "the true surface (gt/mesh.ply)")
+    check_mesh(found[0])
+    if not mesh_has_uv(found[0]):
+        raise CaptureError(f"{found[0]}: the true surface has no UVs (u, v vertex properties): gt/'s textures are "
+                           "read through them")
+    return {"mesh": found[0]}

@@ -17,6 +17,7 @@ import torch
 
 from dpi.capture import read_ground_truth
 from dpi.capture.consistency import raycasting_scene
+from dpi.capture.meshes import TRUE_SURFACE
 from dpi.evaluation.metrics import missing
 from dpi.evaluation.seams import texture_lookup
 from dpi.io.images import resize
@@ -27,10 +28,6 @@ from dpi.solve.decomposition import Decomposition
 from dpi.solve.materials import MaterialTextures, resize_texture
 from dpi.solve.problem import InverseProblem
 from dpi.synth.shapes import TriangleMesh
-
-TRUE_SURFACE = "mesh.ply"
-"""the true surface with the UVs its textures belong to, in gt/, where the capture's own mesh is not it"""
-
 
 def surface_lookup(surface: dict[str, np.ndarray], textures: list[np.ndarray], points: np.ndarray) -> np.ndarray:
     """(N, C) the textures' bilinear lookups (channels concatenated) at the points of `surface` (mesh_arrays)
@@ -72,11 +69,11 @@ def true_materials(problem: InverseProblem, size: int) -> MaterialTextures | str
                                   for p, n in zip(paths, TEXTURE_NAMES)))
     if capture.provenance.get("cameras") != "given":
         return missing("the cameras are derived: the recovered surface is not in the truth's frame")
-    surface = paths[0].parent / TRUE_SURFACE
-    if not surface.is_file():
+    if "mesh" not in capture.gt:
         return missing(f"the atlas is derived and there is no gt/{TRUE_SURFACE} (the true surface with the UVs of "
                        "gt/'s textures)")
-    return MaterialTextures(*(torch.from_numpy(t) for t in transferred(surface, Path(capture.mesh), paths, size)))
+    return MaterialTextures(*(torch.from_numpy(t) for t in transferred(Path(capture.gt["mesh"]), Path(capture.mesh),
+                                                                      paths, size)))
 
 
 def true_decomposition(problem: InverseProblem) -> Decomposition | None:

@@ -72,7 +72,7 @@ def image_part(path: Path) -> tuple[int, tuple[int, int, int, int], tuple[int, i
     if found is None:
         names = sorted({c.name for header in headers for c in header.get("channels", [])})
         raise EXRError(f"{path}: EXR channels {', '.join(names) or '(none)'} hold no image: dpi reads R, G, B "
-                       "(with or without A), X, Y, Z or Y (grey)")
+                       "(with or without A) or Y (grey), or CIE X, Y, Z")
     if found[3] == "chroma":
         raise EXRError(f"{path}: a luminance-chroma EXR (Y, RY, BY channels): dpi reads RGB, XYZ or grey; save it "
                        "as RGB")
@@ -101,9 +101,9 @@ def read_exr(path: str | os.PathLike) -> np.ndarray:
     try:
         with OpenEXR.File(str(path), separate_channels=True) as exr:
             channels = {name: np.array(c.pixels) for name, c in exr.parts[index].channels.items()}
-    except (RuntimeError, ValueError, OSError) as exc:
-        raise EXRError(f"{path}: not a readable EXR file ({exc})") from None
-    data = _channel_stack(channels, kind)
+        data = _channel_stack(channels, kind)
+    except (RuntimeError, ValueError, OSError, IndexError, KeyError) as exc:  # truncated: parts or channels missing
+        raise EXRError(f"{path}: not a readable EXR file ({type(exc).__name__})") from None
     if (dx0, dy0, dx1, dy1) == (wx0, wy0, wx1, wy1):
         return data
     image = np.zeros((wy1 - wy0 + 1, wx1 - wx0 + 1, data.shape[-1]), np.float32)

@@ -5,17 +5,18 @@ from __future__ import annotations
 
 import shutil
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
 from dpi.capture import complete_capture, read_capture_json
-from dpi.export.asset import AssetSample, png_bytes, renderer_mesh, sample_textures, unit_to_uint8
+from dpi.export.asset import AssetMesh, AssetSample, png_bytes, renderer_mesh, sample_textures, unit_to_uint8
 from dpi.export.gltf import write_glb
 from dpi.export.usd import write_usd
-from dpi.io.atomic import atomic_path
+from dpi.io.atomic import atomic_path, replaced_folder
 from dpi.io.exr import read_exr
 from dpi.io.images import write_hdr
-from dpi.io.layout import INIT
+from dpi.io.layout import INIT, SceneLayout
 from dpi.stages.job import StageJob
 
 SPREAD_NOTE = ("spread_textures: per method with 2 or more samples, its samples' per-texel albedo std "
@@ -52,22 +53,32 @@ def _spread(job: StageJob, methods: set[str]) -> tuple[dict[str, dict[str, np.nd
 
 
 def export_stage(job: StageJob, rows: list[tuple[str, list[str | Path]]]) -> None:
-    """The scene's .glb and .usda under its export folder, from the samples of `rows` and the init."""
+    """The scene's .glb and .usda under its export folder, from the samples of `rows` and the init: written in a
+    temporary folder that replaces the export folder whole (dpi.io.atomic.replaced_folder: inside results_dir, never
+    through a link)."""
     paths = job.paths
     capture = complete_capture(read_capture_json(paths.capture_json), paths)
     mesh = renderer_mesh(capture.mesh)
     samples = asset_samples(job, rows)
+    with replaced_folder(paths.export_dir, job.pipeline.layout.results) as folder:
+        write_export(paths, mesh, samples, job, lambda path: folder / path.relative_to(paths.export_dir))
+    print(f"export: {len(samples)} samples as variants: {paths.export_asset('glb')}, {paths.export_asset('usda')}",
+          flush=True)
+
+
+def write_export(paths: SceneLayout, mesh: AssetMesh, samples: list[AssetSample], job: StageJob,
+                 staged: Callable[[Path], Path]) -> None:
+    """The export folder's files, each at `staged`(its final path)."""
     textures, envmaps, extras = {}, {}, {}
     for sample in samples:
         env = read_exr(sample.files["env"])[..., :3]
         exr, hdr = paths.export_envmap(sample.label, "exr"), paths.export_envmap(sample.label, "hdr")
-        exr.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_path(exr) as tmp:
-            shutil.copyfile(sample.files["env"], tmp)
-        write_hdr(hdr, env)
+        staged(exr).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(sample.files["env"], staged(exr))
+        write_hdr(staged(hdr), env)
         encoded = sample_textures(sample, mesh)
         textures[sample.name] = {
-            texture: f"textures/{_write_png(paths.export_texture(sample.label, texture), encoded[key])}"
+            texture: f"textures/{_write_png(staged(paths.export_texture(sample.label, texture)), encoded[key])}"
             for texture, key in (("albedo", "base_color"), ("roughness", "roughness"), ("metallic", "metallic"))}
         envmaps[sample.name] = f"envmaps/{exr.name}"
         extras[sample.name] = {"envmap_hdr": f"envmaps/{hdr.name}", "envmap_exr": f"envmaps/{exr.name}"}
@@ -75,7 +86,5 @@ def export_stage(job: StageJob, rows: list[tuple[str, list[str | Path]]]) -> Non
     for sample in samples:
         if sample.method in scales:
             extras[sample.name]["spread_scales"] = scales[sample.method]
-    write_glb(paths.export_asset("glb"), mesh, samples, extras, spread, SPREAD_NOTE)
-    write_usd(paths.export_asset("usda"), mesh, samples, textures, envmaps)
-    print(f"export: {len(samples)} samples as variants: {paths.export_asset('glb')}, {paths.export_asset('usda')}",
-          flush=True)
+    write_glb(staged(paths.export_asset("glb")), mesh, samples, extras, spread, SPREAD_NOTE)
+    write_usd(staged(paths.export_asset("usda")), mesh, samples, textures, envmaps)

@@ -318,7 +318,32 @@ BROKEN = {  # case: (break the capture, file the message starts with, words it c
                               "ground truth roughness has NaN, Inf or negative values"),
     "gt envmap taller than wide": (gt_values("envmap", (8, 4, 3), 1.0), "envmap.exr", "8x4 is not an equirectangular map"),
     "depth-only gt envmap": (exr_channels("gt/envmap.exr", "Z"), "envmap.exr", "EXR channels Z hold no image"),
+    "gt albedo not square": (gt_values("albedo", (16, 12, 3), 0.5), "albedo.exr", "is 12x16 px; a texture on the"),
+    "gt textures of two sizes": (gt_values("roughness", (8, 8, 3), 0.5), "roughness.exr", "share one atlas"),
+    # the true surface, read through the capture's validation
+    "gt mesh a link outside": (lambda r: link_outside(r / "gt" / "mesh.ply"), "mesh.ply", "lies outside the capture"),
+    "gt mesh a text file": (lambda r: (r / "gt" / "mesh.ply").write_text(SECRET), "mesh.ply", "unreadable mesh"),
+    "gt mesh without faces": (lambda r: trimesh.PointCloud(np.eye(3)).export(r / "gt" / "mesh.ply"), "mesh.ply",
+                              "mesh has no faces"),
+    "gt mesh without uvs": (lambda r: trimesh.creation.box().export(r / "gt" / "mesh.ply"), "mesh.ply", "has no UVs"),
+    "gt mesh with nan vertices": (lambda r: nan_mesh(r / "gt" / "mesh.ply"), "mesh.ply", "NaN or Inf coordinates"),
 }
+
+SECRET = "root:x:0:0:root:/root:/bin/bash\n"
+"""a system file's first line: no message may quote it"""
+
+
+def link_outside(path: Path) -> None:
+    """`path` made a link to a text file beside the capture folder (outside it)."""
+    outside = path.parents[2] / "passwd"
+    outside.write_text(SECRET)
+    path.symlink_to(outside)
+
+
+def nan_mesh(path: Path) -> None:
+    mesh = trimesh.creation.box()
+    mesh.vertices[0, 0] = np.nan
+    mesh.export(path)
 
 
 @pytest.mark.parametrize("case", list(BROKEN))
@@ -332,6 +357,7 @@ def test_broken_capture_stops_with_one_error_naming_the_file(tmp_path, case):
         normalise_capture(root, out)
     message = str(info.value)
     assert message.split(":")[0].endswith(file_name) and words in message and "\n" not in message, message
+    assert "root:x" not in message
     assert not out.parent.exists()
 
 
