@@ -528,7 +528,18 @@ def sun_size(root: Path) -> str:
     return grouped_table(rows, ("scene",), metrics)
 
 
+def hotdog(root: Path) -> str:
+    """The authors' capture at the defaults, a row per method (benchmarks/hotdog/hotdog.py)."""
+    rows = read_rows(root / "benchmarks" / "hotdog" / "hotdog.csv", ("method",))
+    metrics = (Metric("samples", "samples", ".0f"), VIEW, ENV, Metric("mean map env PSNR [dB]", "env_mean_psnr", ".2f", +1),
+               Metric("mean map log error, 2 rows", "env_mean_balance_2", ".2f", -1),
+               Metric("at 8 rows", "env_mean_balance_8", ".2f", -1), Metric("calibration", "env_calibration", ".2f"),
+               Metric("s/sample", "sample_seconds", ".1f"))
+    return grouped_table(rows, ("method",), metrics, order=lambda key: method_order(key, 0))
+
+
 TABLES: dict[str, Callable[[Path], str]] = {
+    "hotdog": hotdog,
     "seams": seams,
     "balance_trace": balance_trace, "balance_views": balance_views,
     "readings": readings, "readings_forced": readings_forced, "readings_fig9": readings_fig9,

@@ -4,7 +4,7 @@ from pathlib import Path
 from functools import lru_cache
 
 from dpi.stages import (ENV_FILE, INIT, METHODS as KNOWN_METHODS, MIN_SAMPLES, PRIORS, REGISTRY, Pipeline,
-                        derived_inputs, lock_results, plain, resolve_config, stage_inputs, stop_rule_applies)
+                        check_unlocked, derived_inputs, lock_results, plain, resolve_config, stage_inputs, stop_rule_applies)
 
 # dpi's defaults (dpi/data/config.yaml), ./config.yaml when present (the checkout's top-level file), then
 # the --configfile files and --config values Snakemake merged into `config`; the preset fills what is
@@ -21,6 +21,10 @@ METHODS = PIPELINE.methods
 SCENE = LAYOUT.scene("{scene}")
 SAMPLE = SCENE.sample_files("{method}", "{k}")
 INIT_FILES = SCENE.sample_files(INIT)
+
+
+if workflow.is_main_process:  # a second run is told before Snakemake meets the first one's unfinished files
+    check_unlocked(LAYOUT.results)
 
 
 onstart:

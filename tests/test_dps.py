@@ -56,6 +56,9 @@ def test_settings_are_grouped_and_each_key_is_checked_where_it_lives():
         DPSConfig.from_dict({"proximal": {"lr_mapp": 0.1}})
     with pytest.raises(ValueError, match="refine: must be a mapping"):
         DPSConfig.from_dict({"refine": 3})
+    with pytest.raises(ValueError, match="^proximal: settings of the proximal sampler, which sampler paper does not "
+                                         "use: remove them, or set sampler: proximal$"):
+        DPSConfig.from_dict({"sampler": "paper", "proximal": {"inner_steps": 2}})
 
 
 def test_a_glossy_init_changes_the_settings_in_one_place():

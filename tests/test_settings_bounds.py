@@ -111,7 +111,7 @@ def test_settings_drawn_inside_the_bounds_run_a_tiny_sample(problem_and_init, dr
     problem, init = problem_and_init
     rng = np.random.default_rng(draw)
     entry = {"steps": 3, "refine": {"iterations": 2}, "sampler": ("proximal", "paper")[draw % 2]}
-    paths = list(FIELDS)
+    paths = [p for p in FIELDS if entry["sampler"] == "proximal" or p[0] != "proximal"]  # the paper's are fixed
     for i in rng.choice(len(paths), size=len(paths) // 3, replace=False):
         entry = merge(entry, nested(paths[i], inside(FIELDS[paths[i]], paths[i][-1], rng)))
     cfg = DPSConfig.from_dict(entry)

@@ -5,11 +5,13 @@ from __future__ import annotations
 import csv
 import json
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-from workflow_helpers import TINY_CONFIG, planned_jobs, snakemake, write_config
+from workflow_helpers import REPO, SNAKEMAKE, TINY_CONFIG, planned_jobs, snakemake, write_config
 
 from dpi.io.exr import read_exr
 
@@ -163,3 +165,21 @@ def test_dpi_commands_give_the_workflow_files(workdir, tmp_path, monkeypatch):
         for view in views:
             np.testing.assert_allclose(read_exr(ours.evaluation_views(method, 0) / view.name), read_exr(view),
                                        rtol=1e-5, atol=1e-6)
+
+
+def test_a_second_run_while_the_first_writes_is_told_so_in_dpis_words(workdir):
+    """From the same working folder: the results lock is asked for when the workflow is read, before Snakemake
+    would call the first run's unfinished files incomplete and advise --rerun-incomplete."""
+    hold = ("import sys, time; from dpi.io.lock import lock_results; lock_results(sys.argv[1]); "
+            "print('held', flush=True); time.sleep(60)")
+    holder = subprocess.Popen([sys.executable, "-c", hold, str(workdir / "results")], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        proc = subprocess.run([str(SNAKEMAKE), "-s", str(REPO / "Snakefile"), "--directory", str(workdir), "--cores",
+                               "1", "--forcerun", "report"], capture_output=True, text=True, timeout=300)
+    finally:
+        holder.kill()
+        holder.wait()
+    out = proc.stdout + proc.stderr
+    assert proc.returncode != 0
+    assert f"another dpi run (process {holder.pid}) is writing here" in out and "rerun-incomplete" not in out

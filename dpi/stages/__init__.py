@@ -10,7 +10,7 @@ from typing import Any
 PROVIDERS = {
     "dpi.solve.adaptive": ("MIN_SAMPLES", "stop_rule_applies"),
     "dpi.capture": ("PRIORS", "derived_inputs"),
-    "dpi.io.lock": ("lock_results",),
+    "dpi.io.lock": ("check_unlocked", "lock_results"),
     "dpi.io.layout": ("ENV_FILE", "INIT"),
     "dpi.config.pipeline": ("Pipeline", "load_pipeline", "plain", "resolve_config"),
     "dpi.solve.methods": ("METHODS", "REGISTRY"),

@@ -81,6 +81,10 @@ class DPSConfig(MaterialRates):
         cfg = cls(**values, **sections)
         if cfg.sampler not in SAMPLERS:
             raise SettingsError("sampler", f"must be one of {', '.join(SAMPLERS)}, got {cfg.sampler!r}")
+        for name, sampler in SAMPLERS.items():
+            if sampler.section in sections and name != cfg.sampler:
+                raise SettingsError(sampler.section, f"settings of the {name} sampler, which sampler {cfg.sampler} "
+                                                     f"does not use: remove them, or set sampler: {name}")
         return cfg
 
 
