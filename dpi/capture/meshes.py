@@ -106,9 +106,38 @@ def check_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
     if mesh.faces.min() < 0 or mesh.faces.max() >= len(mesh.vertices):
         raise CaptureError(f"{path}: faces index vertices outside 0..{len(mesh.vertices) - 1}")
     uv = getattr(mesh.visual, "uv", None)
-    if uv is not None and not np.isfinite(uv).all():
-        raise CaptureError(f"{path}: mesh UVs contain NaN or Inf values")
+    if uv is not None:
+        problem = uv_problem(np.asarray(uv, np.float64), np.asarray(mesh.faces), np.asarray(mesh.area_faces))
+        if problem:
+            raise CaptureError(f"{path}: {problem}")
     return np.asarray(mesh.vertices), np.asarray(mesh.faces)
+
+
+UV_SLACK = 1e-4
+"""how far outside [0, 1] a UV may lie (rounding of a written atlas)"""
+UNMAPPED_SHARE = 0.01
+"""largest share of the surface's area whose faces have no area in the atlas (a few degenerate faces are common)"""
+
+
+def uv_problem(uv: np.ndarray, faces: np.ndarray, areas: np.ndarray) -> str | None:
+    """Why given UVs (n, 2) cannot carry dpi's textures (None: they can): not finite, outside the unit square the
+    textures cover, collapsed to a point or a line, or leaving part of the surface without texels."""
+    if not np.isfinite(uv).all():
+        return "mesh UVs contain NaN or Inf values"
+    outside = int(((uv < -UV_SLACK) | (uv > 1 + UV_SLACK)).any(axis=1).sum())
+    fix = "; re-unwrap it into [0, 1], or remove the UVs and dpi derives an atlas"
+    if outside:
+        return f"{outside} of {len(uv)} mesh UVs lie outside [0, 1] (a tiled atlas): dpi's textures cover the unit square" + fix
+    corners = uv[faces]
+    edges = corners[:, 1:] - corners[:, :1]
+    uv_area = 0.5 * np.abs(edges[:, 0, 0] * edges[:, 1, 1] - edges[:, 0, 1] * edges[:, 1, 0])
+    if uv_area.sum() <= 1e-12:
+        return "the mesh UVs have no area (all at one point or on a line): no texel would tell one face from another" + fix
+    surface = max(float(areas.sum()), 1e-30)
+    unmapped = float(areas[uv_area <= 1e-12 * uv_area.sum()].sum()) / surface
+    if unmapped > UNMAPPED_SHARE:
+        return f"{unmapped:.0%} of the surface's area lies on faces without area in the UV atlas: they get no texel" + fix
+    return None
 
 
 def true_surface(root: Path) -> dict[str, Path]:

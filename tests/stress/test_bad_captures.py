@@ -277,6 +277,19 @@ BROKEN = {  # case: (break the capture, file the message starts with, words it c
     "nan uv, obj": (obj_mesh("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt nan 0\nvt 0 1\nf 1/1 2/2 3/3\n"), "mesh.obj",
                     "UVs contain NaN"),
     "face index out of range": (ascii_ply_with_faces("3 0 1 7\n"), "mesh.ply", "outside 0..2"),
+    # given UVs: dpi's textures cover the unit square, every face gets texels
+    "tiled uvs, obj": (obj_mesh("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 3 0\nvt 0 1\nf 1/1 2/2 3/3\n"), "mesh.obj",
+                       "1 of 3 mesh UVs lie outside [0, 1] (a tiled atlas)"),
+    "negative uvs, obj": (obj_mesh("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt -0.5 0\nvt 1 0\nvt -0.5 1\nf 1/1 2/2 3/3\n"),
+                          "mesh.obj", "2 of 3 mesh UVs lie outside [0, 1]"),
+    "uvs at one point, obj": (obj_mesh("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0.5 0.5\nvt 0.5 0.5\nvt 0.5 0.5\n"
+                                       "f 1/1 2/2 3/3\n"), "mesh.obj", "the mesh UVs have no area"),
+    "uvs on a line, obj": (obj_mesh("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 0.5 0.5\nvt 1 1\nf 1/1 2/2 3/3\n"),
+                           "mesh.obj", "the mesh UVs have no area"),
+    "half the surface unmapped, obj": (obj_mesh("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                                                "vt 0.2 0.2\nf 1/1 2/2 3/3\nf 2/4 4/4 3/4\n"), "mesh.obj",
+                                       "50% of the surface's area lies on faces without area in the UV atlas"),
+    "gt mesh with tiled uvs": (lambda r: tiled_true_surface(r / "gt" / "mesh.ply"), "mesh.ply", "lie outside [0, 1]"),
     "all-black png": (fill_png("r_0", 0), "r_0.png", "all black"),
     "all-black exr": (lambda r: raw_exr(r / "images" / "r_2.exr", np.zeros((SIZE, SIZE, 3))), "r_2.exr", "all black"),
     "all-saturated png": (fill_png("r_1", 255), "r_1.png", "every pixel is clipped"),
@@ -338,6 +351,13 @@ def link_outside(path: Path) -> None:
     outside = path.parents[2] / "passwd"
     outside.write_text(SECRET)
     path.symlink_to(outside)
+
+
+def tiled_true_surface(path: Path) -> None:
+    """A true surface whose UVs repeat the texture twice."""
+    mesh = trimesh.creation.box()
+    mesh.visual = trimesh.visual.TextureVisuals(uv=np.tile([[0.0, 0.0], [2.0, 2.0]], (4, 1)))
+    mesh.export(path)
 
 
 def nan_mesh(path: Path) -> None:
