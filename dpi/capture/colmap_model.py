@@ -40,6 +40,9 @@ def check_colmap_model(root: Path, folder: Path, names: list[str], size: tuple[i
             raise CaptureError(f"{folder}: COLMAP model without {absent}")
         for name in present:
             inside_capture(root, folder / f"{name}{suffix}", "a COLMAP model file")
+    problem = text_model_problem(folder)
+    if problem:
+        raise CaptureError(f"{folder}: {problem}")
     try:
         model = pycolmap.Reconstruction(str(folder))
     except Exception as exc:  # pycolmap's readers raise RuntimeError, ValueError, IndexError, ... on bad files
@@ -60,6 +63,30 @@ def check_colmap_model(root: Path, folder: Path, names: list[str], size: tuple[i
         pose = np.asarray(image.cam_from_world().matrix(), dtype=np.float64)
         if not np.isfinite(pose).all():
             raise CaptureError(f"{folder}: image {image.name!r}: its pose is not finite (NaN or infinite)")
+
+
+def text_model_problem(folder: Path) -> str | None:
+    """A text model's camera or image whose numbers are not finite, named before pycolmap reads it (its reader
+    names no line): cameras.txt's parameters (CAMERA_ID MODEL WIDTH HEIGHT PARAMS...), images.txt's poses (every
+    other line: IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME). None when both are finite or the model is binary."""
+    def numbers(words: list[str]) -> np.ndarray:
+        try:
+            return np.array([float(w) for w in words])
+        except ValueError:
+            return np.array([np.nan])
+
+    cameras, images = folder / "cameras.txt", folder / "images.txt"
+    if cameras.is_file():
+        for line in cameras.read_text(errors="replace").splitlines():
+            words = line.split()
+            if words and not line.startswith("#") and not np.isfinite(numbers(words[2:])).all():
+                return f"camera {words[0]}: its parameters are not finite (NaN or infinite) in cameras.txt"
+    if images.is_file():
+        rows = [line.split() for line in images.read_text(errors="replace").splitlines() if not line.startswith("#")]
+        for words in rows[::2]:
+            if len(words) >= 10 and not np.isfinite(numbers(words[1:8])).all():
+                return f"image {' '.join(words[9:])!r}: its pose is not finite (NaN or infinite) in images.txt"
+    return None
 
 
 def check_colmap_camera(folder: Path, camera, image: str) -> None:
