@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from dpi.capture.cameras import Camera, read_cameras
+from dpi.capture.bundler import bundler_file, check_bundler
 from dpi.capture.colmap_model import check_colmap_model, colmap_model_dir
 from dpi.capture.consistency import cameras_problem
 from dpi.capture.folder import alpha_masks, check_images, check_root, gt_files, image_files, mask_files
@@ -143,6 +144,9 @@ def load_capture(root: str | os.PathLike) -> Capture:
     model_dir = colmap_model_dir(root) if camera_file is None else None
     if model_dir is not None:
         check_colmap_model(root, model_dir, names, size)
+    bundle = bundler_file(root) if camera_file is None and model_dir is None else None
+    if bundle is not None:
+        check_bundler(root, bundle, images, size)
     if camera_file is None:
         cameras = {}
     elif transforms is not None:

@@ -50,10 +50,12 @@ def normalise_capture(capture_dir: str | Path, out_json: str | Path) -> None:
 
 
 def derive_poses(capture_json: str | Path, out_dir: str | Path, settings: dict | None = None, threads: int = 1) -> dict:
-    """The capture's cameras into out_dir: its own COLMAP model when it brings one (dpi.capture.colmap_model; read
-    as given, and brought into dpi's frame unless the capture's mesh is in the model's), its given cameras with
+    """The capture's cameras into out_dir: its own COLMAP model or Bundler file when it brings one
+    (dpi.capture.colmap_model, dpi.capture.bundler; read as given, points triangulated under a Bundler file's
+    cameras, and brought into dpi's frame unless the capture's mesh is in theirs), its given cameras with
     points triangulated under them (dpi.preprocess.known_poses: what the masks stage reads), else structure from
     motion on its images; cameras (transforms.json), sparse points and a summary (dpi.io.layout.poses_files)."""
+    from dpi.capture.bundler import bundler_file, capture_bundler_cameras
     from dpi.capture.colmap_model import colmap_model_dir
     from dpi.capture.undistort import with_cameras
     from dpi.preprocess.known_poses import triangulate_known
@@ -68,15 +70,23 @@ def derive_poses(capture_json: str | Path, out_dir: str | Path, settings: dict |
     images = [v.image for v in capture.views]
     start = time.perf_counter()
     given = colmap_model_dir(capture.root)
+    bundle = bundler_file(capture.root) if given is None else None
+    in_mesh_frame = capture.provenance["mesh"] == "given"
     try:
         if capture.provenance["cameras"] == "given":
             model = triangulate_known(images, {v.name: v.camera for v in capture.views if v.camera},
                                       out_dir / "colmap", cfg, threads)
-        elif given is None:
-            model = normalise(run_sfm(images, out_dir / "colmap", cfg, threads, focal and float(focal)))
-        else:
+        elif given is not None:
             model = read_model(given, cfg)
-            model = model if capture.provenance["mesh"] == "given" else normalise(model)
+            model = model if in_mesh_frame else normalise(model)
+        elif bundle is not None:
+            cameras = capture_bundler_cameras(capture.root, bundle, {v.name: v.image for v in capture.views},
+                                              capture.image_size)
+            model = triangulate_known(images, cameras, out_dir / "colmap", cfg, threads)
+            model.summary["cameras"] = bundle.relative_to(capture.root).as_posix()
+            model = model if in_mesh_frame else normalise(model)
+        else:
+            model = normalise(run_sfm(images, out_dir / "colmap", cfg, threads, focal and float(focal)))
     except SfMError as exc:
         write_json(files["summary"], {"error": str(exc), **exc.summary})
         raise
