@@ -3,6 +3,7 @@ each checked once."""
 
 from __future__ import annotations
 
+import hashlib
 import os
 import re
 import unicodedata
@@ -125,11 +126,12 @@ def check_header_sizes(images: dict[str, Path]) -> None:
                                "(as the files' headers declare them)")
 
 
-def check_images(images: dict[str, Path]) -> tuple[int, int]:
-    """Decode every image (finite, non-negative, with signal, all the same size, the headers compared first);
-    returns (width, height)."""
+def check_images(images: dict[str, Path], distinct: bool = False) -> tuple[int, int]:
+    """Decode every image (finite, non-negative, with signal, all the same size, the headers compared first; with
+    `distinct`, no two with the same pixels: photos that must give their own cameras); returns (width, height)."""
     check_header_sizes(images)
     size, first = None, None
+    seen: dict[str, Path] = {}
     for path in images.values():
         try:
             image = read_image(path)
@@ -138,6 +140,12 @@ def check_images(images: dict[str, Path]) -> tuple[int, int]:
         height, width = image.shape[:2]
         check_image_size(path, width, height)
         check_signal(path, image)
+        if distinct:
+            digest = hashlib.blake2b(np.ascontiguousarray(image).tobytes(), digest_size=16).hexdigest()
+            if digest in seen:
+                raise CaptureError(f"{path}: the same photo as {seen[digest].name} (identical pixels): the cameras "
+                                   "come from the photos, which must be taken from different places")
+            seen[digest] = path
         if size is None:
             size, first = (width, height), path
         elif (width, height) != size:

@@ -26,6 +26,9 @@ from dpi.io.layout import SceneLayout
 
 MIN_TRAIN_VIEWS = 3
 """a capture with fewer training views gets a warning: too few to constrain the light and the materials"""
+MIN_DERIVED_VIEWS = 3
+"""photos a capture whose cameras come from its photos needs: structure from motion registers a pair, and each
+derived mask is checked against the others' (two at least)"""
 
 
 def inspect_capture(root: str | os.PathLike) -> dict[str, bool]:
@@ -140,8 +143,13 @@ def load_capture(root: str | os.PathLike) -> Capture:
         transforms = read_transforms_json(camera_file) if camera_file is not None and camera_file.suffix == ".json" \
             else None
     names = list(images)
-    size = check_images(images)
     model_dir = colmap_model_dir(root) if camera_file is None else None
+    from_photos = camera_file is None and model_dir is None and bundler_file(root) is None
+    if from_photos and len(images) < MIN_DERIVED_VIEWS:
+        raise CaptureError(f"{root / 'images'}: {len(images)} photo(s) and no cameras: the cameras and masks come "
+                           f"from the photos, which takes {MIN_DERIVED_VIEWS} or more taken from different places "
+                           "around the object (dozens for a good fit)")
+    size = check_images(images, distinct=from_photos)
     if model_dir is not None:
         check_colmap_model(root, model_dir, names, size)
     bundle = bundler_file(root) if camera_file is None and model_dir is None else None

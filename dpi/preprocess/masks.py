@@ -45,6 +45,8 @@ from pydantic import Field
 
 from dpi.capture.cameras import Camera
 from dpi.capture.consistency import mask_iou
+from dpi.capture.load import MIN_DERIVED_VIEWS
+from dpi.capture.model import CaptureError
 from dpi.io.images import read_image, resize, resize_mask, to_uint8, working_size, write_mask
 from dpi.io.settings import settings
 from dpi.preprocess.hull import cut_below, marching_cubes, visible_sphere, visual_hull
@@ -367,6 +369,33 @@ def mask_agreement(cameras: list[Camera], masks: list[np.ndarray], resolution: i
     return [mask_iou(mask, outline) for mask, outline in zip(masks, outlines)]
 
 
+MIN_PARALLAX_PX = 2.0
+"""least shift, in pixels at the working size, of a point at the scene's depth between the two farthest cameras:
+below it the photos hold no parallax to tell the object from what lies behind it"""
+
+
+def capture_geometry_problem(cameras: list[Camera], points: np.ndarray | None) -> str | None:
+    """Why the views cannot give masks, from the capture's geometry alone (None: they can): fewer than
+    MIN_DERIVED_VIEWS views with cameras, or cameras so close together that a point at the scene's depth (the sparse
+    points' median distance) shifts by less than MIN_PARALLAX_PX between the farthest two (photos from one spot)."""
+    if len(cameras) < MIN_DERIVED_VIEWS:
+        return (f"only {len(cameras)} photo(s) have cameras: deriving masks takes {MIN_DERIVED_VIEWS} or more, taken "
+                "from different places around the object (dozens for a good fit)")
+    centres = np.stack([c.center for c in cameras])
+    baseline = float(np.linalg.norm(centres[:, None] - centres[None], axis=-1).max())
+    if points is None or len(points) == 0:
+        if baseline > 0:
+            return None
+        return "every camera is at the same place: photos from one spot show no parallax; walk around the object"
+    depth = float(np.median(np.linalg.norm(points[:, None] - centres[None], axis=-1)))
+    shift = min(c.fx for c in cameras) * baseline / max(depth, 1e-12)
+    if shift >= MIN_PARALLAX_PX:
+        return None
+    return (f"the cameras lie within {baseline:.3g} of each other, {depth:.3g} from the scene: a point there shifts by "
+            f"{shift:.2g} px between the farthest two photos (photos from one spot show no parallax to tell the "
+            "object from its background); walk around the object")
+
+
 def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: str | Path,
                  cfg: MaskConfig | None = None, points: np.ndarray | None = None,
                  scene_points: np.ndarray | None = None) -> dict:
@@ -390,6 +419,9 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
     full = pictures[0].shape[1], pictures[0].shape[0]
     width, height = working_size(full, cfg.max_size)
     views = [cameras[n].resized(width, height) for n in names]
+    problem = capture_geometry_problem(views, scene_points if scene_points is not None else points)
+    if problem:
+        raise CaptureError(f"{images[names[0]].parent if names else 'images/'}: {problem}")
     pictures = [resize(torch.from_numpy(p), height, width).numpy() for p in pictures]
     centre, radius = visible_sphere(views)
     sphere = (centre, SPHERE_FRACTION * radius)

@@ -420,7 +420,8 @@ def test_a_few_white_pixels_do_not_warn(tmp_path):
     (tmp_path / "images").mkdir()
     codes = np.full((128, 128, 3), 100, np.uint8)
     codes[0, :100] = 255
-    for name in NAMES:
+    for i, name in enumerate(NAMES):
+        codes[64, 64] = 100 + i  # photos of one scene, not copies of one photo
         write_cv2(tmp_path / "images" / f"{name}.png", codes)
     (tmp_path / "scene.yaml").write_text("held_out: [r_3]\n")
     with warnings.catch_warnings():
