@@ -575,6 +575,7 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "light_pin_realism": partial(light_realism, "dev/light_pin_realism.csv", metrics=BALANCE_DESIGN_METRICS),
     "joint_start": partial(dev_table, ("joint_start_dev.csv", "joint_start_heldout.csv")),
     "demo_pixels": partial(dev_table, ("demo_pixels.csv",)),
+    "refine_length": partial(dev_table, ("refine_length_dev.csv", "refine_length_heldout.csv")),
     "defaults_1202": partial(dev_table, ("joint_start_dev.csv", "joint_start_heldout.csv", "defaults_1202_dev.csv",
                                          "defaults_1202_heldout.csv")),
     "light_settle": partial(dev_table, ("light_settle_dev.csv",)),

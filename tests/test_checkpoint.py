@@ -122,7 +122,7 @@ def test_cut_dps_sample_continues_to_the_uninterrupted_result(problem_and_init, 
     problem, init = problem_and_init
     monkeypatch.setattr("dpi.solve.dps.loop.STRIP_FRAMES", 3)
     cfg = DPSConfig.from_dict({"sampler": sampler, "steps": 4, "refine": {"iterations": 1},
-                               "proximal": {"start_noise": 1.0}})
+                               **({"proximal": {"start_noise": 1.0}} if sampler == "proximal" else {})})
     resume = tmp_path / ".resume.pt"
     # the module whose code calls the network once a step: paper's own (with a graph), else state.predicted_step
     module = importlib.import_module("dpi.solve.dps.paper" if sampler == "paper" else "dpi.solve.dps.state")

@@ -252,7 +252,7 @@ def test_every_sampler_runs_in_the_one_loop_and_is_seeded(problem_and_init, samp
     problem, init = problem_and_init
     monkeypatch.setattr("dpi.solve.dps.loop.STRIP_FRAMES", 2)
     cfg = DPSConfig.from_dict({"sampler": sampler, "steps": 3, "refine": {"iterations": 1},
-                               "proximal": {"start_noise": 1.0}})
+                               **({"proximal": {"start_noise": 1.0}} if sampler == "proximal" else {})})
     first = dps_sample(problem, log_prior(), init, cfg, seed=4, progress=False)
     again = dps_sample(problem, log_prior(), init, cfg, seed=4, progress=False)
     d = first.decomposition

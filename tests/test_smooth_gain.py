@@ -53,6 +53,28 @@ def test_polish_moves_every_texel_at_its_share_of_the_rate():
     assert bool(((target - base) * step > 0).all())
 
 
+def test_a_coarse_polish_fits_the_views_broad_part_and_keeps_the_maps_detail():
+    """On a grid of 4 rows under a 16-row map: a target that is the map plus a smooth field is reached, and the
+    map's own texel-scale detail (what a 4-row grid cannot hold) is left as it was."""
+    torch.manual_seed(2)
+    base = torch.randn(16, 32, 3)
+    model = SmoothGain(base, order=0, polish=1.0, polish_height=4)
+    assert tuple(model.texels.shape) == (4, 8, 3)
+    coarse = torch.randn(1, 3, 4, 8)
+    field = torch.nn.functional.interpolate(coarse, size=(16, 32), mode="bilinear", align_corners=False)[0]
+    target = base + field.permute(1, 2, 0)
+    optimizer = torch.optim.Adam(model.parameters(), lr=0.05)
+    for _ in range(600):
+        optimizer.zero_grad()
+        (model() - target).square().mean().backward()
+        optimizer.step()
+    torch.testing.assert_close(model().detach(), target, atol=2e-3, rtol=0)
+    detail = base - torch.nn.functional.avg_pool2d(base.permute(2, 0, 1)[None], 4).repeat_interleave(4, -1) \
+        .repeat_interleave(4, -2)[0].permute(1, 2, 0)
+    change = model().detach() - base
+    assert float((change * detail).sum() / detail.square().sum()) == pytest.approx(0, abs=0.02)
+
+
 def test_refine_settings_are_checked():
     assert DPSConfig.from_dict({"refine": {"lr_texels": 0.01}}).refine.lr_texels == 0.01
     with pytest.raises(ValueError, match="refine.lr_gain: must be > 0"):

@@ -34,11 +34,12 @@ def sh_basis(directions: np.ndarray, order: int) -> np.ndarray:
 
 class SmoothGain(EnvModel):
     """log-radiance = the given map's + a spherical-harmonic log gain per channel up to band `order`
-    (dps uses 1: dpi.solve.dps.refine; coefficients start at 0), and with `polish` > 0 a per-texel log
-    residual too, scaled by `polish`: under Adam, whose steps do not depend on a gradient's size, the
-    texels then move at `polish` times the coefficients' rate (a light polish on top of the gain)."""
+    (dps uses 1: dpi.solve.dps.refine; coefficients start at 0), and with `polish` > 0 a log residual too, scaled by
+    `polish`: under Adam, whose steps do not depend on a gradient's size, it then moves at `polish` times the
+    coefficients' rate. The residual is per texel, or with `polish_height` on a coarser grid of that many rows
+    bilinearly upsampled: a correction only as fine as the views resolve, the map's finer detail kept."""
 
-    def __init__(self, log_env: torch.Tensor, order: int, polish: float = 0.0):
+    def __init__(self, log_env: torch.Tensor, order: int, polish: float = 0.0, polish_height: int | None = None):
         super().__init__()
         basis = sh_basis(texel_directions(log_env.shape[0]), order)
         self.polish = polish
@@ -46,11 +47,20 @@ class SmoothGain(EnvModel):
         self.register_buffer("basis", torch.as_tensor(basis, dtype=log_env.dtype))
         self.coefficients = torch.nn.Parameter(torch.zeros(basis.shape[-1], 3, dtype=log_env.dtype))
         if polish > 0:
-            self.texels = torch.nn.Parameter(torch.zeros_like(self.base))
+            rows = log_env.shape[0] if polish_height is None else min(polish_height, log_env.shape[0])
+            self.texels = torch.nn.Parameter(torch.zeros(rows, 2 * rows, 3, dtype=log_env.dtype))
+
+    def residual(self) -> torch.Tensor:
+        """The polish's log residual on the map's grid (bilinear from its own)."""
+        if self.texels.shape[:2] == self.base.shape[:2]:
+            return self.texels
+        up = torch.nn.functional.interpolate(self.texels.permute(2, 0, 1)[None], size=tuple(self.base.shape[:2]),
+                                             mode="bilinear", align_corners=False)
+        return up[0].permute(1, 2, 0)
 
     def forward(self) -> torch.Tensor:
         """The base map's log-radiance plus the gain (and the polish), kept inside about [1e-6, 1e6]."""
         log_env = self.base + self.basis @ self.coefficients
         if self.polish > 0:
-            log_env = log_env + self.polish * self.texels
+            log_env = log_env + self.polish * self.residual()
         return log_env.clamp(*LOG_ENV_RANGE)

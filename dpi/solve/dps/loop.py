@@ -28,7 +28,7 @@ from dpi.solve.checkpoint import LoopState, checkpoint_for, problem_identity
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dps.config import SAMPLERS, DPSConfig
 from dpi.solve.dps.refine import refine
-from dpi.solve.dps.start import glossy_start, sample_start_materials, settings_for_init
+from dpi.solve.dps.start import glossy_start, polish_height, sample_start_materials, settings_for_init
 from dpi.solve.dps.state import DPSRun, DPSState
 from dpi.solve.dps.sun_choice import LR_SUN, LR_SUN_UV, wants_sun
 from dpi.solve.dps.sun_size import views_sun_radius
@@ -234,7 +234,7 @@ def dps_phases(problem: InverseProblem, prior: Prior, init: Decomposition, cfg: 
         trace.info["pinned_by_views"] = round(float(pinned.mean()), 4)
     yield {"phase": "kept", "env": env}
     env, materials, refine_trace = refine(problem, env, state.materials, run.cfg.refine, run.cfg,
-                                          seed + 1, progress)
+                                          seed + 1, polish_height(init), progress)
     trace.info["refine"] = refine_trace.summary()
     trace.nan_skips += refine_trace.nan_skips
     if store:

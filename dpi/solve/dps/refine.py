@@ -2,8 +2,10 @@
 
 Adam on the materials while the map keeps the sample's detail and sun: it gets an order-1
 spherical-harmonic log gain (the light's broad balance, which the views determine;
-dpi.solve.smooth_gain) and a per-texel polish moving at `lr_texels`, at most about 1 in log over
-200 iterations (docs/studies.md, "Refinement").
+dpi.solve.smooth_gain) and a polish moving at `lr_texels` on the grid the sample's transport saw (a rough object's
+views fix the light that coarsely; a glossy one's polish is per texel, dpi.solve.dps.start). It runs as long as a
+plain fit does (dpi.solve.classic): a sample explains its photos as well as a fit of them (docs/studies.md,
+"Refinement").
 """
 
 from __future__ import annotations
@@ -26,13 +28,14 @@ band 2 fits the views better but bends the map away from the truth"""
 class RefineConfig:
     """Adam settings of the refinement (method_params.dps.refine)."""
 
-    iterations: Steps = 50
-    """Adam iterations on the materials, the gain and the polish (the paper preset: 200)"""
+    iterations: Steps = 150
+    """Adam iterations on the materials, the gain and the polish: a plain fit's (the paper preset: 200)"""
     views_per_step: Count = 2
     lr_gain: Rate = 0.03
     """Adam rate of the gain's spherical-harmonic coefficients"""
-    lr_texels: Rate = 0.005
-    """Adam rate of the per-texel log polish: at most 1 over 200 iterations, so the sample keeps its detail"""
+    lr_texels: Rate = 0.03
+    """Adam rate of the log polish on the transport's grid (the gain's): the views correct the light as finely as
+    they resolve it, the finer detail stays the sample's"""
     def optimize(self, rates: MaterialRates) -> OptimizeConfig:
         """The joint fit's settings: the gain's rate for the map's parameters, `rates` for the textures."""
         return OptimizeConfig(iterations=self.iterations, views_per_step=self.views_per_step, lr_env=self.lr_gain,
@@ -40,10 +43,12 @@ class RefineConfig:
 
 
 def refine(problem: InverseProblem, env: torch.Tensor, materials: MaterialTextures, settings: RefineConfig,
-           rates: MaterialRates, seed: int, progress: bool = True) -> tuple[torch.Tensor, MaterialTextures, Trace]:
-    """Adam on the materials under `env` with its gain and polish; returns the map, the materials and the trace."""
+           rates: MaterialRates, seed: int, polish_height: int | None, progress: bool = True
+           ) -> tuple[torch.Tensor, MaterialTextures, Trace]:
+    """Adam on the materials under `env` with its gain and its polish on a grid of `polish_height` rows (None: per
+    texel); returns the map, the materials and the trace."""
     trace = Trace()
-    model = SmoothGain(env.clamp_min(1e-8).log(), GAIN_ORDER, settings.lr_texels / settings.lr_gain)
+    model = SmoothGain(env.clamp_min(1e-8).log(), GAIN_ORDER, settings.lr_texels / settings.lr_gain, polish_height)
     log_env, materials = fit_env_model(problem, model, materials.detached(), settings.optimize(rates), seed, trace,
                                        progress=progress)
     return log_env.exp(), materials, trace

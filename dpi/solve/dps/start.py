@@ -4,7 +4,8 @@ Whether the init is glossy (dpi.solve.init.is_glossy) is read here once, by `glo
 a glossy init's sample records a finer transport and draws the direct light only for the bright texels (its narrow
 lobe sampled by the BSDF), skips the map's solve (a mirror's views pin the light where they reflect it), takes two
 data updates a step, refines twice as long on one view a step (the loop does not move the roughness a mirror's views
-hinge on), and polishes its map's texels freely where the map has the prior's rows. A rough init's sample runs its
+hinge on), and polishes its map per texel, freely where the map has the prior's rows (a rough init's polish lives on
+its transport's grid). A rough init's sample runs its
 settings as they are, and gets a parametric sun where the sun's rule allows (dpi.solve.dps.sun_choice).
 """
 
@@ -29,8 +30,10 @@ GLOSSY_REFINE_FACTOR = 2
 GLOSSY_REFINE_VIEWS = 1
 """... on this many views a step"""
 GLOSSY_LR_TEXELS = 0.02
-"""a glossy init's polish rate on a map with at least the prior's rows (a coarser map keeps `refine.lr_texels`:
-fitting reflections finer than its texels only sharpens it away from the light)"""
+"""a glossy init's per-texel polish rate on a map with at least the prior's rows ..."""
+GLOSSY_COARSE_LR_TEXELS = 0.005
+"""... and on a coarser map: a light touch (fitting reflections finer than its texels only sharpens it away from the
+light)"""
 
 
 def glossy_start(init: Decomposition) -> bool:
@@ -55,10 +58,16 @@ def settings_for_init(cfg: Any, init: Decomposition, prior_rows: int) -> Any:
     if not glossy_start(init):
         return cfg
     proximal = replace(cfg.proximal, inner_steps=GLOSSY_INNER_STEPS, map_solve=0)
-    lr_texels = GLOSSY_LR_TEXELS if init.env.shape[0] >= prior_rows else cfg.refine.lr_texels
+    lr_texels = GLOSSY_LR_TEXELS if init.env.shape[0] >= prior_rows else GLOSSY_COARSE_LR_TEXELS
     refine = replace(cfg.refine, iterations=cfg.refine.iterations * GLOSSY_REFINE_FACTOR,
                      views_per_step=GLOSSY_REFINE_VIEWS, lr_texels=lr_texels)
     return replace(cfg, proximal=proximal, refine=refine)
+
+
+def polish_height(init: Decomposition) -> int | None:
+    """The rows of the refinement's polish (dpi.solve.dps.refine): a rough init's on its transport's grid, as finely
+    as its views fix the light; a glossy init's per texel (None: a mirror's views resolve the map's texels)."""
+    return None if glossy_start(init) else ROUGH_TRANSPORT_HEIGHT
 
 
 def start_transport(problem: InverseProblem, init: Decomposition, start: MaterialTextures, settings: TransportConfig,
