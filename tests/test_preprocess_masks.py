@@ -301,3 +301,23 @@ def test_the_consensus_hull_is_cut_where_the_object_stands():
     for camera, mask, outline in zip(cameras, masks, outlines):
         truth = above_the_plane(camera, height)
         assert mask_iou(outline, truth) > 0.9 and mask_iou(outline, truth) > mask_iou(mask, truth) + 0.05
+
+
+def test_the_capture_geometry_that_cannot_give_masks_is_named():
+    """Too few views, cameras at one spot, or a baseline whose parallax at the scene's depth is under 2 px: named;
+    an orbit around the object passes."""
+    from dpi.preprocess.masks import capture_geometry_problem
+
+    ring = [from_fov(c2w, 96, 96, 40.0) for c2w in orbit(8, 3.0, (20.0, 35.0))]
+    points = np.random.default_rng(0).normal(scale=0.3, size=(200, 3))
+    assert capture_geometry_problem(ring, points) is None
+    assert "only 2 photo(s) have cameras" in capture_geometry_problem(ring[:2], points)
+    one_spot = [from_fov(ring[0].c2w, 96, 96, 40.0) for _ in range(6)]
+    assert "every camera is at the same place" in capture_geometry_problem(one_spot, None)
+    assert "shifts by 0 px" in capture_geometry_problem(one_spot, points)
+    shifted = []
+    for k in range(4):
+        c2w = ring[0].c2w.copy()
+        c2w[0, 3] += 0.01 * k  # 3 cm apart, 3 m from the object: under a pixel of parallax at 96 px
+        shifted.append(from_fov(c2w, 96, 96, 40.0))
+    assert "walk around the object" in capture_geometry_problem(shifted, points)
