@@ -145,3 +145,30 @@ def test_a_mesh_far_denser_than_its_texture_is_simplified_before_the_atlas():
     np.testing.assert_allclose(np.ptp(mesh.vertices, 0), np.ptp(np.asarray(merged.vertices), 0), rtol=0.03)
     _, small = uv_atlas(np.asarray(merged.vertices), np.asarray(merged.faces), 128)
     assert small["faces"] == small["given_faces"]  # dense enough for 128 x 128: kept as it is
+
+
+@pytest.mark.parametrize("damage", ["triangle soup", "doubled faces"])
+def test_a_scanners_soup_or_doubled_faces_are_simplified_like_a_clean_mesh(damage):
+    import trimesh
+
+    from dpi.preprocess.uv import FACES_PER_TEXEL, simplified_for_texture
+
+    sphere = trimesh.creation.icosphere(subdivisions=4)  # 5120 faces
+    vertices, faces = np.asarray(sphere.vertices), np.asarray(sphere.faces)
+    if damage == "triangle soup":  # every face with its own three vertices (an STL's)
+        vertices, faces = vertices[faces].reshape(-1, 3), np.arange(3 * len(faces)).reshape(-1, 3)
+    else:
+        faces = np.concatenate([faces, faces[:, ::-1]])
+    _, simplified = simplified_for_texture(vertices, faces, 16)
+    assert len(simplified) <= FACES_PER_TEXEL * 16 * 16
+
+
+def test_a_mesh_that_cannot_be_simplified_says_so(caplog):
+    from dpi.preprocess.uv import simplified_for_texture
+
+    rng = np.random.default_rng(0)
+    corners = rng.normal(size=(2000, 1, 3)) * 10 + rng.normal(scale=0.01, size=(2000, 3, 3))  # 2000 lone specks
+    vertices, faces = corners.reshape(-1, 3), np.arange(6000).reshape(-1, 3)
+    with caplog.at_level("WARNING", logger="dpi.preprocess.uv"):
+        _, kept = simplified_for_texture(vertices, faces, 8)
+    assert len(kept) > 128 and "charts are smaller than a texel" in caplog.text

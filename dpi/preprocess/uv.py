@@ -18,6 +18,7 @@ bilinear lookups at seams never read empty texels.
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -27,6 +28,8 @@ import numpy as np
 from dpi.io.settings import Steps, settings
 from dpi.render.texels import texel_values, texture_from
 from dpi.synth.shapes import TriangleMesh
+
+log = logging.getLogger(__name__)
 
 
 @settings
@@ -45,7 +48,10 @@ first (quadric edge collapse), since its charts would be smaller than a texel"""
 def simplified_for_texture(vertices: np.ndarray, faces: np.ndarray, texture_size: int
                            ) -> tuple[np.ndarray, np.ndarray]:
     """The mesh as it is, or, with more than FACES_PER_TEXEL faces per texel, simplified by pymeshlab's quadric
-    edge collapse to one face per texel (normals, topology and open boundaries kept, so the silhouette stays)."""
+    edge collapse to one face per texel (normals, topology and open boundaries kept, so the silhouette stays). A
+    scanner's mesh is first made one surface (coincident vertices merged, duplicate and zero-area faces removed,
+    non-manifold edges and vertices repaired): a triangle soup or doubled faces are all boundary and collapse
+    nowhere. Where the result is still denser than that, the log says so and why."""
     target = texture_size * texture_size
     if len(faces) <= FACES_PER_TEXEL * target:
         return vertices, faces
@@ -53,9 +59,21 @@ def simplified_for_texture(vertices: np.ndarray, faces: np.ndarray, texture_size
 
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(vertices, np.float64), face_matrix=np.asarray(faces, np.int32)))
+    before = ms.get_topological_measures()
+    ms.meshing_remove_duplicate_vertices()
+    ms.meshing_remove_duplicate_faces()
+    ms.meshing_remove_null_faces()
+    ms.meshing_repair_non_manifold_edges()
+    ms.meshing_repair_non_manifold_vertices()
+    ms.meshing_remove_unreferenced_vertices()
     ms.meshing_decimation_quadric_edge_collapse(targetfacenum=target, preservenormal=True, preservetopology=True,
                                                 preserveboundary=True, optimalplacement=True)
     mesh = ms.current_mesh()
+    if mesh.face_number() > FACES_PER_TEXEL * target:
+        log.warning("uv: the mesh keeps %d faces for %d x %d texels after simplification (given: %d faces, %d "
+                    "non-manifold edges, %d boundary edges): its charts are smaller than a texel; a cleaner or "
+                    "coarser mesh gives sharper textures", mesh.face_number(), texture_size, texture_size, len(faces),
+                    before["non_two_manifold_edges"], before["boundary_edges"])
     return mesh.vertex_matrix(), mesh.face_matrix().astype(np.int64)
 
 
