@@ -14,7 +14,7 @@ from dpi.solve.classic import ClassicConfig, balanced_weight, classic_sample
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dip import DeepImagePrior, DIPConfig, dip_sample, network_levels
 from dpi.solve.init import (CLOSING_STEPS, READINGS, START_ALBEDO, InitConfig, closing_loss, is_glossy,
-                            path_traced_init, roughness_p25, sample_reading, starting_materials)
+                            path_traced_init, sample_reading, starting_materials)
 from dpi.solve.materials import MaterialTextures
 from dpi.solve.optimize import AdamFit, FreeEnvMap, OptimizeConfig, fit
 from dpi.solve.priors import chromaticity_penalty, global_norm_penalty, make_prior, smoothness_penalty

@@ -111,7 +111,7 @@ def upright_camera(camera: Camera, orientation: int) -> Camera:
     if orientation not in ROLLS:
         raise BundlerError(f"EXIF orientation {orientation} mirrors the photo: no camera takes it")
     swapped, sign = ROLLS[orientation]
-    x, y, z = camera.c2w[:3, 0], camera.c2w[:3, 1], camera.c2w[:3, 2]
+    x, y = camera.c2w[:3, 0], camera.c2w[:3, 1]
     c2w = camera.c2w.copy()
     c2w[:3, 0], c2w[:3, 1] = ((sign * -y, sign * x) if swapped else (sign * x, sign * y))
     width, height = (camera.height, camera.width) if swapped else (camera.width, camera.height)

@@ -108,8 +108,8 @@ def test_a_scene_xml_mesh_out_of_the_capture_is_refused(tmp_path):
     mesh = tmp_path / "elsewhere" / "object.obj"
     mesh.parent.mkdir()
     trimesh.creation.icosphere(subdivisions=1).export(mesh)
-    (root / "scene.xml").write_text(f'<scene version="3.0.0"><shape type="obj"><string name="filename" '
-                                    f'value="../elsewhere/object.obj"/></shape></scene>')
+    (root / "scene.xml").write_text('<scene version="3.0.0"><shape type="obj"><string name="filename" '
+                                    'value="../elsewhere/object.obj"/></shape></scene>')
     with pytest.raises(CaptureError, match="the mesh of scene.xml lies outside the capture folder"):
         load_capture(root)
 
