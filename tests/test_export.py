@@ -213,3 +213,21 @@ def test_a_failed_export_leaves_the_previous_folder_whole_and_no_stray_files(exp
     monkeypatch.undo()
     export_stage(exported, sample_rows(exported))  # a whole export replaces the folder: the stale file goes
     assert sorted(p.relative_to(folder) for p in folder.rglob("*")) == before
+
+
+@pytest.mark.parametrize("shapes, bad", [
+    ({"albedo": (7, 5, 3), "roughness": (8, 8, 1), "metallic": (8, 8, 1)}, "albedo"),
+    ({"albedo": (8, 8, 3), "roughness": (16, 16, 1), "metallic": (8, 8, 1)}, "roughness"),
+])
+def test_a_sample_texture_of_the_wrong_size_is_refused_naming_it(tmp_path, shapes, bad):
+    from dpi.export.asset import AssetMesh, AssetSample, sample_textures
+    from dpi.io.exr import write_exr
+    from dpi.io.layout import decomposition_files
+
+    files = decomposition_files(tmp_path)
+    for name, shape in shapes.items():
+        write_exr(files[name], np.full(shape, 0.5, np.float32))
+    mesh = AssetMesh(np.eye(3, dtype=np.float32), np.eye(3, dtype=np.float32),
+                     np.array([[0, 0], [1, 0], [0, 1]], np.float32), np.array([[0, 1, 2]], np.uint32))
+    with pytest.raises(ValueError, match=rf"{files[bad].name}: texture is \d+x\d+ px; a sample's textures are square"):
+        sample_textures(AssetSample("dps", 0, tmp_path), mesh)

@@ -83,7 +83,7 @@ def sample_textures(sample: AssetSample, mesh: AssetMesh) -> dict[str, np.ndarra
     """A sample's textures as 8-bit images, their gutters filled from the mesh's charts (other renderers' lookups
     never read empty texels): `base_color` (sRGB), `metallic_roughness` (glTF's packing: roughness in green,
     metallic in blue, red unused at 255), and `roughness`, `metallic` alone (linear, for USD). A texture with a
-    non-finite texel is refused, naming its file."""
+    non-finite texel, not square or of another size than the others is refused, naming its file."""
     from dpi.render.texels import fill_gutters
 
     files = sample.files
@@ -95,6 +95,10 @@ def sample_textures(sample: AssetSample, mesh: AssetMesh) -> dict[str, np.ndarra
             raise ValueError(f"{files[name]}: {int(bad.any(-1).sum())} texels are NaN or infinite; the sample cannot "
                              "be exported (draw it again)")
         size = texture.shape[0]
+        first = next(iter(textures.values()), texture).shape[:2]
+        if texture.shape[1] != size or texture.shape[:2] != first:
+            raise ValueError(f"{files[name]}: texture is {texture.shape[1]}x{size} px; a sample's textures are square "
+                             f"and share one size (its first is {first[1]}x{first[0]}): draw the sample again")
         if size not in coverage:  # the three textures share one size: rasterise the charts once
             coverage[size] = chart_coverage(mesh, size)
         textures[name] = fill_gutters(texture, coverage[size])
