@@ -7,6 +7,8 @@ and leave no capture.json behind."""
 from __future__ import annotations
 
 import json
+import re
+import shutil
 import warnings
 from pathlib import Path
 from typing import Callable
@@ -20,7 +22,7 @@ from capture_helpers import NAMES, SIZE, edit_transforms, make_capture, raw_exr
 from dpi.capture import CaptureError, CaptureWarning, inspect_capture, load_capture, read_scene_options
 from dpi.capture.cameras import to_mitsuba
 from dpi.capture.folder import check_signal
-from dpi.io.images import read_image, read_mask
+from dpi.io.images import read_image, read_mask, srgb_to_linear
 from dpi.preprocess.derive import normalise_capture
 from dpi.solve.exposure import capture_exposure
 
@@ -474,3 +476,40 @@ def test_valid_capture_json_is_written_when_nothing_is_wrong(tmp_path):
     root = make_capture(tmp_path / "scene")
     normalise_capture(root, tmp_path / "capture.json")
     assert len(json.loads((tmp_path / "capture.json").read_text())["views"]) == len(NAMES)
+
+
+def photos_only(root: Path, count: int, same: tuple[int, ...] = (), exr: bool = False) -> Path:
+    """A capture of `count` photos and nothing else; the photos at the indices `same` are copies of the first."""
+    (root / "images").mkdir(parents=True)
+    rng = np.random.default_rng(3)
+    first = None
+    for i in range(count):
+        codes = rng.integers(20, 230, (24, 24, 3), dtype=np.uint8)
+        first = codes if first is None else first
+        codes = first if i in same else codes
+        if exr:
+            raw_exr(root / "images" / f"p_{i}.exr", srgb_to_linear(codes / 255.0))
+        else:
+            write_cv2(root / "images" / f"p_{i}.png", codes)
+    return root
+
+
+@pytest.mark.parametrize("count, same, exr, words", [
+    (1, (), False, "1 photo(s) and no cameras"),
+    (2, (), False, "2 photo(s) and no cameras"),
+    (2, (), True, "2 photo(s) and no cameras"),
+    (5, (3,), False, "p_3.png: the same photo as p_0.png (identical pixels)"),
+    (6, (1, 4), True, "p_1.exr: the same photo as p_0.exr (identical pixels)"),
+])
+def test_photos_that_cannot_give_cameras_are_refused_up_front(tmp_path, count, same, exr, words):
+    root = photos_only(tmp_path / "scene", count, same, exr)
+    with pytest.raises(CaptureError, match=re.escape(words)) as info:
+        load_capture(root)
+    assert "\n" not in str(info.value)
+
+
+def test_identical_photos_with_given_cameras_are_not_refused(tmp_path):
+    """Copies are refused only where the cameras must come from the photos."""
+    root = make_capture(tmp_path / "scene")
+    shutil.copyfile(root / "images" / "r_0.png", root / "images" / "r_1.png")
+    load_capture(root)
