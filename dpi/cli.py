@@ -39,13 +39,16 @@ from dpi.prior.commands import register as register_prior_commands
 
 def _pipeline(args: argparse.Namespace):
     """The resolved config of the command's --config files; a command on a scene (other than a dry run) holds its
-    results folder's lock (dpi.io.lock) while it runs."""
+    results folder's lock (dpi.io.lock) while it runs, and refuses a results folder with a link inside it
+    (dpi.io.atomic.check_no_links)."""
     from dpi.config.pipeline import load_pipeline
+    from dpi.io.atomic import check_no_links
     from dpi.io.lock import lock_results
 
     pipeline = load_pipeline(args.config)
     if getattr(args, "scene", None) is not None and not getattr(args, "dry_run", False):
         lock_results(pipeline.layout.results)
+        check_no_links(pipeline.layout.results)
     return pipeline
 
 

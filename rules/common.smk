@@ -4,7 +4,7 @@ from pathlib import Path
 from functools import lru_cache
 
 from dpi.stages import (ENV_FILE, INIT, METHODS as KNOWN_METHODS, MIN_SAMPLES, PRIORS, REGISTRY, Pipeline,
-                        check_unlocked, derived_inputs, lock_results, plain, resolve_config, stage_inputs, stop_rule_applies)
+                        check_no_links, check_unlocked, derived_inputs, lock_results, plain, resolve_config, stage_inputs, stop_rule_applies)
 
 # dpi's defaults (dpi/data/config.yaml), ./config.yaml when present (the checkout's top-level file), then
 # the --configfile files and --config values Snakemake merged into `config`; the preset fills what is
@@ -25,6 +25,7 @@ INIT_FILES = SCENE.sample_files(INIT)
 
 if workflow.is_main_process:  # a second run is told before Snakemake meets the first one's unfinished files
     check_unlocked(LAYOUT.results)
+    check_no_links(LAYOUT.results)  # nothing written through a link out of results_dir
 
 
 onstart:

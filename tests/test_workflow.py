@@ -183,3 +183,20 @@ def test_a_second_run_while_the_first_writes_is_told_so_in_dpis_words(workdir):
     out = proc.stdout + proc.stderr
     assert proc.returncode != 0
     assert f"another dpi run (process {holder.pid}) is writing here" in out and "rerun-incomplete" not in out
+
+
+def test_a_link_inside_results_is_refused_before_anything_runs(workdir, tmp_path):
+    outside = tmp_path / "elsewhere"
+    outside.mkdir()
+    folder = workdir / "results" / "tiny" / "none"
+    kept = folder.with_name("none_kept")
+    folder.rename(kept)
+    try:
+        folder.symlink_to(outside, target_is_directory=True)
+        proc = subprocess.run([str(SNAKEMAKE), "-s", str(REPO / "Snakefile"), "--directory", str(workdir), "--cores",
+                               "1"], capture_output=True, text=True, timeout=300)
+    finally:
+        folder.unlink()
+        kept.rename(folder)
+    assert proc.returncode != 0 and "results/tiny/none: is a link" in proc.stdout + proc.stderr
+    assert list(outside.iterdir()) == []

@@ -74,6 +74,17 @@ def inside_results(path: str | os.PathLike, results: str | os.PathLike) -> Path:
     return path
 
 
+def check_no_links(results: str | os.PathLike) -> None:
+    """OutputError naming the first link inside `results` (none when it does not exist yet): the workflow writes
+    under results_dir only, and a link there would lead its outputs elsewhere on the host."""
+    for folder, dirs, files in os.walk(results):
+        for name in [*dirs, *files]:
+            path = Path(folder) / name
+            if path.is_symlink():
+                raise OutputError(f"{path}: is a link (to {os.readlink(path)}) inside results_dir; dpi writes its "
+                                  "outputs inside results_dir only: remove the link")
+
+
 @contextmanager
 def replaced_folder(target: str | os.PathLike, results: str | os.PathLike) -> Iterator[Path]:
     """Yield an empty temporary folder beside `target` (checked by `inside_results`); when the block succeeds it

@@ -11,6 +11,7 @@ PROVIDERS = {
     "dpi.solve.adaptive": ("MIN_SAMPLES", "stop_rule_applies"),
     "dpi.capture": ("PRIORS", "derived_inputs"),
     "dpi.io.lock": ("check_unlocked", "lock_results"),
+    "dpi.io.atomic": ("check_no_links",),
     "dpi.io.layout": ("ENV_FILE", "INIT"),
     "dpi.config.pipeline": ("Pipeline", "load_pipeline", "plain", "resolve_config"),
     "dpi.solve.methods": ("METHODS", "REGISTRY"),

@@ -254,3 +254,15 @@ def test_an_image_name_with_a_brace_is_refused_in_one_line(tmp_path):
     os.rename(root / "images" / "r_0.png", root / "images" / "r_{0}.png")
     with pytest.raises(CaptureError, match=r"images: an image name holds a brace"):
         load_capture(root)
+
+
+def test_a_link_anywhere_inside_results_is_named(tmp_path):
+    from dpi.io.atomic import OutputError, check_no_links
+
+    check_no_links(tmp_path / "absent")  # nothing written yet: nothing to refuse
+    (tmp_path / "results" / "demo" / "dps").mkdir(parents=True)
+    check_no_links(tmp_path / "results")
+    (tmp_path / "outside").mkdir()
+    (tmp_path / "results" / "demo" / "dps" / "0").symlink_to(tmp_path / "outside", target_is_directory=True)
+    with pytest.raises(OutputError, match=r"results/demo/dps/0: is a link \(to .*outside\) inside results_dir"):
+        check_no_links(tmp_path / "results")
