@@ -63,16 +63,16 @@ def test_settings_are_grouped_and_each_key_is_checked_where_it_lives():
 
 def test_a_glossy_init_changes_the_settings_in_one_place():
     """dpi.solve.dps.start.settings_for_init: a glossy init skips the map's solve, takes two updates a step and refines twice as long,
-    one view a step, with a freer polish where its map has the prior's rows (a coarser map keeps the light polish);
+    with a freer per-texel polish where its map has the prior's rows (a coarser map gets the light polish);
     a rough init keeps the settings."""
     from dpi.solve.decomposition import Decomposition
     from dpi.solve.dps.start import settings_for_init
     from dpi.solve.materials import MaterialTextures
 
-    cfg = DPSConfig.from_dict({"refine": {"iterations": 50, "lr_texels": 0.005}})
+    cfg = DPSConfig.from_dict({"refine": {"iterations": 50, "views_per_step": 2}})
     env = torch.ones(4, 8, 3)
     glossy = settings_for_init(cfg, Decomposition(env, MaterialTextures.constant(8, roughness=0.1)), prior_rows=4)
-    assert (glossy.refine.iterations, glossy.refine.views_per_step, glossy.refine.lr_texels) == (100, 1, 0.02)
+    assert (glossy.refine.iterations, glossy.refine.views_per_step, glossy.refine.lr_texels) == (100, 2, 0.02)
     assert (glossy.proximal.map_solve, glossy.proximal.inner_steps) == (0, 2)
     assert glossy.proximal.transport.pixels == cfg.proximal.transport.pixels
     coarse = settings_for_init(cfg, Decomposition(env, MaterialTextures.constant(8, roughness=0.1)), prior_rows=8)

@@ -30,7 +30,8 @@ class RefineConfig:
 
     iterations: Steps = 150
     """Adam iterations on the materials, the gain and the polish: a plain fit's (the paper preset: 200)"""
-    views_per_step: Count = 2
+    views_per_step: Count = 1
+    """training views rendered per iteration: the materials converge with Adam's steps, not the views a step sees"""
     lr_gain: Rate = 0.03
     """Adam rate of the gain's spherical-harmonic coefficients"""
     lr_texels: Rate = 0.03

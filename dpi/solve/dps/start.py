@@ -3,8 +3,7 @@
 Whether the init is glossy (dpi.solve.init.is_glossy) is read here once, by `glossy_start`, and decides the rest:
 a glossy init's sample records a finer transport and draws the direct light only for the bright texels (its narrow
 lobe sampled by the BSDF), skips the map's solve (a mirror's views pin the light where they reflect it), takes two
-data updates a step, refines twice as long on one view a step (the loop does not move the roughness a mirror's views
-hinge on), and polishes its map per texel, freely where the map has the prior's rows (a rough init's polish lives on
+data updates a step, refines twice as long (the loop does not move the roughness a mirror's views hinge on), and polishes its map per texel, freely where the map has the prior's rows (a rough init's polish lives on
 its transport's grid). A rough init's sample runs its
 settings as they are, and gets a parametric sun where the sun's rule allows (dpi.solve.dps.sun_choice).
 """
@@ -26,9 +25,7 @@ from dpi.solve.transport import (MAX_TRANSPORT_HEIGHT, ROUGH_TRANSPORT_HEIGHT, L
 GLOSSY_INNER_STEPS = 2
 """a glossy init's data updates a step (it skips the map's solve)"""
 GLOSSY_REFINE_FACTOR = 2
-"""a glossy init's refinement runs this many times `refine.iterations` ..."""
-GLOSSY_REFINE_VIEWS = 1
-"""... on this many views a step"""
+"""a glossy init's refinement runs this many times `refine.iterations`"""
 GLOSSY_LR_TEXELS = 0.02
 """a glossy init's per-texel polish rate on a map with at least the prior's rows ..."""
 GLOSSY_COARSE_LR_TEXELS = 0.005
@@ -59,8 +56,7 @@ def settings_for_init(cfg: Any, init: Decomposition, prior_rows: int) -> Any:
         return cfg
     proximal = replace(cfg.proximal, inner_steps=GLOSSY_INNER_STEPS, map_solve=0)
     lr_texels = GLOSSY_LR_TEXELS if init.env.shape[0] >= prior_rows else GLOSSY_COARSE_LR_TEXELS
-    refine = replace(cfg.refine, iterations=cfg.refine.iterations * GLOSSY_REFINE_FACTOR,
-                     views_per_step=GLOSSY_REFINE_VIEWS, lr_texels=lr_texels)
+    refine = replace(cfg.refine, iterations=cfg.refine.iterations * GLOSSY_REFINE_FACTOR, lr_texels=lr_texels)
     return replace(cfg, proximal=proximal, refine=refine)
 
 
