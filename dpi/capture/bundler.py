@@ -173,22 +173,27 @@ def bundler_file(root: Path) -> Path | None:
     return next((root / name for name in BUNDLE_FILES if (root / name).is_file()), None)
 
 
+def list_file(bundle: Path, root: Path) -> Path | None:
+    """The image list the Bundler file was solved from: `list.txt` beside it, else in the capture's root; None."""
+    return next((folder / LIST_FILE for folder in (bundle.parent, root) if (folder / LIST_FILE).is_file()), None)
+
+
 def bundler_names(bundle: Path, root: Path, names: list[str]) -> list[str]:
-    """The image each of the file's cameras belongs to: `list.txt` (beside the file, else in the capture's root) in
-    its order, each line's first word a photo's path matched to `names` by its stem; else `names` sorted. A line
-    naming no photo of the capture is a BundlerError naming it."""
-    lists = [folder / LIST_FILE for folder in dict.fromkeys((bundle.parent, root)) if (folder / LIST_FILE).is_file()]
-    if not lists:
+    """The image each of the file's cameras belongs to: `list_file` in its order, each line's first word a photo's
+    path matched to `names` by its stem; else `names` sorted. A line naming no photo of the capture is a BundlerError
+    naming it."""
+    listed = list_file(bundle, root)
+    if listed is None:
         return sorted(names)
     known = set(names)
     order = []
-    for number, line in enumerate(lists[0].read_text(errors="replace").splitlines(), 1):
+    for number, line in enumerate(listed.read_text(errors="replace").splitlines(), 1):
         words = line.split()
         if not words:
             continue
         stem = Path(words[0]).stem
         if stem not in known:
-            raise BundlerError(f"{lists[0]}: line {number} names {words[0][:80]!r}, which is not a photo of the "
+            raise BundlerError(f"{listed}: line {number} names {words[0][:80]!r}, which is not a photo of the "
                                "capture's images/")
         order.append(stem)
     return order
@@ -201,8 +206,7 @@ def capture_bundler_cameras(root: Path, bundle: Path, images: dict[str, Path], s
     cannot be used)."""
     from dpi.io.images import exif_orientation
 
-    first = next(iter(images.values()))
-    orientation = exif_orientation(first) if first.suffix.lower() in (".png", ".jpg", ".jpeg") else 1
+    orientation = exif_orientation(next(iter(images.values())))  # 1 for an EXR
     return bundler_cameras(bundle, bundler_names(bundle, root, list(images)), size, orientation)
 
 
@@ -210,9 +214,9 @@ def check_bundler(root: Path, bundle: Path, images: dict[str, Path], size: tuple
     """The capture's Bundler file reads and its cameras can be used (`capture_bundler_cameras`), inside the capture:
     else one CaptureError naming the file and the camera."""
     inside_capture(root, bundle, "the Bundler file")
-    for folder in dict.fromkeys((bundle.parent, root)):
-        if (folder / LIST_FILE).is_file():
-            inside_capture(root, folder / LIST_FILE, "the Bundler image list")
+    listed = list_file(bundle, root)
+    if listed is not None:
+        inside_capture(root, listed, "the Bundler image list")
     try:
         capture_bundler_cameras(root, bundle, images, size)
     except BundlerError as exc:

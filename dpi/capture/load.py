@@ -144,7 +144,8 @@ def load_capture(root: str | os.PathLike) -> Capture:
             else None
     names = list(images)
     model_dir = colmap_model_dir(root) if camera_file is None else None
-    from_photos = camera_file is None and model_dir is None and bundler_file(root) is None
+    bundle = bundler_file(root) if camera_file is None and model_dir is None else None
+    from_photos = camera_file is None and model_dir is None and bundle is None
     if from_photos and len(images) < MIN_DERIVED_VIEWS:
         raise CaptureError(f"{root / 'images'}: {len(images)} photo(s) and no cameras: the cameras and masks come "
                            f"from the photos, which takes {MIN_DERIVED_VIEWS} or more taken from different places "
@@ -152,7 +153,6 @@ def load_capture(root: str | os.PathLike) -> Capture:
     size = check_images(images, distinct=from_photos)
     if model_dir is not None:
         check_colmap_model(root, model_dir, names, size)
-    bundle = bundler_file(root) if camera_file is None and model_dir is None else None
     if bundle is not None:
         check_bundler(root, bundle, images, size)
     if camera_file is None:

@@ -57,6 +57,12 @@ class OutputError(ValueError):
     it."""
 
 
+def link_error(path: Path) -> OutputError:
+    """The error naming a link on the way to the workflow's outputs."""
+    return OutputError(f"{path}: is a link (to {os.readlink(path)}) inside results_dir; dpi writes its outputs inside "
+                       "results_dir only: remove the link")
+
+
 def inside_results(path: str | os.PathLike, results: str | os.PathLike) -> Path:
     """`path` when it lies inside `results` and neither it nor a folder between them is a link (else OutputError):
     the workflow writes nothing through a link to elsewhere on the host."""
@@ -67,8 +73,7 @@ def inside_results(path: str | os.PathLike, results: str | os.PathLike) -> Path:
         if part == results:
             break
         if part.is_symlink():
-            raise OutputError(f"{part}: is a link (to {os.readlink(part)}); dpi writes its outputs inside results_dir "
-                              "only: remove the link")
+            raise link_error(part)
     if not path.resolve().is_relative_to(results.resolve()):
         raise OutputError(f"{path}: resolves outside results_dir {results}")
     return path
@@ -81,8 +86,7 @@ def check_no_links(results: str | os.PathLike) -> None:
         for name in [*dirs, *files]:
             path = Path(folder) / name
             if path.is_symlink():
-                raise OutputError(f"{path}: is a link (to {os.readlink(path)}) inside results_dir; dpi writes its "
-                                  "outputs inside results_dir only: remove the link")
+                raise link_error(path)
 
 
 @contextmanager

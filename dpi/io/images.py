@@ -143,10 +143,9 @@ def upright(values: np.ndarray, orientation: int) -> np.ndarray:
     return np.ascontiguousarray(ops[orientation](values)) if orientation in ops else values
 
 
-def ldr_header_size(path: Path) -> tuple[int, int]:
-    """(width, height) a PNG/JPG's header declares, turned by its EXIF orientation (as `decode_ldr` returns it),
-    nothing decoded; an unreadable header, or one beyond the pixel bound (dpi.io.pixel_bound), is an ImageError
-    naming the file."""
+def ldr_header(path: Path) -> tuple[int, int, int]:
+    """(width, height, EXIF orientation) of a PNG/JPG as stored, nothing decoded; an unreadable header, or one beyond
+    the pixel bound (dpi.io.pixel_bound), is an ImageError naming the file."""
     try:
         with headers_only(), Image.open(path) as image:
             width, height = image.size
@@ -155,19 +154,26 @@ def ldr_header_size(path: Path) -> tuple[int, int]:
     problem = size_problem(width, height)
     if problem:
         raise ImageError(f"{path}: {problem}")
-    return (height, width) if exif_orientation(path) >= 5 else (width, height)
+    return width, height, exif_orientation(path)
+
+
+def ldr_header_size(path: Path) -> tuple[int, int]:
+    """(width, height) a PNG/JPG's header declares, turned by its EXIF orientation (as `decode_ldr` returns it)
+    (`ldr_header`)."""
+    width, height, orientation = ldr_header(path)
+    return (height, width) if orientation >= 5 else (width, height)
 
 
 def decode_ldr(path: Path) -> np.ndarray:
     """A PNG/JPG's code values in [0, 1] at its bit depth (8 or 16), (H, W, C): grey (C = 1), RGB or RGBA,
     turned upright by its EXIF orientation (images and masks alike). Its header's size is checked first
-    (`ldr_header_size`)."""
+    (`ldr_header`)."""
     import cv2
 
     raw = np.fromfile(path, dtype=np.uint8)
     if raw.size == 0:
         raise ImageError(f"{path}: not a readable image (empty file)")
-    ldr_header_size(path)
+    orientation = ldr_header(path)[2]
     data = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED)
     if data is None:
         raise ImageError(f"{path}: not a readable image (truncated, or not a {path.suffix.lstrip('.')} file)")
@@ -178,7 +184,7 @@ def decode_ldr(path: Path) -> np.ndarray:
         values = values[..., None]
     else:
         values = np.concatenate([values[..., 2::-1], values[..., 3:]], axis=-1)  # OpenCV's BGR(A) -> RGB(A)
-    return upright(values, exif_orientation(path))
+    return upright(values, orientation)
 
 
 RADIANCE_HEADER = 1 << 16

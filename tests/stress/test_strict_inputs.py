@@ -178,7 +178,7 @@ def test_the_capture_script_ends_with_the_one_line(tmp_path):
     config = resolve_config({"captures_dir": str(root.parent), "results_dir": str(tmp_path / "results"),
                              "scenes": ["mine"]})
     snakemake = SimpleNamespace(log=[str(log)], rule="capture", config=config, threads=1,
-                                wildcards=SimpleNamespace(scene="mine"), params={}, output=[str(out)])
+                                wildcards=SimpleNamespace(scene="mine"), params={})
     with pytest.raises(SystemExit) as info:
         runpy.run_path(str(REPO / "workflow_scripts" / "stage.py"), init_globals={"snakemake": snakemake})
     assert info.value.code == line and log.read_text() == line + "\n" and not out.exists()

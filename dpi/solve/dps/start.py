@@ -3,9 +3,10 @@
 Whether the init is glossy (dpi.solve.init.is_glossy) is read here once, by `glossy_start`, and decides the rest:
 a glossy init's sample records a finer transport and draws the direct light only for the bright texels (its narrow
 lobe sampled by the BSDF), skips the map's solve (a mirror's views pin the light where they reflect it), takes two
-data updates a step, refines twice as long (the loop does not move the roughness a mirror's views hinge on), and polishes its map per texel, freely where the map has the prior's rows (a rough init's polish lives on
-its transport's grid). A rough init's sample runs its
-settings as they are, and gets a parametric sun where the sun's rule allows (dpi.solve.dps.sun_choice).
+data updates a step, refines twice as long (the loop does not move the roughness a mirror's views hinge on), and
+polishes its map per texel, freely where the map has the prior's rows (a rough init's polish lives on its transport's
+grid). A rough init's sample runs its settings as they are, and gets a parametric sun where the sun's rule allows
+(dpi.solve.dps.sun_choice).
 """
 
 from __future__ import annotations
