@@ -157,6 +157,17 @@ def dev_table(csv_names: tuple[str, ...], root: Path, keys: tuple[str, ...] = BY
     return grouped_table(rows, keys, metrics, rank_by=keys[0], order=method_order)
 
 
+def hotdog_probes(root: Path) -> str:
+    """dps samples on the authors' hotdog under one changed setting each (notebook/results/dev/hotdog_light_probes.csv):
+    the loop's and the written map's env PSNR and broad balance, per variant."""
+    rows = read_rows(root / NOTEBOOK / "dev" / "hotdog_light_probes.csv")
+    metrics = (Metric("loop map: env PSNR [dB]", "loop_env_psnr", ".2f", +1),
+               Metric("env PSNR [dB]", "env_psnr", ".2f", +1),
+               Metric("log error at 2 rows", "env_balance_2", ".2f", -1),
+               Metric("at 8 rows", "env_balance_8", ".2f", -1), SECONDS)
+    return grouped_table(rows, ("settings",), metrics)
+
+
 def csv_path(root: Path, csv_name: str) -> Path:
     """A study CSV by name: `dev/...` and `previous/...` are the notebook's, the rest benchmarks/results'."""
     return root / (NOTEBOOK if csv_name.split("/")[0] in ("dev", "previous") else RESULTS) / csv_name
@@ -576,6 +587,8 @@ TABLES: dict[str, Callable[[Path], str]] = {
     "joint_start": partial(dev_table, ("joint_start_dev.csv", "joint_start_heldout.csv")),
     "demo_pixels": partial(dev_table, ("demo_pixels.csv",)),
     "refine_length": partial(dev_table, ("refine_length_dev.csv", "refine_length_heldout.csv")),
+    "data_weight": partial(dev_table, ("data_weight_dev.csv", "data_weight_heldout.csv")),
+    "hotdog_light_probes": hotdog_probes,
     "defaults_1202": partial(dev_table, ("joint_start_dev.csv", "joint_start_heldout.csv", "defaults_1202_dev.csv",
                                          "defaults_1202_heldout.csv")),
     "light_settle": partial(dev_table, ("light_settle_dev.csv",)),
