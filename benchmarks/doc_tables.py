@@ -168,6 +168,21 @@ def hotdog_probes(root: Path) -> str:
     return grouped_table(rows, ("settings",), metrics)
 
 
+def contraction(root: Path) -> str:
+    """The contraction study (benchmarks/contraction): the samples' light, spread and calibration per view count."""
+    rows = read_rows(root / "benchmarks" / "contraction" / "contraction.csv")
+    metrics = (Metric("samples", "samples", ".0f", spread=False),
+               Metric("env PSNR [dB]", "env_psnr", ".2f", +1, spread=False),
+               Metric("mean map: env PSNR [dB]", "env_mean_psnr", ".2f", +1, spread=False),
+               Metric("log error at 2 rows", "env_balance_2", ".2f", -1, spread=False),
+               Metric("at 8 rows", "env_balance_8", ".2f", -1, spread=False),
+               Metric("spread (log std)", "env_log_std", ".3f", spread=False),
+               Metric("calibration (1: ideal)", "env_calibration", ".2f", spread=False),
+               Metric("training fit / truth's", "train_fit_over_truth", ".2f", spread=False),
+               Metric("s/sample", "sample_seconds", ".1f", spread=False))
+    return grouped_table(rows, ("views", "method"), metrics)
+
+
 def csv_path(root: Path, csv_name: str) -> Path:
     """A study CSV by name: `dev/...` and `previous/...` are the notebook's, the rest benchmarks/results'."""
     return root / (NOTEBOOK if csv_name.split("/")[0] in ("dev", "previous") else RESULTS) / csv_name
@@ -584,9 +599,9 @@ TABLES: dict[str, Callable[[Path], str]] = {
                                            metrics=BALANCE_DESIGN_METRICS),
     "light_pin": partial(dev_table, ("light_pin_dev.csv",)),
     "light_pin_realism": partial(light_realism, "dev/light_pin_realism.csv", metrics=BALANCE_DESIGN_METRICS),
-    "joint_start": partial(dev_table, ("joint_start_dev.csv", "joint_start_heldout.csv")),
     "demo_pixels": partial(dev_table, ("demo_pixels.csv",)),
     "refine_length": partial(dev_table, ("refine_length_dev.csv", "refine_length_heldout.csv")),
+    "contraction": contraction,
     "data_weight": partial(dev_table, ("data_weight_dev.csv", "data_weight_heldout.csv")),
     "hotdog_light_probes": hotdog_probes,
     "defaults_1202": partial(dev_table, ("joint_start_dev.csv", "joint_start_heldout.csv", "defaults_1202_dev.csv",

@@ -1,8 +1,8 @@
 """A picture of the report's 3D view for the docs: a scene's exported asset in model-viewer, as the report shows it
 (dpi.evaluation.view3d), one sample a picture, rendered by headless Chromium (its software WebGL) and placed side by
-side in one PNG.
+side in one picture (JPEG: about half the palette PNG's size).
 
-    .venv/bin/python benchmarks/view3d_shot.py results demo --samples dps_0 none_0 --out docs/images/view3d_demo.png
+    .venv/bin/python benchmarks/view3d_shot.py results demo --samples dps_0 none_0 --out docs/images/view3d_demo.jpg
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ def main() -> None:
     parser.add_argument("scene")
     parser.add_argument("--samples", nargs="*", default=None, help="variant names (default: the asset's first two)")
     parser.add_argument("--exposure", type=float, default=1.0, help="the capture's exposure (the view divides by it)")
-    parser.add_argument("--out", type=Path, required=True, help="PNG")
+    parser.add_argument("--out", type=Path, required=True, help="the picture (.jpg or .png)")
     args = parser.parse_args()
 
     browser = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
@@ -63,7 +63,7 @@ def main() -> None:
     strip = Image.new("RGB", (sum(p.width for p in pictures), max(p.height for p in pictures)))
     for k, picture in enumerate(pictures):
         strip.paste(picture, (sum(p.width for p in pictures[:k]), 0))
-    strip.save(args.out)
+    strip.save(args.out, quality=85)  # quality: a JPEG's; a PNG ignores it
     print(f"wrote {args.out} ({', '.join(samples)})")
 
 
