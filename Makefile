@@ -16,13 +16,13 @@ demo: setup
 	$(VENV)/bin/snakemake --cores $(CORES)
 
 test: setup
-	$(VENV)/bin/python -m pytest -q -n $(CORES) $(PYTEST_ARGS)
+	$(VENV)/bin/python -m pytest -q -n $(CORES) --dist loadscope $(PYTEST_ARGS)
 
 test-slurm: setup
 	$(VENV)/bin/python -m pytest -q -m slurm $(PYTEST_ARGS)
 
 test-fast: setup
-	$(VENV)/bin/python -m pytest -q -n $(CORES) -m "not slow" $(PYTEST_ARGS)
+	$(VENV)/bin/python -m pytest -q -n $(CORES) --dist loadscope -m "not slow" $(PYTEST_ARGS)
 
 # the quick benchmarks (minutes): cost of a render step, of a dps step, of the procedural worlds
 benchmarks: setup
@@ -39,6 +39,7 @@ studies: setup
 	$(VENV)/bin/python benchmarks/resolution_study.py
 	$(VENV)/bin/python benchmarks/lens_study.py
 	$(VENV)/bin/python benchmarks/tradeoff.py --presets draft
+	$(VENV)/bin/python benchmarks/contraction/contraction.py
 	$(VENV)/bin/python benchmarks/doc_tables.py
 
 tables: setup

@@ -29,3 +29,11 @@ def tiny_capture(tmp_path_factory, mi) -> Path:
     root = tmp_path_factory.mktemp("captures") / "tiny"
     make_synthetic_capture(root, SynthConfig(**TINY_SYNTH), threads=2, progress=False)
     return root
+
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """The slow tests first: under xdist's loadscope (make test) each module runs on one worker, its module fixtures
+    (often a whole workflow run) built once, and the end-to-end modules handed out before the quick ones, so the last
+    worker to finish is not the one that drew an end-to-end run at the end."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)

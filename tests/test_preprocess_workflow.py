@@ -33,6 +33,7 @@ PHOTO_CONFIG = {
     "init": {"iterations": 25, "views_per_step": 2},
     "evaluate": {"spp": 8},
     "preprocess": {"sfm": {"max_features": 2048},
+                   "masks": {"parallax": False},  # parallax seeds: test_real_photos_busy
                    "geometry": {"resolution": 96, "target_faces": 8000, "stereo": False}},  # stereo: test_preprocess_cli
     "threads": {"synth": 2, "init": 2, "sample": 1, "evaluate": 2, "preprocess": 1},  # 1: COLMAP is deterministic only single-threaded
 }
@@ -110,7 +111,8 @@ def test_a_segmenter_the_user_brings_runs_in_the_workflow(photo_run, tmp_path):
     example = (torch.rand(1, 3, 32, 24), torch.rand(1, 1, 32, 24))
     torch.export.save(torch.export.export(PromptCore(), example, dynamic_shapes=({2: h, 3: w}, {2: h, 3: w})),
                       str(tmp_path / "core.pt2"))
-    config = {**PHOTO_CONFIG, "preprocess": {**PHOTO_CONFIG["preprocess"], "masks": {"weights": "core.pt2"}}}
+    config = {**PHOTO_CONFIG, "preprocess": {**PHOTO_CONFIG["preprocess"], "masks": {**PHOTO_CONFIG["preprocess"]["masks"],
+                                                                         "weights": "core.pt2"}}}
     (wd / "config.yaml").write_text(yaml.safe_dump(config))
     def run(target: str) -> subprocess.CompletedProcess:
         return subprocess.run([str(SNAKEMAKE), "-s", str(REPO / "Snakefile"), "--directory", str(wd), "--cores", "2",

@@ -13,6 +13,8 @@ from stage_jobs import stage_job
 
 SKULL = Path(__file__).parent / "data" / "skull_photos"
 
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def derived(tmp_path_factory):

@@ -14,6 +14,8 @@ from dpi.preprocess.masks import MaskConfig, derive_masks
 
 BUSY = Path(__file__).parent / "data" / "saharov32_small"
 
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def masks(tmp_path_factory):
