@@ -31,7 +31,6 @@ def tiny_capture(tmp_path_factory, mi) -> Path:
     return root
 
 
-
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """The slow tests first: under xdist's loadscope (make test) each module runs on one worker, its module fixtures
     (often a whole workflow run) built once, and the end-to-end modules handed out before the quick ones, so the last

@@ -13,17 +13,13 @@ near 1 (the truth as likely as one more sample). The CSV's rows are replaced.
 from __future__ import annotations
 
 import argparse
-import csv
-import subprocess
-import sys
 from pathlib import Path
 
-import yaml
 
 from dpi.io.exr import write_exr
 from dpi.io.layout import INIT
 from dpi.prior.sample import draw_samples, load_default_prior
-from dpi.studies.engine import CHECKOUT, write_rows
+from dpi.studies.engine import CHECKOUT, run_workflow, summary_rows, write_rows
 from dpi.studies.scenes import AMBIGUOUS
 
 HERE = Path(__file__).resolve().parent
@@ -60,26 +56,14 @@ def workflow(work: Path, views: list[int], samples: int) -> Path:
     truth = truth_map(work / "truth.exr")
     synthetic = {scene_name(n): {**SCENE, "views": n * HELD_OUT_EVERY // (HELD_OUT_EVERY - 1),
                                  "environment": str(truth)} for n in views}
-    config = {"scenes": list(synthetic), "synthetic": synthetic, "results_dir": "results", "methods": ["dps"],
-              "samples": samples}
-    (work / "config.yaml").write_text(yaml.safe_dump(config))
-    snakemake = Path(sys.executable).with_name("snakemake")
-    subprocess.run([str(snakemake), "-s", str(CHECKOUT / "Snakefile"), "--directory", str(work), "--cores", "2"],
-                   check=True)
-    return work / "results"
+    return run_workflow(work, {"scenes": list(synthetic), "synthetic": synthetic, "methods": ["dps"],
+                               "samples": samples})
 
 
-def summary_rows(results: Path, views: list[int]) -> list[dict]:
+def view_rows(results: Path, views: list[int]) -> list[dict]:
     """A row per view count and method (the init, dps) from the evaluation summary."""
-    with open(results / "eval" / "summary.csv", newline="") as f:
-        rows = {(r["scene"], r["method"]): r for r in csv.DictReader(f)}
-    out = []
-    for n in views:
-        for method in (INIT, "dps"):
-            r = rows[(scene_name(n), method)]
-            out.append({"views": n, "method": method,
-                        **{k: float(r[k]) if r.get(k) not in (None, "") else "" for k in COLUMNS}})
-    return out
+    rows = summary_rows(results, COLUMNS)
+    return [{"views": n, "method": method, **rows[(scene_name(n), method)]} for n in views for method in (INIT, "dps")]
 
 
 def main() -> None:
@@ -89,8 +73,7 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=3, help="dps samples of each capture")
     parser.add_argument("--out", type=Path, default=HERE / "contraction.csv")
     args = parser.parse_args()
-    args.work.mkdir(parents=True, exist_ok=True)
-    rows = summary_rows(workflow(args.work, args.views, args.samples), args.views)
+    rows = view_rows(workflow(args.work, args.views, args.samples), args.views)
     write_rows(args.out, rows, settings="defaults")
     for row in rows:
         print(" ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items()))

@@ -14,16 +14,12 @@ mean map's log error at 2 and 8 rows, the calibration, seconds a sample. The CSV
 from __future__ import annotations
 
 import argparse
-import csv
-import subprocess
-import sys
 from pathlib import Path
 
-import yaml
 
 from dpi.evaluation.figures import envmap_grid
 from dpi.io.layout import INIT, Layout
-from dpi.studies.engine import CHECKOUT, write_rows
+from dpi.studies.engine import CHECKOUT, run_workflow, summary_rows, write_rows
 
 SCENE = "hotdog"
 HERE = Path(__file__).resolve().parent
@@ -34,22 +30,15 @@ COLUMNS = ("samples", "novel_psnr", "env_psnr", "env_mean_psnr", "env_balance_2"
 
 def workflow(captures: Path, work: Path, methods: list[str], samples: int, dps_samples: int) -> Layout:
     """Run the workflow on the capture in `work` (its config written there); the run's layout."""
-    work.mkdir(parents=True, exist_ok=True)
-    config = {"scenes": [SCENE], "captures_dir": str(captures.resolve()), "results_dir": "results",
-              "methods": methods, "samples": samples, "method_params": {"dps": {"samples": dps_samples}}}
-    (work / "config.yaml").write_text(yaml.safe_dump(config))
-    snakemake = Path(sys.executable).with_name("snakemake")
-    subprocess.run([str(snakemake), "-s", str(CHECKOUT / "Snakefile"), "--directory", str(work), "--cores", "2"],
-                   check=True)
-    return Layout(work / "results", captures)
+    config = {"scenes": [SCENE], "captures_dir": str(captures.resolve()), "methods": methods, "samples": samples,
+              "method_params": {"dps": {"samples": dps_samples}}}
+    return Layout(run_workflow(work, config), captures)
 
 
-def summary_rows(layout: Layout) -> list[dict]:
+def method_rows(layout: Layout) -> list[dict]:
     """The scene's row per method from the evaluation summary."""
-    with open(layout.results / "eval" / "summary.csv", newline="") as f:
-        rows = [r for r in csv.DictReader(f) if r["scene"] == SCENE]
-    return [{"method": r["method"], **{k: float(r[k]) if r.get(k) not in (None, "") else "" for k in COLUMNS}}
-            for r in rows]
+    return [{"method": method, **row} for (scene, method), row in summary_rows(layout.results, COLUMNS).items()
+            if scene == SCENE]
 
 
 def figure(layout: Layout, methods: list[str], path: Path) -> None:
@@ -81,7 +70,7 @@ def main() -> None:
         parser.error(f"{args.captures}: no {SCENE}/gt/envmap.exr; prepare the capture with "
                      "../shared/tools/hotdog/prepare.py (its README)")
     layout = workflow(args.captures, args.work, args.methods, args.samples, args.dps_samples)
-    rows = summary_rows(layout)
+    rows = method_rows(layout)
     write_rows(args.out, rows, settings="defaults")
     figure(layout, [m for m in args.methods if m != INIT], args.figure)
     for row in rows:

@@ -17,6 +17,7 @@ import multiprocessing
 import os
 import shutil
 import subprocess
+import sys
 from collections import Counter
 from collections.abc import Callable, Iterable
 from concurrent.futures import Executor, ProcessPoolExecutor
@@ -361,6 +362,25 @@ def append_row(path: Path, row: dict[str, Any], columns: tuple[str, ...], settin
         if new:
             writer.writeheader()
         writer.writerow({**{k: row[k] for k in columns}, "commit": current_commit(), "settings_hash": settings})
+
+
+def run_workflow(work: Path, config: dict[str, Any]) -> Path:
+    """Write `config` (its results under `work`/results) as `work`/config.yaml and run the workflow there on 2 cores;
+    the results folder."""
+    work.mkdir(parents=True, exist_ok=True)
+    (work / "config.yaml").write_text(yaml.safe_dump({**config, "results_dir": "results"}))
+    snakemake = Path(sys.executable).with_name("snakemake")
+    subprocess.run([str(snakemake), "-s", str(CHECKOUT / "Snakefile"), "--directory", str(work), "--cores", "2"],
+                   check=True)
+    return work / "results"
+
+
+def summary_rows(results: Path, columns: Iterable[str]) -> dict[tuple[str, str], dict[str, float | str]]:
+    """The workflow's evaluation summary (results/eval/summary.csv) by (scene, method): `columns` as numbers, ""
+    where the summary has none."""
+    with open(results / "eval" / "summary.csv", newline="") as f:
+        return {(r["scene"], r["method"]): {k: float(r[k]) if r.get(k) not in (None, "") else "" for k in columns}
+                for r in csv.DictReader(f)}
 
 
 def write_rows(path: Path, rows: list[dict[str, Any]], settings: str) -> None:
