@@ -1,4 +1,4 @@
-"""benchmarks/balance_views.py's measures: a map's coarse balance moved exactly, an albedo's broad field known."""
+"""notebook/scripts/balance_views.py's measures: a map's coarse balance moved exactly, an albedo's broad field known."""
 
 import sys
 from pathlib import Path
@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "notebook" / "scripts"))
 from balance_views import broad_field, coarse_log, with_balance  # noqa: E402
 
 

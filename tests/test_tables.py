@@ -8,7 +8,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from doc_tables import Metric, grouped_table, main, render_document, stats, update_tables  # noqa: E402
+from doc_tables import main, render_document, update_tables  # noqa: E402
+from table_format import Metric, grouped_table, stats  # noqa: E402
 
 
 def test_stats_known_answer_skips_non_numbers():
@@ -47,3 +48,17 @@ def test_tables_check_fails_on_a_stale_document(tmp_path, capsys):
     assert "out of date" in capsys.readouterr().out
     assert main(["--root", str(tmp_path)]) == 0
     assert main(["--root", str(tmp_path), "--check"]) == 0
+
+
+def test_every_shown_table_has_a_study_folder_and_a_command_make_studies_runs():
+    from doc_tables import listing
+
+    makefile = (ROOT / "Makefile").read_text().replace("$(VENV)", ".venv").replace("$(PANORAMAS)", "../shared/panoramas")
+    rows = listing(ROOT)
+    assert {"posterior", "posterior_full", "calibration", "contraction", "hotdog"} <= {r[0] for r in rows}
+    for table, documents, folder, commands in rows:
+        if table == "presets":  # read from dpi's default config, not from a study's CSV
+            continue
+        assert commands != "-", f"{folder}/README.md gives no command for table {table} ({documents})"
+        for command in commands.split(" ; "):
+            assert command.split(" WORK")[0] in makefile, f"make studies does not run {command!r}"

@@ -2,7 +2,7 @@
 method and a picture of the maps beside the truth's.
 
     .venv/bin/python benchmarks/hotdog/hotdog.py CAPTURES [--work DIR] [--methods none smoothness dip dps]
-        [--samples 2] [--dps-samples 3] [--out benchmarks/hotdog/hotdog.csv] [--figure docs/figures/hotdog_envmaps.png]
+        [--samples 2] [--dps-samples 3] [--out benchmarks/hotdog/hotdog.csv] [--figure benchmarks/hotdog/hotdog_envmaps.png]
 
 CAPTURES is the folder `../shared/tools/hotdog/prepare.py` wrote (it holds `hotdog/`); nothing of the capture is
 committed (its repository names no licence). The workflow runs in `--work` (a config.yaml there names the capture,
@@ -64,7 +64,7 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=2, help="samples of each baseline")
     parser.add_argument("--dps-samples", type=int, default=3)
     parser.add_argument("--out", type=Path, default=HERE / "hotdog.csv")
-    parser.add_argument("--figure", type=Path, default=CHECKOUT / "docs" / "figures" / "hotdog_envmaps.png")
+    parser.add_argument("--figure", type=Path, default=HERE / "hotdog_envmaps.png")
     args = parser.parse_args()
     if not (args.captures / SCENE / "gt" / "envmap.exr").is_file():
         parser.error(f"{args.captures}: no {SCENE}/gt/envmap.exr; prepare the capture with "

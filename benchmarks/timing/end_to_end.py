@@ -7,7 +7,7 @@ JPEG photos of 1600 x 1200 px of a textured blob in front of a textured backdrop
 a capture from scratch: preprocessing where needed, init, the configured methods' samples,
 evaluation, figures and report (`snakemake --cores N`); the preset's working resolution decides the
 size the inverse stages work at.
-Rows (capture, views, size, preset, seconds) go to benchmarks/results/end_to_end.csv.
+Rows (capture, views, size, preset, seconds) go to benchmarks/timing/end_to_end.csv.
 
     .venv/bin/python benchmarks/timing/end_to_end.py [--presets draft default] [--cores 2]
 """
@@ -19,15 +19,16 @@ import shutil
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import yaml
 
 from dpi.io.layout import SYNTH_MARKER
 from dpi.studies.engine import CHECKOUT as ROOT
-from dpi.studies.engine import append_row, results_csv, settings_hash, work_dir
+from dpi.studies.engine import append_row, settings_hash, work_dir
 
 WORK = work_dir("end_to_end")
-CSV = results_csv("end_to_end")
+CSV = Path(__file__).resolve().parent / "end_to_end.csv"
 COLUMNS = ("capture", "views", "size", "preset", "seconds")
 CAPTURES = {
     "synthetic_60x512": {"views": 60, "held_out_every": 10, "width": 512, "height": 512, "spp": 64},

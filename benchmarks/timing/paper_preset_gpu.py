@@ -140,7 +140,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--scenes", nargs="+", default=["demo", "blob_sun"], choices=["demo", *SCENES])
     parser.add_argument("--presets", nargs="+", default=["default", "paper"])
-    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results", help="folder of the CSV")
+    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent, help="folder of the CSV")
     parser.add_argument("--work", type=Path, default=ROOT / "results" / "benchmarks" / "paper_preset_gpu",
                         help="folder of the scenes' captures and results")
     parser.add_argument("--skip-network", action="store_true")

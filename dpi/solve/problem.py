@@ -89,7 +89,7 @@ def texture_size_for(capture: Capture, settings: ProblemConfig, shares: list[flo
 def to_loss_space(image: torch.Tensor) -> torch.Tensor:
     """Linear radiance (normalised: foreground median 0.18) as log(1 + x), the space the views are compared in: in
     linear HDR a mirror's glints of the sun outweigh the rest of its views and the fit places little else
-    (docs/studies.md, "Map resolution")."""
+    (docs/studies.md, "problem.loss_space")."""
     return torch.log1p(image.clamp_min(0))
 
 

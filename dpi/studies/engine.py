@@ -60,8 +60,8 @@ def work_dir(study: str) -> Path:
 
 
 def results_csv(study: str) -> Path:
-    """A study's committed rows: benchmarks/results/STUDY.csv."""
-    return CHECKOUT / "benchmarks" / "results" / f"{study}.csv"
+    """A study's committed rows: benchmarks/STUDY/STUDY.csv (the study's folder)."""
+    return CHECKOUT / "benchmarks" / study / f"{study}.csv"
 
 
 def settings_hash(settings: Any) -> str:

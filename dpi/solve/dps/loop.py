@@ -3,7 +3,7 @@
 `posterior_steps` is the loop: a generator that runs one sampler step per schedule step and yields
 its record, like guided-diffusion's `p_sample_loop_progressive`; `dps_phases` consumes it for the
 trace, the progress bar and the resume file and yields the whole sample phase by phase (its maps as they form, for
-benchmarks/balance_trace.py), `dps_sample` runs that to its end, and benchmarks/timing/dps_step.py times the loop.
+notebook/scripts/balance_trace.py), `dps_sample` runs that to its end, and benchmarks/timing/dps_step.py times the loop.
 A step with a non-finite network output, loss or gradient does not update (it is counted in the trace).
 Given a `checkpoint` file the loop saves its state there every `checkpoint_every` steps and a
 rerun continues from it (see dpi.solve.checkpoint); the refinement, short, is simply run again.
