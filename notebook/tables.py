@@ -8,7 +8,20 @@ from functools import partial
 from pathlib import Path
 
 from posterior.tables import posterior_rows
-from table_format import ALBEDO, BY_METHOD, ENV, FIT, SECONDS, VIEW, Metric, grouped_table, latest, method_order, read_rows
+from table_format import (
+    ALBEDO,
+    BY_METHOD,
+    ENV,
+    FIT,
+    SECONDS,
+    VIEW,
+    Metric,
+    grouped_table,
+    latest,
+    markdown,
+    method_order,
+    read_rows,
+)
 
 from dpi.solve.dps.loop import MAP_PHASES
 
@@ -34,6 +47,13 @@ def hotdog_probes(root: Path) -> str:
                Metric("log error at 2 rows", "env_balance_2", ".2f", -1),
                Metric("at 8 rows", "env_balance_8", ".2f", -1), SECONDS)
     return grouped_table(rows, ("settings",), metrics)
+
+
+def hotdog_true_light(root: Path) -> str:
+    """The hotdog's training-view loss per decomposition and materials (notebook/results/dev/hotdog_true_light.csv)."""
+    rows = read_rows(root / NOTEBOOK / "dev" / "hotdog_true_light.csv")
+    body = [[r["decomposition"], r["materials"], f"{r['training_loss']:.4f}", f"{r['loss_over_init']:.2f}"] for r in rows]
+    return markdown(["map", "materials", "training-view loss", "over the init's"], body)
 
 
 def csv_path(root: Path, csv_name: str) -> Path:
@@ -174,6 +194,7 @@ TABLES = {
     "refine_length": partial(dev_table, ("refine_length_dev.csv", "refine_length_heldout.csv")),
     "data_weight": partial(dev_table, ("data_weight_dev.csv", "data_weight_heldout.csv")),
     "hotdog_light_probes": hotdog_probes,
+    "hotdog_true_light": hotdog_true_light,
     "defaults_1202": partial(dev_table, ("joint_start_dev.csv", "joint_start_heldout.csv", "defaults_1202_dev.csv",
                                          "defaults_1202_heldout.csv")),
     "light_settle": partial(dev_table, ("light_settle_dev.csv",)),
