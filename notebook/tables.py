@@ -8,20 +8,8 @@ from functools import partial
 from pathlib import Path
 
 from posterior.tables import posterior_rows
-from table_format import (
-    ALBEDO,
-    BY_METHOD,
-    ENV,
-    FIT,
-    SECONDS,
-    VIEW,
-    Metric,
-    grouped_table,
-    latest,
-    markdown,
-    method_order,
-    read_rows,
-)
+from table_format import (ALBEDO, BY_METHOD, ENV, FIT, SECONDS, VIEW, Metric, grouped_table, latest, markdown,
+                          method_order, read_rows)
 
 from dpi.solve.dps.loop import MAP_PHASES
 
@@ -50,9 +38,10 @@ def hotdog_probes(root: Path) -> str:
 
 
 def hotdog_true_light(root: Path) -> str:
-    """The hotdog's training-view loss per decomposition and materials (notebook/results/dev/hotdog_true_light.csv)."""
+    """The hotdog's training-view loss per map and materials (notebook/results/dev/hotdog_true_light.csv)."""
     rows = read_rows(root / NOTEBOOK / "dev" / "hotdog_true_light.csv")
-    body = [[r["decomposition"], r["materials"], f"{r['training_loss']:.4f}", f"{r['loss_over_init']:.2f}"] for r in rows]
+    body = [[r["decomposition"], r["materials"], f"{r['training_loss']:.4f}", f"{r['loss_over_init']:.2f}"]
+            for r in rows]
     return markdown(["map", "materials", "training-view loss", "over the init's"], body)
 
 
@@ -137,8 +126,8 @@ BALANCE_STAGES = ("init", *MAP_PHASES)
 
 
 def balance_trace(root: Path) -> str:
-    """Where a dps sample's broad balance of light goes (notebook/scripts/balance_trace.py): the map's log error at 2 and 8
-    rows, and over the init's, per group of design scenes, variant and stage, means over the scenes and seeds."""
+    """Where a dps sample's broad balance of light goes (notebook/scripts/balance_trace.py): the map's log error at 2
+    and 8 rows, and over the init's, per group of design scenes, variant and stage, means over the scenes and seeds."""
     rows = [r for r in read_rows(root / NOTEBOOK / "balance_trace.csv", ("scene", "group", "variant", "stage", "label"))
             if r["label"]]
     metrics = tuple(Metric(header, f"{name}_{k}", ".2f", -1) for k in (2, 8)

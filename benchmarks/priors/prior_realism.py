@@ -4,7 +4,8 @@
 
 DIR holds the panoramas of the manifest (dpi/data/panoramas.csv; `dpi panorama-set` explains). Per map
 kind (the manifest's held-out real maps, its training real maps, freshly generated procedural maps, the
-prior's own unconditional samples) it prints and appends to benchmarks/priors/prior_realism.csv:
+prior's own unconditional samples; with `--reni`, a RENI decoder's unconditional samples instead, dpi train-reni)
+it prints and appends to benchmarks/priors/prior_realism.csv:
 the prior's denoising error (dpi.evaluation.naturalness: the mean eps-prediction MSE, lower is more
 likely under the prior), NIQE (dpi.evaluation.niqe.env_niqe, lower is more photo-like) and the realism distance
 of the kind's maps to the held-out real maps (dpi.evaluation.realism; lower is closer to them). It writes
@@ -25,6 +26,7 @@ from dpi.evaluation.niqe import env_niqe
 from dpi.evaluation.realism import realism_distance
 from dpi.prior.data import read_panorama
 from dpi.prior.panoramas import panorama_files
+from dpi.prior.reni import load_reni
 from dpi.prior.sample import DEFAULT_MODELS, draw_samples, load_prior, write_grid
 from dpi.render import backend
 from dpi.studies.engine import append_row, settings_hash
@@ -53,6 +55,7 @@ def main() -> None:
     parser.add_argument("--panoramas", required=True, help="folder holding the manifest's panoramas")
     parser.add_argument("--family", default="outdoor", choices=sorted(DEFAULT_MODELS))
     parser.add_argument("--checkpoint", default=None, help="prior checkpoint (default: the family's shipped one)")
+    parser.add_argument("--reni", default=None, help="score this RENI decoder's samples (its prior's draws), one row")
     parser.add_argument("--count", type=int, default=16, help="procedural maps and samples")
     parser.add_argument("--steps", type=int, default=50, help="respaced steps of the samples")
     parser.add_argument("--threads", type=int, default=2)
@@ -64,12 +67,17 @@ def main() -> None:
     start = time.perf_counter()
     real = {split: [read_panorama(p) for p in panorama_files(args.panoramas, args.family, split)]
             for split in ("held_out", "train")}
-    procedural, _ = checked_envmaps(args.family, args.count, 2 * prior.height, seed=HELD_OUT_SEED, progress=False)
-    x = draw_samples(prior, args.count, args.steps, seed=0)
+    if args.reni:
+        reni = load_reni(args.reni, family=args.family)
+        with torch.no_grad():
+            x = reni.decoder.decode(reni.draw(args.count, torch.Generator().manual_seed(0)), prior.height)
+        x, checkpoint, kinds = x.permute(0, 3, 1, 2).clamp(-1, 1), args.reni, ()
+    else:
+        procedural, _ = checked_envmaps(args.family, args.count, 2 * prior.height, seed=HELD_OUT_SEED, progress=False)
+        x = draw_samples(prior, args.count, args.steps, seed=0)
+        kinds = (("real_held_out", real["held_out"]), ("real_train", real["train"]), ("procedural", procedural))
     samples = [prior.encoding.to_radiance(xi).permute(1, 2, 0).numpy() for xi in x]
-    rows = [row(kind, maps, prior, checkpoint, real["held_out"]) for kind, maps in (
-        ("real_held_out", real["held_out"]), ("real_train", real["train"]), ("procedural", procedural),
-        ("samples", samples))]
+    rows = [row(kind, maps, prior, checkpoint, real["held_out"]) for kind, maps in (*kinds, ("samples", samples))]
     name = Path(checkpoint).stem
     columns = 4
     held = torch.stack([prior_image(m, prior) for m in real["held_out"]])

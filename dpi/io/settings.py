@@ -146,6 +146,12 @@ def field_default(cls: type, name: str) -> Any:
     return field.default_factory() if field.default is MISSING else field.default
 
 
+def field_help(cls: type, name: str) -> str | None:
+    """A settings field's docstring (pydantic keeps it as the field's description), e.g. for a command-line option's
+    help."""
+    return cls.__pydantic_fields__[name].description
+
+
 def check_keys(values: Iterable[Any], known: Iterable[str], what: str) -> None:
     """Fail on the first of `values` (keys, names) not in `known`, suggesting the closest valid one;
     `what` names one of them in the message ("DPSConfig setting", "method")."""

@@ -6,7 +6,7 @@ import argparse
 import json
 
 from dpi.capture import PRIORS
-from dpi.io.settings import field_default
+from dpi.io.settings import field_default, field_help
 from dpi.light.tonecurve import ENCODINGS
 from dpi.prior.train import DEFAULT_MODEL, LR_SCHEDULES, PriorJobConfig, TrainConfig
 from dpi.render.backend import set_threads
@@ -69,6 +69,47 @@ def cmd_train_prior(args: argparse.Namespace) -> None:
         export_model(args.out, args.export)
 
 
+def cmd_train_reni(args: argparse.Namespace) -> None:
+    """Train (or resume training) a RENI decoder on the diffusion priors' training set."""
+    from dataclasses import fields
+
+    from dpi.io.settings import SettingsError, settings_from_dict
+    from dpi.prior.reni import RENINetwork, RENITraining, export_reni, train_reni, training_set
+
+    set_threads(args.threads)
+    try:
+        network = settings_from_dict(RENINetwork, {f.name: getattr(args, f.name) for f in fields(RENINetwork)})
+        config = settings_from_dict(RENITraining, {f.name: getattr(args, f.name) for f in fields(RENITraining)})
+    except SettingsError as exc:
+        raise SystemExit(f"train-reni: {exc}") from None
+    maps = training_set(args.family, args.height, args.data, args.real_data, config.real_fraction)
+    print(f"train-reni: {len(maps)} {args.family} maps of {maps.height} x {2 * maps.height}", flush=True)
+    train_reni(network, config, maps, args.out)
+    if args.export:
+        export_reni(args.out, args.export)
+
+
+def cmd_train_gan(args: argparse.Namespace) -> None:
+    """Train (or resume training) the GAN baseline on the diffusion priors' training set."""
+    from dataclasses import fields
+
+    from dpi.io.settings import SettingsError, settings_from_dict
+    from dpi.prior.gan import GANNetwork, GANTraining, export_gan, train_gan
+    from dpi.prior.reni import training_set
+
+    set_threads(args.threads)
+    try:
+        network = settings_from_dict(GANNetwork, {f.name: getattr(args, f.name) for f in fields(GANNetwork)})
+        config = settings_from_dict(GANTraining, {f.name: getattr(args, f.name) for f in fields(GANTraining)})
+    except SettingsError as exc:
+        raise SystemExit(f"train-gan: {exc}") from None
+    maps = training_set(args.family, network.height, args.data, args.real_data, config.real_fraction)
+    print(f"train-gan: {len(maps)} {args.family} maps of {maps.height} x {2 * maps.height}", flush=True)
+    train_gan(network, config, maps, args.out)
+    if args.export:
+        export_gan(args.out, args.export)
+
+
 def cmd_sample_prior(args: argparse.Namespace) -> None:
     """Draw unconditional samples from a prior checkpoint and write them as EXR (+ a PNG grid)."""
     from dpi.prior.sample import sample_to_files
@@ -76,6 +117,10 @@ def cmd_sample_prior(args: argparse.Namespace) -> None:
     set_threads(args.threads)
     sample_to_files(args.checkpoint, args.out, count=args.count, steps=args.steps, seed=args.seed,
                     random_roll=not args.no_roll, device=args.device)
+
+
+FLOAT_OPTIONS = ("lr", "lr_latent", "kl_weight", "real_fraction", "max_minutes", "r1_weight", "ema_decay")
+"""the learned baselines' training options that are numbers, not integers"""
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -133,6 +178,32 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         p.add_argument(f"--{name.replace('_', '-')}", type=kind, default=field_default(TrainConfig, name), help=text)
     p.add_argument("--threads", type=int, default=1)
     p.set_defaults(fn=cmd_train_prior)
+
+    from dataclasses import fields
+
+    from dpi.prior.gan import GANNetwork, GANTraining
+    from dpi.prior.reni import RENINetwork, RENITraining
+
+    for name, help_text, network_cls, training_cls, fn in (
+            ("train-reni", "train a RENI decoder (the `reni` method's prior)", RENINetwork, RENITraining, cmd_train_reni),
+            ("train-gan", "train the GAN baseline's generator (the `gan` method's prior)", GANNetwork, GANTraining,
+             cmd_train_gan)):
+        p = subparsers.add_parser(name, help=f"{help_text} on the diffusion priors' training set: procedural maps "
+                                  "with real panoramas mixed in")
+        p.add_argument("--family", choices=PRIORS, required=True)
+        p.add_argument("--data", required=True, help="procedural maps: a folder or a packed .npz (`dpi make-envmaps`)")
+        p.add_argument("--real-data", default=None, help="real panoramas: a folder or a set from `dpi panorama-set`")
+        if network_cls is RENINetwork:
+            p.add_argument("--height", type=int, default=32, help="map height H the maps are read at (width 2H)")
+        p.add_argument("--out", required=True, help="checkpoint path (resumed when it exists)")
+        p.add_argument("--export", default=None, help="then write the shippable network (no training state) here")
+        for cls in (network_cls, training_cls):
+            for f in fields(cls):
+                kind = float if f.name in FLOAT_OPTIONS else int
+                p.add_argument(f"--{f.name.replace('_', '-')}", type=kind, default=field_default(cls, f.name),
+                               help=field_help(cls, f.name))
+        p.add_argument("--threads", type=int, default=2)
+        p.set_defaults(fn=fn)
 
     p = subparsers.add_parser("sample-prior", help="draw unconditional env maps from a prior checkpoint")
     p.add_argument("--checkpoint", required=True)

@@ -27,7 +27,7 @@ from pydantic import Field
 from torch import nn
 
 from dpi.io.settings import Count, Steps, settings
-from dpi.light.envmap import pad_equirect
+from dpi.light.sphere_nn import EquirectConv, upsample
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.init import starting_materials
 from dpi.solve.optimize import (LOG_ENV_RANGE, EnvModel, OptimizeConfig, fit_env_model, flat_config,
@@ -73,30 +73,11 @@ def network_levels(height: int, depth: int) -> int:
     return levels
 
 
-class EquirectConv(nn.Module):
-    """A k x k convolution (optionally strided) that pads across the sphere instead of with zeros."""
-
-    def __init__(self, c_in: int, c_out: int, kernel: int, stride: int = 1):
-        super().__init__()
-        self.pad = kernel // 2
-        self.conv = nn.Conv2d(c_in, c_out, kernel, stride)
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """(1, c_in, h, w) -> (1, c_out, h / stride, w / stride)."""
-        return self.conv(pad_equirect(x, self.pad))
-
-
 def conv_block(c_in: int, c_out: int, kernel: int, stride: int = 1) -> nn.Sequential:
     """Equirect convolution, batch norm (always the current map's statistics: training is stable at
     Adam's usual learning rates, which it is not without), LeakyReLU(0.2)."""
     return nn.Sequential(EquirectConv(c_in, c_out, kernel, stride),
                          nn.BatchNorm2d(c_out, track_running_stats=False), nn.LeakyReLU(0.2))
-
-
-def upsample(x: torch.Tensor) -> torch.Tensor:
-    """Bilinear 2x upsampling whose interpolation wraps in azimuth and across the poles."""
-    padded = nn.functional.interpolate(pad_equirect(x, 1), scale_factor=2, mode="bilinear", align_corners=False)
-    return padded[..., 2:-2, 2:-2]
 
 
 class DeepImagePrior(EnvModel):

@@ -17,7 +17,9 @@ from dpi.solve.classic import ClassicConfig, classic_sample
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.dip import DIPConfig, dip_sample
 from dpi.solve.dps import DPSConfig, dps_phases
+from dpi.solve.gan import GANConfig, gan_sample
 from dpi.solve.priors import PRIOR_NAMES
+from dpi.solve.reni import RENIConfig, reni_sample
 from dpi.solve.problem import InverseProblem
 from dpi.solve.sds import SDSConfig, sds_sample
 
@@ -68,6 +70,16 @@ def dip(job: SampleJob) -> Decomposition:
     return dip_sample(job.problem, job.init, job.settings, job.seed, job.progress, job.resume)
 
 
+def gan(job: SampleJob) -> Decomposition:
+    """The GAN baseline: a trained generator inverted by pivotal tuning."""
+    return gan_sample(job.problem, job.init, job.settings, job.seed, job.progress, job.resume)
+
+
+def reni(job: SampleJob) -> Decomposition:
+    """RENI: a trained rotation-equivariant field of light, its latent fitted to the views."""
+    return reni_sample(job.problem, job.init, job.settings, job.seed, job.progress, job.resume)
+
+
 def sds(job: SampleJob) -> Decomposition:
     """Score distillation with the diffusion prior."""
     return sds_sample(job.problem, job.prior, job.init, job.settings, job.seed, job.progress, job.radiance_scale)
@@ -101,6 +113,8 @@ REGISTRY: dict[str, Method] = {
     **{name: Method(ClassicConfig, classic(name)) for name in PRIOR_NAMES},
     "sds": Method(SDSConfig, sds, needs_prior=True),
     "dip": Method(DIPConfig, dip),
+    "gan": Method(GANConfig, gan),
+    "reni": Method(RENIConfig, reni),
     "dps": Method(DPSConfig, dps, needs_prior=True, adaptive_steps=True),
 }
 METHODS = tuple(REGISTRY)
