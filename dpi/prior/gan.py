@@ -7,7 +7,8 @@ synthesis network (a per-channel gain from w, as StyleGAN's styles; one w per bl
 (dpi.light.envmap.pad_equirect), so maps have no seam. The discriminator downsamples the same way. Training is the
 non-saturating loss with a lazy R1 penalty on real maps; both see every batch through adaptive augmentation (ADA, Karras et al.
 2020): random rolls and flips (the paper's augmentations) and an exposure and white-balance change, each applied
-with a probability p that rises while the discriminator's sign on real maps is above ADA_TARGET and falls below it.
+with a probability p that rises while the discriminator's sign on real maps is above ADA_TARGET and falls below
+it.
 The data is the diffusion priors' training set (procedural maps with real panoramas mixed in, dpi.prior.reni).
 """
 
