@@ -4,6 +4,7 @@ running structure from motion, checked at validation, its sparse points kept for
 from __future__ import annotations
 
 import json
+import struct
 
 import numpy as np
 import pycolmap
@@ -109,6 +110,19 @@ def test_a_truncated_binary_model_and_a_nan_pose_are_named(tmp_path):
     path.write_text("\n".join(lines) + "\n")
     with pytest.raises(CaptureError, match=r"sparse/0: image 'r_\d+\.png': its pose is not finite"):
         load_capture(other)
+    binary = colmap_capture(tmp_path / "u", binary=True)  # pycolmap would read its NaN as another rotation
+    path = binary / "sparse" / "0" / "images.bin"
+    data = bytearray(path.read_bytes())
+    struct.pack_into("<d", data, 8 + 4, float("nan"))  # the first image's qw
+    path.write_bytes(bytes(data))
+    with pytest.raises(CaptureError, match=r"sparse/0: image 'r_0\.png': its pose is not finite .* in images\.bin"):
+        load_capture(binary)
+    path = binary / "sparse" / "0" / "cameras.bin"
+    data = bytearray(path.read_bytes())
+    struct.pack_into("<d", data, 8 + 24, float("inf"))  # the first camera's first parameter
+    path.write_bytes(bytes(data))
+    with pytest.raises(CaptureError, match=r"sparse/0: camera \d+: its parameters are not finite .* in cameras\.bin"):
+        load_capture(binary)
 
 
 @pytest.mark.slow

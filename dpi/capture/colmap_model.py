@@ -40,7 +40,7 @@ def check_colmap_model(root: Path, folder: Path, names: list[str], size: tuple[i
             raise CaptureError(f"{folder}: COLMAP model without {absent}")
         for name in present:
             inside_capture(root, folder / f"{name}{suffix}", "a COLMAP model file")
-    problem = text_model_problem(folder)
+    problem = text_model_problem(folder) or binary_model_problem(folder)
     if problem:
         raise CaptureError(f"{folder}: {problem}")
     try:
@@ -86,6 +86,41 @@ def text_model_problem(folder: Path) -> str | None:
         for words in rows[::2]:
             if len(words) >= 10 and not np.isfinite(numbers(words[1:8])).all():
                 return f"image {' '.join(words[9:])!r}: its pose is not finite (NaN or infinite) in images.txt"
+    return None
+
+
+CAMERA_PARAMS = {0: 3, 1: 4, 2: 4, 3: 5, 4: 8, 5: 8, 6: 12, 7: 5, 8: 4, 9: 5, 10: 12, 11: 16}
+"""parameters of each COLMAP camera model id (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, ...) in cameras.bin"""
+
+
+def binary_model_problem(folder: Path) -> str | None:
+    """A binary model's camera or image whose numbers are not finite, named before pycolmap reads it (its reader turns
+    a NaN quaternion into another rotation without a word): cameras.bin's parameters, images.bin's poses. None when
+    both are finite, the model is text, or a file does not parse (pycolmap's reader then says so)."""
+    import struct
+
+    cameras, images = folder / "cameras.bin", folder / "images.bin"
+    try:
+        if cameras.is_file():
+            data, at = cameras.read_bytes(), 8
+            for _ in range(struct.unpack_from("<Q", data, 0)[0]):
+                camera_id, model = struct.unpack_from("<Ii", data, at)
+                count = CAMERA_PARAMS[model]
+                params = struct.unpack_from(f"<{count}d", data, at + 24)
+                if not np.isfinite(params).all():
+                    return f"camera {camera_id}: its parameters are not finite (NaN or infinite) in cameras.bin"
+                at += 24 + 8 * count
+        if images.is_file():
+            data, at = images.read_bytes(), 8
+            for _ in range(struct.unpack_from("<Q", data, 0)[0]):
+                pose = struct.unpack_from("<7d", data, at + 4)
+                end = data.index(b"\0", at + 64)
+                name = data[at + 64:end].decode(errors="replace")
+                if not np.isfinite(pose).all():
+                    return f"image {name!r}: its pose is not finite (NaN or infinite) in images.bin"
+                at = end + 1 + 8 + 24 * struct.unpack_from("<Q", data, end + 1)[0]
+    except (struct.error, KeyError, ValueError):
+        return None
     return None
 
 
