@@ -1,6 +1,8 @@
 """RENI: the decoder's invariants and equivariance (known answers), a short training whose loss falls and whose
 checkpoint round-trips and is refused for another family or size, and the `reni` method lowering the views' loss."""
 
+import json
+
 import numpy as np
 import pytest
 import torch
@@ -96,3 +98,25 @@ def test_reni_lowers_the_data_loss_and_seeds_differ(tiny_capture, tmp_path):
     assert a.env.shape == init.env.shape and torch.isfinite(a.env).all() and (a.env > 0).all()
     assert a.trace.info["prior_weight"] > 0 and a.trace.nan_skips == 0
     assert (a.env - b.env).abs().max() > 1e-4
+
+
+@pytest.mark.parametrize("method", ["reni", "gan"])
+def test_the_sample_stage_draws_a_learned_baseline_with_its_shipped_network(method, tiny_capture, tmp_path):
+    from dataclasses import replace
+
+    from dpi.solve.decomposition import Decomposition
+    from dpi.stages import capture_stage, init_stage, sample_stage
+    from stage_jobs import stage_job
+
+    job = stage_job(tiny_capture, tmp_path / "results", render={"spp": 4},
+                    problem={"env_height": 4, "texture_size": 8, "resolution": None}, init={"iterations": 3},
+                    method_params={method: {"iterations": 3, "warmup_iterations": 5,
+                                            **({"tune_iterations": 2} if method == "gan" else {})}})
+    capture_stage(job)
+    init_stage(job)
+    sample_stage(replace(job, method=method))
+    out = job.paths.sample_dir(method, 0)
+    trace = json.loads((out / "trace.json").read_text())
+    assert trace["info"]["method"] == method and len(trace["steps"]) == (5 if method == "gan" else 3)
+    env = Decomposition.load(out).env.numpy()
+    assert env.shape[:2] == (4, 8) and np.isfinite(env).all() and (env > 0).all()

@@ -19,7 +19,7 @@ def dry_run(tmp_path, study: str, *args: str) -> dict[str, int]:
 
 def test_posterior_study_plans_every_method_on_every_scene(tmp_path):
     jobs = dry_run(tmp_path, "posterior", "--seeds", "0", "1")
-    scenes, methods = len(POSTERIOR_SCENES), len(("none", "smoothness", "sds", "dip", "reni", "dps"))
+    scenes, methods = len(POSTERIOR_SCENES), len(("none", "smoothness", "sds", "dip", "gan", "reni", "dps"))
     assert jobs["synth_capture"] == scenes and jobs["init"] == scenes
     assert jobs["sample"] == scenes * methods * 2 and jobs["evaluate"] == scenes * methods * 2
     assert jobs["summary"] == 1 and jobs["report"] == 1

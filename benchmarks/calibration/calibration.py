@@ -40,7 +40,7 @@ REPEATS = 3
 CSV = results_csv("calibration")
 COLUMNS = ("scene", "object", "light", "roughness", "metallic", "method", "sampler", "repeat", "samples", "env_psnr",
            "env_ssim", "albedo_mse", "novel_psnr", "env_sigma2_sample", "calibration", "seconds")
-METHODS = ("init", "none", "sds", "dip", "reni", "dps")
+METHODS = ("init", "none", "sds", "dip", "gan", "reni", "dps")
 
 
 def sample_jobs(args: argparse.Namespace, config: dict) -> dict[tuple[str, str, str, int], list[Job]]:

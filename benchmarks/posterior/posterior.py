@@ -39,7 +39,7 @@ WORK = work_dir("posterior_study")
 DEV_WORK = work_dir("light_dev")
 HELD_OUT_WORK = work_dir("light_held_out")
 CSV = results_csv("posterior")
-METHODS = ("init", "none", "smoothness", "sds", "dip", "reni", "dps")
+METHODS = ("init", "none", "smoothness", "sds", "dip", "gan", "reni", "dps")
 
 
 def summary(rows: list[dict[str, Any]]) -> list[str]:

@@ -4,7 +4,8 @@
 
 DIR holds the panoramas of the manifest (dpi/data/panoramas.csv; `dpi panorama-set` explains). Per map
 kind (the manifest's held-out real maps, its training real maps, freshly generated procedural maps, the
-prior's own unconditional samples; with `--reni`, a RENI decoder's unconditional samples instead, dpi train-reni)
+prior's own unconditional samples; with `--reni` or `--gan`, a learned baseline's unconditional samples instead,
+dpi train-reni / train-gan)
 it prints and appends to benchmarks/priors/prior_realism.csv:
 the prior's denoising error (dpi.evaluation.naturalness: the mean eps-prediction MSE, lower is more
 likely under the prior), NIQE (dpi.evaluation.niqe.env_niqe, lower is more photo-like) and the realism distance
@@ -26,6 +27,7 @@ from dpi.evaluation.niqe import env_niqe
 from dpi.evaluation.realism import realism_distance
 from dpi.prior.data import read_panorama
 from dpi.prior.panoramas import panorama_files
+from dpi.prior.gan import load_gan
 from dpi.prior.reni import load_reni
 from dpi.prior.sample import DEFAULT_MODELS, draw_samples, load_prior, write_grid
 from dpi.render import backend
@@ -50,12 +52,25 @@ def row(kind: str, maps: list[np.ndarray], prior, checkpoint: str, held_out: lis
             "realism": "" if maps is held_out else round(realism_distance(maps, held_out), 4)}
 
 
+def baseline_samples(reni: str | None, gan: str | None, family: str, count: int, height: int) -> torch.Tensor:
+    """`count` unconditional samples (count, 3, H, 2H) in the prior's encoding of a RENI decoder (its latent prior's
+    draws) or a GAN generator (z ~ N(0, I)), seed 0."""
+    generator = torch.Generator().manual_seed(0)
+    with torch.no_grad():
+        if reni:
+            model = load_reni(reni, family=family)
+            return model.decoder.decode(model.draw(count, generator), height).permute(0, 3, 1, 2).clamp(-1, 1)
+        model = load_gan(gan, family=family, height=height)
+        return model.generator(torch.randn(count, model.generator.network.latent, generator=generator))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--panoramas", required=True, help="folder holding the manifest's panoramas")
     parser.add_argument("--family", default="outdoor", choices=sorted(DEFAULT_MODELS))
     parser.add_argument("--checkpoint", default=None, help="prior checkpoint (default: the family's shipped one)")
     parser.add_argument("--reni", default=None, help="score this RENI decoder's samples (its prior's draws), one row")
+    parser.add_argument("--gan", default=None, help="score this GAN generator's samples, one row")
     parser.add_argument("--count", type=int, default=16, help="procedural maps and samples")
     parser.add_argument("--steps", type=int, default=50, help="respaced steps of the samples")
     parser.add_argument("--threads", type=int, default=2)
@@ -67,11 +82,9 @@ def main() -> None:
     start = time.perf_counter()
     real = {split: [read_panorama(p) for p in panorama_files(args.panoramas, args.family, split)]
             for split in ("held_out", "train")}
-    if args.reni:
-        reni = load_reni(args.reni, family=args.family)
-        with torch.no_grad():
-            x = reni.decoder.decode(reni.draw(args.count, torch.Generator().manual_seed(0)), prior.height)
-        x, checkpoint, kinds = x.permute(0, 3, 1, 2).clamp(-1, 1), args.reni, ()
+    if args.reni or args.gan:
+        x, checkpoint, kinds = baseline_samples(args.reni, args.gan, args.family, args.count, prior.height), \
+            args.reni or args.gan, ()
     else:
         procedural, _ = checked_envmaps(args.family, args.count, 2 * prior.height, seed=HELD_OUT_SEED, progress=False)
         x = draw_samples(prior, args.count, args.steps, seed=0)

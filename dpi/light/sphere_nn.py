@@ -1,6 +1,6 @@
 """Network layers over equirectangular maps that follow the sphere: a convolution and a 2x upsampling that pad
-circularly in azimuth and across the poles (dpi.light.envmap.pad_equirect), so what they make has no seam. The
-networks of `dip` and `gan` are built from them."""
+circularly in azimuth and across the poles (dpi.light.envmap.pad_equirect), so what they make has no seam, and the
+resampling of a network's map to the problem's size. The networks of `dip`, `gan` and `reni` use them."""
 
 from __future__ import annotations
 
@@ -28,3 +28,13 @@ def upsample(x: torch.Tensor) -> torch.Tensor:
     """Bilinear 2x upsampling whose interpolation wraps in azimuth and across the poles."""
     padded = F.interpolate(pad_equirect(x, 1), scale_factor=2, mode="bilinear", align_corners=False)
     return padded[..., 2:-2, 2:-2]
+
+
+def resample_rows(x: torch.Tensor, height: int) -> torch.Tensor:
+    """A (..., h, 2h) map at `height` rows: doubled across the sphere or area-halved until it has them (h and `height`
+    a power of two apart)."""
+    while x.shape[-2] < height:
+        x = upsample(x)
+    while x.shape[-2] > height:
+        x = F.avg_pool2d(x, 2)
+    return x

@@ -68,7 +68,7 @@ class GANTraining:
     """maps a step"""
     lr: Rate = 2e-3
     """Adam rate of both networks (betas 0, 0.99, as StyleGAN2)"""
-    r1_weight: Weight = 1.0
+    r1_weight: Weight = 0.1
     """gamma of the R1 penalty on real maps"""
     ema_decay: Fraction = 0.99
     """the generator that ships is this moving average of the trained one"""

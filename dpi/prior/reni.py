@@ -8,8 +8,8 @@ flips) are in the model, not in the data. The decoder is a SIREN (sine activatio
 auto-decoder: each training map has a Gaussian over its latent, fitted with the decoder, with a KL term to N(0, I).
 The latents settle at the scale the sine layers decode smoothly, below the KL's unit one, so the prior an unseen map's
 latent is drawn and fitted under (dpi.solve.reni) is the training latents' own: isotropic, of their RMS
-(`latent_std`, stored with the decoder). The field is evaluated at any map
-size, so a 32 x 64 training set decodes at the problem's 128 rows.
+(`latent_std`, stored with the decoder). A map is decoded at the training maps' size and resampled across the sphere to
+the problem's: the field holds no finer detail than they do.
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ from tqdm import tqdm
 
 from dpi.io.settings import Count, Fraction, Rate, Weight, settings
 from dpi.light.envmap import texel_directions, texel_solid_angles
+from dpi.light.sphere_nn import resample_rows
 from dpi.light.tonecurve import Encoding, encoding_from_dict, family_encoding
 from dpi.prior.data import EnvmapDataset, median_target, read_dataset
 from dpi.prior.train import save_atomic
@@ -154,9 +155,11 @@ class RENI:
         return self.latent_std * torch.randn((count, self.decoder.network.latents, 3), generator=generator)
 
     def log_radiance(self, z: torch.Tensor, height: int) -> torch.Tensor:
-        """Latent (N, 3) -> the (H, 2H, 3) map's log radiance, at the training maps' median level."""
-        x = self.decoder.decode(z[None], height)[0].clamp(-1, 1)
-        return torch.log(self.encoding.to_radiance(x).clamp_min(1e-30))
+        """Latent (N, 3) -> the (H, 2H, 3) map's log radiance, at the training maps' median level: decoded at the
+        training maps' size (the field holds no finer detail) and resampled across the sphere."""
+        x = self.decoder.decode(z[None], self.height)[0].clamp(-1, 1)
+        log_map = torch.log(self.encoding.to_radiance(x).clamp_min(1e-30)).permute(2, 0, 1)
+        return resample_rows(log_map, height).permute(1, 2, 0)
 
 
 def load_reni(path: str | Path, family: str | None = None, encoding: Encoding | None = None,

@@ -18,10 +18,9 @@ from dataclasses import field
 from pathlib import Path
 
 import torch
-from torch.nn import functional as F
 
 from dpi.io.settings import Steps, Weight, settings
-from dpi.light.sphere_nn import upsample
+from dpi.light.sphere_nn import resample_rows
 from dpi.prior.gan import GAN, Generator, load_gan
 from dpi.prior.sample import DEFAULT_FAMILY
 from dpi.solve.decomposition import Decomposition
@@ -63,20 +62,11 @@ class GANConfig:
         return method_config_from_dict(cls, values)
 
 
-def to_height(log_map: torch.Tensor, height: int) -> torch.Tensor:
-    """A (1, 3, h, 2h) log-radiance map resampled to `height` rows across the sphere (doubled, or area-halved)."""
-    while log_map.shape[-2] < height:
-        log_map = upsample(log_map)
-    while log_map.shape[-2] > height:
-        log_map = F.avg_pool2d(log_map, 2)
-    return log_map
-
-
 def generated_log_map(generator: Generator, gan: GAN, w_plus: torch.Tensor, gain: torch.Tensor,
                       height: int) -> torch.Tensor:
     """log L = gain + log G(W+) at `height` rows (H, 2H, 3), clamped to LOG_ENV_RANGE."""
     x = generator.synthesis(w_plus[None])
-    log_map = to_height(torch.log(gan.encoding.to_radiance(x).clamp_min(1e-30)), height)[0].permute(1, 2, 0)
+    log_map = resample_rows(torch.log(gan.encoding.to_radiance(x).clamp_min(1e-30)), height)[0].permute(1, 2, 0)
     return (log_map + gain).clamp(*LOG_ENV_RANGE)
 
 
