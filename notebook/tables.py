@@ -184,6 +184,7 @@ TABLES = {
     "data_weight": partial(dev_table, ("data_weight_dev.csv", "data_weight_heldout.csv")),
     "hotdog_light_probes": hotdog_probes,
     "hotdog_true_light": hotdog_true_light,
+    "learned_baselines": partial(dev_table, ("learned_baselines_heldout.csv",)),
     "defaults_1202": partial(dev_table, ("joint_start_dev.csv", "joint_start_heldout.csv", "defaults_1202_dev.csv",
                                          "defaults_1202_heldout.csv")),
     "light_settle": partial(dev_table, ("light_settle_dev.csv",)),

@@ -74,6 +74,8 @@ def test_training_lowers_the_loss_resumes_and_the_export_round_trips(tmp_path):
     with torch.no_grad():
         torch.testing.assert_close(reni.decoder.decode(z, 8), trained.decode(z, 8))
     assert "latent_mean" not in torch.load(tmp_path / "export.pt", weights_only=True)
+    with torch.no_grad():  # decoded at its training size, resampled across the sphere to any other
+        assert reni.log_radiance(z[0], 16).shape == (16, 32, 3) and reni.log_radiance(z[0], 4).shape == (4, 8, 3)
     with pytest.raises(CheckpointMismatch, match="export.pt: trained for family 'outdoor', not 'indoor'"):
         load_reni(tmp_path / "export.pt", family="indoor")
     with pytest.raises(CheckpointMismatch, match="trained for height 8, not 32"):

@@ -159,7 +159,7 @@ class RENI:
         training maps' size (the field holds no finer detail) and resampled across the sphere."""
         x = self.decoder.decode(z[None], self.height)[0].clamp(-1, 1)
         log_map = torch.log(self.encoding.to_radiance(x).clamp_min(1e-30)).permute(2, 0, 1)
-        return resample_rows(log_map, height).permute(1, 2, 0)
+        return resample_rows(log_map[None], height)[0].permute(1, 2, 0)
 
 
 def load_reni(path: str | Path, family: str | None = None, encoding: Encoding | None = None,
