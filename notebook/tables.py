@@ -7,6 +7,7 @@ from __future__ import annotations
 from functools import partial
 from pathlib import Path
 
+from calibration.tables import calibration, fig9_ratios
 from posterior.tables import posterior_rows
 from table_format import (ALBEDO, BY_METHOD, ENV, FIT, SECONDS, VIEW, Metric, grouped_table, latest, markdown,
                           method_order, read_rows)
@@ -185,6 +186,8 @@ TABLES = {
     "hotdog_light_probes": hotdog_probes,
     "hotdog_true_light": hotdog_true_light,
     "learned_baselines": partial(dev_table, ("learned_baselines_heldout.csv",)),
+    "learned_calibration": partial(calibration, csv=NOTEBOOK / "dev" / "learned_baselines_fig9.csv"),
+    "learned_fig9": partial(fig9_ratios, csv=NOTEBOOK / "dev" / "learned_baselines_fig9.csv"),
     "defaults_1202": partial(dev_table, ("joint_start_dev.csv", "joint_start_heldout.csv", "defaults_1202_dev.csv",
                                          "defaults_1202_heldout.csv")),
     "light_settle": partial(dev_table, ("light_settle_dev.csv",)),

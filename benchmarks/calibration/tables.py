@@ -13,19 +13,19 @@ HERE = Path("benchmarks") / "calibration"
 CALIBRATION_KEY = ("scene", "method", "sampler", "repeat")
 
 
-def calibration_rows(root: Path) -> list[dict]:
+def calibration_rows(root: Path, csv: Path = HERE / "calibration.csv") -> list[dict]:
     """The calibration study's latest rows on the scenes every method was run on (a method run on more scenes
     than the others is compared on the shared ones)."""
-    rows = latest(read_rows(root / HERE / "calibration.csv"), CALIBRATION_KEY)
+    rows = latest(read_rows(root / csv), CALIBRATION_KEY)
     methods = {(r["method"], r["sampler"]) for r in rows}
     shared = {scene for scene in {r["scene"] for r in rows}
               if {(r["method"], r["sampler"]) for r in rows if r["scene"] == scene} == methods}
     return [r for r in rows if r["scene"] in shared]
 
 
-def calibration(root: Path) -> str:
-    """Calibration study: metal and rough objects, means over repeats x lights x objects."""
-    rows = calibration_rows(root)
+def calibration(root: Path, csv: Path = HERE / "calibration.csv") -> str:
+    """Calibration study (or a run of it in `csv`): metal and rough objects, means over repeats x lights x objects."""
+    rows = calibration_rows(root, csv)
     for row in rows:
         row["material"] = "metal" if row["metallic"] >= 0.5 else "rough"
     metrics = (ENV, ALBEDO, Metric("view PSNR [dB]", "novel_psnr", ".2f", +1, spread=False),
@@ -34,10 +34,10 @@ def calibration(root: Path) -> str:
     return grouped_table(rows, ("material", "method", "sampler"), metrics, rank_by="material", order=method_order)
 
 
-def fig9_ratios(root: Path) -> str:
+def fig9_ratios(root: Path, csv: Path = HERE / "calibration.csv") -> str:
     """Calibration study, Fig. 9: the metal's env sigma2_sample over the rough object's, per object, light and
     repeat (a mirror's samples agree, a rough object's differ); its range per method."""
-    rows = calibration_rows(root)
+    rows = calibration_rows(root, csv)
     spread = {(r["object"], r["light"], r["repeat"], r["method"], r["sampler"], r["metallic"] >= 0.5):
               r["env_sigma2_sample"] for r in rows if r["method"] != "init"}
     ratios: dict[tuple, list[float]] = {}
