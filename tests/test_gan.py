@@ -8,9 +8,9 @@ import torch
 
 from dpi.capture import load_capture
 from dpi.light.tonecurve import family_encoding
+from dpi.prior.baselines import CheckpointMismatch
 from dpi.prior.data import EnvmapDataset
 from dpi.prior.gan import GANNetwork, GANTraining, Generator, export_gan, load_gan, train_gan
-from dpi.prior.reni import CheckpointMismatch
 from dpi.render.renderer import RenderConfig
 from dpi.solve.gan import GANConfig, gan_sample
 from dpi.solve.init import InitConfig, path_traced_init

@@ -10,9 +10,10 @@ import torch
 from dpi.capture import load_capture
 from dpi.light.envmap import rotate_azimuth
 from dpi.light.tonecurve import family_encoding
+from dpi.prior.baselines import CheckpointMismatch
 from dpi.prior.data import EnvmapDataset
-from dpi.prior.reni import (CheckpointMismatch, RENIDecoder, RENINetwork, RENITraining, export_reni, invariants,
-                            load_reni, rotate_latent, train_reni)
+from dpi.prior.reni import (RENIDecoder, RENINetwork, RENITraining, export_reni, invariants, load_reni, rotate_latent,
+                            train_reni)
 from dpi.render.renderer import RenderConfig
 from dpi.solve.init import InitConfig, path_traced_init
 from dpi.solve.optimize import OptimizeConfig

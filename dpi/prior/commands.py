@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Callable
+from functools import partial
 
 from dpi.capture import PRIORS
 from dpi.io.settings import field_default, field_help
@@ -69,45 +71,27 @@ def cmd_train_prior(args: argparse.Namespace) -> None:
         export_model(args.out, args.export)
 
 
-def cmd_train_reni(args: argparse.Namespace) -> None:
-    """Train (or resume training) a RENI decoder on the diffusion priors' training set."""
+def cmd_train_baseline(name: str, network_cls: type, training_cls: type, train_fn: Callable, export_fn: Callable,
+                       args: argparse.Namespace) -> None:
+    """Train (or resume training) a learned baseline (`train-reni`, `train-gan`) on the diffusion priors' training
+    set, then export it when asked."""
     from dataclasses import fields
 
     from dpi.io.settings import SettingsError, settings_from_dict
-    from dpi.prior.reni import RENINetwork, RENITraining, export_reni, train_reni, training_set
+    from dpi.prior.baselines import training_set
 
     set_threads(args.threads)
     try:
-        network = settings_from_dict(RENINetwork, {f.name: getattr(args, f.name) for f in fields(RENINetwork)})
-        config = settings_from_dict(RENITraining, {f.name: getattr(args, f.name) for f in fields(RENITraining)})
+        network = settings_from_dict(network_cls, {f.name: getattr(args, f.name) for f in fields(network_cls)})
+        config = settings_from_dict(training_cls, {f.name: getattr(args, f.name) for f in fields(training_cls)})
     except SettingsError as exc:
-        raise SystemExit(f"train-reni: {exc}") from None
-    maps = training_set(args.family, args.height, args.data, args.real_data, config.real_fraction)
-    print(f"train-reni: {len(maps)} {args.family} maps of {maps.height} x {2 * maps.height}", flush=True)
-    train_reni(network, config, maps, args.out)
+        raise SystemExit(f"{name}: {exc}") from None
+    height = getattr(network, "height", None) or args.height
+    maps = training_set(args.family, height, args.data, args.real_data, config.real_fraction)
+    print(f"{name}: {len(maps)} {args.family} maps of {maps.height} x {2 * maps.height}", flush=True)
+    train_fn(network, config, maps, args.out)
     if args.export:
-        export_reni(args.out, args.export)
-
-
-def cmd_train_gan(args: argparse.Namespace) -> None:
-    """Train (or resume training) the GAN baseline on the diffusion priors' training set."""
-    from dataclasses import fields
-
-    from dpi.io.settings import SettingsError, settings_from_dict
-    from dpi.prior.gan import GANNetwork, GANTraining, export_gan, train_gan
-    from dpi.prior.reni import training_set
-
-    set_threads(args.threads)
-    try:
-        network = settings_from_dict(GANNetwork, {f.name: getattr(args, f.name) for f in fields(GANNetwork)})
-        config = settings_from_dict(GANTraining, {f.name: getattr(args, f.name) for f in fields(GANTraining)})
-    except SettingsError as exc:
-        raise SystemExit(f"train-gan: {exc}") from None
-    maps = training_set(args.family, network.height, args.data, args.real_data, config.real_fraction)
-    print(f"train-gan: {len(maps)} {args.family} maps of {maps.height} x {2 * maps.height}", flush=True)
-    train_gan(network, config, maps, args.out)
-    if args.export:
-        export_gan(args.out, args.export)
+        export_fn(args.out, args.export)
 
 
 def cmd_sample_prior(args: argparse.Namespace) -> None:
@@ -181,19 +165,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     from dataclasses import fields
 
-    from dpi.prior.gan import GANNetwork, GANTraining
-    from dpi.prior.reni import RENINetwork, RENITraining
+    from dpi.prior.gan import GANNetwork, GANTraining, export_gan, train_gan
+    from dpi.prior.reni import RENINetwork, RENITraining, export_reni, train_reni
 
-    for name, help_text, network_cls, training_cls, fn in (
-            ("train-reni", "train a RENI decoder (the `reni` method's prior)", RENINetwork, RENITraining, cmd_train_reni),
+    for name, help_text, network_cls, training_cls, train_fn, export_fn in (
+            ("train-reni", "train a RENI decoder (the `reni` method's prior)", RENINetwork, RENITraining, train_reni,
+             export_reni),
             ("train-gan", "train the GAN baseline's generator (the `gan` method's prior)", GANNetwork, GANTraining,
-             cmd_train_gan)):
+             train_gan, export_gan)):
         p = subparsers.add_parser(name, help=f"{help_text} on the diffusion priors' training set: procedural maps "
                                   "with real panoramas mixed in")
         p.add_argument("--family", choices=PRIORS, required=True)
         p.add_argument("--data", required=True, help="procedural maps: a folder or a packed .npz (`dpi make-envmaps`)")
         p.add_argument("--real-data", default=None, help="real panoramas: a folder or a set from `dpi panorama-set`")
-        if network_cls is RENINetwork:
+        if "height" not in {f.name for f in fields(network_cls)}:  # the maps' size, when the network has none
             p.add_argument("--height", type=int, default=32, help="map height H the maps are read at (width 2H)")
         p.add_argument("--out", required=True, help="checkpoint path (resumed when it exists)")
         p.add_argument("--export", default=None, help="then write the shippable network (no training state) here")
@@ -203,7 +188,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                 p.add_argument(f"--{f.name.replace('_', '-')}", type=kind, default=field_default(cls, f.name),
                                help=field_help(cls, f.name))
         p.add_argument("--threads", type=int, default=2)
-        p.set_defaults(fn=fn)
+        p.set_defaults(fn=partial(cmd_train_baseline, name, network_cls, training_cls, train_fn, export_fn))
 
     p = subparsers.add_parser("sample-prior", help="draw unconditional env maps from a prior checkpoint")
     p.add_argument("--checkpoint", required=True)

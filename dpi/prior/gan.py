@@ -5,8 +5,8 @@ The generator maps z ~ N(0, I) through a mapping network to w, and w modulates e
 synthesis network (a per-channel gain from w, as StyleGAN's styles; one w per block is W+) that grows a learned
 4 x 8 constant to the prior's 32 x 64 map in its encoding. Every convolution and upsampling pads across the sphere
 (dpi.light.envmap.pad_equirect), so maps have no seam. The discriminator downsamples the same way. Training is the
-non-saturating loss with a lazy R1 penalty on real maps; both see every batch through adaptive augmentation (ADA, Karras et al.
-2020): random rolls and flips (the paper's augmentations) and an exposure and white-balance change, each applied
+non-saturating loss with a lazy R1 penalty on real maps; both see every batch through adaptive augmentation (ADA,
+Karras et al. 2020): random rolls and flips (the paper's augmentations) and an exposure and white-balance change, each applied
 with a probability p that rises while the discriminator's sign on real maps is above ADA_TARGET and falls below
 it.
 The data is the diffusion priors' training set (procedural maps with real panoramas mixed in, dpi.prior.reni).
@@ -28,8 +28,8 @@ from tqdm import tqdm
 from dpi.io.settings import Count, Fraction, Rate, Weight, settings
 from dpi.light.sphere_nn import EquirectConv, upsample
 from dpi.light.tonecurve import Encoding, encoding_from_dict
+from dpi.prior.baselines import export_checkpoint, read_checkpoint
 from dpi.prior.data import EnvmapDataset, augment, median_target, recolour
-from dpi.prior.reni import CheckpointMismatch
 from dpi.prior.train import ema_update, save_atomic
 
 FORMAT = "dpi-gan-1"
@@ -170,19 +170,9 @@ class GAN:
 
 def load_gan(path: str | Path, family: str | None = None, encoding: Encoding | None = None,
              height: int | None = None) -> GAN:
-    """A GAN checkpoint, refused with its file named when it is of another format, or trained for another family,
-    encoding or map size than given."""
-    if not Path(path).is_file():
-        raise FileNotFoundError(f"{path}: no GAN checkpoint there; train one with `dpi train-gan` (docs/priors.md) "
-                                "or name yours in the method's `checkpoint` setting")
-    ckpt = torch.load(path, map_location="cpu", weights_only=True)
-    if not isinstance(ckpt, dict) or ckpt.get("format") != FORMAT:
-        raise CheckpointMismatch(f"{path}: not a GAN checkpoint (format {FORMAT})")
-    found = {"family": ckpt["family"], "encoding": ckpt["encoding"], "height": ckpt["height"]}
-    asked = {"family": family, "encoding": None if encoding is None else encoding.to_dict(), "height": height}
-    for key, value in asked.items():
-        if value is not None and found[key] != value:
-            raise CheckpointMismatch(f"{path}: trained for {key} {found[key]!r}, not {value!r}")
+    """A GAN checkpoint, refused with its file named when it is missing, of another format, or trained for another
+    family, encoding or map size than given."""
+    ckpt = read_checkpoint(path, FORMAT, "GAN", "train-gan", family, encoding, height)
     generator = Generator(GANNetwork(**ckpt["network"]))
     generator.load_state_dict(ckpt["ema"])
     return GAN(generator.eval().requires_grad_(False), ckpt["family"], encoding_from_dict(ckpt["encoding"]),
@@ -266,6 +256,4 @@ def train_gan(network: GANNetwork, cfg: GANTraining, maps: EnvmapDataset, out: s
 def export_gan(checkpoint: str | Path, dest: str | Path) -> None:
     """The shippable generator (its moving average) and what it was trained for, without the discriminator and the
     optimisers."""
-    ckpt = torch.load(checkpoint, map_location="cpu", weights_only=True)
-    drop = ("generator", "discriminator", "opt_g", "opt_d")
-    save_atomic({k: v for k, v in ckpt.items() if k not in drop}, dest)
+    export_checkpoint(checkpoint, dest, ("generator", "discriminator", "opt_g", "opt_d"))

@@ -27,8 +27,9 @@ from tqdm import tqdm
 from dpi.io.settings import Count, Fraction, Rate, Weight, settings
 from dpi.light.envmap import texel_directions, texel_solid_angles
 from dpi.light.sphere_nn import resample_rows
-from dpi.light.tonecurve import Encoding, encoding_from_dict, family_encoding
-from dpi.prior.data import EnvmapDataset, median_target, read_dataset
+from dpi.light.tonecurve import Encoding, encoding_from_dict
+from dpi.prior.baselines import export_checkpoint, read_checkpoint
+from dpi.prior.data import EnvmapDataset, median_target
 from dpi.prior.train import save_atomic
 
 FORMAT = "dpi-reni-1"
@@ -39,10 +40,6 @@ LOG_EVERY = 10
 """optimiser steps between two lines of the training log"""
 CHECKPOINT_EVERY = 100
 """optimiser steps between two saves of the resumable checkpoint"""
-
-
-class CheckpointMismatch(ValueError):
-    """A RENI checkpoint of another format, encoding or training size than asked for."""
 
 
 @settings
@@ -164,35 +161,13 @@ class RENI:
 
 def load_reni(path: str | Path, family: str | None = None, encoding: Encoding | None = None,
               height: int | None = None) -> RENI:
-    """A RENI checkpoint (the exported or the training one), refused with its file named when it is of another
-    format, or trained for another family, encoding or map size than given."""
-    if not Path(path).is_file():
-        raise FileNotFoundError(f"{path}: no RENI checkpoint there; train one with `dpi train-reni` (docs/priors.md) "
-                                "or name yours in the method's `checkpoint` setting")
-    ckpt = torch.load(path, map_location="cpu", weights_only=True)
-    if not isinstance(ckpt, dict) or ckpt.get("format") != FORMAT:
-        raise CheckpointMismatch(f"{path}: not a RENI checkpoint (format {FORMAT})")
-    found = {"family": ckpt["family"], "encoding": ckpt["encoding"], "height": ckpt["height"]}
-    asked = {"family": family, "encoding": None if encoding is None else encoding.to_dict(), "height": height}
-    for key, value in asked.items():
-        if value is not None and found[key] != value:
-            raise CheckpointMismatch(f"{path}: trained for {key} {found[key]!r}, not {value!r}")
+    """A RENI checkpoint (the exported or the training one), refused with its file named when it is missing, of
+    another format, or trained for another family, encoding or map size than given."""
+    ckpt = read_checkpoint(path, FORMAT, "RENI", "train-reni", family, encoding, height)
     decoder = RENIDecoder(RENINetwork(**ckpt["network"]))
     decoder.load_state_dict({k: v.float() for k, v in ckpt["decoder"].items()})
     return RENI(decoder.eval().requires_grad_(False), ckpt["family"], encoding_from_dict(ckpt["encoding"]),
                 ckpt["height"], float(ckpt["latent_std"]))
-
-
-def training_set(family: str, height: int, data: str | Path, real: str | Path | None,
-                 real_fraction: float) -> EnvmapDataset:
-    """The procedural maps (a folder or a packed .npz) with the real panoramas' training split mixed in, as the
-    diffusion priors train on them (dpi.prior.train), in the log encoding."""
-    encoding = family_encoding(family, "log")
-    maps = read_dataset(data, height, family, encoding)
-    if real:
-        maps = EnvmapDataset.mixed([maps, read_dataset(real, height, family, encoding)],
-                                   [1.0 - real_fraction, real_fraction])
-    return maps
 
 
 def train_reni(network: RENINetwork, cfg: RENITraining, maps: EnvmapDataset, out: str | Path,
@@ -229,7 +204,7 @@ def train_reni(network: RENINetwork, cfg: RENITraining, maps: EnvmapDataset, out
     def save() -> None:
         save_atomic({"format": FORMAT, "family": maps.family, "encoding": maps.encoding.to_dict(), "height": height,
                      "median_target": median_target(maps.family, maps.encoding), "network": asdict(network),
-                     "latent_std": float((mean.square() + (2 * log_std).exp()).mean().sqrt()),
+                     "latent_std": float((mean.square() + (2 * log_std).exp()).mean().sqrt().detach()),
                      "train": asdict(cfg), "decoder": decoder.state_dict(), "latent_mean": mean.detach(),
                      "latent_log_std": log_std.detach(), "optimizer": optimizer.state_dict(), "step": step,
                      "wall_seconds": time.perf_counter() - start}, out)
@@ -267,5 +242,4 @@ def train_reni(network: RENINetwork, cfg: RENITraining, maps: EnvmapDataset, out
 
 def export_reni(checkpoint: str | Path, dest: str | Path) -> None:
     """The shippable decoder and what it was trained for, without the training latents and the optimiser."""
-    ckpt = torch.load(checkpoint, map_location="cpu", weights_only=True)
-    save_atomic({k: v for k, v in ckpt.items() if k not in ("latent_mean", "latent_log_std", "optimizer")}, dest)
+    export_checkpoint(checkpoint, dest, ("latent_mean", "latent_log_std", "optimizer"))

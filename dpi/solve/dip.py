@@ -30,7 +30,7 @@ from dpi.io.settings import Count, Steps, settings
 from dpi.light.sphere_nn import EquirectConv, upsample
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.init import starting_materials
-from dpi.solve.optimize import (LOG_ENV_RANGE, EnvModel, OptimizeConfig, fit_env_model, flat_config,
+from dpi.solve.optimize import (LOG_ENV_RANGE, EnvModel, OptimizeConfig, fit_env_model, fit_to_map, flat_config,
                                 method_config_from_dict)
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
@@ -107,20 +107,6 @@ class DeepImagePrior(EnvModel):
         for up, s in zip(reversed(self.up), reversed(skips)):
             x = up(torch.cat([upsample(x), s], dim=1))
         return (self.base + self.out(x)[0].permute(1, 2, 0)).clamp(*LOG_ENV_RANGE)
-
-
-def fit_to_map(model: EnvModel, target: torch.Tensor, iterations: int, lr: float) -> float | None:
-    """Adam on the model's weights so that its output matches a log-radiance map (no rendering);
-    returns the final mean squared error (None without iterations)."""
-    optimizer = torch.optim.Adam(model.parameters(), lr=lr)
-    error = None
-    for _ in range(iterations):
-        loss = (model() - target).square().mean()
-        optimizer.zero_grad()
-        loss.backward()
-        optimizer.step()
-        error = loss.item()
-    return error
 
 
 def dip_sample(problem: InverseProblem, init: Decomposition, cfg: DIPConfig, seed: int,

@@ -22,17 +22,14 @@ import torch
 from dpi.io.settings import Steps, Weight, settings
 from dpi.light.sphere_nn import resample_rows
 from dpi.prior.gan import GAN, Generator, load_gan
-from dpi.prior.sample import DEFAULT_FAMILY
+from dpi.prior.baselines import scene_network
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.init import starting_materials
-from dpi.solve.optimize import (LOG_ENV_RANGE, EnvModel, OptimizeConfig, fit_env_model, flat_config,
+from dpi.solve.optimize import (LOG_ENV_RANGE, EnvModel, OptimizeConfig, fit_env_model, fit_to_map, flat_config,
                                 method_config_from_dict)
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
 
-MODELS = Path(__file__).resolve().parents[1] / "data" / "models"
-DEFAULT_GAN = {family: MODELS / f"gan_{family}_32x64.pt" for family in ("outdoor", "indoor")}
-"""the shipped generators by family (dpi train-gan; their model card: dpi/data/models/README.md)"""
 WARMUP_RATE = 3e-2
 """Adam rate of W+ and the gain while they fit the init's map"""
 
@@ -105,32 +102,11 @@ class TunedMap(EnvModel):
         return sum((p - q).square().sum() for p, q in zip(tuned, self.trained)) / sum(q.numel() for q in self.trained)
 
 
-def scene_gan(options: dict, cfg: GANConfig) -> GAN:
-    """The generator of the scene's family (scene.yaml `prior`), or the configured one; refused when it was trained
-    for another family."""
-    family = options.get("prior", DEFAULT_FAMILY)
-    return load_gan(cfg.checkpoint or DEFAULT_GAN[family], family=family)
-
-
-def warm_up(model: LatentMap, target: torch.Tensor, iterations: int) -> float | None:
-    """Adam on W+ and the gain so the generated map matches a log-radiance map (no rendering); the final mean squared
-    error (None without iterations)."""
-    optimizer = torch.optim.Adam([model.w_plus, model.gain], lr=WARMUP_RATE)
-    error = None
-    for _ in range(iterations):
-        loss = (model() - target).square().mean()
-        optimizer.zero_grad()
-        loss.backward()
-        optimizer.step()
-        error = loss.item()
-    return error
-
-
 def gan_sample(problem: InverseProblem, init: Decomposition, cfg: GANConfig, seed: int,
                progress: bool = True, checkpoint: Path | None = None) -> Decomposition:
     """One `gan` sample (module notes; `checkpoint`: the tuning's resume file; the latent stage is rerun)."""
     target = init.env.clamp_min(1e-6).log()
-    gan = scene_gan(problem.capture.options, cfg)
+    gan = scene_network(problem.capture.options, cfg.checkpoint, "gan", load_gan)
     generator = torch.Generator().manual_seed(seed)
     with torch.no_grad():
         z = torch.randn((1, gan.generator.network.latent), generator=generator)
@@ -138,7 +114,7 @@ def gan_sample(problem: InverseProblem, init: Decomposition, cfg: GANConfig, see
     model = LatentMap(gan, target.shape[0], w_plus, torch.zeros(3))
     with torch.no_grad():
         model.gain.copy_((target - model()).mean(dim=(0, 1)))
-    warmup_error = warm_up(model, target, cfg.warmup_iterations)
+    warmup_error = fit_to_map(model, target, cfg.warmup_iterations, WARMUP_RATE)
     trace = Trace(info={"method": "gan", "seed": seed, "config": flat_config(cfg), "prior_weight": 0.0,
                         "prior": "the generator's range (latent stage), locality of the tuned weights (tuning)",
                         "warmup_error": warmup_error, "locality_weight": cfg.locality_weight})

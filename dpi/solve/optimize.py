@@ -96,6 +96,22 @@ class FreeEnvMap(EnvModel):
         self.log_env.clamp_(*LOG_ENV_RANGE)
 
 
+def fit_to_map(model: EnvModel, target: torch.Tensor, iterations: int, lr: float,
+               penalty: Callable[[], torch.Tensor] | None = None) -> float | None:
+    """Adam on the model's parameters so that its output matches a log-radiance map (no rendering), plus its
+    `penalty` when given (a latent's prior); returns the final mean squared error (None without iterations)."""
+    optimizer = torch.optim.Adam(model.parameters(), lr=lr)
+    error = None
+    for _ in range(iterations):
+        mismatch = (model() - target).square().mean()
+        loss = mismatch + penalty() if penalty else mismatch
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+        error = mismatch.item()
+    return error
+
+
 def all_finite(tensors: list[torch.Tensor]) -> bool:
     """True when every gradient present is free of NaN/Inf."""
     return all(t.grad is None or bool(torch.isfinite(t.grad).all()) for t in tensors)

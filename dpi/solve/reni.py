@@ -17,18 +17,15 @@ import torch
 
 from dpi.io.settings import Steps, Weight, settings
 from dpi.prior.reni import RENI, load_reni
-from dpi.prior.sample import DEFAULT_FAMILY
+from dpi.prior.baselines import scene_network
 from dpi.solve.classic import balanced_weight
 from dpi.solve.decomposition import Decomposition
 from dpi.solve.init import starting_materials
-from dpi.solve.optimize import (LOG_ENV_RANGE, EnvModel, OptimizeConfig, fit_env_model, flat_config,
+from dpi.solve.optimize import (LOG_ENV_RANGE, EnvModel, OptimizeConfig, fit_env_model, fit_to_map, flat_config,
                                 method_config_from_dict)
 from dpi.solve.problem import InverseProblem
 from dpi.solve.trace import Trace
 
-MODELS = Path(__file__).resolve().parents[1] / "data" / "models"
-DEFAULT_RENI = {family: MODELS / f"reni_{family}_32x64.pt" for family in ("outdoor", "indoor")}
-"""the shipped RENI decoders by family (dpi train-reni; their model card: dpi/data/models/README.md)"""
 WARMUP_RATE = 3e-2
 """Adam rate of the latent and the gain while they fit the init's map"""
 
@@ -71,39 +68,17 @@ class RENIField(EnvModel):
         return 0.5 * (self.z / self.reni.latent_std).square().mean()
 
 
-def scene_reni(options: dict, cfg: RENIConfig) -> RENI:
-    """The decoder of the scene's family (scene.yaml `prior`), or the configured one; refused when it was trained
-    for another family."""
-    family = options.get("prior", DEFAULT_FAMILY)
-    return load_reni(cfg.checkpoint or DEFAULT_RENI[family], family=family)
-
-
-def warm_up(model: RENIField, target: torch.Tensor, iterations: int, weight: float) -> float | None:
-    """Adam on the latent and the gain so the field matches a log-radiance map (no rendering), under the latent's
-    prior at `weight`; the final mean squared error (None without iterations)."""
-    optimizer = torch.optim.Adam([model.z, model.gain], lr=WARMUP_RATE)
-    error = None
-    for _ in range(iterations):
-        mismatch = (model() - target).square().mean()
-        loss = mismatch + weight * model.penalty()
-        optimizer.zero_grad()
-        loss.backward()
-        optimizer.step()
-        error = mismatch.item()
-    return error
-
-
 def reni_sample(problem: InverseProblem, init: Decomposition, cfg: RENIConfig, seed: int,
                 progress: bool = True, checkpoint: Path | None = None) -> Decomposition:
     """One `reni` sample (module notes; `checkpoint`: the joint fit's resume file; the warm-up is rerun)."""
     target = init.env.clamp_min(1e-6).log()
-    reni = scene_reni(problem.capture.options, cfg)
+    reni = scene_network(problem.capture.options, cfg.checkpoint, "reni", load_reni)
     generator = torch.Generator().manual_seed(seed)
     z = reni.draw(1, generator)[0]
     with torch.no_grad():
         gain = (target - reni.log_radiance(z, target.shape[0])).mean(dim=(0, 1))
     model = RENIField(reni, target.shape[0], z, gain)
-    warmup_error = warm_up(model, target, cfg.warmup_iterations, weight=1.0)
+    warmup_error = fit_to_map(model, target, cfg.warmup_iterations, WARMUP_RATE, penalty=model.penalty)
     materials = starting_materials(init)
     with torch.no_grad():
         data0 = float(problem.data_loss(model().exp(), materials, problem.train_ids, seed))
