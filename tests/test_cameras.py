@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dpi.capture.cameras import (Camera, from_fov, from_mitsuba_matrix, look_at, orbit, pixel_rays, read_transforms, to_mitsuba,
+from dpi.capture.cameras import (Camera, centre_rays, from_fov, from_mitsuba_matrix, look_at, orbit, pixel_rays, read_transforms, to_mitsuba,
                          write_transforms)
 
 
@@ -48,3 +48,12 @@ def test_pixel_rays_hit_the_projection_of_their_points():
     ys, xs = np.mgrid[0:30, 0:40] + 0.5
     np.testing.assert_allclose(px, np.stack([xs.ravel(), ys.ravel()], -1), atol=1e-9)
     assert (depth > 0).all()
+
+
+def test_centre_rays_are_the_pixel_rays_at_one_sample_in_a_ray_casters_rows():
+    cam = Camera(look_at([1.0, 2.0, 5.0], [0, 0, 0]), 40, 30, 50.0, 55.0, 22.0, 14.0)
+    origins, dirs = pixel_rays(cam, 1)
+    rays = centre_rays(cam)
+    assert rays.shape == (30 * 40, 6) and rays.dtype == np.float32
+    np.testing.assert_allclose(rays[:, :3], origins.reshape(-1, 3), atol=1e-6)
+    np.testing.assert_allclose(rays[:, 3:], dirs.reshape(-1, 3), atol=1e-6)

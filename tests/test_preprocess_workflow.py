@@ -34,7 +34,8 @@ PHOTO_CONFIG = {
     "evaluate": {"spp": 8},
     "preprocess": {"sfm": {"max_features": 2048},
                    "masks": {"parallax": False},  # parallax seeds: test_real_photos_busy
-                   "geometry": {"resolution": 96, "target_faces": 8000, "stereo": False}},  # stereo: test_preprocess_cli
+                   # stereo: test_preprocess_cli; the ground (which this backdrop never matches): test_preprocess_ground
+                   "geometry": {"resolution": 96, "target_faces": 8000, "stereo": False, "ground": False}},
     "threads": {"synth": 2, "init": 2, "sample": 1, "evaluate": 2, "preprocess": 1},  # 1: COLMAP is deterministic only single-threaded
 }
 

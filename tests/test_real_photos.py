@@ -18,8 +18,10 @@ pytestmark = pytest.mark.slow
 
 @pytest.fixture(scope="module")
 def derived(tmp_path_factory):
-    # stereo carving (two minutes here) is tested on synthetic captures; these photos test the masks and the hull
-    job = stage_job(SKULL, tmp_path_factory.mktemp("skull"), preprocess={"geometry": {"stereo": False}})
+    # stereo carving (two minutes here) is tested on synthetic captures and the parallax seeds on the busy street's
+    # photos (test_real_photos_busy); these photos test the colour masks, their flags and the hull
+    job = stage_job(SKULL, tmp_path_factory.mktemp("skull"),
+                    preprocess={"geometry": {"stereo": False}, "masks": {"parallax": False}})
     return job.paths, preprocess_scene(job)
 
 

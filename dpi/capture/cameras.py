@@ -127,6 +127,20 @@ def pixel_rays(camera: Camera, supersample: int = 1) -> tuple[np.ndarray, np.nda
     return np.broadcast_to(camera.c2w[:3, 3], d.shape).copy(), d
 
 
+def centre_rays(camera: Camera) -> np.ndarray:
+    """The rays through the pixel centres of `camera` as ray casters take them: (h * w, 6) float32 rows of origin and
+    unit world direction, row-major over the image (the rays of `pixel_rays` at one sample a pixel)."""
+    x = ((np.arange(camera.width, dtype=np.float32) + 0.5 - camera.cx) / camera.fx)[None, :]
+    y = (-(np.arange(camera.height, dtype=np.float32) + 0.5 - camera.cy) / camera.fy)[:, None]
+    rot = camera.c2w[:3, :3].astype(np.float32)
+    d = x[..., None] * rot[:, 0] + y[..., None] * rot[:, 1] - rot[:, 2]
+    d /= np.sqrt((d * d).sum(-1, keepdims=True))
+    rays = np.empty((camera.height * camera.width, 6), np.float32)
+    rays[:, :3] = camera.c2w[:3, 3]
+    rays[:, 3:] = d.reshape(-1, 3)
+    return rays
+
+
 def look_at(origin, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
     """OpenGL camera-to-world matrix for a camera at `origin` looking at `target`."""
     origin, target, up = (np.asarray(v, dtype=np.float64) for v in (origin, target, up))

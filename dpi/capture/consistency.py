@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from dpi.capture.cameras import Camera, pixel_rays
+from dpi.capture.cameras import Camera, centre_rays
 from dpi.io.images import resize_mask, working_size
 
 CHECK_SIZE = 64
@@ -59,9 +59,7 @@ def silhouette(scene, camera: Camera) -> np.ndarray:
     """Whether the ray through each pixel centre of `camera` hits the mesh of `scene`, (h, w) bool."""
     import open3d as o3d
 
-    origins, directions = pixel_rays(camera)
-    rays = np.concatenate([origins[:, :, 0], directions[:, :, 0]], -1).reshape(-1, 6).astype(np.float32)
-    return scene.test_occlusions(o3d.core.Tensor(rays)).numpy().reshape(camera.height, camera.width)
+    return scene.test_occlusions(o3d.core.Tensor(centre_rays(camera))).numpy().reshape(camera.height, camera.width)
 
 
 def padded(camera: Camera) -> Camera:
@@ -272,8 +270,7 @@ def back_facing_fraction(vertices: np.ndarray, faces: np.ndarray, cameras: list[
     scene = raycasting_scene(vertices, faces)
     away, hits = 0, 0
     for camera in check_cameras(cameras):
-        origins, directions = pixel_rays(camera)
-        rays = np.concatenate([origins[:, :, 0], directions[:, :, 0]], -1).reshape(-1, 6).astype(np.float32)
+        rays = centre_rays(camera)
         cast = scene.cast_rays(o3d.core.Tensor(rays))
         hit = np.isfinite(cast["t_hit"].numpy())
         normals = cast["primitive_normals"].numpy()[hit]
