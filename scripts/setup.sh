@@ -45,6 +45,8 @@ fi
 # torch first and pinned: an unpinned torch would pull the CUDA build (gigabytes).
 "$VENV/bin/python" -m pip install -q torch==2.13.0
 "$VENV/bin/python" -m pip install -q -r requirements.txt
+# SAM 2 is a source package whose build needs torch: built against the installed one, without its CUDA extension
+SAM2_BUILD_CUDA=0 "$VENV/bin/python" -m pip install -q --no-build-isolation --no-deps sam2==1.1.0
 "$VENV/bin/python" -m pip install -q --no-deps -e .
 touch "$stamp"
 echo "setup: environment ready in $VENV"

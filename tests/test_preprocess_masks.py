@@ -265,6 +265,29 @@ def test_a_segmenter_the_user_brings_cuts_the_masks(cameras, tmp_path, monkeypat
         assert mask_iou(read_mask(tmp_path / "masks" / f"{camera.name}.png"), truth) > 0.95
 
 
+class RedSalient(torch.nn.Module):
+    """A salient-object network of rembg's signature (a fixed 64 x 64 input normalised as rembg does, a probability
+    out): red against blue."""
+
+    def forward(self, image: torch.Tensor) -> torch.Tensor:
+        return torch.sigmoid(8.0 * (image[:, :1] - image[:, 2:]))
+
+
+def test_a_salient_object_onnx_model_cuts_the_masks_on_the_crop_of_the_object(cameras, tmp_path, monkeypatch):
+    """rembg's kind of model, run through onnxruntime on the crop round where the object probably is and pasted back:
+    the red sphere's masks, background outside the crop."""
+    pytest.importorskip("onnx")  # to write the model; onnxruntime reads it
+    images, truths = red_sphere_photos(cameras[:4], tmp_path)
+    torch.onnx.export(RedSalient(), (torch.rand(1, 3, 64, 64),), str(tmp_path / "red.onnx"), dynamo=False,
+                      input_names=["input.1"])
+    summary = derive_masks(images, {c.name: c for c in cameras[:4]}, tmp_path / "masks",
+                           MaskConfig(segmenter="rembg", weights=str(tmp_path / "red.onnx")), surface_points())
+    assert summary["segmenter_kind"] == "rembg"
+    for camera, truth in zip(cameras[:4], truths):
+        assert summary["views"][camera.name]["method"] == "learned"
+        assert mask_iou(read_mask(tmp_path / "masks" / f"{camera.name}.png"), truth) > 0.9
+
+
 def test_a_missing_or_broken_segmenter_is_one_line(cameras, tmp_path):
     images, _ = red_sphere_photos(cameras[:3], tmp_path)
     views = {c.name: c for c in cameras[:3]}

@@ -1,7 +1,8 @@
 """Foreground masks from photos and cameras: classical methods, or a learned segmenter the user brings.
 
 Two classical methods, chosen per image (a learned segmenter, dpi.preprocess.segmenter, takes their place when
-`weights` names one: prompted by GrabCut's first prior, its masks are kept as it cuts them):
+`weights` names one: prompted by what GrabCut's first prior and the sparse points say, `view_prompt`, its masks are
+kept as it cuts them):
 - **colour keying** when the background is uniform (the image border has one colour, as in a
   studio or turntable capture): foreground is every pixel whose colour differs from the key;
 - **GrabCut** otherwise, started from a soft prior: the disc of the sphere every camera sees whole
@@ -37,7 +38,7 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 import torch
@@ -54,6 +55,7 @@ from dpi.preprocess.depth_seeds import BACKGROUND, OBJECT, PARAMS, depth_seeds, 
 from dpi.preprocess.mask_confidence import (AGREEMENT_VOTE_SHARE, MASK_AGREEMENT, edge_support, frame_contact,
                                            point_coverage, verdict)
 from dpi.preprocess.morphology import grow, shrink
+from dpi.preprocess.segmenter import Prompt
 from dpi.preprocess.stereo import grey
 
 log = logging.getLogger(__name__)
@@ -62,6 +64,8 @@ METHODS = ("auto", "grabcut", "key", "learned")
 
 
 GRABCUT_ITERATIONS = 5
+PROMPT_POINTS = 8
+"""a segmenter's positive and negative prompt points per view, at most (spread over the points that qualify)"""
 
 HULL_CORE = 0.12
 """the points' hull shrunk by this fraction of its size is foreground for sure (a region; 0: off)"""
@@ -97,10 +101,11 @@ class MaskConfig:
     method: str = "auto"
     """auto (the learned segmenter when `weights` names one, else keying on a uniform background, else GrabCut) |
     grabcut | key | learned"""
+    segmenter: Literal["exported", "sam", "sam2", "rembg"] = "exported"
+    """the kind of segmenter `weights` holds (dpi.preprocess.segmenter): a torch.export program (.pt2), a Segment
+    Anything or SAM 2 checkpoint, or a salient-object ONNX model (rembg's)"""
     weights: str | None = None
-    """a segmenter the user brings (dpi.preprocess.segmenter, a torch.export .pt2 file): a path, or a name in
-    $DPI_WEIGHTS;
-    None: the classical methods alone"""
+    """the segmenter's file: a path, or a name in $DPI_WEIGHTS; None: the classical methods alone"""
     parallax: bool = True
     """seed GrabCut with what the views' parallax puts on the object and behind it (dpi.preprocess.depth_seeds): a
     busy background colour cannot tell from the object; off for a plain one, a few seconds less"""
@@ -251,14 +256,57 @@ def choose_method(image8: np.ndarray, cfg: MaskConfig, segmenter=None) -> tuple[
     return method, colour, spread
 
 
+def spread_points(xy: np.ndarray, count: int) -> np.ndarray:
+    """At most `count` of the pixel positions (N, 2), spread over them (farthest-point order from their centre)."""
+    if len(xy) <= count:
+        return xy
+    chosen = [int(np.argmin(np.linalg.norm(xy - xy.mean(0), axis=1)))]
+    distance = np.linalg.norm(xy - xy[chosen[0]], axis=1)
+    while len(chosen) < count:
+        chosen.append(int(np.argmax(distance)))
+        distance = np.minimum(distance, np.linalg.norm(xy - xy[chosen[-1]], axis=1))
+    return xy[chosen]
+
+
+def points_on(camera: Camera, points: np.ndarray | None, where: np.ndarray) -> np.ndarray:
+    """Pixel positions (N, 2) of the points (N, 3) in front of `camera` whose pixel lies in `where` (h, w)."""
+    if points is None or not len(points):
+        return np.zeros((0, 2))
+    xy, depth = camera.project(points)
+    inside = (depth > 0) & (xy[:, 0] >= 0) & (xy[:, 0] < camera.width) & (xy[:, 1] >= 0) & (xy[:, 1] < camera.height)
+    xy = xy[inside]
+    return xy[where[xy[:, 1].astype(int), xy[:, 0].astype(int)]]
+
+
+def view_prompt(camera: Camera, labels: np.ndarray, points: np.ndarray | None,
+                scene_points: np.ndarray | None) -> Prompt:
+    """A segmenter's prompt for one view from GrabCut's first labels: the object's points (N, 3) that land on its
+    sure foreground as positive points, the scene's points that land on background as negative ones (PROMPT_POINTS
+    of each at most, spread), and the box of where the object probably is; without positive points, the middle of
+    that region."""
+    import cv2
+
+    region = (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
+    if not region.any():
+        region = np.ones(labels.shape, bool)
+    ys, xs = np.nonzero(region)
+    box = np.array([xs.min(), ys.min(), xs.max() + 1, ys.max() + 1], np.float64)
+    positive = spread_points(points_on(camera, points, labels == cv2.GC_FGD), PROMPT_POINTS)
+    if not len(positive):
+        positive = np.array([[xs.mean() + 0.5, ys.mean() + 0.5]])
+    background = (labels == cv2.GC_BGD) | (labels == cv2.GC_PR_BGD)
+    negative = spread_points(points_on(camera, scene_points, background), PROMPT_POINTS)
+    return Prompt(labels, positive, negative, box)
+
+
 def object_mask(image: np.ndarray, camera: Camera, cfg: MaskConfig, sphere: tuple[np.ndarray, float],
                 points: np.ndarray | None = None, segmenter=None,
-                seeds: np.ndarray | None = None) -> tuple[np.ndarray, str]:
+                seeds: np.ndarray | None = None, scene_points: np.ndarray | None = None) -> tuple[np.ndarray, str]:
     """First-pass foreground mask (h, w) of one linear RGB image, and the method used ("key", "grabcut" or
-    "learned": `segmenter`, a loaded network, prompted like GrabCut).
+    "learned": `segmenter`, a loaded dpi.preprocess.segmenter, prompted by `view_prompt`).
 
     GrabCut and the segmenter start from `first_prior` of the sphere (centre, radius), the object's points (N, 3) and
-    the view's parallax seeds."""
+    the view's parallax seeds; the segmenter's negative points come from `scene_points`."""
     from dpi.preprocess.segmenter import learned_mask
 
     image8 = to_uint8(image)
@@ -266,7 +314,8 @@ def object_mask(image: np.ndarray, camera: Camera, cfg: MaskConfig, sphere: tupl
     if method == "key":
         mask = key_mask(image8, colour, max(KEY_THRESHOLD, 2 * spread))
     elif method == "learned":
-        mask = learned_mask(segmenter, image8, first_prior(camera, sphere, points, seeds))
+        prompt = view_prompt(camera, first_prior(camera, sphere, points, seeds), points, scene_points)
+        mask = learned_mask(segmenter, image8, prompt)
     else:
         mask = grabcut(image8, first_prior(camera, sphere, points, seeds), GRABCUT_ITERATIONS)
     return clean_mask(mask, FILL_HOLES_BELOW), method
@@ -409,9 +458,9 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
     if cfg.method not in METHODS:
         raise ValueError(f"mask method must be one of {', '.join(METHODS)}, got {cfg.method!r}")
     if cfg.method == "learned" and not cfg.weights:
-        raise ValueError("preprocess.masks.method learned needs preprocess.masks.weights (a segmenter's .pt2 file)")
+        raise ValueError("preprocess.masks.method learned needs preprocess.masks.weights (the segmenter's file)")
     weights = weights_file(cfg.weights) if cfg.weights and cfg.method in ("auto", "learned") else None
-    segmenter = load_segmenter(weights) if weights else None
+    segmenter = load_segmenter(cfg.segmenter, weights) if weights else None
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     names = [n for n in images if n in cameras]
@@ -431,12 +480,12 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
     prompted = any(choose_method(image8, cfg, segmenter)[0] != "key" for image8 in images8)  # keying takes no seeds
     support = support_plane(views, centre, scene_points)
     seeds = parallax_seeds(pictures, views, centre, support) if cfg.parallax and prompted else [None] * len(views)
-    first = [object_mask(picture, camera, cfg, sphere, points, segmenter, seed)
+    first = [object_mask(picture, camera, cfg, sphere, points, segmenter, seed, scene_points)
              for picture, camera, seed in zip(pictures, views, seeds)]
     masks, methods = [m for m, _ in first], [method for _, method in first]
     use_points = points is not None and len(points) >= MIN_POINTS
     summary = {"views": {}, "prior": "sphere and sparse points" if use_points else "sphere", "consensus_rounds": 0,
-               **({"segmenter": str(weights)} if weights else {})}
+               **({"segmenter": str(weights), "segmenter_kind": cfg.segmenter} if weights else {})}
     if "grabcut" in methods:
         to_cut = [image8 if method == "grabcut" else None for image8, method in zip(images8, methods)]
         refined, new_methods = refine_masks(to_cut, views, masks, seeds=seeds, support=support)
