@@ -36,7 +36,7 @@ benchmarks: setup
 HOTDOG ?=
 studies: setup
 	$(VENV)/bin/python benchmarks/posterior/posterior.py --panoramas $(PANORAMAS) --samplers proximal unperturbed paper --dps unperturbed:proximal.perturb=0
-	$(VENV)/bin/python benchmarks/calibration/calibration.py --scenes blob_sun_metal blob_sun_rough blob_ldr_metal blob_ldr_rough torus_sun_metal torus_sun_rough --methods init none sds dip dps --samplers proximal --repeats 3 --samples 4
+	$(VENV)/bin/python benchmarks/calibration/calibration.py --scenes blob_sun_metal blob_sun_rough blob_ldr_metal blob_ldr_rough torus_sun_metal torus_sun_rough --methods init none sds dip gan reni dps --samplers proximal --repeats 3 --samples 4
 	$(VENV)/bin/python benchmarks/roughness/roughness.py
 	$(VENV)/bin/python benchmarks/resolution/resolution.py
 	$(VENV)/bin/python benchmarks/lens/lens.py

@@ -288,6 +288,20 @@ def test_a_salient_object_onnx_model_cuts_the_masks_on_the_crop_of_the_object(ca
         assert mask_iou(read_mask(tmp_path / "masks" / f"{camera.name}.png"), truth) > 0.9
 
 
+def test_masks_cut_without_any_sparse_point_say_so_when_they_fail(cameras, tmp_path):
+    """A photo that is all object (one colour up to its edges) leaves GrabCut nothing: with no sparse points to
+    start from, the error names their absence as the likely cause, not the mask settings."""
+    from dpi.io.images import write_srgb
+
+    images = {}
+    for camera in cameras[:3]:
+        write_srgb(tmp_path / f"{camera.name}.png", np.full((camera.height, camera.width, 3), 0.3))
+        images[camera.name] = tmp_path / f"{camera.name}.png"
+    with pytest.raises(ValueError, match=r"empty foreground mask \(grabcut\); no sparse point of the object"):
+        derive_masks(images, {c.name: c for c in cameras[:3]}, tmp_path / "masks", MaskConfig(method="grabcut",
+                                                                                              parallax=False))
+
+
 def test_a_missing_or_broken_segmenter_is_one_line(cameras, tmp_path):
     images, _ = red_sphere_photos(cameras[:3], tmp_path)
     views = {c.name: c for c in cameras[:3]}

@@ -158,10 +158,12 @@ def derive_geometry(capture_json: str | Path, out_dir: str | Path, settings: dic
     from dpi.preprocess.geometry import GeometryConfig, reconstruct_surface
 
     set_threads(threads)
-    if masks_dir and (Path(masks_dir) / SUMMARY_FILE).is_file():
+    derived = read_json(Path(masks_dir) / SUMMARY_FILE) if masks_dir and (Path(masks_dir) / SUMMARY_FILE).is_file() \
+        else None
+    if derived:
         from dpi.preprocess.mask_confidence import check_usable
 
-        check_usable(read_json(Path(masks_dir) / SUMMARY_FILE), str(masks_dir))
+        check_usable(derived, str(masks_dir))
     capture = pinhole_capture(capture_json, cameras_json)
     cameras = {v.name: v.camera for v in capture.views if v.camera}
     masks = ({p.stem: p for p in Path(masks_dir).glob("*.png")} if masks_dir
@@ -177,8 +179,15 @@ def derive_geometry(capture_json: str | Path, out_dir: str | Path, settings: dic
         paths = {v.name: v.image for v in capture.views}
         images = [read_image(paths[n]) for n in names]
     start = time.perf_counter()
-    vertices, faces, summary = reconstruct_surface([cameras[n] for n in names], [read_mask(masks[n]) for n in names],
-                                                   cfg, images)
+    try:
+        vertices, faces, summary = reconstruct_surface([cameras[n] for n in names],
+                                                       [read_mask(masks[n]) for n in names], cfg, images)
+    except ValueError as exc:
+        if not derived or derived.get("prior") != "sphere":
+            raise
+        from dpi.preprocess.masks import WITHOUT_POINTS
+
+        raise ValueError(f"{exc}: {WITHOUT_POINTS}") from None
     summary["seconds"] = round(time.perf_counter() - start, 3)
     files = geometry_files(out_dir)
     write_mesh_ply(files["mesh"], vertices, faces)

@@ -64,6 +64,10 @@ METHODS = ("auto", "grabcut", "key", "learned")
 
 
 GRABCUT_ITERATIONS = 5
+WITHOUT_POINTS = ("no sparse point of the object was triangulated from the photos, so its masks started from the "
+                  "sphere the cameras look at alone: the object too small or too large in the frames, textureless, or "
+                  "the photos blurred")
+"""the likely cause when masks cut without any of the object's sparse points fail"""
 PROMPT_POINTS = 8
 """a segmenter's positive and negative prompt points per view, at most (spread over the points that qualify)"""
 
@@ -497,8 +501,8 @@ def derive_masks(images: dict[str, Path], cameras: dict[str, Camera], out_dir: s
     reasons = {}
     for i, (name, image8, camera, mask, method) in enumerate(zip(names, images8, views, masks, methods)):
         if not mask.any():
-            raise ValueError(f"{images[name]}: empty foreground mask ({method}); check the capture or the mask "
-                             "settings")
+            cause = "check the capture or the mask settings" if use_points else WITHOUT_POINTS
+            raise ValueError(f"{images[name]}: empty foreground mask ({method}); {cause}")
         view = {"method": method, "foreground_fraction": round(float(mask.mean()), 4)}
         for key, value in (("agreement", None if agreement is None else agreement[i]),
                            ("point_coverage", point_coverage(camera, mask, points)),
