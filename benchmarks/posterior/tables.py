@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from dpi.io.layout import INIT
 from table_format import Row, ALBEDO, BY_METHOD, ENV, FIT, SECONDS, VIEW, Metric, grouped_table, latest, method_order, read_rows
 
 HERE = Path("benchmarks") / "posterior"
@@ -16,13 +17,18 @@ def posterior_rows(root: Path) -> list[Row]:
 
 
 def posterior(root: Path) -> str:
-    """Posterior study, the README's headline: every method (dps with its default sampler) per scene group,
-    over scenes and seeds (the training fit: `posterior_full`)."""
+    """Posterior study, the README's headline: every method drawn on all the study's seeds (dps with its default
+    sampler) per scene group, over scenes and seeds; a method with seeds still to draw is in `posterior_full`."""
     from dpi.io.settings import field_default
     from dpi.solve.dps.config import DPSConfig
 
     default = field_default(DPSConfig, "sampler")
     rows = [r for r in posterior_rows(root) if r["method"] != "dps" or r["sampler"] == default]
+    seeds: dict[str, set] = {}
+    for row in rows:
+        seeds.setdefault(row["method"], set()).add(row["seed"])
+    every = set().union(*(s for m, s in seeds.items() if m != INIT))  # the init is one fit a scene
+    rows = [r for r in rows if r["method"] == INIT or seeds[r["method"]] == every]
     metrics = (VIEW, ENV, ALBEDO, Metric("relight PSNR-H [dB]", "relight_psnr_h", ".2f", +1), SECONDS)
     return grouped_table(rows, ("group", "method"), metrics, rank_by="group", order=method_order)
 
