@@ -144,15 +144,21 @@ def _border_background(labels: np.ndarray, border: float = 0.03) -> None:
         strip[...] = cv2.GC_BGD
 
 
+def in_frame(camera: Camera, points: np.ndarray) -> np.ndarray:
+    """Pixel positions (N, 2) of the points (N, 3) in front of `camera` that project into its frame."""
+    xy, depth = camera.project(points)
+    inside = (depth > 0) & (xy[:, 0] >= 0) & (xy[:, 0] < camera.width) & (xy[:, 1] >= 0) & (xy[:, 1] < camera.height)
+    return xy[inside]
+
+
 def points_hull(camera: Camera, points: np.ndarray) -> np.ndarray | None:
     """Convex hull (h, w) of the projections of the points (N, 3) in the view; None when fewer than 3 are in it."""
     import cv2
 
-    xy, depth = camera.project(points)
-    inside = (depth > 0) & (xy[:, 0] >= 0) & (xy[:, 0] < camera.width) & (xy[:, 1] >= 0) & (xy[:, 1] < camera.height)
-    if inside.sum() < 3:
+    xy = in_frame(camera, points)
+    if len(xy) < 3:
         return None
-    hull = cv2.convexHull(np.round(xy[inside] - 0.5).astype(np.int32).reshape(-1, 1, 2))
+    hull = cv2.convexHull(np.round(xy - 0.5).astype(np.int32).reshape(-1, 1, 2))
     region = np.zeros((camera.height, camera.width), np.uint8)
     cv2.fillConvexPoly(region, hull, 1)
     return region > 0
@@ -276,9 +282,7 @@ def points_on(camera: Camera, points: np.ndarray | None, where: np.ndarray) -> n
     """Pixel positions (N, 2) of the points (N, 3) in front of `camera` whose pixel lies in `where` (h, w)."""
     if points is None or not len(points):
         return np.zeros((0, 2))
-    xy, depth = camera.project(points)
-    inside = (depth > 0) & (xy[:, 0] >= 0) & (xy[:, 0] < camera.width) & (xy[:, 1] >= 0) & (xy[:, 1] < camera.height)
-    xy = xy[inside]
+    xy = in_frame(camera, points)
     return xy[where[xy[:, 1].astype(int), xy[:, 0].astype(int)]]
 
 
