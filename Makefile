@@ -46,8 +46,8 @@ studies: setup
 	$(VENV)/bin/python benchmarks/readings/readings.py --panoramas $(PANORAMAS) --repeats 3 --samples 4
 	$(VENV)/bin/python benchmarks/preprocess/preprocess.py --backgrounds textured --no-stereo --arc 180 --out benchmarks/preprocess/mask_witnesses.csv
 	$(VENV)/bin/python benchmarks/preprocess/preprocess.py --backgrounds textured --no-stereo --arc 360 --out benchmarks/preprocess/mask_witnesses.csv
-	$(VENV)/bin/python benchmarks/real_photos/real_photos.py --capture skull_photos --stereo
-	$(VENV)/bin/python benchmarks/real_photos/real_photos.py --capture saharov32 --captures ../shared/captures --stereo
+	$(VENV)/bin/python benchmarks/real_photos/real_photos.py --capture skull_photos
+	$(VENV)/bin/python benchmarks/real_photos/real_photos.py --capture saharov32 --captures ../shared/captures
 	$(VENV)/bin/snakemake --cores $(CORES)
 	$(VENV)/bin/python benchmarks/sun_size/sun_size.py results
 	$(VENV)/bin/python benchmarks/seams/seams.py demo=results skull=results/benchmarks/real_photos/results scan=results/benchmarks/posterior_study/results --scenes demo skull_photos torus_scan

@@ -9,10 +9,10 @@ rotation and centre errors after one similarity, dpi.preprocess.accuracy.pose_er
 against the hand-checked one, the views the masks' witnesses flagged (and how they judged the checked views: those
 under 0.8 and under 0.9 IoU flagged, those over 0.9 flagged), the stages' seconds and the held-out views' PSNR
 per method. A run that stops (the masks judged unusable) is scored as far as it got and says where it stopped. One
-row per run goes to benchmarks/real_photos/real_photos.csv.
+row per run goes to benchmarks/real_photos/real_photos.csv: the defaults a user gets, or a named variant.
 
     .venv/bin/python benchmarks/real_photos/real_photos.py [--capture skull_photos|saharov32] [--captures ../shared/captures]
-        [--cores 2] [--samples 2] [--stereo]
+        [--cores 2] [--samples 2] [--variant defaults|no_stereo]
 """
 
 from __future__ import annotations
@@ -42,7 +42,9 @@ WORK = work_dir("real_photos")
 CSV = results_csv("real_photos")
 METHODS = ("init", "dps", "none")
 STAGES = ("poses", "masks", "geometry", "uv")
-COLUMNS = ("capture", "views", "size", "registered", "reprojection_px", "reference_reprojection_px",
+VARIANTS = {"defaults": {}, "no_stereo": {"preprocess": {"geometry": {"stereo": False}}}}
+"""the settings each named run changes from the defaults a user gets"""
+COLUMNS = ("capture", "variant", "views", "size", "registered", "reprojection_px", "reference_reprojection_px",
            "rotation_error_deg", "centre_error", "mask_iou", "mask_iou_min", "masks_flagged", "masks_below_08",
            "flagged_below_08", "masks_below_09", "flagged_below_09", "flagged_above_09",
            *(f"{s}_seconds" for s in STAGES),
@@ -147,13 +149,13 @@ def main() -> None:
                         help="the shared captures folder (saharov32 is read from it)")
     parser.add_argument("--cores", type=int, default=2)
     parser.add_argument("--samples", type=int, default=2, help="posterior samples per method")
-    parser.add_argument("--stereo", action="store_true", help="carve with multi-view stereo too (minutes more)")
+    parser.add_argument("--variant", default="defaults", choices=tuple(VARIANTS),
+                        help="the defaults a user gets, or a named change of them")
     args = parser.parse_args()
     name, capture = args.capture, captures(args.captures)[args.capture]
     WORK.mkdir(parents=True, exist_ok=True)
     config = {"scenes": [name], "captures_dir": str(prepare(name, capture)), "results_dir": str(WORK / "results"),
-              "methods": [m for m in METHODS if m != "init"], "samples": args.samples,
-              "preprocess": {"geometry": {"stereo": args.stereo}}}
+              "methods": [m for m in METHODS if m != "init"], "samples": args.samples, **VARIANTS[args.variant]}
     seconds, stopped = run_workflow(config, args.cores)
     results = WORK / "results"
     scene = SceneLayout(results / name)
@@ -166,7 +168,7 @@ def main() -> None:
     size = read_mask(next(scene.masks.glob("*.png"))).shape
     flags = [v in flagged for v in ious]
     below_09 = [iou < 0.9 for iou in ious.values()]
-    row = {"capture": name, "views": poses["images"], "size": f"{size[1]}x{size[0]}",
+    row = {"capture": name, "variant": args.variant, "views": poses["images"], "size": f"{size[1]}x{size[0]}",
            "registered": poses["registered"] / poses["images"], "reprojection_px": poses["mean_reprojection_error_px"],
            **reference_errors(capture, scene.poses["cameras"]),
            "mask_iou": float(np.mean(list(ious.values()))), "mask_iou_min": min(ious.values()),

@@ -15,13 +15,14 @@ HERE = Path("benchmarks") / "real_photos"
 def real_photos(root: Path) -> str:
     """Real photo captures end to end (benchmarks/real_photos/real_photos.py): poses (against a published solution where there
     is one), derived masks against the checked ones and the witnesses' flags, the photo stages' seconds, held-out
-    views per method and where a run stopped; the newest row per capture."""
-    rows = latest(read_rows(root / HERE / "real_photos.csv", ("capture", "size", "stopped")), ("capture",))
+    views per method and where a run stopped; the newest row per capture and run (the defaults, or a named variant)."""
+    rows = latest(read_rows(root / HERE / "real_photos.csv", ("capture", "variant", "size", "stopped")),
+                  ("capture", "variant"))
 
     def cell(value: Any, spec: str, scale: float = 1.0) -> str:
         return "-" if not isinstance(value, float) or math.isnan(value) else f"{scale * value:{spec}}"
 
-    body = [[r["capture"], f"{r['views']:.0f} of {r['size']}", f"{r['registered']:.0%}",
+    body = [[r["capture"], r["variant"].replace("_", " "), f"{r['views']:.0f} of {r['size']}", f"{r['registered']:.0%}",
              f"{r['reprojection_px']:.2f}" + ("" if cell(r.get("reference_reprojection_px"), ".2f") == "-" else
                                               f" (published {r['reference_reprojection_px']:.2f})"),
              f"{cell(r['rotation_error_deg'], '.2f')} / {cell(r['centre_error'], '.1f', 100)}",
@@ -33,7 +34,7 @@ def real_photos(root: Path) -> str:
              " / ".join(cell(r[f"{m}_view_psnr"], ".2f") for m in ("init", "dps", "none")), f"{r['seconds'] / 60:.1f}",
              r["stopped"] or "-"]
             for r in rows]
-    return markdown(["capture", "photos", "registered", "reproj. [px]", "vs published: rotation [deg] / centre [%]",
+    return markdown(["capture", "run", "photos", "registered", "reproj. [px]", "vs published: rotation [deg] / centre [%]",
                      "mask IoU vs checked", "flagged (checked: <0.8 / <0.9 / >0.9 IoU)",
                      "poses / masks / geometry / uv [s]", "held-out PSNR init / dps / none [dB]", "min", "stopped at"],
                     body)
